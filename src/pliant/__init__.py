@@ -1,0 +1,30 @@
+"""pliant: flexible parts (hoses, pipes, cables) in assembly and disassembly.
+
+The vocabulary (``Part``, ``Problem``, conditions) imports at once; the solvers load
+numba kernels, so ``solve`` and ``trace`` are imported on first use.
+"""
+
+from pliant.core import Condition as Condition
+from pliant.core import Equilibrium as Equilibrium
+from pliant.core import Material as Material
+from pliant.core import Part as Part
+from pliant.core import Problem as Problem
+from pliant.core import StationLoad as StationLoad
+from pliant.core import clamp as clamp
+from pliant.core import grip as grip
+from pliant.core import interpolate as interpolate
+from pliant.core import pin as pin
+from pliant.core import push as push
+
+__version__ = "0.1.0"
+
+_LAZY = {"solve": "pliant.models.elastica2d", "trace": "pliant.models.elastica2d",
+         "ShootingSolver": "pliant.models.elastica2d"}
+
+
+def __getattr__(name: str):
+    if name in _LAZY:
+        import importlib
+
+        return getattr(importlib.import_module(_LAZY[name]), name)
+    raise AttributeError(f"module 'pliant' has no attribute {name!r}")

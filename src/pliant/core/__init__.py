@@ -1,0 +1,13 @@
+"""The shared vocabulary: parts, conditions, problems and equilibria (SI units)."""
+
+from pliant.core.conditions import Condition as Condition
+from pliant.core.conditions import clamp as clamp
+from pliant.core.conditions import grip as grip
+from pliant.core.conditions import pin as pin
+from pliant.core.conditions import push as push
+from pliant.core.equilibrium import Equilibrium as Equilibrium
+from pliant.core.equilibrium import StationLoad as StationLoad
+from pliant.core.part import Material as Material
+from pliant.core.part import Part as Part
+from pliant.core.problem import Problem as Problem
+from pliant.core.problem import interpolate as interpolate

@@ -1,0 +1,188 @@
+"""The answer of a solve: shape, internal forces, reactions, energy, convergence facts.
+
+Internal force convention (stated once, used everywhere): ``internal_force[i]`` and
+``bending_moment[i]`` are the force [N] and moment [N m] that the part beyond s_i exerts on
+the part before s_i, in the global frame. Then N = n . t (tension positive) and
+Q = n . nu with t = (cos theta, sin theta), nu = (-sin theta, cos theta), and
+M = EI (dtheta/ds - kappa0). At a station the arrays hold two samples, before and after
+its jump.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from functools import cached_property
+from typing import Any
+
+import numpy as np
+
+from pliant.core.problem import Problem
+
+
+@dataclass(frozen=True)
+class StationLoad:
+    """The load a condition applies to the part at its station.
+
+    force : (2,) float [N], global frame; moment : float [N m], counter-clockwise.
+    prescribed : which of (Fx, Fy, moment) are reactions (their pair was prescribed);
+        the others are the loads that were applied (a follower force is resolved into
+        the global frame at the deformed angle).
+    """
+
+    name: str
+    s: float
+    force: np.ndarray
+    moment: float
+    prescribed: tuple[bool, bool, bool]
+
+    @property
+    def is_reaction(self) -> bool:
+        return any(self.prescribed)
+
+    def to_dict(self) -> dict[str, Any]:
+        return {"name": self.name, "s": self.s, "force": [float(f) for f in self.force],
+                "moment": float(self.moment), "prescribed": list(self.prescribed)}
+
+
+@dataclass(frozen=True, eq=False)
+class Samples:
+    """The arrays of an equilibrium along s (see ``Equilibrium``)."""
+
+    s: np.ndarray
+    position: np.ndarray
+    angle: np.ndarray
+    internal_force: np.ndarray
+    bending_moment: np.ndarray
+    energy: float
+    loads: dict[str, StationLoad]
+
+
+@dataclass(frozen=True, eq=False)
+class Equilibrium:
+    """An equilibrium of a 2D problem.
+
+    residual : float, the largest boundary residual where the solver stopped, relative
+        (lengths by L, forces by EI/L^2, moments by EI/L)
+    iterations : Newton iterations in all; steps : continuation steps taken
+    notes : facts the user should know (a bifurcation passed, a branch chosen)
+    state : the solver's own data for warm starts (opaque)
+
+    The arrays are computed on first access (a solve in an interactive loop need not
+    pay for them): s : (n,) float [m]; position : (n, 2) float [m]; angle : (n,) float
+    [rad]; internal_force : (n, 2) float [N]; bending_moment : (n,) float [N m];
+    energy : float [J], the elastic bending energy; loads : the load of every condition,
+    by name (reactions where prescribed).
+    """
+
+    problem: Problem
+    residual: float
+    iterations: int
+    steps: int
+    sampler: Callable[[], Samples] = field(repr=False)
+    notes: tuple[str, ...] = ()
+    state: Any = field(default=None, repr=False)
+
+    @cached_property
+    def samples(self) -> Samples:
+        return self.sampler()
+
+    @property
+    def s(self) -> np.ndarray:
+        return self.samples.s
+
+    @property
+    def position(self) -> np.ndarray:
+        return self.samples.position
+
+    @property
+    def angle(self) -> np.ndarray:
+        return self.samples.angle
+
+    @property
+    def internal_force(self) -> np.ndarray:
+        return self.samples.internal_force
+
+    @property
+    def bending_moment(self) -> np.ndarray:
+        return self.samples.bending_moment
+
+    @property
+    def energy(self) -> float:
+        return self.samples.energy
+
+    @property
+    def loads(self) -> dict[str, StationLoad]:
+        return self.samples.loads
+
+    @property
+    def reactions(self) -> dict[str, StationLoad]:
+        """The loads of the conditions with at least one prescribed component."""
+        return {k: v for k, v in self.loads.items() if v.is_reaction}
+
+    @property
+    def tangent(self) -> np.ndarray:
+        return np.column_stack([np.cos(self.angle), np.sin(self.angle)])
+
+    @property
+    def axial_force(self) -> np.ndarray:
+        """N [N], tension positive."""
+        c, s = np.cos(self.angle), np.sin(self.angle)
+        return self.internal_force[:, 0] * c + self.internal_force[:, 1] * s
+
+    @property
+    def shear_force(self) -> np.ndarray:
+        """Q [N], along the left normal nu = (-sin theta, cos theta)."""
+        c, s = np.cos(self.angle), np.sin(self.angle)
+        return -self.internal_force[:, 0] * s + self.internal_force[:, 1] * c
+
+    @property
+    def curvature(self) -> np.ndarray:
+        """dtheta/ds [1/m] = kappa0 + M / EI."""
+        part = self.problem.part
+        kappa0 = np.array([part.rest_curvature_at(float(si)) for si in self.s])
+        return kappa0 + self.bending_moment / part.bending_stiffness
+
+    @property
+    def tip(self) -> tuple[float, float, float]:
+        """(x [m], y [m], angle [rad]) at s = L."""
+        return (float(self.position[-1, 0]), float(self.position[-1, 1]),
+                float(self.angle[-1]))
+
+    def max_moment(self) -> tuple[float, float]:
+        """(|M| max [N m], s [m] where it occurs)."""
+        i = int(np.argmax(np.abs(self.bending_moment)))
+        return float(abs(self.bending_moment[i])), float(self.s[i])
+
+    def min_bend_radius(self) -> tuple[float, float]:
+        """(smallest bend radius [m], s [m] where it occurs); inf for a straight part."""
+        kappa = np.abs(self.curvature)
+        i = int(np.argmax(kappa))
+        radius = math.inf if kappa[i] == 0.0 else 1.0 / float(kappa[i])
+        return radius, float(self.s[i])
+
+    def to_dict(self) -> dict[str, Any]:
+        """The full result as plain JSON-ready data (SI units)."""
+        return {
+            "problem": self.problem.name,
+            "s": self.s.tolist(),
+            "x": self.position[:, 0].tolist(),
+            "y": self.position[:, 1].tolist(),
+            "angle": self.angle.tolist(),
+            "N": self.axial_force.tolist(),
+            "Q": self.shear_force.tolist(),
+            "M": self.bending_moment.tolist(),
+            "internal_force": self.internal_force.tolist(),
+            "loads": {k: v.to_dict() for k, v in self.loads.items()},
+            "tip": list(self.tip),
+            "energy": self.energy,
+            "max_moment": list(self.max_moment()),
+            "min_bend_radius": list(self.min_bend_radius()),
+            "residual": self.residual,
+            "iterations": self.iterations,
+            "steps": self.steps,
+            "notes": list(self.notes),
+            "units": {"length": "m", "force": "N", "moment": "N m", "angle": "rad",
+                      "energy": "J"},
+        }

@@ -1,0 +1,161 @@
+"""The flexible part: length, stiffness, mass and rest shape, in SI units."""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+
+from pliant.errors import InputError
+
+
+def _positive(name: str, value: float, unit: str) -> float:
+    value = float(value)
+    if not math.isfinite(value) or value <= 0.0:
+        raise InputError(name, f"must be a positive number in {unit}, got {value!r}")
+    return value
+
+
+def _non_negative(name: str, value: float, unit: str) -> float:
+    value = float(value)
+    if not math.isfinite(value) or value < 0.0:
+        raise InputError(name, f"must be zero or a positive number in {unit}, got {value!r}")
+    return value
+
+
+@dataclass(frozen=True)
+class Material:
+    """An isotropic elastic material.
+
+    youngs_modulus : float [Pa]
+    density : float [kg/m^3]
+    shear_modulus : float [Pa]; from the Poisson ratio when not given.
+    """
+
+    youngs_modulus: float
+    density: float = 0.0
+    shear_modulus: float | None = None
+    poisson_ratio: float = 0.5
+    name: str = ""
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "youngs_modulus",
+                           _positive("youngs_modulus", self.youngs_modulus, "Pa"))
+        object.__setattr__(self, "density", _non_negative("density", self.density, "kg/m^3"))
+        nu = float(self.poisson_ratio)
+        if not -1.0 < nu <= 0.5:
+            raise InputError("poisson_ratio", f"must lie in (-1, 0.5], got {nu!r}")
+        if self.shear_modulus is None:
+            object.__setattr__(self, "shear_modulus", self.youngs_modulus / (2.0 * (1.0 + nu)))
+        else:
+            object.__setattr__(self, "shear_modulus",
+                               _positive("shear_modulus", self.shear_modulus, "Pa"))
+
+
+@dataclass(frozen=True)
+class Part:
+    """A beam-type flexible part (hose, pipe, cable).
+
+    length : float [m]
+    bending_stiffness : float [N m^2], EI
+    mass_per_length : float [kg/m], for self-weight
+    torsional_stiffness : float [N m^2] or None, GJ (used by the 3D model)
+    outer_diameter, inner_diameter : float [m] or None, the tube section (display, contact)
+    rest_curvature : float [1/m], or a sequence of (s [m], kappa [1/m]) knots interpolated
+        linearly; the curvature of the unloaded neutral line (pre-formed hoses)
+    min_bend_radius : float [m] or None, the smallest radius the part tolerates
+    """
+
+    length: float
+    bending_stiffness: float
+    mass_per_length: float = 0.0
+    torsional_stiffness: float | None = None
+    outer_diameter: float | None = None
+    inner_diameter: float = 0.0
+    rest_curvature: float | tuple[tuple[float, float], ...] = 0.0
+    min_bend_radius: float | None = None
+    name: str = "part"
+    rest_knots: tuple[tuple[float, float], ...] = field(init=False, repr=False)
+
+    def __post_init__(self) -> None:
+        set_ = object.__setattr__
+        set_(self, "length", _positive("length", self.length, "m"))
+        set_(self, "bending_stiffness",
+             _positive("bending_stiffness", self.bending_stiffness, "N m^2"))
+        set_(self, "mass_per_length",
+             _non_negative("mass_per_length", self.mass_per_length, "kg/m"))
+        if self.torsional_stiffness is not None:
+            set_(self, "torsional_stiffness",
+                 _positive("torsional_stiffness", self.torsional_stiffness, "N m^2"))
+        if self.outer_diameter is not None:
+            set_(self, "outer_diameter", _positive("outer_diameter", self.outer_diameter, "m"))
+            inner = _non_negative("inner_diameter", self.inner_diameter, "m")
+            if inner >= self.outer_diameter:
+                raise InputError("inner_diameter",
+                                 f"must be smaller than outer_diameter {self.outer_diameter} m, "
+                                 f"got {inner} m")
+            set_(self, "inner_diameter", inner)
+        if self.min_bend_radius is not None:
+            set_(self, "min_bend_radius",
+                 _positive("min_bend_radius", self.min_bend_radius, "m"))
+        set_(self, "rest_knots", self._knots(self.rest_curvature))
+
+    def _knots(self, rest: float | Sequence[Sequence[float]]) -> tuple[tuple[float, float], ...]:
+        if isinstance(rest, (int, float)):
+            kappa = float(rest)
+            if not math.isfinite(kappa):
+                raise InputError("rest_curvature", f"must be finite, got {kappa!r}")
+            return ((0.0, kappa), (self.length, kappa))
+        knots: list[tuple[float, float]] = []
+        for i, pair in enumerate(rest):
+            if len(pair) != 2:
+                raise InputError(f"rest_curvature[{i}]",
+                                 "each knot is a pair (s [m], curvature [1/m])")
+            s, kappa = float(pair[0]), float(pair[1])
+            if not (math.isfinite(s) and math.isfinite(kappa)):
+                raise InputError(f"rest_curvature[{i}]", "must be finite numbers")
+            if not 0.0 <= s <= self.length:
+                raise InputError(f"rest_curvature[{i}]",
+                                 f"s = {s} m lies outside the part [0, {self.length}] m")
+            if knots and s <= knots[-1][0]:
+                raise InputError(f"rest_curvature[{i}]",
+                                 "knots must be given with strictly increasing s")
+            knots.append((s, kappa))
+        if not knots:
+            raise InputError("rest_curvature", "give a number or at least one (s, kappa) knot")
+        return tuple(knots)
+
+    @classmethod
+    def tube(cls, length: float, outer_diameter: float, material: Material,
+             inner_diameter: float = 0.0, **kwargs) -> Part:
+        """A part with a circular (hollow) section of a given material.
+
+        EI = E pi (D^4 - d^4) / 64, GJ = G pi (D^4 - d^4) / 32, mass = rho pi (D^2 - d^2) / 4.
+        """
+        outer = _positive("outer_diameter", outer_diameter, "m")
+        inner = _non_negative("inner_diameter", inner_diameter, "m")
+        if inner >= outer:
+            raise InputError("inner_diameter",
+                             f"must be smaller than outer_diameter {outer} m, got {inner} m")
+        second_moment = math.pi * (outer**4 - inner**4) / 64.0
+        area = math.pi * (outer**2 - inner**2) / 4.0
+        assert material.shear_modulus is not None
+        return cls(length=length,
+                   bending_stiffness=material.youngs_modulus * second_moment,
+                   torsional_stiffness=material.shear_modulus * 2.0 * second_moment,
+                   mass_per_length=material.density * area,
+                   outer_diameter=outer, inner_diameter=inner, **kwargs)
+
+    @property
+    def straight_at_rest(self) -> bool:
+        return all(kappa == 0.0 for _, kappa in self.rest_knots)
+
+    def rest_curvature_at(self, s: float) -> float:
+        """Rest curvature [1/m] at arc length s [m] (linear between knots)."""
+        knots = self.rest_knots
+        if s <= knots[0][0]:
+            return knots[0][1]
+        for (s0, k0), (s1, k1) in zip(knots, knots[1:]):
+            if s <= s1:
+                return k0 + (k1 - k0) * (s - s0) / (s1 - s0)
+        return knots[-1][1]

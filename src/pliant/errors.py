@@ -1,0 +1,50 @@
+"""Typed errors of pliant.
+
+Every error says what is wrong and what to change, in one line. Errors about input name
+the field (``field``) so that file loaders and the CLI can point at it. A solver that
+cannot converge raises ``ConvergenceError`` carrying its residual and the last good state.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+
+class PliantError(Exception):
+    """Base class of every error pliant raises on purpose."""
+
+
+class InputError(PliantError, ValueError):
+    """A value given by the user is invalid; ``field`` names it."""
+
+    def __init__(self, field: str, message: str) -> None:
+        self.field = field
+        super().__init__(f"{field}: {message}")
+
+
+class IllPosedProblemError(PliantError, ValueError):
+    """The conditions do not define one equilibrium (too few, conflicting)."""
+
+
+class UnreachableTargetError(InputError):
+    """Prescribed positions farther apart than the part between them is long."""
+
+
+class ConvergenceError(PliantError, RuntimeError):
+    """A solver stopped without an equilibrium.
+
+    residual : the relative residual where it stopped (dimensionless).
+    last_good : the last converged state (an ``Equilibrium``) or None.
+    progress : how far along its continuation path the solver got, in [0, 1].
+    """
+
+    def __init__(self, message: str, *, residual: float, last_good: Any = None,
+                 progress: float = 0.0) -> None:
+        self.residual = residual
+        self.last_good = last_good
+        self.progress = progress
+        super().__init__(message)
+
+
+class FileFormatError(PliantError, ValueError):
+    """A problem or scene file cannot be read; the message names file and field."""

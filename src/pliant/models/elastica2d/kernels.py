@@ -1,0 +1,541 @@
+"""Numba kernels of the 2D elastica: shooting with exact sensitivities, and Newton.
+
+Everything here is dimensionless: arc length by the part length L, forces by EI/L^2,
+moments by EI/L. The state along the neutral line is
+
+    h(s) = [x, y, theta, nx, ny, m, e]
+
+where (x, y) is the neutral line, theta the tangent angle from +x, n = (nx, ny) the
+internal force in the global frame and m the bending moment, both exerted by the part
+beyond s on the part before s, and e the accumulated elastic energy. The paper's
+H = [x, y, theta, N, Q, M] follows from N = n . t and Q = n . nu with t = (cos theta,
+sin theta) and nu = (-sin theta, cos theta). The equations (Kirchhoff, inextensible,
+unshearable) are
+
+    x' = cos theta,  y' = sin theta,  theta' = kappa0(s) + m,
+    n' = -f,  m' = -(t x n) = -(cos theta ny - sin theta nx),  e' = m^2 / 2,
+
+with f the distributed dead load (self-weight). A station k applies a point force P_k
+and a point moment C_k to the part, so that n(s_k-) = n(s_k+) + P_k and
+m(s_k-) = m(s_k+) + C_k, with n(0-) = 0 and n(1+) = 0 at the two ends. Each of the three
+pairs (x, Px), (y, Py), (theta, C) of a station is either prescribed (the position or
+angle is given, the load is an unknown reaction) or applied (the load is given).
+
+The unknowns z are, at s = 0, for each pair the unknown half (reaction or position), and
+at every later station one reaction per prescribed component. The residuals are the
+prescribed components at every later station, and n(1+) = 0, m(1+) = 0. The system is
+square by construction. Sensitivities dh/dz are integrated with the same Runge-Kutta
+stages as the state (internal differentiation), so the Jacobian is the exact derivative
+of the discrete map and Newton converges quadratically.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit
+
+NSTATE = 7  # x, y, theta, nx, ny, m, e
+
+# Newton status codes, mirrored by ``solver.Status``.
+CONVERGED = 0
+MAX_ITERATIONS = 1
+SINGULAR = 2
+NOT_CONTRACTING = 3
+NOT_FINITE = 4
+
+
+@njit(cache=True)
+def _apply_station(k, y, Y, ncol, z, st_kind, st_val, st_fol, st_col, res, jac, row, want_jac):
+    """Record the residuals of station k (k >= 1) and apply its jump; return the next row."""
+    for i in range(3):
+        if st_kind[k, i] == 1:
+            res[row] = y[i] - st_val[k, i]
+            if want_jac:
+                for q in range(ncol):
+                    jac[row, q] = Y[i, q]
+            row += 1
+    for i in range(3):
+        if st_kind[k, i] == 1:
+            col = st_col[k, i]
+            y[3 + i] -= z[col]
+            if want_jac:
+                Y[3 + i, col] -= 1.0
+        else:
+            y[3 + i] -= st_val[k, i]
+    _apply_follower(k, y, Y, ncol, st_fol, want_jac)
+    return row
+
+
+@njit(cache=True)
+def _apply_follower(k, y, Y, ncol, st_fol, want_jac):
+    """Subtract the follower force R(theta) (ft, fn) of station k from n."""
+    ft = st_fol[k, 0]
+    fn = st_fol[k, 1]
+    if ft == 0.0 and fn == 0.0:
+        return
+    c = math.cos(y[2])
+    sn = math.sin(y[2])
+    y[3] -= ft * c - fn * sn
+    y[4] -= ft * sn + fn * c
+    if want_jac:
+        dpx = -ft * sn - fn * c
+        dpy = ft * c - fn * sn
+        for q in range(ncol):
+            Y[3, q] -= dpx * Y[2, q]
+            Y[4, q] -= dpy * Y[2, q]
+
+
+@njit(cache=True)
+def _integrate(y, Y, ncol, s0, s1, nsteps, prm, kappa0, kappa1,
+               a, b, c, K, KY, traj, tpos, want_jac, stats):
+    """Advance (y, Y) from s0 to s1 in nsteps fixed RK steps; write states to traj.
+
+    Only (theta, m) feed back into the equations, so only they (and their sensitivities)
+    are carried through the stages; x, y and the energy are quadratures of the stage
+    values with the weights b. With a dead distributed load f, n is exactly linear in s,
+    n(s) = n(s0) - f (s - s0), and its sensitivities are constant on the segment. The
+    rest curvature is linear on the segment, from kappa0 at s0 to kappa1 at s1 (its knots
+    are stations). stats[0], stats[1] accumulate max|theta'| and max|n| at step ends.
+    K : (nst, 2) and KY : (nst, 2, nz) are work arrays.
+    """
+    h = (s1 - s0) / nsteps
+    slope = (kappa1 - kappa0) / (s1 - s0)
+    gx = prm[0]
+    gy = prm[1]
+    bow = prm[2]
+    nx0 = y[3]
+    ny0 = y[4]
+    nst = b.shape[0]
+    record = traj.shape[0] > 0
+    if record:
+        for q in range(NSTATE):
+            traj[tpos, q] = y[q]
+        tpos += 1
+    for step in range(nsteps):
+        s = s0 + step * h
+        th0 = y[2]
+        m0 = y[5]
+        dx = 0.0
+        dy = 0.0
+        de = 0.0
+        for i in range(nst):
+            th = th0
+            m = m0
+            for j in range(i):
+                w = h * a[i, j]
+                if w != 0.0:
+                    th += w * K[j, 0]
+                    m += w * K[j, 1]
+            si = s + c[i] * h
+            nx = nx0 - gx * (si - s0)
+            ny = ny0 - gy * (si - s0)
+            ct = math.cos(th)
+            st = math.sin(th)
+            kappa = kappa0 + slope * (si - s0) + m
+            if bow != 0.0:
+                kappa += bow * math.cos(2.0 * math.pi * si)
+            K[i, 0] = kappa
+            K[i, 1] = -(ct * ny - st * nx)
+            bi = b[i]
+            if bi != 0.0:
+                dx += bi * ct
+                dy += bi * st
+                de += bi * 0.5 * m * m
+            if want_jac:
+                dm_dth = st * ny + ct * nx
+                for q in range(ncol):
+                    yth = Y[2, q]
+                    ym = Y[5, q]
+                    for j in range(i):
+                        w = h * a[i, j]
+                        if w != 0.0:
+                            yth += w * KY[j, 0, q]
+                            ym += w * KY[j, 1, q]
+                    KY[i, 0, q] = ym
+                    KY[i, 1, q] = dm_dth * yth + st * Y[3, q] - ct * Y[4, q]
+                    if bi != 0.0:
+                        Y[0, q] += h * bi * (-st * yth)
+                        Y[1, q] += h * bi * (ct * yth)
+        for i in range(nst):
+            w = h * b[i]
+            if w != 0.0:
+                y[2] += w * K[i, 0]
+                y[5] += w * K[i, 1]
+                if want_jac:
+                    for q in range(ncol):
+                        Y[2, q] += w * KY[i, 0, q]
+                        Y[5, q] += w * KY[i, 1, q]
+        y[0] += h * dx
+        y[1] += h * dy
+        y[6] += h * de
+        y[3] = nx0 - gx * (s + h - s0)
+        y[4] = ny0 - gy * (s + h - s0)
+        if record:
+            for q in range(NSTATE):
+                traj[tpos, q] = y[q]
+            tpos += 1
+        kappa = abs(K[nst - 1, 0])
+        if kappa > stats[0]:
+            stats[0] = kappa
+        force = math.sqrt(y[3] * y[3] + y[4] * y[4])
+        if force > stats[1]:
+            stats[1] = force
+    return tpos
+
+
+@njit(cache=True)
+def shoot(z, st_s, st_kind, st_val, st_fol, st_col, seg_steps, seg_ncol, prm,
+          st_kappa, a, b, c, want_jac, traj):
+    """Integrate from s = 0 to 1 with unknowns z; return (residual, Jacobian, stats).
+
+    st_kappa : (nst,) float, the rest curvature at the stations (linear in between)
+    stats : (2,) float, max|theta'| and max|n| over the step ends: the wavenumber
+    max|theta'| + sqrt(max|n|) tells the caller whether the mesh resolves the solution.
+
+    prm : (3,) float, [fx, fy, bow]: the distributed dead load (fx, fy) per unit length
+    and the amplitude of a rest-curvature imperfection bow * cos(2 pi s) that the solver
+    adds, then removes, to leave a singular (symmetric) starting point.
+
+    traj : (npts, 7) float, written when it has rows: the state at both ends of every
+    step, segment by segment (stations appear twice: before and after their jump).
+    """
+    nz = z.shape[0]
+    nstations = st_s.shape[0]
+    res = np.zeros(nz)
+    jac = np.zeros((nz, nz))
+    y = np.zeros(NSTATE)
+    Y = np.zeros((6, nz))
+    # Station 0: each pair gives one unknown, z[i].
+    for i in range(3):
+        if st_kind[0, i] == 1:
+            y[i] = st_val[0, i]
+            y[3 + i] = -z[i]
+            Y[3 + i, i] = -1.0
+        else:
+            y[i] = z[i]
+            y[3 + i] = -st_val[0, i]
+            Y[i, i] = 1.0
+    _apply_follower(0, y, Y, 3, st_fol, want_jac)
+    nst = b.shape[0]
+    K = np.empty((nst, 2))
+    KY = np.zeros((nst, 2, nz))
+    row = 0
+    tpos = 0
+    stats = np.zeros(2)
+    for k in range(nstations - 1):
+        ncol = seg_ncol[k]
+        tpos = _integrate(y, Y, ncol, st_s[k], st_s[k + 1], seg_steps[k], prm,
+                          st_kappa[k], st_kappa[k + 1], a, b, c, K, KY, traj, tpos,
+                          want_jac, stats)
+        ncol_next = seg_ncol[k + 1] if k + 1 < nstations - 1 else nz
+        row = _apply_station(k + 1, y, Y, ncol_next, z, st_kind, st_val, st_fol, st_col,
+                             res, jac, row, want_jac)
+    # Beyond the last end nothing acts: n(1+) = 0 and m(1+) = 0.
+    for i in range(3):
+        res[row] = y[3 + i]
+        if want_jac:
+            for q in range(nz):
+                jac[row, q] = Y[3 + i, q]
+        row += 1
+    return res, jac, stats
+
+
+@njit(cache=True)
+def lu_solve(A, rhs):
+    """Solve A x = rhs by Gaussian elimination with partial pivoting.
+
+    Returns (x, ok); ok is False when a pivot falls below 1e-13 of the largest entry,
+    which the caller reports as a singular Jacobian (a fold or bifurcation point, or an
+    ill-posed problem).
+    """
+    n = rhs.shape[0]
+    M = A.copy()
+    x = rhs.copy()
+    scale = 0.0
+    for i in range(n):
+        for j in range(n):
+            v = abs(M[i, j])
+            if v > scale:
+                scale = v
+    if scale == 0.0 or not math.isfinite(scale):
+        return x, False
+    for col in range(n):
+        piv = col
+        best = abs(M[col, col])
+        for r in range(col + 1, n):
+            v = abs(M[r, col])
+            if v > best:
+                best = v
+                piv = r
+        if best <= 1e-13 * scale:
+            return x, False
+        if piv != col:
+            for j in range(n):
+                t = M[col, j]
+                M[col, j] = M[piv, j]
+                M[piv, j] = t
+            t = x[col]
+            x[col] = x[piv]
+            x[piv] = t
+        for r in range(col + 1, n):
+            f = M[r, col] / M[col, col]
+            if f != 0.0:
+                for j in range(col, n):
+                    M[r, j] -= f * M[col, j]
+                x[r] -= f * x[col]
+    for col in range(n - 1, -1, -1):
+        acc = x[col]
+        for j in range(col + 1, n):
+            acc -= M[col, j] * x[j]
+        x[col] = acc / M[col, col]
+    return x, True
+
+
+@njit(cache=True)
+def max_abs(v):
+    m = 0.0
+    for i in range(v.shape[0]):
+        a = abs(v[i])
+        if a > m or a != a:
+            m = a
+    return m
+
+
+@njit(cache=True)
+def _broyden(jac, step, res_new, res_old):
+    """Broyden's rank-one update of a reused Jacobian after a step: afterwards
+    jac @ step equals the observed change of the residual."""
+    n = step.shape[0]
+    ss = 0.0
+    for i in range(n):
+        ss += step[i] * step[i]
+    if ss == 0.0:
+        return
+    for i in range(n):
+        miss = res_new[i] - res_old[i]
+        for j in range(n):
+            miss -= jac[i, j] * step[j]
+        f = miss / ss
+        for j in range(n):
+            jac[i, j] += f * step[j]
+
+
+@njit(cache=True)
+def newton(z0, jac0, st_s, st_kind, st_val, st_fol, st_col, seg_steps, seg_ncol, prm,
+           st_kappa, a, b, c, tol, max_iter, contraction):
+    """Newton on the shooting residual, reusing its Jacobian while it contracts fast.
+
+    jac0 : a Jacobian near z0 to start with (a warm start's), or an empty array.
+    contraction > 0: a continuation corrector. No damping: the iteration is rejected
+        (NOT_CONTRACTING) when, with a fresh Jacobian, the residual fails to shrink by
+        that factor, which tells the caller to take a shorter step instead of letting
+        Newton wander onto another branch.
+    contraction <= 0: a damped Newton with backtracking on the residual norm.
+    A reused (stale) Jacobian gets Broyden updates and is refreshed whenever an
+    iteration contracts by less than 10x, so the convergence stays superlinear at a
+    fraction of the cost of fresh Jacobians.
+
+    Returns (z, residual_inf_norm, iterations, status, jac, stats, theta), theta the
+    contraction r1 / r0 of the first iteration (of the failing one when rejected).
+    """
+    empty = np.zeros((0, NSTATE))
+    nz = z0.shape[0]
+    z = z0.copy()
+    fresh = jac0.shape[0] != nz
+    res, jac, stats = shoot(z, st_s, st_kind, st_val, st_fol, st_col, seg_steps, seg_ncol,
+                            prm, st_kappa, a, b, c, fresh, empty)
+    if not fresh:
+        jac = jac0.copy()
+    r = max_abs(res)
+    theta = 0.0
+    if not math.isfinite(r):
+        return z, r, 0, NOT_FINITE, jac, stats, 1.0
+    it = 0
+    while it < max_iter:
+        if r <= tol:
+            return z, r, it, CONVERGED, jac, stats, theta
+        it += 1
+        dz, ok = lu_solve(jac, -res)
+        if not ok:
+            if fresh:
+                return z, r, it, SINGULAR, jac, stats, 1.0
+            res, jac, stats = shoot(z, st_s, st_kind, st_val, st_fol, st_col, seg_steps,
+                                    seg_ncol, prm, st_kappa, a, b, c, True, empty)
+            fresh = True
+            continue
+        t = 1.0
+        accepted = False
+        for _ in range(40):
+            zt = z + t * dz
+            rt_vec, _, st = shoot(zt, st_s, st_kind, st_val, st_fol, st_col, seg_steps,
+                                  seg_ncol, prm, st_kappa, a, b, c, False, empty)
+            rt = max_abs(rt_vec)
+            if it == 1 or not math.isfinite(rt):
+                theta = rt / r if math.isfinite(rt) else 1e3
+            if contraction > 0.0:
+                accepted = rt <= contraction * r or rt <= tol
+                break
+            if math.isfinite(rt) and rt <= (1.0 - 1e-4 * t) * r:
+                accepted = True
+                break
+            if not fresh:
+                break
+            t *= 0.5
+        if not accepted:
+            if fresh:
+                return z, r, it, NOT_CONTRACTING, jac, stats, max(theta, rt / r)
+            # A stale Jacobian may be to blame: refresh it and try again from z.
+            res, jac, stats = shoot(z, st_s, st_kind, st_val, st_fol, st_col, seg_steps,
+                                    seg_ncol, prm, st_kappa, a, b, c, True, empty)
+            fresh = True
+            continue
+        # Round-off floor: a step this small cannot lower the residual any further.
+        stagnant = max_abs(t * dz) <= 1e-13 * (1.0 + max_abs(z)) and rt <= 1e3 * tol
+        slow = rt > 0.1 * r
+        if not fresh:
+            _broyden(jac, t * dz, rt_vec, res)
+        z = zt
+        res = rt_vec
+        r = rt
+        stats = st
+        if stagnant:
+            return z, r, it, CONVERGED, jac, stats, theta
+        if slow and r > tol:
+            res, jac, stats = shoot(z, st_s, st_kind, st_val, st_fol, st_col, seg_steps,
+                                    seg_ncol, prm, st_kappa, a, b, c, True, empty)
+            fresh = True
+        else:
+            fresh = False
+    if r <= tol:
+        return z, r, it, CONVERGED, jac, stats, theta
+    return z, r, it, MAX_ITERATIONS, jac, stats, theta
+
+
+# Continuation status codes (beyond Newton's).
+STALLED = 5
+BUDGET = 6
+
+# Layout of the options vector of ``follow``.
+OPT_TOL, OPT_LOOSE, OPT_CONTRACTION, OPT_MIN_STEP, OPT_MAX_STEPS, OPT_MAX_ITER, \
+    OPT_ACCURACY, OPT_MIN_DENSITY, OPT_GROW, OPT_SHRINK, OPT_PATH_ACCURACY = range(11)
+
+
+@njit(cache=True)
+def mesh_steps(st_s, density):
+    """Runge-Kutta steps per segment for a number of steps per unit length."""
+    n = st_s.shape[0] - 1
+    steps = np.empty(n, dtype=np.int64)
+    for k in range(n):
+        steps[k] = max(1, int(math.ceil((st_s[k + 1] - st_s[k]) * density - 1e-9)))
+    return steps
+
+
+@njit(cache=True)
+def needed_density(stats, accuracy, min_density):
+    """Steps per unit length that resolve the wavenumber max|theta'| + sqrt(max|n|)."""
+    k = stats[0] + math.sqrt(stats[1])
+    return max(min_density, int(math.ceil(k / accuracy)))
+
+
+@njit(cache=True)
+def follow(z0, jac0, density, st_s, st_kind, st_col, seg_ncol, st_kappa,
+           val0, fol0, prm0, val1, fol1, prm1, a, b, c, opts):
+    """Continuation from (arrays0, z0), an exact solution, to arrays1.
+
+    The homotopy moves every input linearly, t from 0 to 1. Each step is a Newton
+    corrector that must contract (see ``newton``), else the step is cut by 4; after an
+    accepted step the next one doubles. The predictor is the secant through the last two
+    points. Intermediate points only need to be on the branch: they converge to a loose
+    tolerance (relative to how far the homotopy moves its inputs) on a mesh of the
+    coarser path accuracy. The end point converges to the full
+    tolerance on a mesh refined until it resolves the solution to the accuracy asked for.
+
+    Returns (z, jac, density, stats, residual, status, last, t, iterations, steps);
+    status is CONVERGED, STALLED or BUDGET, and last the status of the last Newton.
+    """
+    tol = opts[OPT_TOL]
+    # Intermediate points converge relative to how far the homotopy moves the inputs.
+    span = 0.0
+    for i in range(val0.shape[0]):
+        for j in range(3):
+            span = max(span, abs(val1[i, j] - val0[i, j]))
+        for j in range(2):
+            span = max(span, abs(fol1[i, j] - fol0[i, j]))
+    for j in range(3):
+        span = max(span, abs(prm1[j] - prm0[j]))
+    loose = max(tol, opts[OPT_LOOSE] * span)
+    contraction = opts[OPT_CONTRACTION]
+    min_step = opts[OPT_MIN_STEP]
+    max_steps = int(opts[OPT_MAX_STEPS])
+    max_iter = int(opts[OPT_MAX_ITER])
+    accuracy = opts[OPT_ACCURACY]
+    min_density = int(opts[OPT_MIN_DENSITY])
+    grow = opts[OPT_GROW]
+    shrink = opts[OPT_SHRINK]
+    path_accuracy = opts[OPT_PATH_ACCURACY]
+    nz = z0.shape[0]
+    val = val0.copy()
+    fol = fol0.copy()
+    prm = prm0.copy()
+    z = z0.copy()
+    jac = jac0.copy()
+    z_prev = z0.copy()
+    t_prev = -1.0
+    t = 0.0
+    dt = 1.0
+    r = math.inf
+    steps = 0
+    iterations = 0
+    stats = np.zeros(2)
+    seg_steps = mesh_steps(st_s, density)
+    last_status = CONVERGED
+    while steps < max_steps:
+        t_next = min(1.0, t + dt)
+        for i in range(val.shape[0]):
+            for j in range(3):
+                val[i, j] = val0[i, j] + t_next * (val1[i, j] - val0[i, j])
+            for j in range(2):
+                fol[i, j] = fol0[i, j] + t_next * (fol1[i, j] - fol0[i, j])
+        for j in range(3):
+            prm[j] = prm0[j] + t_next * (prm1[j] - prm0[j])
+        predictor = z.copy()
+        if t_prev >= 0.0:
+            w = (t_next - t) / (t - t_prev)
+            for q in range(nz):
+                predictor[q] += w * (z[q] - z_prev[q])
+        final = t_next >= 1.0
+        zn, rn, it, status, jn, st, theta = newton(
+            predictor, jac, st_s, st_kind, val, fol, st_col, seg_steps, seg_ncol, prm,
+            st_kappa, a, b, c, tol if final else loose, max_iter, contraction)
+        iterations += it
+        if status == CONVERGED:
+            steps += 1
+            z_prev = z
+            t_prev = t
+            z = zn
+            jac = jn
+            r = rn
+            t = t_next
+            stats = st
+            need = needed_density(stats, accuracy if final else path_accuracy, min_density)
+            if need > density:
+                density = int(math.ceil(1.1 * need))
+                seg_steps = mesh_steps(st_s, density)
+                if final:
+                    # Converge the end point once more, on the finer mesh.
+                    t_prev = -1.0
+                    t = 1.0 - 1e-12
+                    dt = 1.0
+                    continue
+            if final:
+                return z, jac, density, stats, r, CONVERGED, CONVERGED, t, iterations, steps
+            dt = min(grow if it <= 2 else math.sqrt(grow), 1.0 / dt) * dt
+        else:
+            last_status = status
+            dt *= shrink
+            if dt < min_step:
+                return (z, jac, density, stats, rn, STALLED, last_status, t, iterations,
+                        steps)
+    return z, jac, density, stats, r, BUDGET, last_status, t, iterations, steps

@@ -1,0 +1,255 @@
+"""Lower a 2D ``Problem`` into the dimensionless arrays of the shooting kernel.
+
+Scales: lengths by L, forces by EI/L^2, moments by EI/L, distributed loads by EI/L^3.
+Stations are the problem's stations plus both ends and the knots of the rest curvature
+(so that no Runge-Kutta step straddles a kink of kappa0, which would cost accuracy).
+
+A ``Lowered`` problem also knows its *rest state*: the unloaded part placed so that it
+meets the prescribed components of the first station exactly and the others as well as a
+rigid placement can. The solver's homotopy starts there (all loads zero, every prescribed
+component at its rest value) and ends at the problem.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from pliant.core.problem import Problem, Station
+from pliant.models.elastica2d import kernels
+from pliant.models.elastica2d.tableau import dop853
+
+PRESCRIBED = 1
+APPLIED = 0
+
+
+@dataclass(frozen=True, eq=False)
+class Arrays:
+    """The load-dependent kernel inputs at one point of a homotopy."""
+
+    val: np.ndarray  # (nst, 3): prescribed kinematics or applied dead loads
+    fol: np.ndarray  # (nst, 2): follower loads (tangential, normal)
+    prm: np.ndarray  # (3,): fx, fy, bow
+
+    def lerp(self, other: Arrays, t: float) -> Arrays:
+        return Arrays(self.val + t * (other.val - self.val),
+                      self.fol + t * (other.fol - self.fol),
+                      self.prm + t * (other.prm - self.prm))
+
+
+@dataclass(frozen=True, eq=False)
+class Mesh:
+    """Runge-Kutta steps per segment, and the columns active in each segment."""
+
+    steps: np.ndarray  # (nst - 1,) int64
+    density: int  # steps per unit (dimensionless) length
+
+    @property
+    def npoints(self) -> int:
+        return int(self.steps.sum() + self.steps.shape[0])
+
+
+@dataclass(frozen=True, eq=False)
+class Lowered:
+    problem: Problem
+    length: float
+    stiffness: float
+    st_s: np.ndarray  # (nst,)
+    st_kind: np.ndarray  # (nst, 3) int64
+    st_col: np.ndarray  # (nst, 3) int64
+    seg_ncol: np.ndarray  # (nst - 1,) int64
+    st_kappa: np.ndarray  # (nst,) rest curvature at the stations, linear in between
+    target: Arrays
+    station_of: tuple[Station | None, ...]  # the problem's station behind each kernel station
+    nz: int
+
+    # -- scales ---------------------------------------------------------------------------
+    @property
+    def force_scale(self) -> float:
+        return self.stiffness / self.length**2
+
+    @property
+    def moment_scale(self) -> float:
+        return self.stiffness / self.length
+
+    # -- kernel calls ---------------------------------------------------------------------
+    def mesh(self, density: int) -> Mesh:
+        gaps = np.diff(self.st_s)
+        steps = np.maximum(1, np.ceil(gaps * density - 1e-9)).astype(np.int64)
+        return Mesh(steps=steps, density=int(density))
+
+    def args(self, arrays: Arrays, mesh: Mesh) -> tuple:
+        a, b, c = dop853()
+        return (self.st_s, self.st_kind, arrays.val, arrays.fol, self.st_col, mesh.steps,
+                self.seg_ncol, arrays.prm, self.st_kappa, a, b, c)
+
+    def shoot(self, z: np.ndarray, arrays: Arrays, mesh: Mesh, want_jac: bool = True,
+              trajectory: bool = False) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(residual, Jacobian, trajectory); the trajectory is empty unless asked for."""
+        traj = np.zeros((mesh.npoints if trajectory else 0, kernels.NSTATE))
+        res, jac, _ = kernels.shoot(z, *self.args(arrays, mesh), want_jac, traj)
+        return res, jac, traj
+
+    def station_rows(self, mesh: Mesh) -> np.ndarray:
+        """Row of each station in a trajectory (the start of its segment; the end for
+        the last station)."""
+        rows = np.concatenate([[0], np.cumsum(mesh.steps + 1)])
+        rows[-1] -= 1
+        return rows
+
+    # -- the rest state -------------------------------------------------------------------
+    def rest(self, mesh: Mesh, bow: float = 0.0) -> tuple[Arrays, np.ndarray]:
+        """The homotopy's start: (arrays, unknowns) of the unloaded, placed part,
+        integrated on the mesh the homotopy will use, so that it is an exact start."""
+        free = np.zeros_like(self.st_kind)
+        no_loads = Arrays(np.zeros_like(self.target.val), np.zeros_like(self.target.fol),
+                          np.array([0.0, 0.0, bow]))
+        a, b, c = dop853()
+        traj = np.zeros((mesh.npoints, kernels.NSTATE))
+        kernels.shoot(np.zeros(self.nz), self.st_s, free, no_loads.val, no_loads.fol,
+                      self.st_col, mesh.steps, self.seg_ncol, no_loads.prm, self.st_kappa,
+                      a, b, c, False, traj)
+        shape = traj[self.station_rows(mesh), :3]  # unit placement: pose (0, 0, 0) at s = 0
+        pose = self._placement(shape)
+        cos_p, sin_p = math.cos(pose[2]), math.sin(pose[2])
+        placed = np.column_stack([pose[0] + cos_p * shape[:, 0] - sin_p * shape[:, 1],
+                                  pose[1] + sin_p * shape[:, 0] + cos_p * shape[:, 1],
+                                  pose[2] + shape[:, 2]])
+        val = np.where(self.st_kind == PRESCRIBED, placed, 0.0)
+        z = np.zeros(self.nz)
+        for i in range(3):
+            if self.st_kind[0, i] == APPLIED:
+                z[i] = pose[i]
+        return Arrays(val, no_loads.fol, no_loads.prm), z
+
+    def _placement(self, shape: np.ndarray) -> tuple[float, float, float]:
+        """Rigid pose of s = 0 that best meets the prescribed kinematics at rest."""
+        kind, tgt = self.st_kind, self.target.val
+        angle = 0.0
+        with_angle = np.nonzero(kind[:, 2] == PRESCRIBED)[0]
+        located = np.nonzero((kind[:, 0] == PRESCRIBED) & (kind[:, 1] == PRESCRIBED))[0]
+        if with_angle.size:
+            k = with_angle[0]
+            angle = tgt[k, 2] - shape[k, 2]
+        elif located.size >= 2:
+            a, b = located[0], located[-1]
+            want = math.atan2(tgt[b, 1] - tgt[a, 1], tgt[b, 0] - tgt[a, 0])
+            have = math.atan2(shape[b, 1] - shape[a, 1], shape[b, 0] - shape[a, 0])
+            angle = want - have
+        cos_p, sin_p = math.cos(angle), math.sin(angle)
+        origin = [0.0, 0.0]
+        for i in range(2):
+            rows = np.nonzero(kind[:, i] == PRESCRIBED)[0]
+            if rows.size:
+                k = rows[0]
+                rotated = (cos_p * shape[k, 0] - sin_p * shape[k, 1] if i == 0
+                           else sin_p * shape[k, 0] + cos_p * shape[k, 1])
+                origin[i] = tgt[k, i] - rotated
+        return origin[0], origin[1], angle
+
+    def shortening(self, rest: Arrays) -> float:
+        """How much the targets shorten the chord between the first and last stations
+        whose position is prescribed (dimensionless, zero if they lengthen it)."""
+        kind = self.st_kind
+        located = np.nonzero((kind[:, 0] == PRESCRIBED) & (kind[:, 1] == PRESCRIBED))[0]
+        if located.size < 2:
+            return 0.0
+        a, b = located[0], located[-1]
+        rest_chord = float(np.hypot(*(rest.val[b, :2] - rest.val[a, :2])))
+        chord = float(np.hypot(*(self.target.val[b, :2] - self.target.val[a, :2])))
+        return max(0.0, rest_chord - chord)
+
+    def lateral_side(self, rest: Arrays) -> float:
+        """+1 or -1: the side (left or right of the rest chord) the targets moved to."""
+        kind = self.st_kind
+        moved = np.where(kind[:, :2] == PRESCRIBED, self.target.val[:, :2] - rest.val[:, :2],
+                         0.0)
+        located = np.nonzero((kind[:, 0] == PRESCRIBED) | (kind[:, 1] == PRESCRIBED))[0]
+        if located.size >= 2:
+            chord = rest.val[located[-1], :2] - rest.val[located[0], :2]
+        else:
+            chord = np.array([1.0, 0.0])
+        normal = np.array([-chord[1], chord[0]])
+        side = float(np.sum(moved @ normal))
+        return -1.0 if side < -1e-12 else 1.0
+
+    # -- unknowns <-> physical loads ------------------------------------------------------
+    def unknowns_from(self, position0: np.ndarray, angle0: float,
+                      loads: dict[str, tuple[np.ndarray, float]]) -> np.ndarray:
+        """Dimensionless unknowns from a physical state: the pose at s = 0 [m, rad] and
+        the load (force [N], moment [N m]) of every condition by name."""
+        z = np.zeros(self.nz)
+        pose0 = (position0[0] / self.length, position0[1] / self.length, angle0)
+        for k, station in enumerate(self.station_of):
+            for i in range(3):
+                col = self.st_col[k, i]
+                if col < 0:
+                    continue
+                if k == 0 and self.st_kind[0, i] == APPLIED:
+                    z[col] = pose0[i]
+                    continue
+                owner = station.owner[i] if station is not None else None
+                if owner is not None and owner in loads:
+                    force, moment = loads[owner]
+                    z[col] = (force[i] / self.force_scale if i < 2
+                              else moment / self.moment_scale)
+        return z
+
+
+def lower(problem: Problem) -> Lowered:
+    """Lower a 2D problem into kernel arrays (dimensionless)."""
+    part = problem.part
+    length, stiffness = part.length, part.bending_stiffness
+    force_scale = stiffness / length**2
+    moment_scale = stiffness / length
+    load_scale = (force_scale, force_scale, moment_scale)
+    kin_scale = (length, length, 1.0)
+
+    stations: list[tuple[float, Station | None]] = [(st.s / length, st)
+                                                     for st in problem.stations]
+    extra = [0.0, 1.0]
+    if len(part.rest_knots) > 2:
+        extra += [s / length for s, _ in part.rest_knots if 0.0 < s < length]
+    for s in extra:
+        if not any(abs(s - t) <= 1e-12 for t, _ in stations):
+            stations.append((s, None))
+    stations.sort(key=lambda item: item[0])
+    nst = len(stations)
+    st_s = np.array([s for s, _ in stations])
+    st_s[0], st_s[-1] = 0.0, 1.0
+    st_kind = np.zeros((nst, 3), dtype=np.int64)
+    st_col = np.full((nst, 3), -1, dtype=np.int64)
+    seg_ncol = np.empty(nst - 1, dtype=np.int64)
+    val = np.zeros((nst, 3))
+    fol = np.zeros((nst, 2))
+    col = 3
+    st_col[0] = (0, 1, 2)
+    for k, (_, st) in enumerate(stations):
+        if st is not None:
+            prescribed, kin, dead = st.prescribed, st.kinematics, st.dead_load
+            for i in range(3):
+                if prescribed[i]:
+                    st_kind[k, i] = PRESCRIBED
+                    val[k, i] = kin[i] / kin_scale[i]
+                    if k > 0:
+                        st_col[k, i] = col
+                        col += 1
+                else:
+                    val[k, i] = dead[i] / load_scale[i]
+            ft, fn = st.follower_load
+            fol[k] = (ft / force_scale, fn / force_scale)
+        if k < nst - 1:
+            seg_ncol[k] = col
+    gx, gy = problem.gravity
+    mu = part.mass_per_length
+    prm = np.array([mu * gx * length**3 / stiffness, mu * gy * length**3 / stiffness, 0.0])
+    if part.straight_at_rest:
+        st_kappa = np.zeros(nst)
+    else:
+        st_kappa = np.array([part.rest_curvature_at(s * length) * length for s in st_s])
+    return Lowered(problem=problem, length=length, stiffness=stiffness, st_s=st_s,
+                   st_kind=st_kind, st_col=st_col, seg_ncol=seg_ncol, st_kappa=st_kappa,
+                   target=Arrays(val, fol, prm),
+                   station_of=tuple(st for _, st in stations), nz=col)

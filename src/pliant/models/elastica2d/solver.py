@@ -1,0 +1,409 @@
+"""Solve the 2D elastica: ``solve(problem)`` and ``trace(problems)``.
+
+The route, for a problem with no warm start:
+
+1. Homotopy from the rest state (unloaded part, prescribed components where the rest
+   shape puts them) to the problem: loads scaled by t and prescribed components moved
+   linearly, t from 0 to 1 in adaptive steps. Each step is a Newton corrector that must
+   contract (the residual at least halves each iteration) or the step is shortened: a
+   contracting Newton converges to the solution continuously connected to the
+   predictor, so the answer is the branch continuity from the unloaded part reaches.
+2. When the rest state is itself singular (an end pushed along the straight part: an
+   inextensible part cannot shorten its chord to first order, so buckling up or down
+   are equally possible), the part is given a small bow imperfection toward the side the
+   targets moved to, the homotopy runs on that imperfect part, and the imperfection is
+   then removed by a second homotopy. The choice is reported in ``Equilibrium.notes``.
+3. The Runge-Kutta mesh is checked against the converged solution (its steps must
+   resolve the local wavenumber max|theta'| + sqrt(|n|/EI)); if too coarse, it is
+   refined and Newton polishes the answer. The reported residual is the one of the
+   final pass that produced the arrays.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from collections.abc import Iterable, Iterator
+from dataclasses import dataclass, field, replace
+
+import numpy as np
+
+from pliant.core.equilibrium import Equilibrium, Samples, StationLoad
+from pliant.core.problem import Problem
+from pliant.errors import ConvergenceError
+from pliant.models.elastica2d import kernels
+from pliant.models.elastica2d.lowering import APPLIED, Arrays, Lowered, Mesh, lower
+from pliant.models.elastica2d.tableau import dop853
+
+
+@dataclass(frozen=True)
+class ShootingSolver:
+    """Settings of the 2D shooting solver (an immutable config).
+
+    tolerance : relative residual at which Newton stops (lengths by L, forces by EI/L^2)
+    accuracy : the largest h * k allowed, h a Runge-Kutta step and k the local wavenumber
+        max|theta'| + sqrt(|n| / EI) (dimensionless); 0.5 keeps tip errors below 1e-10 L
+    min_density, samples : Runge-Kutta steps per part length at least, while solving and
+        in the returned arrays
+    max_steps, min_step : continuation budget (steps, smallest step in t)
+    time_budget : wall-clock seconds before a solve gives up
+    bow : the chord shortening of the imperfection (a rest curvature b cos(2 pi s / L) / L)
+        that leaves a singular start, as a fraction of the shortening the targets ask for;
+        bow_min, bow_max bound b
+    """
+
+    tolerance: float = 1e-10
+    max_iterations: int = 25
+    accuracy: float = 0.5
+    min_density: int = 8
+    samples: int = 64
+    max_steps: int = 2000
+    min_step: float = 1e-7
+    time_budget: float = 30.0
+    bow: float = 0.8
+    bow_min: float = 0.01
+    bow_max: float = 20.0
+    contraction: float = 0.5
+    loose_tolerance: float = 1e-4
+    grow: float = 2.0
+    shrink: float = 0.25
+    path_accuracy: float = 1.5
+
+
+@dataclass
+class _Stalled(Exception):
+    t: float
+    z: np.ndarray
+    residual: float
+    reason: str
+
+
+@dataclass(frozen=True, eq=False)
+class _WarmState:
+    """What a later solve needs to start from this one."""
+
+    low: Lowered
+    z: np.ndarray
+    jac: np.ndarray
+    mesh: Mesh
+
+
+@dataclass
+class _Point:
+    """A converged point of a route: unknowns, Jacobian, mesh, wavenumber statistics."""
+
+    z: np.ndarray
+    jac: np.ndarray
+    mesh: Mesh
+    stats: np.ndarray
+    residual: float
+
+
+_EMPTY_JAC = np.zeros((0, 0))
+_BRANCH_NOTE = "the unloaded part was a singular start"
+
+_REASONS = {
+    kernels.SINGULAR: "the Jacobian became singular (a fold or bifurcation: the branch "
+                      "ends or turns back here)",
+    kernels.NOT_FINITE: "the shape blew up",
+    kernels.MAX_ITERATIONS: "Newton ran out of iterations",
+}
+
+
+@dataclass
+class _Run:
+    low: Lowered
+    solver: ShootingSolver
+    iterations: int = 0
+    steps: int = 0
+    notes: list[str] = field(default_factory=list)
+    deadline: float = 0.0
+
+    def __post_init__(self) -> None:
+        self.deadline = time.perf_counter() + self.solver.time_budget
+
+    def newton(self, z0: np.ndarray, arrays: Arrays, mesh: Mesh, *, strict: bool,
+               tol: float, jac0: np.ndarray = _EMPTY_JAC):
+        opts = self.solver
+        z, r, it, status, jac, stats, _ = kernels.newton(
+            z0, jac0, *self.low.args(arrays, mesh), tol, opts.max_iterations,
+            opts.contraction if strict else 0.0)
+        self.iterations += it
+        return z, r, status, jac, stats
+
+    def need(self, stats: np.ndarray) -> int:
+        """Steps per unit length the solution with these statistics needs."""
+        k = float(stats[0]) + math.sqrt(float(stats[1]))
+        return max(self.solver.min_density, int(math.ceil(k / self.solver.accuracy)))
+
+    def singular(self, z: np.ndarray, arrays: Arrays, mesh: Mesh) -> bool:
+        _, jac, _ = self.low.shoot(z, arrays, mesh)
+        _, ok = kernels.lu_solve(jac, np.ones(self.low.nz))
+        return not ok
+
+    def follow(self, start: Arrays, end: Arrays, z0: np.ndarray, mesh: Mesh,
+               jac0: np.ndarray = _EMPTY_JAC) -> _Point:
+        """Continuation from (start, z0), an exact solution, to end (see
+        ``kernels.follow``)."""
+        opts, low = self.solver, self.low
+        if time.perf_counter() > self.deadline:
+            raise _Stalled(0.0, z0, math.inf,
+                           f"the time budget of {opts.time_budget} s ran out")
+        a, b, c = dop853()
+        options = np.array([opts.tolerance, max(opts.tolerance, opts.loose_tolerance),
+                            opts.contraction, opts.min_step, opts.max_steps - self.steps,
+                            opts.max_iterations, opts.accuracy, opts.min_density,
+                            opts.grow, opts.shrink, opts.path_accuracy], dtype=float)
+        z, jac, density, stats, r, status, last, t, iterations, steps = kernels.follow(
+            z0, jac0, mesh.density, low.st_s, low.st_kind, low.st_col, low.seg_ncol,
+            low.st_kappa, start.val, start.fol, start.prm, end.val, end.fol, end.prm,
+            a, b, c, options)
+        self.iterations += iterations
+        self.steps += steps
+        if status == kernels.BUDGET:
+            raise _Stalled(t, z, r, f"the continuation budget of {opts.max_steps} steps "
+                           "ran out")
+        if status != kernels.CONVERGED:
+            raise _Stalled(t, z, r, _REASONS.get(
+                last, "Newton stopped contracting however short the step (a fold: the "
+                "branch ends or turns back here)"))
+        return _Point(z, jac, low.mesh(density), stats, r)
+
+    # -- routes ---------------------------------------------------------------------------
+    def cold(self, mesh: Mesh) -> _Point:
+        low, opts = self.low, self.solver
+        rest, z0 = low.rest(mesh)
+        if not self.singular(z0, rest, mesh):
+            return self.follow(rest, low.target, z0, mesh)
+        side = low.lateral_side(rest)
+        # The bow cos(2 pi s) of amplitude b shortens the chord by b^2 / (16 pi^2). Making
+        # that most of what the targets ask lets the bowed part reach them under a small
+        # axial force (a nearly straight inextensible part is so stiff axially that the
+        # force would rise almost vertically along the path); removing the bow at the
+        # targets then raises the force smoothly, on the branch that bows to that side.
+        shortening = low.shortening(rest)
+        bow = side * min(opts.bow_max,
+                         max(opts.bow_min, 4.0 * math.pi * math.sqrt(opts.bow * shortening)))
+        rest_bowed, z0 = low.rest(mesh, bow)
+        target_bowed = replace(low.target, prm=low.target.prm + np.array([0.0, 0.0, bow]))
+        point = self.follow(rest_bowed, target_bowed, z0, mesh)
+        point = self.follow(target_bowed, low.target, point.z, point.mesh, point.jac)
+        self.notes.append(
+            f"{_BRANCH_NOTE} (a bifurcation: it can buckle to either "
+            f"side); pliant took the branch that bows to the {'left' if side > 0 else 'right'}"
+            " of its chord, the side its targets moved to; another equilibrium may exist on "
+            "the other side")
+        return point
+
+    def warm(self, warm: Equilibrium, follow_only: bool,
+             before: Equilibrium | None = None) -> _Point | None:
+        low, opts = self.low, self.solver
+        old = warm.state if isinstance(warm.state, _WarmState) else None
+        same = old is not None and _same_structure(old.low, low)
+        if same:
+            assert old is not None
+            z0, jac0, mesh = old.z, old.jac, old.mesh
+            predictor = _secant(before, old, low)
+            if predictor is not None:
+                z, r, status, jac, stats = self.newton(predictor, low.target, mesh,
+                                                       strict=True, tol=opts.tolerance,
+                                                       jac0=jac0)
+                if status == kernels.CONVERGED:
+                    self.steps += 1
+                    return self.polish(_Point(z, jac, mesh, stats, r))
+        else:
+            z0 = low.unknowns_from(warm.position[0], float(warm.angle[0]),
+                                   {k: (v.force, v.moment) for k, v in warm.loads.items()})
+            jac0 = _EMPTY_JAC
+            mesh = low.mesh(max(_density(opts, _load_wavenumber(low)),
+                                old.mesh.density if old is not None else 0))
+        z, r, status, jac, stats = self.newton(z0, low.target, mesh, strict=True,
+                                               tol=opts.tolerance, jac0=jac0)
+        if status == kernels.CONVERGED:
+            self.steps += 1
+            return self.polish(_Point(z, jac, mesh, stats, r))
+        if not same:
+            # A different structure (a grip switched to force control): no path between
+            # the two problems, so let a damped Newton find the nearby equilibrium.
+            z, r, status, jac, stats = self.newton(z0, low.target, mesh, strict=False,
+                                                   tol=opts.tolerance)
+            if status == kernels.CONVERGED:
+                self.steps += 1
+                return self.polish(_Point(z, jac, mesh, stats, r))
+            return None
+        assert old is not None
+        try:
+            return self.follow(old.low.target, low.target, z0, mesh, jac0)
+        except _Stalled:
+            if follow_only:
+                raise
+            return None
+
+    def polish(self, point: _Point) -> _Point:
+        """Refine the mesh where the converged solution outgrew it."""
+        need = self.need(point.stats)
+        if need <= point.mesh.density:
+            return point
+        mesh = self.low.mesh(int(math.ceil(1.1 * need)))
+        z, r, status, jac, stats = self.newton(point.z, self.low.target, mesh, strict=False,
+                                               tol=self.solver.tolerance, jac0=point.jac)
+        if status != kernels.CONVERGED:
+            raise _Stalled(1.0, point.z, r, "the refined mesh did not converge")
+        return _Point(z, jac, mesh, stats, r)
+
+
+def _secant(before: Equilibrium | None, old: _WarmState, low: Lowered) -> np.ndarray | None:
+    """Extrapolate the unknowns along a path of problems: the last two equilibria and
+    the distances between successive problems' inputs give a second-order predictor."""
+    if before is None or not isinstance(before.state, _WarmState):
+        return None
+    prior = before.state
+    if not _same_structure(prior.low, low):
+        return None
+    step_old = _distance(prior.low, old.low)
+    step_new = _distance(old.low, low)
+    if step_old == 0.0:
+        return None
+    return old.z + (step_new / step_old) * (old.z - prior.z)
+
+
+def _distance(a: Lowered, b: Lowered) -> float:
+    return float(np.sqrt(np.sum((a.target.val - b.target.val) ** 2)
+                         + np.sum((a.target.fol - b.target.fol) ** 2)
+                         + np.sum((a.target.prm - b.target.prm) ** 2)))
+
+
+def _same_structure(a: Lowered, b: Lowered) -> bool:
+    return (a.length == b.length and a.stiffness == b.stiffness
+            and a.st_s.shape == b.st_s.shape and np.array_equal(a.st_s, b.st_s)
+            and np.array_equal(a.st_kind, b.st_kind) and np.array_equal(a.st_kappa, b.st_kappa))
+
+
+def _density(solver: ShootingSolver, k: float) -> int:
+    return max(solver.min_density, int(math.ceil(k / solver.accuracy)))
+
+
+def _load_wavenumber(low: Lowered) -> float:
+    """A priori wavenumber from the applied loads (dimensionless)."""
+    tgt = low.target
+    applied = low.st_kind == APPLIED
+    forces = np.abs(np.where(applied[:, :2], tgt.val[:, :2], 0.0)).sum()
+    forces += np.abs(tgt.fol).sum() + float(np.hypot(tgt.prm[0], tgt.prm[1]))
+    moments = np.abs(np.where(applied[:, 2], tgt.val[:, 2], 0.0)).sum()
+    return math.sqrt(forces) + moments + float(np.abs(low.st_kappa).max())
+
+
+def solve(problem: Problem, *, warm_start: Equilibrium | None = None,
+          solver: ShootingSolver | None = None) -> Equilibrium:
+    """The equilibrium of a 2D problem.
+
+    warm_start : an earlier equilibrium (of this or a nearby problem) to start from; the
+        answer stays on its branch when a continuation from it can reach the problem.
+    Raises ConvergenceError (with the residual and the last good state) when no
+    equilibrium is found within the solver's budgets.
+    """
+    return _solve(problem, warm_start, solver or ShootingSolver(), follow_only=False)
+
+
+def _solve(problem: Problem, warm_start: Equilibrium | None, solver: ShootingSolver,
+           follow_only: bool, before: Equilibrium | None = None) -> Equilibrium:
+    low = lower(problem)
+    run = _Run(low, solver)
+    point = None
+    try:
+        if warm_start is not None:
+            point = run.warm(warm_start, follow_only, before)
+            if point is not None:
+                # What was said of the branch still holds along it.
+                run.notes[:0] = [n for n in warm_start.notes if n.startswith(_BRANCH_NOTE)]
+            else:
+                run.notes.append("the warm start could not be followed to this problem; "
+                                 "solved from the rest state instead")
+        if point is None:
+            point = run.polish(run.cold(low.mesh(_density(solver, _load_wavenumber(low)))))
+    except _Stalled as stall:
+        raise ConvergenceError(
+            f"no equilibrium: {stall.reason}; stopped at {stall.t:.3g} of the way "
+            f"(relative residual {stall.residual:.2e}); try smaller steps or check "
+            "that the targets can be reached",
+            residual=stall.residual, progress=stall.t, last_good=warm_start) from None
+    sampler = _Sampler(low, point.z, max(point.mesh.density, solver.samples))
+    return Equilibrium(problem=problem, residual=point.residual, iterations=run.iterations,
+                       steps=run.steps, sampler=sampler, notes=tuple(run.notes),
+                       state=_WarmState(low, point.z, point.jac, point.mesh))
+
+
+@dataclass(frozen=True, eq=False)
+class _Sampler:
+    """Integrates the converged unknowns once more on the output grid."""
+
+    low: Lowered
+    z: np.ndarray
+    density: int
+
+    def __call__(self) -> Samples:
+        low, z = self.low, self.z
+        mesh = low.mesh(self.density)
+        _, _, traj = low.shoot(z, low.target, mesh, want_jac=False, trajectory=True)
+        length, fs, ms = low.length, low.force_scale, low.moment_scale
+        s = np.concatenate([np.linspace(low.st_s[k], low.st_s[k + 1], mesh.steps[k] + 1)
+                            for k in range(mesh.steps.shape[0])]) * length
+        rows = low.station_rows(mesh)
+        loads: dict[str, StationLoad] = {}
+        for k, station in enumerate(low.station_of):
+            if station is None:
+                continue
+            theta = float(traj[rows[k], 2])
+            for cond in station.conditions:
+                loads[cond.name] = _station_load(low, k, station, cond, z, theta)
+        return Samples(s=s, position=traj[:, :2] * length, angle=traj[:, 2].copy(),
+                       internal_force=traj[:, 3:5] * fs, bending_moment=traj[:, 5] * ms,
+                       energy=float(traj[-1, 6]) * low.stiffness / length, loads=loads)
+
+
+def _station_load(low: Lowered, k: int, station, cond, z: np.ndarray,
+                  theta: float) -> StationLoad:
+    """The load of one condition: its reactions from the unknowns, its applied loads
+    from the problem (a follower force resolved at the deformed angle theta)."""
+    force = [0.0, 0.0]
+    moment = 0.0
+    flags = [False, False, False]
+    for i in range(3):
+        if station.owner[i] == cond.name:
+            flags[i] = True
+            value = z[low.st_col[k, i]]
+            if i < 2:
+                force[i] = value * low.force_scale
+            else:
+                moment = value * low.moment_scale
+    if cond.follower:
+        ft, fn = (cond.force[0] or 0.0), (cond.force[1] or 0.0)
+        force[0] += ft * math.cos(theta) - fn * math.sin(theta)
+        force[1] += ft * math.sin(theta) + fn * math.cos(theta)
+    else:
+        force[0] += cond.force[0] or 0.0
+        force[1] += cond.force[1] or 0.0
+    moment += cond.moment or 0.0
+    return StationLoad(cond.name, cond.s, np.array(force), moment,
+                       (flags[0], flags[1], flags[2]))
+
+
+def trace(problems: Iterable[Problem], *, start: Equilibrium | None = None,
+          solver: ShootingSolver | None = None) -> Iterator[Equilibrium]:
+    """Follow a sequence of problems (a hand moving, a load growing), warm-starting each
+    solve from the last equilibrium; yields one equilibrium per problem.
+
+    It stays on the branch it is on: where the branch ends or turns back (a fold, a
+    snap-through) it raises ConvergenceError with ``last_good`` the last equilibrium,
+    instead of jumping silently to another branch.
+    """
+    solver = solver or ShootingSolver()
+    previous, before = start, None
+    for problem in problems:
+        eq = _solve(problem, previous, solver, follow_only=previous is not None,
+                    before=before)
+        previous, before = eq, previous
+        yield eq
+
+
+__all__ = ["ShootingSolver", "solve", "trace"]

@@ -1,0 +1,131 @@
+"""The 2D elastica against closed forms: elliptic integrals, arcs, small deflections."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from scipy.optimize import brentq
+from scipy.special import ellipeinc, ellipk, ellipe, ellipkinc
+
+import pliant as pl
+from pliant.models.elastica2d import ShootingSolver, solve
+
+
+def cantilever_tip(alpha: float) -> tuple[float, float, float]:
+    """Tip (x/L, y/L, angle) of a cantilever clamped along +x with a dead tip force P
+    along +y, alpha = P L^2 / EI (Bisshopp and Drucker's elliptic-integral solution).
+
+    With EI theta'' = -P cos(theta) and theta'(L) = 0, the substitution
+    1 + sin(theta) = 2 k^2 sin^2(psi), k^2 = (1 + sin(phi0)) / 2, phi0 the tip angle, gives
+        sqrt(alpha) = K(k) - F(psi1, k),       sin(psi1) = 1 / (k sqrt 2)   (theta = 0)
+        y / L = 1 - 2 (E(k) - E(psi1, k)) / sqrt(alpha)
+        x / L = sqrt(2 sin(phi0) / alpha).
+    """
+
+    def length_mismatch(phi0: float) -> float:
+        m = (1.0 + math.sin(phi0)) / 2.0
+        psi1 = math.asin(1.0 / math.sqrt(2.0 * m))
+        return ellipk(m) - ellipkinc(psi1, m) - math.sqrt(alpha)
+
+    phi0 = brentq(length_mismatch, 1e-12, math.pi / 2 - 1e-12, xtol=1e-15, rtol=1e-15)
+    m = (1.0 + math.sin(phi0)) / 2.0
+    psi1 = math.asin(1.0 / math.sqrt(2.0 * m))
+    y = 1.0 - 2.0 * (ellipe(m) - ellipeinc(psi1, m)) / math.sqrt(alpha)
+    x = math.sqrt(2.0 * math.sin(phi0) / alpha)
+    return x, y, phi0
+
+
+def test_closed_form_matches_small_deflection_limit():
+    # The helper itself: for a small load the tip deflection is P L^3 / 3 EI.
+    x, y, phi = cantilever_tip(1e-4)
+    assert y == pytest.approx(1e-4 / 3.0, rel=1e-6)
+    assert phi == pytest.approx(1e-4 / 2.0, rel=1e-6)
+
+
+@pytest.mark.parametrize("alpha", [0.5, 1.0, 2.0, 5.0, 10.0, 20.0, 35.0, 50.0])
+@pytest.mark.parametrize("length,stiffness", [(1.0, 1.0), (0.8, 0.05)])
+def test_cantilever_dead_tip_load_elliptic(alpha, length, stiffness):
+    part = pl.Part(length=length, bending_stiffness=stiffness)
+    force = alpha * stiffness / length**2
+    problem = pl.Problem(part, (pl.clamp(0.0), pl.push(length, force=(0.0, force))))
+    eq = solve(problem)
+    x, y, phi = cantilever_tip(alpha)
+    tip = eq.tip
+    assert abs(tip[0] - x * length) <= 1e-8 * length
+    assert abs(tip[1] - y * length) <= 1e-8 * length
+    assert abs(tip[2] - phi) <= 1e-8
+    # The clamp takes the whole load, and the moment P x_tip.
+    clamp = eq.reactions["clamp"]
+    assert clamp.force == pytest.approx([0.0, -force], abs=1e-9 * force)
+    assert clamp.moment == pytest.approx(-force * x * length, rel=1e-8)
+
+
+@pytest.mark.parametrize("turns", [0.1, 0.25, 0.5, 0.9])
+def test_end_moment_bends_an_arc(turns):
+    length, stiffness = 1.3, 2.0
+    moment = 2.0 * math.pi * turns * stiffness / length
+    part = pl.Part(length=length, bending_stiffness=stiffness)
+    eq = solve(pl.Problem(part, (pl.clamp(0.0), pl.push(length, moment=moment))))
+    kappa = moment / stiffness
+    s = eq.s
+    assert np.allclose(eq.position[:, 0], np.sin(kappa * s) / kappa, atol=1e-10)
+    assert np.allclose(eq.position[:, 1], (1.0 - np.cos(kappa * s)) / kappa, atol=1e-10)
+    assert np.allclose(eq.bending_moment, moment, atol=1e-10 * moment)
+    assert eq.energy == pytest.approx(moment**2 * length / (2.0 * stiffness), rel=1e-10)
+
+
+def test_moment_two_pi_rolls_a_full_circle():
+    length, stiffness = 1.0, 1.0
+    part = pl.Part(length=length, bending_stiffness=stiffness)
+    eq = solve(pl.Problem(part, (pl.clamp(0.0),
+                                 pl.push(length, moment=2 * math.pi * stiffness / length))))
+    x, y, angle = eq.tip
+    assert abs(x) <= 1e-9 and abs(y) <= 1e-9
+    assert angle == pytest.approx(2 * math.pi, abs=1e-9)
+    radius, _ = eq.min_bend_radius()
+    assert radius == pytest.approx(length / (2 * math.pi), rel=1e-9)
+
+
+def test_self_weight_small_deflection():
+    # q L^4 / (8 EI) for a cantilever under its own weight; q L^3 / EI = 1e-3 keeps the
+    # geometric nonlinearity (relative size ~ (q L^3 / EI)^2) far below the tolerance.
+    length, stiffness, g = 0.7, 3.0, 9.81
+    mass = 1e-3 * stiffness / (g * length**3)
+    part = pl.Part(length=length, bending_stiffness=stiffness, mass_per_length=mass)
+    eq = solve(pl.Problem(part, (pl.clamp(0.0),), gravity=(0.0, -g)))
+    q = mass * g
+    assert eq.tip[1] == pytest.approx(-q * length**4 / (8 * stiffness), rel=1e-5)
+    assert eq.tip[2] == pytest.approx(-q * length**3 / (6 * stiffness), rel=1e-5)
+    assert eq.reactions["clamp"].force[1] == pytest.approx(q * length, rel=1e-12)
+
+
+def test_rest_curvature_unloaded_is_the_rest_arc():
+    kappa = 2.5
+    part = pl.Part(length=1.0, bending_stiffness=1.0, rest_curvature=kappa)
+    eq = solve(pl.Problem(part, (pl.clamp(0.0),)))
+    assert np.allclose(eq.position[:, 1], (1 - np.cos(kappa * eq.s)) / kappa, atol=1e-12)
+    assert np.allclose(eq.bending_moment, 0.0, atol=1e-12)
+    # Straightening it takes the moment -EI kappa0.
+    eq = solve(pl.Problem(part, (pl.clamp(0.0), pl.push(1.0, moment=-kappa))))
+    assert np.allclose(eq.position[:, 1], 0.0, atol=1e-10)
+
+
+def test_convergence_order_is_eight():
+    """Tip error against a fine mesh falls like h^8, the order of the Runge-Kutta
+    scheme (checked on the elastica itself, alpha = 50)."""
+    part = pl.Part(length=1.0, bending_stiffness=1.0)
+    problem = pl.Problem(part, (pl.clamp(0.0), pl.push(1.0, force=(0.0, 50.0))))
+    x, y, phi = cantilever_tip(50.0)
+
+    def error(density: int) -> float:
+        solver = ShootingSolver(accuracy=1e9, path_accuracy=1e9, min_density=density,
+                                samples=density)
+        eq = solve(problem, solver=solver)
+        assert eq.state.mesh.density == density
+        return max(abs(eq.tip[0] - x), abs(eq.tip[1] - y), abs(eq.tip[2] - phi))
+
+    e1, e2 = error(10), error(20)
+    order = math.log2(e1 / e2)
+    assert 7.0 <= order <= 9.5, (e1, e2, order)

@@ -1,0 +1,238 @@
+"""Invariants of 2D equilibria: balance, the ODE itself, symmetry, round trips,
+agreement with solve_bvp, exact derivatives, warm starts and continuation."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+import pliant as pl
+from pliant.io.problem_file import load_problem
+from pliant.models.elastica2d import ShootingSolver, kernels, solve, trace
+from pliant.models.elastica2d.lowering import lower
+from pliant.models.elastica2d.reference import solve_reference
+
+from .helpers import EXAMPLES, zoo
+
+
+def balance(eq: pl.Equilibrium) -> tuple[np.ndarray, float]:
+    """Sum of all forces [N] and of all moments about the origin [N m] on the part."""
+    problem = eq.problem
+    q = problem.part.mass_per_length * np.asarray(problem.gravity)
+    force = sum((ld.force for ld in eq.loads.values()), np.zeros(2))
+    moment = sum(ld.moment for ld in eq.loads.values())
+    for ld in eq.loads.values():
+        i = int(np.argmin(np.abs(eq.s - ld.s)))
+        r = eq.position[i]
+        moment += r[0] * ld.force[1] - r[1] * ld.force[0]
+    # Distributed weight: integrate r x q along s, segment by segment (trapezoid would
+    # be too coarse; Simpson on each segment's uniform samples is plenty here).
+    cuts = np.nonzero(np.diff(eq.s) == 0.0)[0] + 1
+    for seg_s, seg_r in zip(np.split(eq.s, cuts), np.split(eq.position, cuts)):
+        integrand = seg_r[:, 0] * q[1] - seg_r[:, 1] * q[0]
+        moment += _simpson(integrand, seg_s)
+    force = force + q * problem.part.length
+    return force, moment
+
+
+def _simpson(f: np.ndarray, s: np.ndarray) -> float:
+    if f.size < 3:
+        return float(np.trapezoid(f, s))
+    if f.size % 2 == 0:  # odd number of intervals: Simpson on all but the last
+        return _simpson(f[:-1], s[:-1]) + float(np.trapezoid(f[-2:], s[-2:]))
+    h = (s[-1] - s[0]) / (f.size - 1)
+    return float(h / 3.0 * (f[0] + f[-1] + 4.0 * f[1:-1:2].sum() + 2.0 * f[2:-1:2].sum()))
+
+
+@pytest.mark.parametrize("name", sorted(zoo()))
+def test_global_balance(name):
+    eq = solve(zoo()[name])
+    force, moment = balance(eq)
+    scale = max(1.0, max(float(np.abs(ld.force).max()) for ld in eq.loads.values()))
+    assert np.abs(force).max() <= 1e-9 * scale
+    assert abs(moment) <= 1e-6 * scale * eq.problem.part.length
+
+
+@pytest.mark.parametrize("name", sorted(zoo()))
+def test_arrays_satisfy_the_elastica(name):
+    """Differentiate the returned arrays numerically and check the paper's equations:
+    x' = cos theta, y' = sin theta, EI (theta' - kappa0) = M, n' = -q, M' = -(t x n)."""
+    eq = solve(zoo()[name], solver=ShootingSolver(samples=400))
+    part = eq.problem.part
+    q = part.mass_per_length * np.asarray(eq.problem.gravity)
+    cuts = np.nonzero(np.diff(eq.s) == 0.0)[0] + 1
+    worst = 0.0
+    for idx in np.split(np.arange(eq.s.size), cuts):
+        if idx.size < 7:
+            continue
+        s = eq.s[idx]
+        h = s[1] - s[0]
+
+        def d(f):  # 4th-order central difference at the interior samples
+            return (f[:-4] - 8 * f[1:-3] + 8 * f[3:-1] - f[4:]) / (12 * h)
+
+        inner = slice(2, -2)
+        th = eq.angle[idx]
+        n = eq.internal_force[idx]
+        m = eq.bending_moment[idx]
+        kappa0 = np.array([part.rest_curvature_at(v) for v in s])
+        scale_m = max(1.0, np.abs(m).max())
+        residuals = [
+            d(eq.position[idx, 0]) - np.cos(th[inner]),
+            d(eq.position[idx, 1]) - np.sin(th[inner]),
+            (part.bending_stiffness * (d(th) - kappa0[inner]) - m[inner]) / scale_m,
+            (d(n[:, 0]) + q[0]) / max(1.0, np.abs(n).max()),
+            (d(n[:, 1]) + q[1]) / max(1.0, np.abs(n).max()),
+            (d(m) + (np.cos(th) * n[:, 1] - np.sin(th) * n[:, 0])[inner]) / scale_m,
+        ]
+        worst = max(worst, max(float(np.abs(r).max()) for r in residuals))
+    assert worst <= 1e-5
+
+
+@pytest.mark.parametrize("name", ["case1", "case2", "case3", "gravity grip",
+                                  "pre-curved pin"])
+def test_mirroring_the_load_mirrors_the_answer(name):
+    problem = zoo()[name]
+    mirrored = problem.with_conditions(
+        pl.Condition(s=c.s, name=c.name,
+                     position=(c.position[0], None if c.position[1] is None else -c.position[1]),
+                     angle=None if c.angle is None else -c.angle,
+                     force=(c.force[0], None if c.force[1] is None else -c.force[1]),
+                     moment=None if c.moment is None else -c.moment, follower=c.follower)
+        for c in problem.conditions)
+    part = problem.part
+    mirrored = pl.Problem(
+        pl.Part(length=part.length, bending_stiffness=part.bending_stiffness,
+                mass_per_length=part.mass_per_length,
+                rest_curvature=tuple((s, -k) for s, k in part.rest_knots)),
+        mirrored.conditions, (problem.gravity[0], -problem.gravity[1]), problem.name)
+    a, b = solve(problem), solve(mirrored)
+    assert np.allclose(a.position[:, 0], b.position[:, 0], atol=1e-9)
+    assert np.allclose(a.position[:, 1], -b.position[:, 1], atol=1e-9)
+    assert np.allclose(a.bending_moment, -b.bending_moment, atol=1e-8)
+    for key in a.loads:
+        fa, fb = a.loads[key].force, b.loads[key].force
+        assert np.allclose([fa[0], fa[1]], [fb[0], -fb[1]], atol=1e-8)
+
+
+def test_case3_round_trip_through_force_space():
+    """Case 3's computed tip load, applied as a load, brings the tip back to
+    (0.7, 0.4, 0) within 1e-8: the reactions are the loads that make the shape."""
+    problem = load_problem(EXAMPLES / "paper" / "case3.toml")
+    eq = solve(problem)
+    hole = eq.reactions["hole"]
+    pushed = problem.with_conditions([problem.condition("clamp"),
+                                      pl.push(1.0, force=tuple(hole.force),
+                                              moment=hole.moment, name="hole")])
+    back = solve(pushed, warm_start=eq)
+    assert np.allclose(back.tip, (0.7, 0.4, 0.0), atol=1e-8)
+    assert np.allclose(back.reactions["clamp"].force, eq.reactions["clamp"].force,
+                       atol=1e-8)
+
+
+def test_case3_answer_is_stable_under_the_other_route():
+    """Following the hand from the straight shape to the hole in 50 steps ends on the
+    equilibrium the cold solve finds."""
+    problem = load_problem(EXAMPLES / "paper" / "case3.toml")
+    cold = solve(problem)
+    hole = problem.condition("hole")
+    path = [problem.with_conditions([problem.condition("clamp"),
+                                     pl.clamp(1.0, position=(1 - 0.3 * t, 0.4 * t),
+                                              angle=0.0, name="hole")])
+            for t in np.linspace(0.02, 1.0, 50)]
+    *_, last = trace(path)
+    assert last.problem.condition("hole").position == hole.position
+    assert np.allclose(last.reactions["clamp"].force, cold.reactions["clamp"].force,
+                       atol=1e-7)
+    assert last.reactions["clamp"].moment == pytest.approx(cold.reactions["clamp"].moment,
+                                                           abs=1e-7)
+
+
+@pytest.mark.parametrize("name", sorted(zoo()))
+def test_agrees_with_solve_bvp(name):
+    problem = zoo()[name]
+    eq = solve(problem)
+    ref = solve_reference(problem, guess=eq, tol=1e-8)
+    assert ref.success, ref.message
+    assert np.allclose(ref.tip, eq.tip, atol=1e-7)
+    n0 = eq.internal_force[0]
+    m0 = eq.bending_moment[0]
+    scale = max(1.0, float(np.abs(n0).max()), abs(m0))
+    assert np.allclose(ref.first, (n0[0], n0[1], m0), atol=1e-6 * scale)
+
+
+@pytest.mark.parametrize("name", sorted(zoo()))
+def test_jacobian_matches_finite_differences(name):
+    problem = zoo()[name]
+    low = lower(problem)
+    eq = solve(problem)
+    rng = np.random.default_rng(7)
+    z = eq.state.z + 0.05 * rng.standard_normal(low.nz)
+    mesh = low.mesh(24)
+    _, jac, _ = low.shoot(z, low.target, mesh)
+    fd = np.empty_like(jac)
+    for j in range(low.nz):
+        h = 1e-6 * max(1.0, abs(z[j]))
+        zp, zm = z.copy(), z.copy()
+        zp[j] += h
+        zm[j] -= h
+        rp, _, _ = low.shoot(zp, low.target, mesh, want_jac=False)
+        rm, _, _ = low.shoot(zm, low.target, mesh, want_jac=False)
+        fd[:, j] = (rp - rm) / (2 * h)
+    assert np.allclose(jac, fd, rtol=1e-6, atol=1e-6 * max(1.0, np.abs(jac).max()))
+
+
+def test_warm_start_gives_the_cold_answer():
+    problem = zoo()["case2"]
+    cold = solve(problem)
+    nearby = problem.with_conditions(
+        [c if c.name != "hand 1" else pl.push(1.0, force=(0.0, 6.5), follower=True,
+                                              name="hand 1") for c in problem.conditions])
+    warm_from = solve(nearby)
+    warm = solve(problem, warm_start=warm_from)
+    assert np.allclose(warm.position, cold.position, atol=1e-9)
+    assert warm.steps <= 2
+
+
+def test_switching_a_grip_to_force_control_keeps_the_shape():
+    """The reaction of a position-held grip, applied as a push, holds the same shape;
+    the warm start crosses from one structure to the other."""
+    part = pl.Part(length=1.0, bending_stiffness=0.4, mass_per_length=0.2)
+    held = pl.Problem(part, (pl.clamp(0.0), pl.grip(0.6, position=(0.45, 0.2), name="hand")),
+                      gravity=(0.0, -9.81))
+    eq = solve(held)
+    hand = eq.reactions["hand"]
+    pushed = held.with_conditions([held.condition("clamp"),
+                                   pl.push(0.6, force=tuple(hand.force), name="hand")])
+    eq2 = solve(pushed, warm_start=eq)
+    i = int(np.argmin(np.abs(eq2.s - 0.6)))
+    assert np.allclose(eq2.position[i], (0.45, 0.2), atol=1e-8)
+
+
+def test_kernel_newton_reports_a_singular_start():
+    """The straight part with its tip pulled back along its axis is singular (the chord
+    cannot shorten to first order): the kernel says so instead of diverging, and the
+    solver still finds the buckled answer."""
+    part = pl.Part(length=1.0, bending_stiffness=1.0)
+    problem = pl.Problem(part, (pl.clamp(0.0), pl.clamp(1.0, position=(0.9, 0.0), name="tip")))
+    low = lower(problem)
+    mesh = low.mesh(16)
+    rest, z0 = low.rest(mesh)
+    _, jac, _ = low.shoot(z0, rest, mesh)
+    assert np.abs(jac[0]).max() == 0.0  # d(tip x)/d(anything) vanishes at the straight part
+    target = low.target
+    out = kernels.newton(z0, np.zeros((0, 0)), *low.args(target, mesh), 1e-10, 10, 0.0)
+    assert out[3] == kernels.SINGULAR
+    eq = solve(problem)
+    assert eq.tip[0] == pytest.approx(0.9, abs=1e-10)
+    assert eq.notes and "singular start" in eq.notes[0]
+    # Clamped-clamped post-buckling (the elastica of a pinned column of length L/2):
+    # P L^2 / EI = 16 K(k)^2 with end shortening 1 - x/L = 2 (1 - E(k) / K(k)).
+    from scipy.optimize import brentq
+    from scipy.special import ellipe, ellipk
+
+    m = brentq(lambda m: 2 * (1 - ellipe(m) / ellipk(m)) - 0.1, 1e-9, 0.99, xtol=1e-15)
+    compression = eq.reactions["clamp"].force[0]
+    assert compression == pytest.approx(16 * ellipk(m) ** 2, rel=1e-9)
