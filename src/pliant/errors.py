@@ -48,3 +48,8 @@ class ConvergenceError(PliantError, RuntimeError):
 
 class FileFormatError(PliantError, ValueError):
     """A problem or scene file cannot be read; the message names file and field."""
+
+
+class OutputError(PliantError, OSError):
+    """A result could not be written (the message names the path); nothing was left
+    half-written."""

@@ -9,6 +9,7 @@ from pathlib import Path
 import numpy as np
 
 from pliant.core.equilibrium import Equilibrium
+from pliant.errors import OutputError
 
 
 def plot_equilibrium(eq: Equilibrium, path: str | Path) -> Path:
@@ -65,15 +66,19 @@ def plot_equilibrium(eq: Equilibrium, path: str | Path) -> Path:
         ax.grid(alpha=0.3)
         if row == 2:
             ax.set_xlabel("s [m]")
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(suffix=".png", dir=path.parent, prefix=f".{path.stem}-")
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        fd, tmp = tempfile.mkstemp(suffix=".png", dir=path.parent, prefix=f".{path.stem}-")
+    except OSError as err:
+        plt.close(fig)
+        raise OutputError(f"cannot write the plot {path}: {err.strerror or err}") from None
     try:
         with os.fdopen(fd, "wb") as handle:
             fig.savefig(handle, format="png", dpi=110)
         os.replace(tmp, path)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
+    except OSError as err:
+        raise OutputError(f"cannot write the plot {path}: {err.strerror or err}") from None
     finally:
+        Path(tmp).unlink(missing_ok=True)
         plt.close(fig)
     return path

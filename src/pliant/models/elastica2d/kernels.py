@@ -27,6 +27,14 @@ prescribed components at every later station, and n(1+) = 0, m(1+) = 0. The syst
 square by construction. Sensitivities dh/dz are integrated with the same Runge-Kutta
 stages as the state (internal differentiation), so the Jacobian is the exact derivative
 of the discrete map and Newton converges quadratically.
+
+Multiple shooting: under large loads the sensitivities grow like exp(k s), k the
+wavenumber sqrt(|n|/EI), and single shooting loses all accuracy once k L passes about
+20 (a floppy cable hanging under its weight reaches k L ~ 100). Restart *nodes* (kind
+NODE) cut the part: the whole state at a node is 6 more unknowns, matched by 6 residuals
+(the state arriving from the left minus them), and the integration restarts from them.
+Sensitivities then only grow across one interval; a segment carries the sensitivity
+columns [lo, hi) of the unknowns that act on it.
 """
 
 from __future__ import annotations
@@ -36,7 +44,15 @@ import math
 import numpy as np
 from numba import njit
 
+from pliant.models.elastica2d.tableau import dop853
+
 NSTATE = 7  # x, y, theta, nx, ny, m, e
+APPLIED = 0
+PRESCRIBED = 1
+NODE = 2  # a restart node of multiple shooting (all of its pairs)
+
+# The Runge-Kutta tableau, frozen into the compiled kernels as constants.
+_A, _B, _C = dop853()
 
 # Newton status codes, mirrored by ``solver.Status``.
 CONVERGED = 0
@@ -47,29 +63,49 @@ NOT_FINITE = 4
 
 
 @njit(cache=True)
-def _apply_station(k, y, Y, ncol, z, st_kind, st_val, st_fol, st_col, res, jac, row, want_jac):
-    """Record the residuals of station k (k >= 1) and apply its jump; return the next row."""
+def _apply_station(k, y, Y, lo, hi, z, st_kind, st_val, st_fol, st_col, res, jac, row,
+                   want_jac):
+    """Residuals of station k (k >= 1) and its jump, or its restart for a node.
+
+    [lo, hi) are the sensitivity columns live from here on (those of the segment that
+    ends here plus the ones this station introduces). Returns the next residual row.
+    """
+    if st_kind[k, 0] == NODE:
+        c0 = st_col[k, 0]
+        for q in range(6):
+            res[row + q] = y[q] - z[c0 + q]
+            if want_jac:
+                for j in range(lo, hi):
+                    jac[row + q, j] = Y[q, j]
+                jac[row + q, c0 + q] -= 1.0
+        for q in range(6):
+            y[q] = z[c0 + q]
+            if want_jac:
+                for j in range(lo, hi):
+                    Y[q, j] = 0.0
+                Y[q, c0 + q] = 1.0
+        return row + 6
     for i in range(3):
-        if st_kind[k, i] == 1:
+        if st_kind[k, i] == PRESCRIBED:
             res[row] = y[i] - st_val[k, i]
             if want_jac:
-                for q in range(ncol):
+                for q in range(lo, hi):
                     jac[row, q] = Y[i, q]
             row += 1
     for i in range(3):
-        if st_kind[k, i] == 1:
+        if st_kind[k, i] == PRESCRIBED:
             col = st_col[k, i]
             y[3 + i] -= z[col]
             if want_jac:
                 Y[3 + i, col] -= 1.0
         else:
             y[3 + i] -= st_val[k, i]
-    _apply_follower(k, y, Y, ncol, st_fol, want_jac)
+    _apply_follower(k, y, Y, lo, hi, st_fol, want_jac)
     return row
 
 
 @njit(cache=True)
-def _apply_follower(k, y, Y, ncol, st_fol, want_jac):
+def _apply_follower(k, y, Y, lo, hi, st_fol, want_jac):
     """Subtract the follower force R(theta) (ft, fn) of station k from n."""
     ft = st_fol[k, 0]
     fn = st_fol[k, 1]
@@ -82,14 +118,14 @@ def _apply_follower(k, y, Y, ncol, st_fol, want_jac):
     if want_jac:
         dpx = -ft * sn - fn * c
         dpy = ft * c - fn * sn
-        for q in range(ncol):
+        for q in range(lo, hi):
             Y[3, q] -= dpx * Y[2, q]
             Y[4, q] -= dpy * Y[2, q]
 
 
 @njit(cache=True)
-def _integrate(y, Y, ncol, s0, s1, nsteps, prm, kappa0, kappa1,
-               a, b, c, K, KY, traj, tpos, want_jac, stats):
+def _integrate(y, Y, lo, hi, s0, s1, nsteps, prm, kappa0, kappa1, K, KY, traj, tpos,
+               want_jac, stats):
     """Advance (y, Y) from s0 to s1 in nsteps fixed RK steps; write states to traj.
 
     Only (theta, m) feed back into the equations, so only they (and their sensitivities)
@@ -97,14 +133,21 @@ def _integrate(y, Y, ncol, s0, s1, nsteps, prm, kappa0, kappa1,
     values with the weights b. With a dead distributed load f, n is exactly linear in s,
     n(s) = n(s0) - f (s - s0), and its sensitivities are constant on the segment. The
     rest curvature is linear on the segment, from kappa0 at s0 to kappa1 at s1 (its knots
-    are stations). stats[0], stats[1] accumulate max|theta'| and max|n| at step ends.
-    K : (nst, 2) and KY : (nst, 2, nz) are work arrays.
+    are stations); the imperfection bow cos(2 pi (s - a) / (b - a)) acts on [a, b] (both
+    stations). stats[0], stats[1] accumulate max|theta'| and max|n| at step ends.
+    K : (nst, 2) and KY : (nst, 2, nz) are work arrays; [lo, hi) the live columns.
     """
+    a = _A
+    b = _B
+    c = _C
     h = (s1 - s0) / nsteps
     slope = (kappa1 - kappa0) / (s1 - s0)
     gx = prm[0]
     gy = prm[1]
     bow = prm[2]
+    if s0 < prm[3] - 1e-12 or s1 > prm[4] + 1e-12:
+        bow = 0.0
+    span = prm[4] - prm[3]
     nx0 = y[3]
     ny0 = y[4]
     nst = b.shape[0]
@@ -135,7 +178,7 @@ def _integrate(y, Y, ncol, s0, s1, nsteps, prm, kappa0, kappa1,
             st = math.sin(th)
             kappa = kappa0 + slope * (si - s0) + m
             if bow != 0.0:
-                kappa += bow * math.cos(2.0 * math.pi * si)
+                kappa += bow * math.cos(2.0 * math.pi * (si - prm[3]) / span)
             K[i, 0] = kappa
             K[i, 1] = -(ct * ny - st * nx)
             bi = b[i]
@@ -145,7 +188,7 @@ def _integrate(y, Y, ncol, s0, s1, nsteps, prm, kappa0, kappa1,
                 de += bi * 0.5 * m * m
             if want_jac:
                 dm_dth = st * ny + ct * nx
-                for q in range(ncol):
+                for q in range(lo, hi):
                     yth = Y[2, q]
                     ym = Y[5, q]
                     for j in range(i):
@@ -164,7 +207,7 @@ def _integrate(y, Y, ncol, s0, s1, nsteps, prm, kappa0, kappa1,
                 y[2] += w * K[i, 0]
                 y[5] += w * K[i, 1]
                 if want_jac:
-                    for q in range(ncol):
+                    for q in range(lo, hi):
                         Y[2, q] += w * KY[i, 0, q]
                         Y[5, q] += w * KY[i, 1, q]
         y[0] += h * dx
@@ -186,20 +229,19 @@ def _integrate(y, Y, ncol, s0, s1, nsteps, prm, kappa0, kappa1,
 
 
 @njit(cache=True)
-def shoot(z, st_s, st_kind, st_val, st_fol, st_col, seg_steps, seg_ncol, prm,
-          st_kappa, a, b, c, want_jac, traj):
+def shoot(z, st_s, st_kind, st_val, st_fol, st_col, seg_steps, seg_lo, seg_hi, prm,
+          st_kappa, want_jac, traj):
     """Integrate from s = 0 to 1 with unknowns z; return (residual, Jacobian, stats).
 
+    prm : (5,) float, [fx, fy, bow, a, b]: the distributed dead load (fx, fy) per unit
+        length, and a rest-curvature imperfection bow * cos(2 pi (s - a) / (b - a)) on
+        [a, b] that the solver adds, then removes, to leave a singular (symmetric) start
     st_kappa : (nst,) float, the rest curvature at the stations (linear in between)
+    seg_lo, seg_hi : (nst - 1,) int, the sensitivity columns live on each segment
     stats : (2,) float, max|theta'| and max|n| over the step ends: the wavenumber
-    max|theta'| + sqrt(max|n|) tells the caller whether the mesh resolves the solution.
-
-    prm : (3,) float, [fx, fy, bow]: the distributed dead load (fx, fy) per unit length
-    and the amplitude of a rest-curvature imperfection bow * cos(2 pi s) that the solver
-    adds, then removes, to leave a singular (symmetric) starting point.
-
+        max|theta'| + sqrt(max|n|) tells the caller whether the mesh resolves the solution
     traj : (npts, 7) float, written when it has rows: the state at both ends of every
-    step, segment by segment (stations appear twice: before and after their jump).
+        step, segment by segment (stations appear twice: before and after their jump)
     """
     nz = z.shape[0]
     nstations = st_s.shape[0]
@@ -209,7 +251,7 @@ def shoot(z, st_s, st_kind, st_val, st_fol, st_col, seg_steps, seg_ncol, prm,
     Y = np.zeros((6, nz))
     # Station 0: each pair gives one unknown, z[i].
     for i in range(3):
-        if st_kind[0, i] == 1:
+        if st_kind[0, i] == PRESCRIBED:
             y[i] = st_val[0, i]
             y[3 + i] = -z[i]
             Y[3 + i, i] = -1.0
@@ -217,26 +259,26 @@ def shoot(z, st_s, st_kind, st_val, st_fol, st_col, seg_steps, seg_ncol, prm,
             y[i] = z[i]
             y[3 + i] = -st_val[0, i]
             Y[i, i] = 1.0
-    _apply_follower(0, y, Y, 3, st_fol, want_jac)
-    nst = b.shape[0]
+    _apply_follower(0, y, Y, 0, 3, st_fol, want_jac)
+    nst = _B.shape[0]
     K = np.empty((nst, 2))
     KY = np.zeros((nst, 2, nz))
     row = 0
     tpos = 0
     stats = np.zeros(2)
     for k in range(nstations - 1):
-        ncol = seg_ncol[k]
-        tpos = _integrate(y, Y, ncol, st_s[k], st_s[k + 1], seg_steps[k], prm,
-                          st_kappa[k], st_kappa[k + 1], a, b, c, K, KY, traj, tpos,
-                          want_jac, stats)
-        ncol_next = seg_ncol[k + 1] if k + 1 < nstations - 1 else nz
-        row = _apply_station(k + 1, y, Y, ncol_next, z, st_kind, st_val, st_fol, st_col,
+        lo = seg_lo[k]
+        tpos = _integrate(y, Y, lo, seg_hi[k], st_s[k], st_s[k + 1], seg_steps[k], prm,
+                          st_kappa[k], st_kappa[k + 1], K, KY, traj, tpos, want_jac, stats)
+        hi_next = seg_hi[k + 1] if k + 1 < nstations - 1 else nz
+        row = _apply_station(k + 1, y, Y, lo, hi_next, z, st_kind, st_val, st_fol, st_col,
                              res, jac, row, want_jac)
     # Beyond the last end nothing acts: n(1+) = 0 and m(1+) = 0.
+    lo = seg_lo[nstations - 2]
     for i in range(3):
         res[row] = y[3 + i]
         if want_jac:
-            for q in range(nz):
+            for q in range(lo, nz):
                 jac[row, q] = Y[3 + i, q]
         row += 1
     return res, jac, stats
@@ -323,8 +365,8 @@ def _broyden(jac, step, res_new, res_old):
 
 
 @njit(cache=True)
-def newton(z0, jac0, st_s, st_kind, st_val, st_fol, st_col, seg_steps, seg_ncol, prm,
-           st_kappa, a, b, c, tol, max_iter, contraction):
+def newton(z0, jac0, st_s, st_kind, st_val, st_fol, st_col, seg_steps, seg_lo, seg_hi,
+           prm, st_kappa, tol, max_iter, contraction):
     """Newton on the shooting residual, reusing its Jacobian while it contracts fast.
 
     jac0 : a Jacobian near z0 to start with (a warm start's), or an empty array.
@@ -344,8 +386,8 @@ def newton(z0, jac0, st_s, st_kind, st_val, st_fol, st_col, seg_steps, seg_ncol,
     nz = z0.shape[0]
     z = z0.copy()
     fresh = jac0.shape[0] != nz
-    res, jac, stats = shoot(z, st_s, st_kind, st_val, st_fol, st_col, seg_steps, seg_ncol,
-                            prm, st_kappa, a, b, c, fresh, empty)
+    res, jac, stats = shoot(z, st_s, st_kind, st_val, st_fol, st_col, seg_steps, seg_lo,
+                            seg_hi, prm, st_kappa, fresh, empty)
     if not fresh:
         jac = jac0.copy()
     r = max_abs(res)
@@ -362,7 +404,7 @@ def newton(z0, jac0, st_s, st_kind, st_val, st_fol, st_col, seg_steps, seg_ncol,
             if fresh:
                 return z, r, it, SINGULAR, jac, stats, 1.0
             res, jac, stats = shoot(z, st_s, st_kind, st_val, st_fol, st_col, seg_steps,
-                                    seg_ncol, prm, st_kappa, a, b, c, True, empty)
+                                    seg_lo, seg_hi, prm, st_kappa, True, empty)
             fresh = True
             continue
         t = 1.0
@@ -370,7 +412,7 @@ def newton(z0, jac0, st_s, st_kind, st_val, st_fol, st_col, seg_steps, seg_ncol,
         for _ in range(40):
             zt = z + t * dz
             rt_vec, _, st = shoot(zt, st_s, st_kind, st_val, st_fol, st_col, seg_steps,
-                                  seg_ncol, prm, st_kappa, a, b, c, False, empty)
+                                  seg_lo, seg_hi, prm, st_kappa, False, empty)
             rt = max_abs(rt_vec)
             if it == 1 or not math.isfinite(rt):
                 theta = rt / r if math.isfinite(rt) else 1e3
@@ -388,7 +430,7 @@ def newton(z0, jac0, st_s, st_kind, st_val, st_fol, st_col, seg_steps, seg_ncol,
                 return z, r, it, NOT_CONTRACTING, jac, stats, max(theta, rt / r)
             # A stale Jacobian may be to blame: refresh it and try again from z.
             res, jac, stats = shoot(z, st_s, st_kind, st_val, st_fol, st_col, seg_steps,
-                                    seg_ncol, prm, st_kappa, a, b, c, True, empty)
+                                    seg_lo, seg_hi, prm, st_kappa, True, empty)
             fresh = True
             continue
         # Round-off floor: a step this small cannot lower the residual any further.
@@ -404,7 +446,7 @@ def newton(z0, jac0, st_s, st_kind, st_val, st_fol, st_col, seg_steps, seg_ncol,
             return z, r, it, CONVERGED, jac, stats, theta
         if slow and r > tol:
             res, jac, stats = shoot(z, st_s, st_kind, st_val, st_fol, st_col, seg_steps,
-                                    seg_ncol, prm, st_kappa, a, b, c, True, empty)
+                                    seg_lo, seg_hi, prm, st_kappa, True, empty)
             fresh = True
         else:
             fresh = False
@@ -440,8 +482,8 @@ def needed_density(stats, accuracy, min_density):
 
 
 @njit(cache=True)
-def follow(z0, jac0, density, st_s, st_kind, st_col, seg_ncol, st_kappa,
-           val0, fol0, prm0, val1, fol1, prm1, a, b, c, opts):
+def follow(z0, jac0, density, st_s, st_kind, st_col, seg_lo, seg_hi, st_kappa,
+           val0, fol0, prm0, val1, fol1, prm1, opts):
     """Continuation from (arrays0, z0), an exact solution, to arrays1.
 
     The homotopy moves every input linearly, t from 0 to 1. Each step is a Newton
@@ -464,7 +506,7 @@ def follow(z0, jac0, density, st_s, st_kind, st_col, seg_ncol, st_kappa,
         for j in range(2):
             span = max(span, abs(fol1[i, j] - fol0[i, j]))
     for j in range(3):
-        span = max(span, abs(prm1[j] - prm0[j]))
+        span = max(span, abs(prm1[j] - prm0[j]))  # not the bow's span [a, b]
     loose = max(tol, opts[OPT_LOOSE] * span)
     contraction = opts[OPT_CONTRACTION]
     min_step = opts[OPT_MIN_STEP]
@@ -498,7 +540,7 @@ def follow(z0, jac0, density, st_s, st_kind, st_col, seg_ncol, st_kappa,
                 val[i, j] = val0[i, j] + t_next * (val1[i, j] - val0[i, j])
             for j in range(2):
                 fol[i, j] = fol0[i, j] + t_next * (fol1[i, j] - fol0[i, j])
-        for j in range(3):
+        for j in range(prm.shape[0]):
             prm[j] = prm0[j] + t_next * (prm1[j] - prm0[j])
         predictor = z.copy()
         if t_prev >= 0.0:
@@ -507,8 +549,8 @@ def follow(z0, jac0, density, st_s, st_kind, st_col, seg_ncol, st_kappa,
                 predictor[q] += w * (z[q] - z_prev[q])
         final = t_next >= 1.0
         zn, rn, it, status, jn, st, theta = newton(
-            predictor, jac, st_s, st_kind, val, fol, st_col, seg_steps, seg_ncol, prm,
-            st_kappa, a, b, c, tol if final else loose, max_iter, contraction)
+            predictor, jac, st_s, st_kind, val, fol, st_col, seg_steps, seg_lo, seg_hi, prm,
+            st_kappa, tol if final else loose, max_iter, contraction)
         iterations += it
         if status == CONVERGED:
             steps += 1

@@ -1,8 +1,9 @@
 """Lower a 2D ``Problem`` into the dimensionless arrays of the shooting kernel.
 
 Scales: lengths by L, forces by EI/L^2, moments by EI/L, distributed loads by EI/L^3.
-Stations are the problem's stations plus both ends and the knots of the rest curvature
-(so that no Runge-Kutta step straddles a kink of kappa0, which would cost accuracy).
+Kernel stations are the problem's stations plus both ends, the knots of the rest
+curvature (so that no Runge-Kutta step straddles a kink of kappa0, which would cost
+accuracy) and the restart nodes of multiple shooting.
 
 A ``Lowered`` problem also knows its *rest state*: the unloaded part placed so that it
 meets the prescribed components of the first station exactly and the others as well as a
@@ -17,12 +18,14 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from pliant.core.equilibrium import Equilibrium
 from pliant.core.problem import Problem, Station
 from pliant.models.elastica2d import kernels
-from pliant.models.elastica2d.tableau import dop853
+from pliant.models.elastica2d.kernels import APPLIED, NODE, PRESCRIBED
 
-PRESCRIBED = 1
-APPLIED = 0
+# Largest wavenumber times interval length between restart nodes: the sensitivities
+# grow by at most about exp(NODE_SPAN) across one shooting interval.
+NODE_SPAN = 8.0
 
 
 @dataclass(frozen=True, eq=False)
@@ -31,17 +34,22 @@ class Arrays:
 
     val: np.ndarray  # (nst, 3): prescribed kinematics or applied dead loads
     fol: np.ndarray  # (nst, 2): follower loads (tangential, normal)
-    prm: np.ndarray  # (3,): fx, fy, bow
+    prm: np.ndarray  # (5,): fx, fy, bow, bow from, bow to
 
     def lerp(self, other: Arrays, t: float) -> Arrays:
         return Arrays(self.val + t * (other.val - self.val),
                       self.fol + t * (other.fol - self.fol),
                       self.prm + t * (other.prm - self.prm))
 
+    def with_bow(self, bow: float, span: tuple[float, float]) -> Arrays:
+        prm = self.prm.copy()
+        prm[2:5] = (bow, span[0], span[1])
+        return Arrays(self.val, self.fol, prm)
+
 
 @dataclass(frozen=True, eq=False)
 class Mesh:
-    """Runge-Kutta steps per segment, and the columns active in each segment."""
+    """Runge-Kutta steps per segment."""
 
     steps: np.ndarray  # (nst - 1,) int64
     density: int  # steps per unit (dimensionless) length
@@ -57,12 +65,13 @@ class Lowered:
     length: float
     stiffness: float
     st_s: np.ndarray  # (nst,)
-    st_kind: np.ndarray  # (nst, 3) int64
-    st_col: np.ndarray  # (nst, 3) int64
-    seg_ncol: np.ndarray  # (nst - 1,) int64
+    st_kind: np.ndarray  # (nst, 3) int64: APPLIED, PRESCRIBED or NODE
+    st_col: np.ndarray  # (nst, 3) int64: the unknown's column (a node's first column)
+    seg_lo: np.ndarray  # (nst - 1,) int64: live sensitivity columns per segment
+    seg_hi: np.ndarray
     st_kappa: np.ndarray  # (nst,) rest curvature at the stations, linear in between
     target: Arrays
-    station_of: tuple[Station | None, ...]  # the problem's station behind each kernel station
+    station_of: tuple[Station | None, ...]  # the problem's station behind each one
     nz: int
 
     # -- scales ---------------------------------------------------------------------------
@@ -74,16 +83,23 @@ class Lowered:
     def moment_scale(self) -> float:
         return self.stiffness / self.length
 
+    @property
+    def nodes(self) -> np.ndarray:
+        """Indices of the restart nodes."""
+        return np.nonzero(self.st_kind[:, 0] == NODE)[0]
+
+    def interval(self) -> float:
+        """The longest stretch between restarts (dimensionless)."""
+        cuts = np.concatenate([[0.0], self.st_s[self.nodes], [1.0]])
+        return float(np.diff(cuts).max())
+
     # -- kernel calls ---------------------------------------------------------------------
     def mesh(self, density: int) -> Mesh:
-        gaps = np.diff(self.st_s)
-        steps = np.maximum(1, np.ceil(gaps * density - 1e-9)).astype(np.int64)
-        return Mesh(steps=steps, density=int(density))
+        return Mesh(steps=kernels.mesh_steps(self.st_s, int(density)), density=int(density))
 
     def args(self, arrays: Arrays, mesh: Mesh) -> tuple:
-        a, b, c = dop853()
         return (self.st_s, self.st_kind, arrays.val, arrays.fol, self.st_col, mesh.steps,
-                self.seg_ncol, arrays.prm, self.st_kappa, a, b, c)
+                self.seg_lo, self.seg_hi, arrays.prm, self.st_kappa)
 
     def shoot(self, z: np.ndarray, arrays: Arrays, mesh: Mesh, want_jac: bool = True,
               trajectory: bool = False) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -99,18 +115,23 @@ class Lowered:
         rows[-1] -= 1
         return rows
 
+    def grid(self, mesh: Mesh) -> np.ndarray:
+        """Arc length [m] of each trajectory row."""
+        return np.concatenate([np.linspace(self.st_s[k], self.st_s[k + 1], mesh.steps[k] + 1)
+                               for k in range(mesh.steps.shape[0])]) * self.length
+
     # -- the rest state -------------------------------------------------------------------
-    def rest(self, mesh: Mesh, bow: float = 0.0) -> tuple[Arrays, np.ndarray]:
+    def rest(self, mesh: Mesh, bow: float = 0.0,
+             span: tuple[float, float] = (0.0, 1.0)) -> tuple[Arrays, np.ndarray]:
         """The homotopy's start: (arrays, unknowns) of the unloaded, placed part,
         integrated on the mesh the homotopy will use, so that it is an exact start."""
-        free = np.zeros_like(self.st_kind)
         no_loads = Arrays(np.zeros_like(self.target.val), np.zeros_like(self.target.fol),
-                          np.array([0.0, 0.0, bow]))
-        a, b, c = dop853()
+                          np.array([0.0, 0.0, bow, span[0], span[1]]))
         traj = np.zeros((mesh.npoints, kernels.NSTATE))
-        kernels.shoot(np.zeros(self.nz), self.st_s, free, no_loads.val, no_loads.fol,
-                      self.st_col, mesh.steps, self.seg_ncol, no_loads.prm, self.st_kappa,
-                      a, b, c, False, traj)
+        free = np.zeros_like(self.st_kind)  # straight through every station and node
+        no_cols = np.zeros(self.seg_lo.shape[0], dtype=np.int64)
+        kernels.shoot(np.zeros(3), self.st_s, free, no_loads.val, no_loads.fol, self.st_col,
+                      mesh.steps, no_cols, no_cols, no_loads.prm, self.st_kappa, False, traj)
         shape = traj[self.station_rows(mesh), :3]  # unit placement: pose (0, 0, 0) at s = 0
         pose = self._placement(shape)
         cos_p, sin_p = math.cos(pose[2]), math.sin(pose[2])
@@ -122,6 +143,8 @@ class Lowered:
         for i in range(3):
             if self.st_kind[0, i] == APPLIED:
                 z[i] = pose[i]
+        for k in self.nodes:
+            z[self.st_col[k, 0]:self.st_col[k, 0] + 3] = placed[k]
         return Arrays(val, no_loads.fol, no_loads.prm), z
 
     def _placement(self, shape: np.ndarray) -> tuple[float, float, float]:
@@ -149,14 +172,21 @@ class Lowered:
                 origin[i] = tgt[k, i] - rotated
         return origin[0], origin[1], angle
 
-    def shortening(self, rest: Arrays) -> float:
-        """How much the targets shorten the chord between the first and last stations
-        whose position is prescribed (dimensionless, zero if they lengthen it)."""
+    def chord(self) -> tuple[int, int] | None:
+        """The first and last stations whose whole position is prescribed."""
         kind = self.st_kind
         located = np.nonzero((kind[:, 0] == PRESCRIBED) & (kind[:, 1] == PRESCRIBED))[0]
         if located.size < 2:
+            return None
+        return int(located[0]), int(located[-1])
+
+    def shortening(self, rest: Arrays) -> float:
+        """How much the targets shorten that chord (dimensionless, zero if they
+        lengthen it)."""
+        ends = self.chord()
+        if ends is None:
             return 0.0
-        a, b = located[0], located[-1]
+        a, b = ends
         rest_chord = float(np.hypot(*(rest.val[b, :2] - rest.val[a, :2])))
         chord = float(np.hypot(*(self.target.val[b, :2] - self.target.val[a, :2])))
         return max(0.0, rest_chord - chord)
@@ -166,23 +196,35 @@ class Lowered:
         kind = self.st_kind
         moved = np.where(kind[:, :2] == PRESCRIBED, self.target.val[:, :2] - rest.val[:, :2],
                          0.0)
-        located = np.nonzero((kind[:, 0] == PRESCRIBED) | (kind[:, 1] == PRESCRIBED))[0]
-        if located.size >= 2:
-            chord = rest.val[located[-1], :2] - rest.val[located[0], :2]
+        ends = self.chord()
+        if ends is not None:
+            chord = rest.val[ends[1], :2] - rest.val[ends[0], :2]
         else:
             chord = np.array([1.0, 0.0])
         normal = np.array([-chord[1], chord[0]])
         side = float(np.sum(moved @ normal))
         return -1.0 if side < -1e-12 else 1.0
 
-    # -- unknowns <-> physical loads ------------------------------------------------------
-    def unknowns_from(self, position0: np.ndarray, angle0: float,
-                      loads: dict[str, tuple[np.ndarray, float]]) -> np.ndarray:
-        """Dimensionless unknowns from a physical state: the pose at s = 0 [m, rad] and
-        the load (force [N], moment [N m]) of every condition by name."""
+    # -- unknowns <-> physical state ------------------------------------------------------
+    def unknowns_from(self, eq: Equilibrium) -> np.ndarray:
+        """Dimensionless unknowns from any equilibrium of a problem with the same part:
+        its pose at s = 0, the loads of the conditions (by name) and its state at the
+        restart nodes."""
         z = np.zeros(self.nz)
-        pose0 = (position0[0] / self.length, position0[1] / self.length, angle0)
+        pose0 = (eq.position[0, 0] / self.length, eq.position[0, 1] / self.length,
+                 float(eq.angle[0]))
+        loads = eq.loads
         for k, station in enumerate(self.station_of):
+            if self.st_kind[k, 0] == NODE:
+                s = self.st_s[k] * self.length
+                c0 = self.st_col[k, 0]
+                z[c0] = np.interp(s, eq.s, eq.position[:, 0]) / self.length
+                z[c0 + 1] = np.interp(s, eq.s, eq.position[:, 1]) / self.length
+                z[c0 + 2] = np.interp(s, eq.s, eq.angle)
+                z[c0 + 3] = np.interp(s, eq.s, eq.internal_force[:, 0]) / self.force_scale
+                z[c0 + 4] = np.interp(s, eq.s, eq.internal_force[:, 1]) / self.force_scale
+                z[c0 + 5] = np.interp(s, eq.s, eq.bending_moment) / self.moment_scale
+                continue
             for i in range(3):
                 col = self.st_col[k, i]
                 if col < 0:
@@ -192,14 +234,34 @@ class Lowered:
                     continue
                 owner = station.owner[i] if station is not None else None
                 if owner is not None and owner in loads:
-                    force, moment = loads[owner]
-                    z[col] = (force[i] / self.force_scale if i < 2
-                              else moment / self.moment_scale)
+                    load = loads[owner]
+                    z[col] = (load.force[i] / self.force_scale if i < 2
+                              else load.moment / self.moment_scale)
         return z
 
 
-def lower(problem: Problem) -> Lowered:
-    """Lower a 2D problem into kernel arrays (dimensionless)."""
+def load_wavenumber(problem: Problem) -> float:
+    """A priori wavenumber (dimensionless) of the applied loads: sqrt of the total force
+    plus the total moment and the largest rest curvature."""
+    part = problem.part
+    length, stiffness = part.length, part.bending_stiffness
+    force = part.mass_per_length * math.hypot(*problem.gravity) * length
+    moment = 0.0
+    for st in problem.stations:
+        force += math.hypot(st.dead_load[0], st.dead_load[1])
+        force += math.hypot(*st.follower_load)
+        moment += abs(st.dead_load[2])
+    curvature = max(abs(k) for _, k in part.rest_knots)
+    return (math.sqrt(force * length**2 / stiffness) + moment * length / stiffness
+            + curvature * length)
+
+
+def lower(problem: Problem, nodes: int | None = None) -> Lowered:
+    """Lower a 2D problem into kernel arrays (dimensionless).
+
+    nodes : the number of shooting intervals (restart nodes + 1); by default enough for
+        the applied loads' wavenumber (NODE_SPAN per interval).
+    """
     part = problem.part
     length, stiffness = part.length, part.bending_stiffness
     force_scale = stiffness / length**2
@@ -207,27 +269,41 @@ def lower(problem: Problem) -> Lowered:
     load_scale = (force_scale, force_scale, moment_scale)
     kin_scale = (length, length, 1.0)
 
-    stations: list[tuple[float, Station | None]] = [(st.s / length, st)
-                                                     for st in problem.stations]
+    stations: list[tuple[float, Station | None, bool]] = [
+        (st.s / length, st, False) for st in problem.stations]
     extra = [0.0, 1.0]
     if len(part.rest_knots) > 2:
         extra += [s / length for s, _ in part.rest_knots if 0.0 < s < length]
     for s in extra:
-        if not any(abs(s - t) <= 1e-12 for t, _ in stations):
-            stations.append((s, None))
+        if not any(abs(s - t) <= 1e-12 for t, _, _ in stations):
+            stations.append((s, None, False))
+    if nodes is None:
+        nodes = max(1, math.ceil(load_wavenumber(problem) / NODE_SPAN))
+    for i in range(1, nodes):
+        s = i / nodes
+        while any(abs(s - t) <= 1e-9 for t, _, _ in stations):
+            s += 0.5 / (nodes * 64)  # never on a station: a node restarts, a station jumps
+        stations.append((s, None, True))
     stations.sort(key=lambda item: item[0])
     nst = len(stations)
-    st_s = np.array([s for s, _ in stations])
+    st_s = np.array([s for s, _, _ in stations])
     st_s[0], st_s[-1] = 0.0, 1.0
     st_kind = np.zeros((nst, 3), dtype=np.int64)
     st_col = np.full((nst, 3), -1, dtype=np.int64)
-    seg_ncol = np.empty(nst - 1, dtype=np.int64)
+    seg_lo = np.zeros(nst - 1, dtype=np.int64)
+    seg_hi = np.empty(nst - 1, dtype=np.int64)
     val = np.zeros((nst, 3))
     fol = np.zeros((nst, 2))
     col = 3
+    lo = 0
     st_col[0] = (0, 1, 2)
-    for k, (_, st) in enumerate(stations):
-        if st is not None:
+    for k, (_, st, is_node) in enumerate(stations):
+        if is_node:
+            st_kind[k] = NODE
+            st_col[k] = col
+            lo = col
+            col += 6
+        elif st is not None:
             prescribed, kin, dead = st.prescribed, st.kinematics, st.dead_load
             for i in range(3):
                 if prescribed[i]:
@@ -241,15 +317,17 @@ def lower(problem: Problem) -> Lowered:
             ft, fn = st.follower_load
             fol[k] = (ft / force_scale, fn / force_scale)
         if k < nst - 1:
-            seg_ncol[k] = col
+            seg_lo[k] = lo
+            seg_hi[k] = col
     gx, gy = problem.gravity
     mu = part.mass_per_length
-    prm = np.array([mu * gx * length**3 / stiffness, mu * gy * length**3 / stiffness, 0.0])
+    prm = np.array([mu * gx * length**3 / stiffness, mu * gy * length**3 / stiffness,
+                    0.0, 0.0, 1.0])
     if part.straight_at_rest:
         st_kappa = np.zeros(nst)
     else:
         st_kappa = np.array([part.rest_curvature_at(s * length) * length for s in st_s])
     return Lowered(problem=problem, length=length, stiffness=stiffness, st_s=st_s,
-                   st_kind=st_kind, st_col=st_col, seg_ncol=seg_ncol, st_kappa=st_kappa,
-                   target=Arrays(val, fol, prm),
-                   station_of=tuple(st for _, st in stations), nz=col)
+                   st_kind=st_kind, st_col=st_col, seg_lo=seg_lo, seg_hi=seg_hi,
+                   st_kappa=st_kappa, target=Arrays(val, fol, prm),
+                   station_of=tuple(st for _, st, _ in stations), nz=col)

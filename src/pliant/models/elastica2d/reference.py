@@ -57,7 +57,7 @@ def solve_reference(problem: Problem, guess: object | None = None, *, tol: float
     """
     from scipy.integrate import solve_bvp  # noqa: PLC0415 (heavy; only here)
 
-    low = lower(problem)
+    low = lower(problem, nodes=1)  # solve_bvp needs no restart nodes
     nst = low.st_s.shape[0]
     nblk = nst - 1
     sigma = np.diff(low.st_s)

@@ -10,21 +10,24 @@ The route, for a problem with no warm start:
    predictor, so the answer is the branch continuity from the unloaded part reaches.
 2. When the rest state is itself singular (an end pushed along the straight part: an
    inextensible part cannot shorten its chord to first order, so buckling up or down
-   are equally possible), the part is given a small bow imperfection toward the side the
+   are equally possible), the part is given a bow imperfection toward the side the
    targets moved to, the homotopy runs on that imperfect part, and the imperfection is
    then removed by a second homotopy. The choice is reported in ``Equilibrium.notes``.
-3. The Runge-Kutta mesh is checked against the converged solution (its steps must
+3. When a homotopy stalls (a fold on that path, or sensitivities too large for the
+   shooting intervals), other routes are tried: more restart nodes, the bowed route, and
+   a two-stage path (positions first, then loads). Only when all stall does the solve
+   fail, with the furthest progress and its residual.
+4. The Runge-Kutta mesh is checked against the converged solution (its steps must
    resolve the local wavenumber max|theta'| + sqrt(|n|/EI)); if too coarse, it is
-   refined and Newton polishes the answer. The reported residual is the one of the
-   final pass that produced the arrays.
+   refined and Newton polishes the answer.
 """
 
 from __future__ import annotations
 
 import math
 import time
-from collections.abc import Iterable, Iterator
-from dataclasses import dataclass, field, replace
+from collections.abc import Callable, Iterable, Iterator
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -32,8 +35,8 @@ from pliant.core.equilibrium import Equilibrium, Samples, StationLoad
 from pliant.core.problem import Problem
 from pliant.errors import ConvergenceError
 from pliant.models.elastica2d import kernels
-from pliant.models.elastica2d.lowering import APPLIED, Arrays, Lowered, Mesh, lower
-from pliant.models.elastica2d.tableau import dop853
+from pliant.models.elastica2d.lowering import (APPLIED, PRESCRIBED, Arrays, Lowered, Mesh,
+                                               load_wavenumber, lower)
 
 
 @dataclass(frozen=True)
@@ -43,31 +46,35 @@ class ShootingSolver:
     tolerance : relative residual at which Newton stops (lengths by L, forces by EI/L^2)
     accuracy : the largest h * k allowed, h a Runge-Kutta step and k the local wavenumber
         max|theta'| + sqrt(|n| / EI) (dimensionless); 0.5 keeps tip errors below 1e-10 L
+    path_accuracy : the same, for the intermediate points of a continuation
     min_density, samples : Runge-Kutta steps per part length at least, while solving and
         in the returned arrays
-    max_steps, min_step : continuation budget (steps, smallest step in t)
+    max_steps, min_step : continuation budget of one homotopy (steps, smallest step in t)
+    contraction : the factor by which each corrector iteration must shrink the residual
+    loose_tolerance : convergence of intermediate points, relative to the homotopy's size
+    grow, shrink : step-size factors after an accepted or rejected continuation step
     time_budget : wall-clock seconds before a solve gives up
-    bow : the chord shortening of the imperfection (a rest curvature b cos(2 pi s / L) / L)
-        that leaves a singular start, as a fraction of the shortening the targets ask for;
-        bow_min, bow_max bound b
+    bow : the chord shortening of the imperfection that leaves a singular start, as a
+        fraction of the shortening the targets ask for; bow_min, bow_max bound its
+        curvature amplitude (dimensionless)
     """
 
     tolerance: float = 1e-10
     max_iterations: int = 25
     accuracy: float = 0.5
+    path_accuracy: float = 1.5
     min_density: int = 8
     samples: int = 64
     max_steps: int = 2000
     min_step: float = 1e-7
-    time_budget: float = 30.0
-    bow: float = 0.8
-    bow_min: float = 0.01
-    bow_max: float = 20.0
     contraction: float = 0.5
     loose_tolerance: float = 1e-4
     grow: float = 2.0
     shrink: float = 0.25
-    path_accuracy: float = 1.5
+    time_budget: float = 30.0
+    bow: float = 0.8
+    bow_min: float = 0.01
+    bow_max: float = 40.0
 
 
 @dataclass
@@ -101,7 +108,6 @@ class _Point:
 
 _EMPTY_JAC = np.zeros((0, 0))
 _BRANCH_NOTE = "the unloaded part was a singular start"
-
 _REASONS = {
     kernels.SINGULAR: "the Jacobian became singular (a fold or bifurcation: the branch "
                       "ends or turns back here)",
@@ -133,8 +139,8 @@ class _Run:
 
     def need(self, stats: np.ndarray) -> int:
         """Steps per unit length the solution with these statistics needs."""
-        k = float(stats[0]) + math.sqrt(float(stats[1]))
-        return max(self.solver.min_density, int(math.ceil(k / self.solver.accuracy)))
+        return int(kernels.needed_density(stats, self.solver.accuracy,
+                                          self.solver.min_density))
 
     def singular(self, z: np.ndarray, arrays: Arrays, mesh: Mesh) -> bool:
         _, jac, _ = self.low.shoot(z, arrays, mesh)
@@ -149,15 +155,14 @@ class _Run:
         if time.perf_counter() > self.deadline:
             raise _Stalled(0.0, z0, math.inf,
                            f"the time budget of {opts.time_budget} s ran out")
-        a, b, c = dop853()
         options = np.array([opts.tolerance, max(opts.tolerance, opts.loose_tolerance),
-                            opts.contraction, opts.min_step, opts.max_steps - self.steps,
+                            opts.contraction, opts.min_step, opts.max_steps,
                             opts.max_iterations, opts.accuracy, opts.min_density,
                             opts.grow, opts.shrink, opts.path_accuracy], dtype=float)
         z, jac, density, stats, r, status, last, t, iterations, steps = kernels.follow(
-            z0, jac0, mesh.density, low.st_s, low.st_kind, low.st_col, low.seg_ncol,
-            low.st_kappa, start.val, start.fol, start.prm, end.val, end.fol, end.prm,
-            a, b, c, options)
+            z0, jac0, mesh.density, low.st_s, low.st_kind, low.st_col, low.seg_lo,
+            low.seg_hi, low.st_kappa, start.val, start.fol, start.prm, end.val, end.fol,
+            end.prm, options)
         self.iterations += iterations
         self.steps += steps
         if status == kernels.BUDGET:
@@ -170,30 +175,134 @@ class _Run:
         return _Point(z, jac, low.mesh(density), stats, r)
 
     # -- routes ---------------------------------------------------------------------------
-    def cold(self, mesh: Mesh) -> _Point:
+    def cold(self) -> _Point:
+        """Try the routes in turn; raise the furthest stall when all fail."""
+        problem = self.low.problem
+        best: _Stalled | None = None
+        nodes = len(self.low.nodes) + 1
+        attempts = [(nodes, self.straight), (4 * nodes, self.straight),
+                    (nodes, self.two_stage), (nodes, self.swing)]
+        for count, legs in attempts:
+            if count != len(self.low.nodes) + 1:
+                self.low = lower(problem, nodes=count)
+            try:
+                return self.route(legs)
+            except _Stalled as stall:
+                if best is None or stall.t > best.t:
+                    best = stall
+        assert best is not None
+        return self.beyond_fold(best)
+
+    def route(self, legs: Callable[[Arrays], list[Arrays]]) -> _Point:
+        """Follow the legs from the rest state to the problem.
+
+        When the rest state is singular (an end pushed along the straight part: an
+        inextensible part cannot shorten its chord to first order, so it may buckle to
+        either side), the whole route runs on a bowed part, bowed toward the side the
+        targets moved to, and a last leg removes the bow at the problem.
+        """
         low, opts = self.low, self.solver
-        rest, z0 = low.rest(mesh)
-        if not self.singular(z0, rest, mesh):
-            return self.follow(rest, low.target, z0, mesh)
-        side = low.lateral_side(rest)
-        # The bow cos(2 pi s) of amplitude b shortens the chord by b^2 / (16 pi^2). Making
-        # that most of what the targets ask lets the bowed part reach them under a small
-        # axial force (a nearly straight inextensible part is so stiff axially that the
-        # force would rise almost vertically along the path); removing the bow at the
-        # targets then raises the force smoothly, on the branch that bows to that side.
-        shortening = low.shortening(rest)
-        bow = side * min(opts.bow_max,
-                         max(opts.bow_min, 4.0 * math.pi * math.sqrt(opts.bow * shortening)))
-        rest_bowed, z0 = low.rest(mesh, bow)
-        target_bowed = replace(low.target, prm=low.target.prm + np.array([0.0, 0.0, bow]))
-        point = self.follow(rest_bowed, target_bowed, z0, mesh)
-        point = self.follow(target_bowed, low.target, point.z, point.mesh, point.jac)
-        self.notes.append(
-            f"{_BRANCH_NOTE} (a bifurcation: it can buckle to either "
-            f"side); pliant took the branch that bows to the {'left' if side > 0 else 'right'}"
-            " of its chord, the side its targets moved to; another equilibrium may exist on "
-            "the other side")
+        mesh = self.first_mesh()
+        rest, z = low.rest(mesh)
+        bow, span = 0.0, (0.0, 1.0)
+        if self.singular(z, rest, mesh):
+            side = low.lateral_side(rest)
+            ends = low.chord()
+            if ends is not None:
+                span = (float(low.st_s[ends[0]]), float(low.st_s[ends[1]]))
+            width = span[1] - span[0]
+            # A bow b cos(2 pi u) over a span w shortens its chord by w (b w)^2 / 16 pi^2.
+            # Making that most of what the targets ask lets the bowed part reach them
+            # under a small axial force (a nearly straight inextensible part is so stiff
+            # axially that the force would rise almost vertically along the path);
+            # removing the bow at the targets then raises the force smoothly, on the
+            # branch that bows to that side.
+            wanted = opts.bow * low.shortening(rest)
+            amplitude = 4.0 * math.pi / width * math.sqrt(wanted / width)
+            bow = side * min(opts.bow_max, max(opts.bow_min, amplitude))
+            rest, z = low.rest(mesh, bow, span)
+        targets = [leg.with_bow(bow, span) for leg in legs(rest)]
+        if bow != 0.0:
+            targets.append(low.target)
+        point = None
+        start = rest
+        for end in targets:
+            point = self.follow(start, end, z, mesh if point is None else point.mesh,
+                                _EMPTY_JAC if point is None else point.jac)
+            start, z = end, point.z
+        assert point is not None
+        if bow != 0.0:
+            self.notes.append(
+                f"{_BRANCH_NOTE} (a bifurcation: it can buckle to either side); pliant "
+                f"took the branch that bows to the {'left' if bow > 0 else 'right'} of its "
+                "chord, the side its targets moved to; another equilibrium may exist on the "
+                "other side")
         return point
+
+    def straight(self, rest: Arrays) -> list[Arrays]:
+        """Loads and positions together, along straight lines."""
+        return [self.low.target]
+
+    def two_stage(self, rest: Arrays) -> list[Arrays]:
+        """Positions first, with no load; then the loads."""
+        low = self.low
+        placed = Arrays(np.where(low.st_kind == PRESCRIBED, low.target.val, 0.0),
+                        np.zeros_like(low.target.fol), rest.prm)
+        return [placed, low.target]
+
+    def swing(self, rest: Arrays, legs: int = 8) -> list[Arrays]:
+        """Carry the held points round the first one along arcs (their distance and
+        bearing from it move linearly), as a hand would, instead of along straight
+        lines that may sweep through the first support; loads grow linearly."""
+        low = self.low
+        ends = low.chord()
+        if ends is None:
+            raise _Stalled(0.0, np.zeros(low.nz), math.inf, "nothing to swing around")
+        pivot = ends[0]
+        located = np.nonzero((low.st_kind[:, 0] == PRESCRIBED)
+                             & (low.st_kind[:, 1] == PRESCRIBED))[0]
+
+        def at(t: float) -> Arrays:
+            arrays = rest.lerp(low.target, t)
+            val = arrays.val.copy()
+            for k in located:
+                if k == pivot:
+                    continue
+                a = rest.val[k, :2] - rest.val[pivot, :2]
+                b = low.target.val[k, :2] - low.target.val[pivot, :2]
+                turn = math.remainder(math.atan2(b[1], b[0]) - math.atan2(a[1], a[0]),
+                                      2.0 * math.pi)
+                radius = (1 - t) * math.hypot(*a) + t * math.hypot(*b)
+                bearing = math.atan2(a[1], a[0]) + t * turn
+                val[k, :2] = val[pivot, :2] + radius * np.array([math.cos(bearing),
+                                                                math.sin(bearing)])
+            return Arrays(val, arrays.fol, arrays.prm)
+
+        return [at(i / legs) for i in range(1, legs + 1)]
+
+    def beyond_fold(self, stall: _Stalled) -> _Point:
+        """Every path met a fold (the part would snap through): look for an equilibrium
+        of the problem itself with a damped Newton, from the last state before the fold,
+        then from the rest state. Say so: it lies beyond a snap, on another branch."""
+        low = self.low = lower(self.low.problem)
+        mesh = self.first_mesh()
+        _, z_rest = low.rest(mesh)
+        starts = [stall.z] if stall.z.shape[0] == low.nz else []
+        for z0 in starts + [z_rest]:
+            z, r, status, jac, stats = self.newton(z0, low.target, mesh, strict=False,
+                                                   tol=self.solver.tolerance)
+            if status == kernels.CONVERGED:
+                self.notes.append(
+                    f"the path from the unloaded part meets a fold at {stall.t:.3g} of the "
+                    "way (the part would snap through); this equilibrium lies beyond it, "
+                    "found by a damped Newton: check that it is the one you expect")
+                return _Point(z, jac, mesh, stats, r)
+        raise stall
+
+    def first_mesh(self) -> Mesh:
+        k = load_wavenumber(self.low.problem)
+        return self.low.mesh(max(self.solver.min_density,
+                                 int(math.ceil(k / self.solver.path_accuracy))))
 
     def warm(self, warm: Equilibrium, follow_only: bool,
              before: Equilibrium | None = None) -> _Point | None:
@@ -212,11 +321,11 @@ class _Run:
                     self.steps += 1
                     return self.polish(_Point(z, jac, mesh, stats, r))
         else:
-            z0 = low.unknowns_from(warm.position[0], float(warm.angle[0]),
-                                   {k: (v.force, v.moment) for k, v in warm.loads.items()})
+            z0 = low.unknowns_from(warm)
             jac0 = _EMPTY_JAC
-            mesh = low.mesh(max(_density(opts, _load_wavenumber(low)),
-                                old.mesh.density if old is not None else 0))
+            mesh = self.first_mesh()
+            if old is not None and old.mesh.density > mesh.density:
+                mesh = low.mesh(old.mesh.density)
         z, r, status, jac, stats = self.newton(z0, low.target, mesh, strict=True,
                                                tol=opts.tolerance, jac0=jac0)
         if status == kernels.CONVERGED:
@@ -268,9 +377,9 @@ def _secant(before: Equilibrium | None, old: _WarmState, low: Lowered) -> np.nda
 
 
 def _distance(a: Lowered, b: Lowered) -> float:
-    return float(np.sqrt(np.sum((a.target.val - b.target.val) ** 2)
-                         + np.sum((a.target.fol - b.target.fol) ** 2)
-                         + np.sum((a.target.prm - b.target.prm) ** 2)))
+    return math.sqrt(float(np.sum((a.target.val - b.target.val) ** 2)
+                           + np.sum((a.target.fol - b.target.fol) ** 2)
+                           + np.sum((a.target.prm - b.target.prm) ** 2)))
 
 
 def _same_structure(a: Lowered, b: Lowered) -> bool:
@@ -279,36 +388,23 @@ def _same_structure(a: Lowered, b: Lowered) -> bool:
             and np.array_equal(a.st_kind, b.st_kind) and np.array_equal(a.st_kappa, b.st_kappa))
 
 
-def _density(solver: ShootingSolver, k: float) -> int:
-    return max(solver.min_density, int(math.ceil(k / solver.accuracy)))
-
-
-def _load_wavenumber(low: Lowered) -> float:
-    """A priori wavenumber from the applied loads (dimensionless)."""
-    tgt = low.target
-    applied = low.st_kind == APPLIED
-    forces = np.abs(np.where(applied[:, :2], tgt.val[:, :2], 0.0)).sum()
-    forces += np.abs(tgt.fol).sum() + float(np.hypot(tgt.prm[0], tgt.prm[1]))
-    moments = np.abs(np.where(applied[:, 2], tgt.val[:, 2], 0.0)).sum()
-    return math.sqrt(forces) + moments + float(np.abs(low.st_kappa).max())
-
-
 def solve(problem: Problem, *, warm_start: Equilibrium | None = None,
           solver: ShootingSolver | None = None) -> Equilibrium:
     """The equilibrium of a 2D problem.
 
     warm_start : an earlier equilibrium (of this or a nearby problem) to start from; the
         answer stays on its branch when a continuation from it can reach the problem.
-    Raises ConvergenceError (with the residual and the last good state) when no
-    equilibrium is found within the solver's budgets.
+    Raises ConvergenceError (with the residual and how far it got) when no equilibrium
+    is found within the solver's budgets.
     """
     return _solve(problem, warm_start, solver or ShootingSolver(), follow_only=False)
 
 
 def _solve(problem: Problem, warm_start: Equilibrium | None, solver: ShootingSolver,
            follow_only: bool, before: Equilibrium | None = None) -> Equilibrium:
-    low = lower(problem)
-    run = _Run(low, solver)
+    old = warm_start.state if warm_start is not None else None
+    nodes = len(old.low.nodes) + 1 if isinstance(old, _WarmState) else None
+    run = _Run(lower(problem, nodes=nodes), solver)
     point = None
     try:
         if warm_start is not None:
@@ -319,14 +415,16 @@ def _solve(problem: Problem, warm_start: Equilibrium | None, solver: ShootingSol
             else:
                 run.notes.append("the warm start could not be followed to this problem; "
                                  "solved from the rest state instead")
+                run.low = lower(problem)
         if point is None:
-            point = run.polish(run.cold(low.mesh(_density(solver, _load_wavenumber(low)))))
+            point = run.polish(run.cold())
     except _Stalled as stall:
         raise ConvergenceError(
             f"no equilibrium: {stall.reason}; stopped at {stall.t:.3g} of the way "
             f"(relative residual {stall.residual:.2e}); try smaller steps or check "
             "that the targets can be reached",
             residual=stall.residual, progress=stall.t, last_good=warm_start) from None
+    low = run.low
     sampler = _Sampler(low, point.z, max(point.mesh.density, solver.samples))
     return Equilibrium(problem=problem, residual=point.residual, iterations=run.iterations,
                        steps=run.steps, sampler=sampler, notes=tuple(run.notes),
@@ -345,9 +443,7 @@ class _Sampler:
         low, z = self.low, self.z
         mesh = low.mesh(self.density)
         _, _, traj = low.shoot(z, low.target, mesh, want_jac=False, trajectory=True)
-        length, fs, ms = low.length, low.force_scale, low.moment_scale
-        s = np.concatenate([np.linspace(low.st_s[k], low.st_s[k + 1], mesh.steps[k] + 1)
-                            for k in range(mesh.steps.shape[0])]) * length
+        fs, ms = low.force_scale, low.moment_scale
         rows = low.station_rows(mesh)
         loads: dict[str, StationLoad] = {}
         for k, station in enumerate(low.station_of):
@@ -356,9 +452,10 @@ class _Sampler:
             theta = float(traj[rows[k], 2])
             for cond in station.conditions:
                 loads[cond.name] = _station_load(low, k, station, cond, z, theta)
-        return Samples(s=s, position=traj[:, :2] * length, angle=traj[:, 2].copy(),
-                       internal_force=traj[:, 3:5] * fs, bending_moment=traj[:, 5] * ms,
-                       energy=float(traj[-1, 6]) * low.stiffness / length, loads=loads)
+        return Samples(s=low.grid(mesh), position=traj[:, :2] * low.length,
+                       angle=traj[:, 2].copy(), internal_force=traj[:, 3:5] * fs,
+                       bending_moment=traj[:, 5] * ms,
+                       energy=float(traj[-1, 6]) * low.stiffness / low.length, loads=loads)
 
 
 def _station_load(low: Lowered, k: int, station, cond, z: np.ndarray,

@@ -1,0 +1,1 @@
+"""Command-line interface (typer): solve problem files, run the demo."""

@@ -1,0 +1,92 @@
+"""The command line: summaries, JSON, plots, and one-line errors without tracebacks."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from .helpers import EXAMPLES
+
+PLIANT = [sys.executable, "-m", "pliant.cli.app"]
+
+
+def run(*args: str, cwd: Path | None = None) -> subprocess.CompletedProcess:
+    return subprocess.run([*PLIANT, *args], capture_output=True, text=True, timeout=300,
+                          cwd=cwd)
+
+
+def test_help_does_not_load_the_solvers():
+    code = ("import sys, pliant.cli.app as a\n"
+            "heavy = [m for m in ('numba', 'scipy', 'matplotlib', 'pydantic') "
+            "if m in sys.modules]\nprint(heavy)")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                         check=True)
+    assert out.stdout.strip() == "[]"
+
+
+def test_solve_prints_a_summary(tmp_path):
+    out = run("solve", str(EXAMPLES / "paper" / "case3.toml"), "--plot",
+              str(tmp_path / "case3.png"))
+    assert out.returncode == 0, out.stderr
+    assert "paper case 3" in out.stdout
+    assert "hole" in out.stdout and "reaction" in out.stdout
+    assert "-38.006" in out.stdout and "4.63997" in out.stdout
+    assert "smallest bend radius" in out.stdout
+    png = (tmp_path / "case3.png").read_bytes()
+    assert png[:8] == b"\x89PNG\r\n\x1a\n" and len(png) > 20000
+
+
+def test_solve_json():
+    out = run("solve", str(EXAMPLES / "paper" / "case1.toml"), "--json")
+    assert out.returncode == 0, out.stderr
+    data = json.loads(out.stdout)
+    assert data["loads"]["clamp"]["force"] == pytest.approx([0.0, -7.0], abs=1e-9)
+    assert len(data["s"]) == len(data["x"]) == len(data["M"])
+    assert data["units"]["force"] == "N"
+    assert data["residual"] < 1e-9
+
+
+@pytest.mark.parametrize("content,message", [
+    (None, "no such file"),
+    ("[part]\nlength = 1.0\nbending_stiffness = 1.0\n", "too few conditions"),
+    ("[part]\nlength = -1.0\nbending_stiffness = 1.0\n", "part.length"),
+    ("[part]\nlength = 1.0\nbending_stiffness = 1.0\n[[condition]]\ns = 0.0\nx = 0.0\n"
+     "y = 0.0\nangle = 0.0\n[[condition]]\ns = 1.0\nx = 2.0\ny = 0.0\n", "inextensible"),
+])
+def test_bad_input_is_one_line_without_traceback(tmp_path, content, message):
+    path = tmp_path / "bad.toml"
+    if content is not None:
+        path.write_text(content)
+    out = run("solve", str(path))
+    assert out.returncode == 2
+    assert "Traceback" not in out.stderr
+    lines = out.stderr.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith("error: ") and message in lines[0]
+
+
+def test_plot_is_written_atomically(tmp_path):
+    """A plot into a folder that cannot be written fails cleanly and leaves no
+    half-written file behind."""
+    target = tmp_path / "existing.png"
+    target.write_bytes(b"keep me")
+    blocked = tmp_path / "blocked"
+    blocked.write_text("a file, not a folder")
+    out = run("solve", str(EXAMPLES / "paper" / "case1.toml"), "--plot",
+              str(blocked / "x.png"))
+    assert out.returncode == 2
+    assert out.stderr.strip().startswith("error: cannot write the plot")
+    assert "Traceback" not in out.stderr
+    assert target.read_bytes() == b"keep me"
+    assert not any(p.name.startswith(".") for p in tmp_path.iterdir())
+
+
+def test_demo_solves_and_plots_the_paper_cases(tmp_path):
+    out = run("demo", "--out", str(tmp_path / "demo"))
+    assert out.returncode == 0, out.stderr
+    for i in (1, 2, 3):
+        assert f"paper case {i}" in out.stdout
+        assert (tmp_path / "demo" / f"case{i}.png").stat().st_size > 20000

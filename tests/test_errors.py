@@ -1,0 +1,119 @@
+"""Bad input gets a typed error that names the field and says what to change."""
+
+from __future__ import annotations
+
+import math
+
+import pytest
+
+import pliant as pl
+from pliant.errors import (ConvergenceError, IllPosedProblemError, InputError,
+                           UnreachableTargetError)
+from pliant.models.elastica2d import ShootingSolver, solve
+
+UNIT = pl.Part(length=1.0, bending_stiffness=1.0)
+
+
+@pytest.mark.parametrize("kwargs,field", [
+    ({"length": 0.0, "bending_stiffness": 1.0}, "length"),
+    ({"length": -1.0, "bending_stiffness": 1.0}, "length"),
+    ({"length": math.nan, "bending_stiffness": 1.0}, "length"),
+    ({"length": 1.0, "bending_stiffness": 0.0}, "bending_stiffness"),
+    ({"length": 1.0, "bending_stiffness": -2.0}, "bending_stiffness"),
+    ({"length": 1.0, "bending_stiffness": 1.0, "mass_per_length": -1.0}, "mass_per_length"),
+    ({"length": 1.0, "bending_stiffness": 1.0, "outer_diameter": 0.01,
+      "inner_diameter": 0.02}, "inner_diameter"),
+    ({"length": 1.0, "bending_stiffness": 1.0,
+      "rest_curvature": ((0.0, 1.0), (2.0, 1.0))}, "rest_curvature[1]"),
+    ({"length": 1.0, "bending_stiffness": 1.0,
+      "rest_curvature": ((0.5, 1.0), (0.2, 1.0))}, "rest_curvature[1]"),
+])
+def test_invalid_part(kwargs, field):
+    with pytest.raises(InputError) as err:
+        pl.Part(**kwargs)
+    assert err.value.field == field
+    assert str(err.value).startswith(field)
+
+
+def test_invalid_material():
+    with pytest.raises(InputError, match="youngs_modulus"):
+        pl.Material(youngs_modulus=0.0)
+    with pytest.raises(InputError, match="poisson_ratio"):
+        pl.Material(youngs_modulus=1e6, poisson_ratio=0.7)
+
+
+def test_station_outside_the_part():
+    with pytest.raises(InputError, match=r"hand\.s: station s = 1\.5 m lies outside"):
+        pl.Problem(UNIT, (pl.clamp(0.0), pl.push(1.5, force=(0, 1), name="hand")))
+
+
+def test_component_both_prescribed_and_applied():
+    with pytest.raises(IllPosedProblemError, match="both prescribed"):
+        pl.Condition(s=1.0, name="tip", position=(0.5, None), force=(2.0, None))
+    with pytest.raises(IllPosedProblemError, match="angle is both prescribed"):
+        pl.Condition(s=1.0, name="tip", angle=0.0, moment=1.0)
+    # Two conditions at one station claiming the same component.
+    with pytest.raises(IllPosedProblemError, match="both prescribed and loaded"):
+        pl.Problem(UNIT, (pl.clamp(0.0), pl.grip(1.0, position=(0.5, 0.5), name="hand"),
+                          pl.push(1.0, force=(1.0, 0.0), name="other")))
+    with pytest.raises(IllPosedProblemError, match="both prescribe x"):
+        pl.Problem(UNIT, (pl.clamp(0.0), pl.grip(1.0, position=(0.5, 0.5), name="a"),
+                          pl.grip(1.0, position=(0.6, 0.5), name="b")))
+    with pytest.raises(IllPosedProblemError, match="follower force cannot act"):
+        pl.Condition(s=1.0, position=(0.5, 0.5), force=(0, 1), follower=True)
+
+
+@pytest.mark.parametrize("conditions,missing", [
+    ((), "x, y"),
+    ((pl.push(1.0, force=(0, 1)),), "x, y"),
+    ((pl.pin(0.0),), "an angle"),
+    ((pl.Condition(s=0.0, name="roller", position=(None, 0.0), angle=0.0),), "x"),
+])
+def test_too_few_conditions(conditions, missing):
+    with pytest.raises(IllPosedProblemError, match="too few conditions") as err:
+        pl.Problem(UNIT, conditions)
+    assert missing in str(err.value)
+
+
+def test_duplicate_names():
+    with pytest.raises(InputError, match="two conditions are named 'a'"):
+        pl.Problem(UNIT, (pl.clamp(0.0, name="a"), pl.push(1.0, force=(0, 1), name="a")))
+
+
+@pytest.mark.parametrize("target", [(1.2, 0.0), (0.0, 1.0), (0.8, 0.7), (1.0, 0.0)])
+def test_target_out_of_reach(target):
+    with pytest.raises(UnreachableTargetError, match="inextensible") as err:
+        pl.Problem(UNIT, (pl.clamp(0.0), pl.grip(1.0, position=target, name="hand")))
+    assert err.value.field == "hand.position"
+
+
+def test_interior_target_out_of_reach():
+    with pytest.raises(UnreachableTargetError):
+        pl.Problem(UNIT, (pl.clamp(0.0), pl.grip(0.3, position=(0.0, 0.35), name="hand")))
+
+
+def test_non_convergence_says_so_with_residual():
+    problem = pl.Problem(UNIT, (pl.clamp(0.0), pl.push(1.0, force=(0.0, 50.0))))
+    with pytest.raises(ConvergenceError) as err:
+        solve(problem, solver=ShootingSolver(max_steps=2))
+    assert "budget" in str(err.value)
+    assert err.value.residual > 0.0
+    assert 0.0 <= err.value.progress < 1.0
+
+
+def test_trace_reports_a_fold_with_the_last_good_state():
+    """Pull a hand holding the tip beyond what a continuation can follow (the target
+    jumps through the part's reach): the trace stops with the last equilibrium."""
+    problems = [pl.Problem(UNIT, (pl.clamp(0.0),
+                                  pl.push(1.0, force=(-f, 0.1), name="tip")))
+                for f in (1.0, 2.0)]
+    eqs = list(pl.trace(problems))
+    assert len(eqs) == 2
+    tight = ShootingSolver(max_steps=1)
+    with pytest.raises(ConvergenceError) as err:
+        list(pl.trace(problems + [pl.Problem(UNIT, (pl.clamp(0.0),
+                                                    pl.push(1.0, force=(-60.0, 0.1),
+                                                            name="tip")))],
+                      solver=tight))
+    assert err.value.last_good is not None
+    assert err.value.last_good.problem.condition("tip").force == (-2.0, 0.1)

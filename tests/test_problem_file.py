@@ -1,0 +1,138 @@
+"""Problem files: the examples parse, errors name file and field, and the parser never
+fails with anything but a FileFormatError."""
+
+from __future__ import annotations
+
+import math
+
+import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+
+import pliant as pl
+from pliant.errors import FileFormatError
+from pliant.io.problem_file import dump_problem, load_problem, parse_problem
+
+from .helpers import EXAMPLES, zoo
+
+MINIMAL = """
+name = "m"
+[part]
+length = 1.0
+bending_stiffness = 2.0
+[[condition]]
+name = "clamp"
+s = 0.0
+x = 0.0
+y = 0.0
+angle = 0.0
+[[condition]]
+name = "tip"
+s = 1.0
+Fy = 3.0
+"""
+
+
+def test_examples_parse():
+    for i in (1, 2, 3):
+        problem = load_problem(EXAMPLES / "paper" / f"case{i}.toml")
+        assert problem.part.length == 1.0 and problem.part.bending_stiffness == 1.0
+    case2 = load_problem(EXAMPLES / "paper" / "case2.toml")
+    assert all(c.follower for c in case2.conditions if c.name != "clamp")
+    assert case2.condition("hand 2").force == (0.0, 15.0)
+
+
+@pytest.mark.parametrize("name", sorted(zoo()))
+def test_dump_then_parse_round_trip(name):
+    problem = zoo()[name]
+    again = parse_problem(dump_problem(problem))
+    assert again.conditions == problem.conditions
+    assert again.gravity == problem.gravity
+    assert again.part.rest_knots == problem.part.rest_knots
+    assert again.part.bending_stiffness == problem.part.bending_stiffness
+
+
+def test_tube_section_and_material():
+    text = MINIMAL.replace("bending_stiffness = 2.0", """outer_diameter = 0.02
+inner_diameter = 0.012
+[part.material]
+youngs_modulus = 5.0e6
+density = 1150.0""")
+    part = parse_problem(text).part
+    assert part.bending_stiffness == pytest.approx(5e6 * math.pi * (0.02**4 - 0.012**4) / 64)
+    assert part.mass_per_length == pytest.approx(1150 * math.pi * (0.02**2 - 0.012**2) / 4)
+
+
+@pytest.mark.parametrize("change,where", [
+    (("length = 1.0", "length = -1.0"), "part.length"),
+    (("length = 1.0", 'length = "long"'), "part.length"),
+    (("Fy = 3.0", "Fy = 3.0\nFz = 1.0"), "condition[1].Fz"),
+    (("Fy = 3.0", "Fy = 3.0\nFt = 1.0"), "condition[1]"),
+    (("bending_stiffness = 2.0", ""), "part"),
+    (("s = 1.0", "s = 2.0"), "tip.s"),
+    (("Fy = 3.0", "y = 3.0"), "tip.position"),
+    (("Fy = 3.0", "Fy = nan"), "condition[1].Fy"),
+])
+def test_errors_name_the_field(change, where):
+    text = MINIMAL.replace(*change)
+    with pytest.raises(FileFormatError) as err:
+        parse_problem(text, "bad.toml")
+    message = str(err.value)
+    assert message.startswith("bad.toml: ")
+    assert where in message
+    assert "\n" not in message
+
+
+def test_invalid_toml_and_missing_file(tmp_path):
+    with pytest.raises(FileFormatError, match="not valid TOML"):
+        parse_problem("[part\nlength = 1", "x.toml")
+    with pytest.raises(FileFormatError, match="no such file"):
+        load_problem(tmp_path / "missing.toml")
+
+
+values = st.one_of(st.floats(allow_nan=True, allow_infinity=True), st.integers(-5, 5),
+                   st.text(max_size=4), st.booleans(), st.none())
+keys = st.sampled_from(["s", "x", "y", "angle", "Fx", "Fy", "moment", "Ft", "Fn", "name",
+                        "bogus"])
+
+
+@st.composite
+def documents(draw):
+    part = draw(st.dictionaries(st.sampled_from(["length", "bending_stiffness",
+                                                 "mass_per_length", "rest_curvature",
+                                                 "outer_diameter"]),
+                                values, max_size=5))
+    conditions = draw(st.lists(st.dictionaries(keys, values, max_size=6), max_size=4))
+    return part, conditions
+
+
+def _toml_value(v) -> str:
+    if v is None:
+        return '""'
+    if isinstance(v, bool):
+        return "true" if v else "false"
+    if isinstance(v, float):
+        if math.isnan(v):
+            return "nan"
+        if math.isinf(v):
+            return "inf" if v > 0 else "-inf"
+        return repr(v)
+    if isinstance(v, int):
+        return str(v)
+    return '"' + v.replace("\\", "\\\\").replace('"', '\\"') + '"'
+
+
+@settings(max_examples=150, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(documents())
+def test_parser_gives_a_problem_or_a_file_error(doc):
+    part, conditions = doc
+    lines = ["[part]"] + [f"{k} = {_toml_value(v)}" for k, v in part.items()]
+    for cond in conditions:
+        lines.append("[[condition]]")
+        lines += [f"{k} = {_toml_value(v)}" for k, v in cond.items()]
+    try:
+        problem = parse_problem("\n".join(lines), "fuzz.toml")
+    except FileFormatError as err:
+        assert str(err).startswith("fuzz.toml: ")
+    else:
+        assert isinstance(problem, pl.Problem)
