@@ -129,3 +129,56 @@ def test_convergence_order_is_eight():
     e1, e2 = error(10), error(20)
     order = math.log2(e1 / e2)
     assert 7.0 <= order <= 9.5, (e1, e2, order)
+
+
+def test_floppy_cable_hangs_as_a_catenary():
+    """A cable pinned at both ends under its own weight tends to the catenary
+    y = a cosh(x / a) as EI -> 0; at q L^3 / EI = 1e5 single shooting would be hopeless
+    (sensitivities ~ exp(300)), multiple shooting is not."""
+    length, span = 1.0, 0.8
+    a = brentq(lambda a: 2 * a * math.sinh(span / (2 * a)) - length, 0.01, 100.0)
+
+    def shape_error(q_l3_ei: float) -> float:
+        part = pl.Part(length=length, bending_stiffness=1.0, mass_per_length=q_l3_ei / 9.81)
+        eq = solve(pl.Problem(part, (pl.pin(0.0, (0.0, 0.0)),
+                                     pl.pin(length, (span, 0.0), name="right")),
+                              gravity=(0.0, -9.81)))
+        x, y = eq.position[:, 0], eq.position[:, 1]
+        catenary = a * np.cosh((x - span / 2) / a) - a * math.cosh(span / (2 * a))
+        return float(np.abs(y - catenary).max())
+
+    coarse, fine = shape_error(1e3), shape_error(1e5)
+    assert fine < 1e-3 * length
+    assert fine < coarse / 3.0
+
+
+def test_no_branch_jump_over_a_dense_load_sweep():
+    """The answer is the branch continuity from the unloaded part reaches: for every
+    load up to F L^2 / EI = 100 the tip is the elliptic-integral one (a jump to one of
+    the looped equilibria that coexist at large loads would miss it by ~0.1 L)."""
+    part = pl.Part(length=1.0, bending_stiffness=1.0)
+    worst = 0.0
+    for alpha in np.linspace(0.5, 100.0, 60):
+        eq = solve(pl.Problem(part, (pl.clamp(0.0), pl.push(1.0, force=(0.0, alpha)))))
+        x, y, phi = cantilever_tip(alpha)
+        worst = max(worst, abs(eq.tip[0] - x), abs(eq.tip[1] - y), abs(eq.tip[2] - phi))
+    assert worst <= 1e-8
+
+
+@pytest.mark.parametrize("scale", [0.7, 2.05])
+def test_deep_compression_follows_the_stable_branch(scale):
+    """A cantilever pushed along its axis at 8 to 25 times its Euler load (with a small
+    side load): the cold solve ends where a slow continuation of 400 small steps ends,
+    not on the nearby unstable S-shapes (which have a higher potential energy)."""
+    part = pl.Part(length=1.0, bending_stiffness=1.0)
+
+    def problem(f: float) -> pl.Problem:
+        return pl.Problem(part, (pl.clamp(0.0), pl.push(1.0, force=(-30 * f, 3 * f),
+                                                        name="tip")))
+
+    *_, slow = pl.trace([problem(f) for f in np.linspace(0.0, scale, 401)[1:]])
+    cold = solve(problem(scale))
+    assert np.allclose(cold.tip, slow.tip, atol=1e-8)
+    load = np.array([-30 * scale, 3 * scale])
+    potential = cold.energy - load @ np.array(cold.tip[:2])
+    assert potential < 0.0  # the S-shaped equilibria have a positive potential energy

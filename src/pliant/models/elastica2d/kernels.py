@@ -336,6 +336,36 @@ def lu_solve(A, rhs):
 
 
 @njit(cache=True)
+def det_sign(A):
+    """Sign of det(A) by Gaussian elimination with partial pivoting (0 if singular)."""
+    n = A.shape[0]
+    M = A.copy()
+    sign = 1.0
+    for col in range(n):
+        piv = col
+        best = abs(M[col, col])
+        for r in range(col + 1, n):
+            if abs(M[r, col]) > best:
+                best = abs(M[r, col])
+                piv = r
+        if best == 0.0:
+            return 0.0
+        if piv != col:
+            sign = -sign
+            for j in range(n):
+                t = M[col, j]
+                M[col, j] = M[piv, j]
+                M[piv, j] = t
+        if M[col, col] < 0.0:
+            sign = -sign
+        for r in range(col + 1, n):
+            f = M[r, col] / M[col, col]
+            for j in range(col, n):
+                M[r, j] -= f * M[col, j]
+    return sign
+
+
+@njit(cache=True)
 def max_abs(v):
     m = 0.0
     for i in range(v.shape[0]):
@@ -461,7 +491,8 @@ BUDGET = 6
 
 # Layout of the options vector of ``follow``.
 OPT_TOL, OPT_LOOSE, OPT_CONTRACTION, OPT_MIN_STEP, OPT_MAX_STEPS, OPT_MAX_ITER, \
-    OPT_ACCURACY, OPT_MIN_DENSITY, OPT_GROW, OPT_SHRINK, OPT_PATH_ACCURACY = range(11)
+    OPT_ACCURACY, OPT_MIN_DENSITY, OPT_GROW, OPT_SHRINK, OPT_PATH_ACCURACY, \
+    OPT_WAVE_STEP = range(12)
 
 
 @njit(cache=True)
@@ -486,16 +517,22 @@ def follow(z0, jac0, density, st_s, st_kind, st_col, seg_lo, seg_hi, st_kappa,
            val0, fol0, prm0, val1, fol1, prm1, opts):
     """Continuation from (arrays0, z0), an exact solution, to arrays1.
 
-    The homotopy moves every input linearly, t from 0 to 1. Each step is a Newton
-    corrector that must contract (see ``newton``), else the step is cut by 4; after an
-    accepted step the next one doubles. The predictor is the secant through the last two
-    points. Intermediate points only need to be on the branch: they converge to a loose
+    The homotopy moves every input linearly, t from 0 to 1. The first predictor follows
+    the tangent at the start, the later ones the secant through the last two points.
+    Each step's Newton corrector must contract (see ``newton``); the next step aims at
+    a corrector distance of ``grow`` (relative to the change predicted), and no step
+    may raise the wavenumber by more than ``wave_step``. Intermediate points only need to be on the branch: they converge to a loose
     tolerance (relative to how far the homotopy moves its inputs) on a mesh of the
     coarser path accuracy. The end point converges to the full
     tolerance on a mesh refined until it resolves the solution to the accuracy asked for.
 
-    Returns (z, jac, density, stats, residual, status, last, t, iterations, steps);
-    status is CONVERGED, STALLED or BUDGET, and last the status of the last Newton.
+    The sign of det J is followed along the path: a step that flips it is rejected
+    (it jumped to another branch, or crossed a fold or bifurcation too fast) until the
+    step is so short that the crossing is genuine (a bifurcation on the path).
+
+    Returns (z, jac, density, stats, residual, status, last, t, iterations, steps,
+    crossings); status is CONVERGED, STALLED or BUDGET, last the status of the last
+    Newton, crossings the number of genuine sign changes of det J on the way.
     """
     tol = opts[OPT_TOL]
     # Intermediate points converge relative to how far the homotopy moves the inputs.
@@ -517,7 +554,27 @@ def follow(z0, jac0, density, st_s, st_kind, st_col, seg_lo, seg_hi, st_kappa,
     grow = opts[OPT_GROW]
     shrink = opts[OPT_SHRINK]
     path_accuracy = opts[OPT_PATH_ACCURACY]
+    wave_step = opts[OPT_WAVE_STEP]
     nz = z0.shape[0]
+    # The wavenumber of the applied loads along the path, K(t) = sqrt(t F) + t C: the
+    # homotopy crosses the loads at which buckling modes appear (about pi apart in K),
+    # so no step may raise K by more than wave_step, or a step could skip the turn of
+    # the branch there and land on another one.
+    load_f = 0.0
+    load_c = 0.0
+    for i in range(val0.shape[0]):
+        for j in range(3):
+            if st_kind[i, j] == APPLIED:
+                if j < 2:
+                    load_f += abs(val1[i, j] - val0[i, j])
+                else:
+                    load_c += abs(val1[i, j] - val0[i, j])
+        load_f += abs(fol1[i, 0] - fol0[i, 0]) + abs(fol1[i, 1] - fol0[i, 1])
+    load_f += math.sqrt((prm1[0] - prm0[0]) ** 2 + (prm1[1] - prm0[1]) ** 2)
+    load_c += abs(prm1[2] - prm0[2])
+    root_f = math.sqrt(load_f)
+    k_prev = -1.0
+    k_now = -1.0
     val = val0.copy()
     fol = fol0.copy()
     prm = prm0.copy()
@@ -533,7 +590,43 @@ def follow(z0, jac0, density, st_s, st_kind, st_col, seg_lo, seg_hi, st_kappa,
     stats = np.zeros(2)
     seg_steps = mesh_steps(st_s, density)
     last_status = CONVERGED
+    # The tangent dz/dt = -J^-1 dG/dt at the start, for a first-order first predictor
+    # (dG/dt by a forward difference: G(z0, 0) = 0 at the exact start).
+    empty = np.zeros((0, NSTATE))
+    eps = 1e-7
+    for i in range(val.shape[0]):
+        for j in range(3):
+            val[i, j] = val0[i, j] + eps * (val1[i, j] - val0[i, j])
+        for j in range(2):
+            fol[i, j] = fol0[i, j] + eps * (fol1[i, j] - fol0[i, j])
+    for j in range(prm.shape[0]):
+        prm[j] = prm0[j] + eps * (prm1[j] - prm0[j])
+    g_eps, j_eps, _ = shoot(z, st_s, st_kind, val, fol, st_col, seg_steps, seg_lo, seg_hi,
+                            prm, st_kappa, True, empty)
+    tangent, ok = lu_solve(j_eps, -g_eps / eps)
+    if not ok:
+        return z, jac, density, stats, r, STALLED, SINGULAR, t, iterations, steps, 0
+    if jac.shape[0] != nz:
+        jac = j_eps
+    # The sign of det J along the path: it flips where the path crosses a fold or a
+    # bifurcation, and where a long step jumps to another branch of another stability
+    # (Jacobi: the parity of the conjugate points). A flip rejects the step, until the
+    # step is so short that the crossing is genuine; those are counted in ``crossings``.
+    sign = det_sign(j_eps)
+    crossings = 0
     while steps < max_steps:
+        # The cap on the step from the loads, then from the solution's own wavenumber
+        # (which carries the unknown reactions too), extrapolated along the last step.
+        k_load = math.sqrt(t) * root_f + t * load_c + wave_step
+        if load_c > 0.0 or root_f > 0.0:
+            # u = sqrt(t + dt) solves C u^2 + sqrt(F) u = k_load; this form of the root
+            # does not cancel when C is tiny.
+            u = 2.0 * k_load / (root_f + math.sqrt(root_f * root_f + 4.0 * load_c * k_load))
+        else:
+            u = 2.0
+        dt = min(dt, max(u * u - t, min_step))
+        if k_prev >= 0.0 and t_prev >= 0.0 and k_now > k_prev:
+            dt = min(dt, max(wave_step * (t - t_prev) / (k_now - k_prev), min_step))
         t_next = min(1.0, t + dt)
         for i in range(val.shape[0]):
             for j in range(3):
@@ -543,17 +636,43 @@ def follow(z0, jac0, density, st_s, st_kind, st_col, seg_lo, seg_hi, st_kappa,
         for j in range(prm.shape[0]):
             prm[j] = prm0[j] + t_next * (prm1[j] - prm0[j])
         predictor = z.copy()
+        t_prev_used = t_prev >= 0.0
         if t_prev >= 0.0:
             w = (t_next - t) / (t - t_prev)
             for q in range(nz):
                 predictor[q] += w * (z[q] - z_prev[q])
+        elif t == 0.0:
+            for q in range(nz):
+                predictor[q] += (t_next - t) * tangent[q]
         final = t_next >= 1.0
         zn, rn, it, status, jn, st, theta = newton(
             predictor, jac, st_s, st_kind, val, fol, st_col, seg_steps, seg_lo, seg_hi, prm,
             st_kappa, tol if final else loose, max_iter, contraction)
         iterations += it
         if status == CONVERGED:
+            # How far the corrector travelled from the prediction, each unknown against
+            # the change predicted for it in this step (floored at a hundredth of its
+            # size): the step control aims this at ``grow``.
+            miss = 0.0
+            for q in range(nz):
+                scale = max(abs(predictor[q] - z[q]), 1e-2 * max(1.0, abs(zn[q])))
+                miss = max(miss, abs(zn[q] - predictor[q]) / scale)
+        if status == CONVERGED:
+            new_sign = det_sign(jn)
+            if new_sign != sign:
+                _, fresh_jac, _ = shoot(zn, st_s, st_kind, val, fol, st_col, seg_steps, seg_lo,
+                                        seg_hi, prm, st_kappa, True, empty)
+                new_sign = det_sign(fresh_jac)
+                if new_sign != sign:
+                    if dt > 1e3 * min_step:
+                        status = NOT_CONTRACTING
+                    else:
+                        crossings += 1
+                        sign = new_sign
+        if status == CONVERGED:
             steps += 1
+            k_prev = k_now
+            k_now = st[0] + math.sqrt(st[1])
             z_prev = z
             t_prev = t
             z = zn
@@ -572,12 +691,90 @@ def follow(z0, jac0, density, st_s, st_kind, st_col, seg_lo, seg_hi, st_kappa,
                     dt = 1.0
                     continue
             if final:
-                return z, jac, density, stats, r, CONVERGED, CONVERGED, t, iterations, steps
-            dt = min(grow if it <= 2 else math.sqrt(grow), 1.0 / dt) * dt
+                return (z, jac, density, stats, r, CONVERGED, CONVERGED, t, iterations,
+                        steps, crossings)
+            # Step control on the same measure: the secant and the first (tangent)
+            # predictors err like dt^2 against a change like dt, so it grows like dt;
+            # aim the next step at ``grow``.
+            dt *= min(4.0, max(0.5, grow / max(miss, 1e-300)))
+            dt = min(dt, 1.0)
         else:
             last_status = status
             dt *= shrink
             if dt < min_step:
                 return (z, jac, density, stats, rn, STALLED, last_status, t, iterations,
-                        steps)
-    return z, jac, density, stats, r, BUDGET, last_status, t, iterations, steps
+                        steps, crossings)
+    return z, jac, density, stats, r, BUDGET, last_status, t, iterations, steps, crossings
+
+
+@njit(cache=True)
+def rest_state(st_s, st_kind, st_val, st_col, st_kappa, seg_steps, prm, nz):
+    """The unloaded part, placed: (val, z) of the homotopy's exact start.
+
+    The rest shape (kappa0 and the bow in prm, no load) is integrated from the pose
+    (0, 0, 0) at s = 0, then moved rigidly: its angle from the first station with a
+    prescribed angle, or from the chord between the first and last stations with a
+    prescribed position; its origin so that the first prescribed x and y are met.
+    val holds the rest values of the prescribed components (zero loads elsewhere);
+    z the rest unknowns (the pose where s = 0 is free, and the state at each node).
+    """
+    nst = st_s.shape[0]
+    shape = np.zeros((nst, 3))
+    y = np.zeros(NSTATE)
+    Y = np.zeros((6, 0))
+    K = np.empty((_B.shape[0], 2))
+    KY = np.zeros((_B.shape[0], 2, 0))
+    stats = np.zeros(2)
+    empty = np.zeros((0, NSTATE))
+    for k in range(nst - 1):
+        _integrate(y, Y, 0, 0, st_s[k], st_s[k + 1], seg_steps[k], prm, st_kappa[k],
+                   st_kappa[k + 1], K, KY, empty, 0, False, stats)
+        shape[k + 1, 0] = y[0]
+        shape[k + 1, 1] = y[1]
+        shape[k + 1, 2] = y[2]
+    angle = 0.0
+    first_angle = -1
+    first = -1
+    last = -1
+    for k in range(nst):
+        if st_kind[k, 2] == PRESCRIBED and first_angle < 0:
+            first_angle = k
+        if st_kind[k, 0] == PRESCRIBED and st_kind[k, 1] == PRESCRIBED:
+            if first < 0:
+                first = k
+            last = k
+    if first_angle >= 0:
+        angle = st_val[first_angle, 2] - shape[first_angle, 2]
+    elif first >= 0 and last != first:
+        want = math.atan2(st_val[last, 1] - st_val[first, 1], st_val[last, 0] - st_val[first, 0])
+        have = math.atan2(shape[last, 1] - shape[first, 1], shape[last, 0] - shape[first, 0])
+        angle = want - have
+    c = math.cos(angle)
+    sn = math.sin(angle)
+    origin = np.zeros(2)
+    for i in range(2):
+        for k in range(nst):
+            if st_kind[k, i] == PRESCRIBED:
+                rotated = (c * shape[k, 0] - sn * shape[k, 1] if i == 0
+                           else sn * shape[k, 0] + c * shape[k, 1])
+                origin[i] = st_val[k, i] - rotated
+                break
+    val = np.zeros((nst, 3))
+    z = np.zeros(nz)
+    for k in range(nst):
+        px = origin[0] + c * shape[k, 0] - sn * shape[k, 1]
+        py = origin[1] + sn * shape[k, 0] + c * shape[k, 1]
+        pa = angle + shape[k, 2]
+        for i in range(3):
+            if st_kind[k, i] == PRESCRIBED:
+                val[k, i] = (px, py, pa)[i]
+        if st_kind[k, 0] == NODE:
+            c0 = st_col[k, 0]
+            z[c0] = px
+            z[c0 + 1] = py
+            z[c0 + 2] = pa
+    pose = (origin[0], origin[1], angle)
+    for i in range(3):
+        if st_kind[0, i] != PRESCRIBED:
+            z[i] = pose[i]
+    return val, z

@@ -124,53 +124,12 @@ class Lowered:
     def rest(self, mesh: Mesh, bow: float = 0.0,
              span: tuple[float, float] = (0.0, 1.0)) -> tuple[Arrays, np.ndarray]:
         """The homotopy's start: (arrays, unknowns) of the unloaded, placed part,
-        integrated on the mesh the homotopy will use, so that it is an exact start."""
-        no_loads = Arrays(np.zeros_like(self.target.val), np.zeros_like(self.target.fol),
-                          np.array([0.0, 0.0, bow, span[0], span[1]]))
-        traj = np.zeros((mesh.npoints, kernels.NSTATE))
-        free = np.zeros_like(self.st_kind)  # straight through every station and node
-        no_cols = np.zeros(self.seg_lo.shape[0], dtype=np.int64)
-        kernels.shoot(np.zeros(3), self.st_s, free, no_loads.val, no_loads.fol, self.st_col,
-                      mesh.steps, no_cols, no_cols, no_loads.prm, self.st_kappa, False, traj)
-        shape = traj[self.station_rows(mesh), :3]  # unit placement: pose (0, 0, 0) at s = 0
-        pose = self._placement(shape)
-        cos_p, sin_p = math.cos(pose[2]), math.sin(pose[2])
-        placed = np.column_stack([pose[0] + cos_p * shape[:, 0] - sin_p * shape[:, 1],
-                                  pose[1] + sin_p * shape[:, 0] + cos_p * shape[:, 1],
-                                  pose[2] + shape[:, 2]])
-        val = np.where(self.st_kind == PRESCRIBED, placed, 0.0)
-        z = np.zeros(self.nz)
-        for i in range(3):
-            if self.st_kind[0, i] == APPLIED:
-                z[i] = pose[i]
-        for k in self.nodes:
-            z[self.st_col[k, 0]:self.st_col[k, 0] + 3] = placed[k]
-        return Arrays(val, no_loads.fol, no_loads.prm), z
-
-    def _placement(self, shape: np.ndarray) -> tuple[float, float, float]:
-        """Rigid pose of s = 0 that best meets the prescribed kinematics at rest."""
-        kind, tgt = self.st_kind, self.target.val
-        angle = 0.0
-        with_angle = np.nonzero(kind[:, 2] == PRESCRIBED)[0]
-        located = np.nonzero((kind[:, 0] == PRESCRIBED) & (kind[:, 1] == PRESCRIBED))[0]
-        if with_angle.size:
-            k = with_angle[0]
-            angle = tgt[k, 2] - shape[k, 2]
-        elif located.size >= 2:
-            a, b = located[0], located[-1]
-            want = math.atan2(tgt[b, 1] - tgt[a, 1], tgt[b, 0] - tgt[a, 0])
-            have = math.atan2(shape[b, 1] - shape[a, 1], shape[b, 0] - shape[a, 0])
-            angle = want - have
-        cos_p, sin_p = math.cos(angle), math.sin(angle)
-        origin = [0.0, 0.0]
-        for i in range(2):
-            rows = np.nonzero(kind[:, i] == PRESCRIBED)[0]
-            if rows.size:
-                k = rows[0]
-                rotated = (cos_p * shape[k, 0] - sin_p * shape[k, 1] if i == 0
-                           else sin_p * shape[k, 0] + cos_p * shape[k, 1])
-                origin[i] = tgt[k, i] - rotated
-        return origin[0], origin[1], angle
+        integrated on the mesh the homotopy will use, so that it is an exact start
+        (see ``kernels.rest_state``)."""
+        prm = np.array([0.0, 0.0, bow, span[0], span[1]])
+        val, z = kernels.rest_state(self.st_s, self.st_kind, self.target.val, self.st_col,
+                                    self.st_kappa, mesh.steps, prm, self.nz)
+        return Arrays(val, np.zeros_like(self.target.fol), prm), z
 
     def chord(self) -> tuple[int, int] | None:
         """The first and last stations whose whole position is prescribed."""
@@ -192,17 +151,25 @@ class Lowered:
         return max(0.0, rest_chord - chord)
 
     def lateral_side(self, rest: Arrays) -> float:
-        """+1 or -1: the side (left or right of the rest chord) the targets moved to."""
+        """+1 or -1: the side (left or right of the rest chord) the part is pushed to,
+        by the targets' lateral motion and by the lateral loads, each measured as the
+        deflection it makes (a load's by small-deflection beam theory over the chord)."""
         kind = self.st_kind
         moved = np.where(kind[:, :2] == PRESCRIBED, self.target.val[:, :2] - rest.val[:, :2],
                          0.0)
         ends = self.chord()
         if ends is not None:
             chord = rest.val[ends[1], :2] - rest.val[ends[0], :2]
+            width = float(self.st_s[ends[1]] - self.st_s[ends[0]])
         else:
-            chord = np.array([1.0, 0.0])
-        normal = np.array([-chord[1], chord[0]])
+            chord, width = np.array([math.cos(rest.val[0, 2]), math.sin(rest.val[0, 2])]), 1.0
+        normal = np.array([-chord[1], chord[0]]) / max(float(np.hypot(*chord)), 1e-300)
         side = float(np.sum(moved @ normal))
+        # Distributed load q: deflection ~ q w^4 / 100; point load P: ~ P w^3 / 48.
+        side += float(self.target.prm[:2] @ normal) * width**4 / 100.0
+        dead = np.where(kind[:, :2] == APPLIED, self.target.val[:, :2], 0.0)
+        side += float(np.sum(dead @ normal)) * width**3 / 48.0
+        side += float(np.sum(self.target.fol[:, 1])) * width**3 / 48.0
         return -1.0 if side < -1e-12 else 1.0
 
     # -- unknowns <-> physical state ------------------------------------------------------

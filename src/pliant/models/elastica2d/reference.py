@@ -40,6 +40,7 @@ class ReferenceSolution:
     bending_moment: np.ndarray
     nodes: int
     station_states: np.ndarray
+    bvp: object = None  # scipy's result, to warm-start the next solve
 
 
 def _curvature(low: Lowered, k: int, s: np.ndarray) -> np.ndarray:
@@ -53,7 +54,8 @@ def solve_reference(problem: Problem, guess: object | None = None, *, tol: float
     """Solve with scipy.integrate.solve_bvp (analytic Jacobians).
 
     guess : None (the straight, unloaded part along +x from the first station's
-        prescribed pose) or an ``Equilibrium`` to start from.
+        prescribed pose), an ``Equilibrium``, or an earlier ``ReferenceSolution`` of a
+        problem with the same stations (its mesh and values are reused).
     """
     from scipy.integrate import solve_bvp  # noqa: PLC0415 (heavy; only here)
 
@@ -181,7 +183,9 @@ def solve_reference(problem: Problem, guess: object | None = None, *, tol: float
 
     tau = np.linspace(0.0, 1.0, nodes)
     y0 = np.zeros((6 * nblk, tau.size))
-    if guess is None:
+    if isinstance(guess, ReferenceSolution) and guess.bvp is not None:
+        tau, y0 = guess.bvp.x, guess.bvp.y  # type: ignore[attr-defined]
+    elif guess is None:
         x0 = val[0, 0] if kind[0, 0] == PRESCRIBED else 0.0
         yy0 = val[0, 1] if kind[0, 1] == PRESCRIBED else 0.0
         th0 = val[0, 2] if kind[0, 2] == PRESCRIBED else 0.0
@@ -225,4 +229,4 @@ def solve_reference(problem: Problem, guess: object | None = None, *, tol: float
                start[5] * low.moment_scale),
         s=np.concatenate(s_all) * low.length, position=np.vstack(pos) * low.length,
         angle=np.concatenate(ang), bending_moment=np.concatenate(mom) * low.moment_scale,
-        nodes=int(sol.x.size), station_states=states)
+        nodes=int(sol.x.size), station_states=states, bvp=sol)

@@ -52,7 +52,11 @@ class ShootingSolver:
     max_steps, min_step : continuation budget of one homotopy (steps, smallest step in t)
     contraction : the factor by which each corrector iteration must shrink the residual
     loose_tolerance : convergence of intermediate points, relative to the homotopy's size
-    grow, shrink : step-size factors after an accepted or rejected continuation step
+    grow : the distance between a step's prediction and its corrected point that the
+        continuation aims at (each unknown relative to the change predicted for it)
+    shrink : the step-size factor after a rejected continuation step
+    wave_step : the most a step may raise the wavenumber of the loads and of the
+        solution (buckling modes appear about pi apart in it)
     time_budget : wall-clock seconds before a solve gives up
     bow : the chord shortening of the imperfection that leaves a singular start, as a
         fraction of the shortening the targets ask for; bow_min, bow_max bound its
@@ -68,8 +72,9 @@ class ShootingSolver:
     max_steps: int = 2000
     min_step: float = 1e-7
     contraction: float = 0.5
-    loose_tolerance: float = 1e-4
-    grow: float = 2.0
+    loose_tolerance: float = 1e-6
+    grow: float = 0.2
+    wave_step: float = 1.0
     shrink: float = 0.25
     time_budget: float = 30.0
     bow: float = 0.8
@@ -158,8 +163,9 @@ class _Run:
         options = np.array([opts.tolerance, max(opts.tolerance, opts.loose_tolerance),
                             opts.contraction, opts.min_step, opts.max_steps,
                             opts.max_iterations, opts.accuracy, opts.min_density,
-                            opts.grow, opts.shrink, opts.path_accuracy], dtype=float)
-        z, jac, density, stats, r, status, last, t, iterations, steps = kernels.follow(
+                            opts.grow, opts.shrink, opts.path_accuracy, opts.wave_step],
+                           dtype=float)
+        z, jac, density, stats, r, status, last, t, iterations, steps, crossings = kernels.follow(
             z0, jac0, mesh.density, low.st_s, low.st_kind, low.st_col, low.seg_lo,
             low.seg_hi, low.st_kappa, start.val, start.fol, start.prm, end.val, end.fol,
             end.prm, options)
@@ -172,6 +178,11 @@ class _Run:
             raise _Stalled(t, z, r, _REASONS.get(
                 last, "Newton stopped contracting however short the step (a fold: the "
                 "branch ends or turns back here)"))
+        if crossings:
+            self.notes.append(
+                "the path from the unloaded part crosses a bifurcation (det J changes "
+                "sign); the equilibrium continued through it may be unstable, and a "
+                "neighbouring branch may be the one the part takes")
         return _Point(z, jac, low.mesh(density), stats, r)
 
     # -- routes ---------------------------------------------------------------------------
@@ -235,8 +246,8 @@ class _Run:
             self.notes.append(
                 f"{_BRANCH_NOTE} (a bifurcation: it can buckle to either side); pliant "
                 f"took the branch that bows to the {'left' if bow > 0 else 'right'} of its "
-                "chord, the side its targets moved to; another equilibrium may exist on the "
-                "other side")
+                "chord, the side its targets and loads push it to; another equilibrium may "
+                "exist on the other side")
         return point
 
     def straight(self, rest: Arrays) -> list[Arrays]:

