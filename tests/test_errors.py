@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import math
 
+import numpy as np
 import pytest
 
 import pliant as pl
@@ -101,19 +102,27 @@ def test_non_convergence_says_so_with_residual():
     assert 0.0 <= err.value.progress < 1.0
 
 
-def test_trace_reports_a_fold_with_the_last_good_state():
-    """Pull a hand holding the tip beyond what a continuation can follow (the target
-    jumps through the part's reach): the trace stops with the last equilibrium."""
-    problems = [pl.Problem(UNIT, (pl.clamp(0.0),
-                                  pl.push(1.0, force=(-f, 0.1), name="tip")))
-                for f in (1.0, 2.0)]
-    eqs = list(pl.trace(problems))
-    assert len(eqs) == 2
-    tight = ShootingSolver(max_steps=1)
+def test_trace_stops_at_a_snap_through_with_the_last_good_state():
+    """A clamped-clamped strip, buckled by pushing its ends together, snaps through when
+    one end is turned far enough (a fold of the equilibrium path). Following the turn,
+    trace stops there with a ConvergenceError carrying the last equilibrium, instead of
+    jumping silently to the snapped shape; the fold is genuine: the mid-span's
+    sensitivity to the turn grows without bound as it nears."""
+    def problem(turn: float) -> pl.Problem:
+        return pl.Problem(UNIT, (pl.clamp(0.0),
+                                 pl.clamp(1.0, position=(0.9, 0.0), angle=turn, name="end")))
+
+    turns = np.linspace(0.0, 1.0, 101)[1:]
+    seen = []
     with pytest.raises(ConvergenceError) as err:
-        list(pl.trace(problems + [pl.Problem(UNIT, (pl.clamp(0.0),
-                                                    pl.push(1.0, force=(-60.0, 0.1),
-                                                            name="tip")))],
-                      solver=tight))
-    assert err.value.last_good is not None
-    assert err.value.last_good.problem.condition("tip").force == (-2.0, 0.1)
+        for eq in pl.trace([problem(a) for a in turns]):
+            seen.append(eq)
+    assert "fold" in str(err.value)
+    assert err.value.last_good is seen[-1]
+    assert 0.3 < seen[-1].problem.condition("end").angle < 0.9
+    mid = np.array([eq.position[np.argmin(np.abs(eq.s - 0.5)), 1] for eq in seen])
+    slope = np.abs(np.diff(mid) / np.diff(turns[:len(seen)]))
+    assert slope[-1] > 10 * slope[0]
+    # Turned the other way, the strip follows smoothly.
+    *_, last = pl.trace([problem(-a) for a in turns])
+    assert last.residual < 1e-9

@@ -520,7 +520,7 @@ def follow(z0, jac0, density, st_s, st_kind, st_col, seg_lo, seg_hi, st_kappa,
     The homotopy moves every input linearly, t from 0 to 1. The first predictor follows
     the tangent at the start, the later ones the secant through the last two points.
     Each step's Newton corrector must contract (see ``newton``); the next step aims at
-    a corrector distance of ``grow`` (relative to the change predicted), and no step
+    a corrector distance of ``grow`` (each unknown relative to its size), and no step
     may raise the wavenumber by more than ``wave_step``. Intermediate points only need to be on the branch: they converge to a loose
     tolerance (relative to how far the homotopy moves its inputs) on a mesh of the
     coarser path accuracy. The end point converges to the full
@@ -650,13 +650,12 @@ def follow(z0, jac0, density, st_s, st_kind, st_col, seg_lo, seg_hi, st_kappa,
             st_kappa, tol if final else loose, max_iter, contraction)
         iterations += it
         if status == CONVERGED:
-            # How far the corrector travelled from the prediction, each unknown against
-            # the change predicted for it in this step (floored at a hundredth of its
-            # size): the step control aims this at ``grow``.
+            # How far the corrector travelled from the prediction, each unknown relative
+            # to its size: the secant and the first (tangent) predictors err like dt^2,
+            # so the step control aims the next step at a distance of ``grow``.
             miss = 0.0
             for q in range(nz):
-                scale = max(abs(predictor[q] - z[q]), 1e-2 * max(1.0, abs(zn[q])))
-                miss = max(miss, abs(zn[q] - predictor[q]) / scale)
+                miss = max(miss, abs(zn[q] - predictor[q]) / max(1.0, abs(zn[q])))
         if status == CONVERGED:
             new_sign = det_sign(jn)
             if new_sign != sign:
@@ -672,7 +671,7 @@ def follow(z0, jac0, density, st_s, st_kind, st_col, seg_lo, seg_hi, st_kappa,
         if status == CONVERGED:
             steps += 1
             k_prev = k_now
-            k_now = st[0] + math.sqrt(st[1])
+            k_now = math.sqrt(st[1])  # buckling modes follow the force, not the curvature
             z_prev = z
             t_prev = t
             z = zn
@@ -693,10 +692,7 @@ def follow(z0, jac0, density, st_s, st_kind, st_col, seg_lo, seg_hi, st_kappa,
             if final:
                 return (z, jac, density, stats, r, CONVERGED, CONVERGED, t, iterations,
                         steps, crossings)
-            # Step control on the same measure: the secant and the first (tangent)
-            # predictors err like dt^2 against a change like dt, so it grows like dt;
-            # aim the next step at ``grow``.
-            dt *= min(4.0, max(0.5, grow / max(miss, 1e-300)))
+            dt *= min(4.0, max(0.5, math.sqrt(grow / max(miss, 1e-300))))
             dt = min(dt, 1.0)
         else:
             last_status = status

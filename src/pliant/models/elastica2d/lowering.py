@@ -14,7 +14,7 @@ component at its rest value) and ends at the problem.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -73,6 +73,8 @@ class Lowered:
     target: Arrays
     station_of: tuple[Station | None, ...]  # the problem's station behind each one
     nz: int
+    key: tuple = ()  # equal keys: same structure (a warm start can reuse unknowns)
+    inputs: np.ndarray = field(default_factory=lambda: np.zeros(0))  # val, fol, prm flat
 
     # -- scales ---------------------------------------------------------------------------
     @property
@@ -294,7 +296,9 @@ def lower(problem: Problem, nodes: int | None = None) -> Lowered:
         st_kappa = np.zeros(nst)
     else:
         st_kappa = np.array([part.rest_curvature_at(s * length) * length for s in st_s])
+    key = (length, stiffness, st_s.tobytes(), st_kind.tobytes(), st_kappa.tobytes())
     return Lowered(problem=problem, length=length, stiffness=stiffness, st_s=st_s,
                    st_kind=st_kind, st_col=st_col, seg_lo=seg_lo, seg_hi=seg_hi,
                    st_kappa=st_kappa, target=Arrays(val, fol, prm),
-                   station_of=tuple(st for _, st, _ in stations), nz=col)
+                   station_of=tuple(st for _, st, _ in stations), nz=col, key=key,
+                   inputs=np.concatenate([val.ravel(), fol.ravel(), prm]))

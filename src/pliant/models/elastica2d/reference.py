@@ -202,13 +202,13 @@ def solve_reference(problem: Problem, guess: object | None = None, *, tol: float
                                   eq.angle,  # type: ignore[attr-defined]
                                   eq.internal_force / low.force_scale,  # type: ignore[attr-defined]
                                   eq.bending_moment / low.moment_scale])  # type: ignore[attr-defined]
-        # The arrays hold each segment in turn; a station appears twice (end of one
-        # segment, start of the next), which splits them back into the blocks.
-        cuts = np.nonzero(np.diff(s_eq) == 0.0)[0] + 1
-        for k, (seg_s, seg) in enumerate(zip(np.split(s_eq, cuts), np.split(arrays, cuts))):
-            s = low.st_s[k] + sigma[k] * tau
+        # A station appears twice in the arrays (before and after its jump): sampling
+        # just inside each block reads the right side of every jump.
+        inside = np.clip(tau, 1e-9, 1.0 - 1e-9)
+        for k in range(nblk):
+            s = low.st_s[k] + sigma[k] * inside
             for q in range(6):
-                y0[6 * k + q] = np.interp(s, seg_s, seg[:, q])
+                y0[6 * k + q] = np.interp(s, s_eq, arrays[:, q])
     sol = solve_bvp(fun, bc, tau, y0, fun_jac=fun_jac, bc_jac=bc_jac, tol=tol,
                     max_nodes=max_nodes)
     yt = sol.sol(np.linspace(0.0, 1.0, 201))

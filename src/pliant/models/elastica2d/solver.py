@@ -35,8 +35,8 @@ from pliant.core.equilibrium import Equilibrium, Samples, StationLoad
 from pliant.core.problem import Problem
 from pliant.errors import ConvergenceError
 from pliant.models.elastica2d import kernels
-from pliant.models.elastica2d.lowering import (APPLIED, PRESCRIBED, Arrays, Lowered, Mesh,
-                                               load_wavenumber, lower)
+from pliant.models.elastica2d.lowering import (APPLIED, NODE_SPAN, PRESCRIBED, Arrays,
+                                               Lowered, Mesh, load_wavenumber, lower)
 
 
 @dataclass(frozen=True)
@@ -53,7 +53,7 @@ class ShootingSolver:
     contraction : the factor by which each corrector iteration must shrink the residual
     loose_tolerance : convergence of intermediate points, relative to the homotopy's size
     grow : the distance between a step's prediction and its corrected point that the
-        continuation aims at (each unknown relative to the change predicted for it)
+        continuation aims at (each unknown relative to its size)
     shrink : the step-size factor after a rejected continuation step
     wave_step : the most a step may raise the wavenumber of the loads and of the
         solution (buckling modes appear about pi apart in it)
@@ -73,7 +73,7 @@ class ShootingSolver:
     min_step: float = 1e-7
     contraction: float = 0.5
     loose_tolerance: float = 1e-6
-    grow: float = 0.2
+    grow: float = 0.1
     wave_step: float = 1.0
     shrink: float = 0.25
     time_budget: float = 30.0
@@ -88,6 +88,8 @@ class _Stalled(Exception):
     z: np.ndarray
     residual: float
     reason: str
+    singular_start: bool = False  # the Jacobian was singular at the homotopy's start
+    budget: bool = False  # a step or time budget ran out (not a property of the path)
 
 
 @dataclass(frozen=True, eq=False)
@@ -147,11 +149,6 @@ class _Run:
         return int(kernels.needed_density(stats, self.solver.accuracy,
                                           self.solver.min_density))
 
-    def singular(self, z: np.ndarray, arrays: Arrays, mesh: Mesh) -> bool:
-        _, jac, _ = self.low.shoot(z, arrays, mesh)
-        _, ok = kernels.lu_solve(jac, np.ones(self.low.nz))
-        return not ok
-
     def follow(self, start: Arrays, end: Arrays, z0: np.ndarray, mesh: Mesh,
                jac0: np.ndarray = _EMPTY_JAC) -> _Point:
         """Continuation from (start, z0), an exact solution, to end (see
@@ -159,7 +156,7 @@ class _Run:
         opts, low = self.solver, self.low
         if time.perf_counter() > self.deadline:
             raise _Stalled(0.0, z0, math.inf,
-                           f"the time budget of {opts.time_budget} s ran out")
+                           f"the time budget of {opts.time_budget} s ran out", budget=True)
         options = np.array([opts.tolerance, max(opts.tolerance, opts.loose_tolerance),
                             opts.contraction, opts.min_step, opts.max_steps,
                             opts.max_iterations, opts.accuracy, opts.min_density,
@@ -173,11 +170,12 @@ class _Run:
         self.steps += steps
         if status == kernels.BUDGET:
             raise _Stalled(t, z, r, f"the continuation budget of {opts.max_steps} steps "
-                           "ran out")
+                           "ran out", budget=True)
         if status != kernels.CONVERGED:
             raise _Stalled(t, z, r, _REASONS.get(
                 last, "Newton stopped contracting however short the step (a fold: the "
-                "branch ends or turns back here)"))
+                "branch ends or turns back here)"),
+                singular_start=last == kernels.SINGULAR and steps == 0 and t == 0.0)
         if crossings:
             self.notes.append(
                 "the path from the unloaded part crosses a bifurcation (det J changes "
@@ -202,6 +200,8 @@ class _Run:
                 if best is None or stall.t > best.t:
                     best = stall
         assert best is not None
+        if best.budget:
+            raise best
         return self.beyond_fold(best)
 
     def route(self, legs: Callable[[Arrays], list[Arrays]]) -> _Point:
@@ -215,39 +215,44 @@ class _Run:
         low, opts = self.low, self.solver
         mesh = self.first_mesh()
         rest, z = low.rest(mesh)
-        bow, span = 0.0, (0.0, 1.0)
-        if self.singular(z, rest, mesh):
-            side = low.lateral_side(rest)
-            ends = low.chord()
-            if ends is not None:
-                span = (float(low.st_s[ends[0]]), float(low.st_s[ends[1]]))
-            width = span[1] - span[0]
-            # A bow b cos(2 pi u) over a span w shortens its chord by w (b w)^2 / 16 pi^2.
-            # Making that most of what the targets ask lets the bowed part reach them
-            # under a small axial force (a nearly straight inextensible part is so stiff
-            # axially that the force would rise almost vertically along the path);
-            # removing the bow at the targets then raises the force smoothly, on the
-            # branch that bows to that side.
-            wanted = opts.bow * low.shortening(rest)
-            amplitude = 4.0 * math.pi / width * math.sqrt(wanted / width)
-            bow = side * min(opts.bow_max, max(opts.bow_min, amplitude))
-            rest, z = low.rest(mesh, bow, span)
-        targets = [leg.with_bow(bow, span) for leg in legs(rest)]
-        if bow != 0.0:
-            targets.append(low.target)
+        try:
+            return self.through(rest, legs(rest), z, mesh)
+        except _Stalled as stall:
+            if not stall.singular_start:
+                raise
+        side = low.lateral_side(rest)
+        ends = low.chord()
+        span = (0.0, 1.0)
+        if ends is not None:
+            span = (float(low.st_s[ends[0]]), float(low.st_s[ends[1]]))
+        width = span[1] - span[0]
+        # A bow b cos(2 pi u) over a span w shortens its chord by w (b w)^2 / 16 pi^2.
+        # Making that most of what the targets ask lets the bowed part reach them under a
+        # small axial force (a nearly straight inextensible part is so stiff axially that
+        # the force would rise almost vertically along the path); removing the bow at the
+        # targets then raises the force smoothly, on the branch that bows to that side.
+        wanted = opts.bow * low.shortening(rest)
+        amplitude = 4.0 * math.pi / width * math.sqrt(wanted / width)
+        bow = side * min(opts.bow_max, max(opts.bow_min, amplitude))
+        rest, z = low.rest(mesh, bow, span)
+        targets = [leg.with_bow(bow, span) for leg in legs(rest)] + [low.target]
+        point = self.through(rest, targets, z, mesh)
+        self.notes.append(
+            f"{_BRANCH_NOTE} (a bifurcation: it can buckle to either side); pliant took "
+            f"the branch that bows to the {'left' if bow > 0 else 'right'} of its chord, the "
+            "side its targets and loads push it to; another equilibrium may exist on the "
+            "other side")
+        return point
+
+    def through(self, start: Arrays, targets: list[Arrays], z: np.ndarray,
+                mesh: Mesh) -> _Point:
+        """Follow the homotopies start -> targets[0] -> targets[1] -> ..."""
         point = None
-        start = rest
         for end in targets:
             point = self.follow(start, end, z, mesh if point is None else point.mesh,
                                 _EMPTY_JAC if point is None else point.jac)
             start, z = end, point.z
         assert point is not None
-        if bow != 0.0:
-            self.notes.append(
-                f"{_BRANCH_NOTE} (a bifurcation: it can buckle to either side); pliant "
-                f"took the branch that bows to the {'left' if bow > 0 else 'right'} of its "
-                "chord, the side its targets and loads push it to; another equilibrium may "
-                "exist on the other side")
         return point
 
     def straight(self, rest: Arrays) -> list[Arrays]:
@@ -354,7 +359,19 @@ class _Run:
         assert old is not None
         try:
             return self.follow(old.low.target, low.target, z0, mesh, jac0)
-        except _Stalled:
+        except _Stalled as stall:
+            if not stall.budget:
+                # Perhaps the shooting intervals are too long for the forces on the way:
+                # follow again with twice the restart nodes (both problems re-lowered,
+                # so the start is still exact).
+                count = 2 * (len(low.nodes) + 1)
+                self.low = low = lower(low.problem, nodes=count)
+                start = lower(warm.problem, nodes=count)
+                try:
+                    return self.follow(start.target, low.target, start.unknowns_from(warm),
+                                       low.mesh(mesh.density))
+                except _Stalled:
+                    pass
             if follow_only:
                 raise
             return None
@@ -388,15 +405,11 @@ def _secant(before: Equilibrium | None, old: _WarmState, low: Lowered) -> np.nda
 
 
 def _distance(a: Lowered, b: Lowered) -> float:
-    return math.sqrt(float(np.sum((a.target.val - b.target.val) ** 2)
-                           + np.sum((a.target.fol - b.target.fol) ** 2)
-                           + np.sum((a.target.prm - b.target.prm) ** 2)))
+    return float(np.linalg.norm(a.inputs - b.inputs))
 
 
 def _same_structure(a: Lowered, b: Lowered) -> bool:
-    return (a.length == b.length and a.stiffness == b.stiffness
-            and a.st_s.shape == b.st_s.shape and np.array_equal(a.st_s, b.st_s)
-            and np.array_equal(a.st_kind, b.st_kind) and np.array_equal(a.st_kappa, b.st_kappa))
+    return a.key == b.key
 
 
 def solve(problem: Problem, *, warm_start: Equilibrium | None = None,
@@ -435,11 +448,34 @@ def _solve(problem: Problem, warm_start: Equilibrium | None, solver: ShootingSol
             f"(relative residual {stall.residual:.2e}); try smaller steps or check "
             "that the targets can be reached",
             residual=stall.residual, progress=stall.t, last_good=warm_start) from None
+    point = _renode(run, point)
     low = run.low
     sampler = _Sampler(low, point.z, max(point.mesh.density, solver.samples))
     return Equilibrium(problem=problem, residual=point.residual, iterations=run.iterations,
                        steps=run.steps, sampler=sampler, notes=tuple(run.notes),
                        state=_WarmState(low, point.z, point.jac, point.mesh))
+
+
+def _renode(run: _Run, point: _Point) -> _Point:
+    """More restart nodes when the solution's force outgrew the shooting intervals (a
+    part pulled taut, a cable hanging): the answer is the same, but later warm starts
+    from it stay well conditioned."""
+    low = run.low
+    k = math.sqrt(float(point.stats[1]))
+    if k * low.interval() <= NODE_SPAN:
+        return point
+    finer = lower(low.problem, nodes=math.ceil(1.25 * k / NODE_SPAN))
+    here = Equilibrium(problem=low.problem, residual=point.residual, iterations=0, steps=0,
+                       sampler=_Sampler(low, point.z, point.mesh.density))
+    z0 = finer.unknowns_from(here)
+    mesh = finer.mesh(point.mesh.density)
+    run.low = finer
+    z, r, status, jac, stats = run.newton(z0, finer.target, mesh, strict=False,
+                                          tol=run.solver.tolerance)
+    if status != kernels.CONVERGED:
+        run.low = low  # keep the converged answer on the coarser intervals
+        return point
+    return _Point(z, jac, mesh, stats, r)
 
 
 @dataclass(frozen=True, eq=False)
