@@ -236,3 +236,29 @@ def test_kernel_newton_reports_a_singular_start():
     m = brentq(lambda m: 2 * (1 - ellipe(m) / ellipk(m)) - 0.1, 1e-9, 0.99, xtol=1e-15)
     compression = eq.reactions["clamp"].force[0]
     assert compression == pytest.approx(16 * ellipk(m) ** 2, rel=1e-9)
+
+
+@pytest.mark.parametrize("name", sorted(zoo()))
+def test_retarget_equals_a_fresh_lowering(name):
+    """A warm step reuses the last lowering's structure with new targets and loads: it
+    must give exactly the arrays a full lowering gives."""
+    problem = zoo()[name]
+    moved = problem.with_conditions(
+        pl.Condition(s=c.s, name=c.name,
+                     position=tuple(None if p is None else p + 0.01 for p in c.position),
+                     angle=None if c.angle is None else c.angle - 0.02,
+                     force=tuple(None if f is None else 1.1 * f for f in c.force),
+                     moment=None if c.moment is None else 0.9 * c.moment,
+                     follower=c.follower)
+        for c in problem.conditions)
+    moved = pl.Problem(moved.part, moved.conditions, (0.3, -9.0), moved.name)
+    fresh = lower(moved)
+    again = lower(problem).retarget(moved)
+    assert again is not None and again.key == fresh.key
+    for a, b in ((again.target.val, fresh.target.val), (again.target.fol, fresh.target.fol),
+                 (again.target.prm, fresh.target.prm), (again.inputs, fresh.inputs)):
+        assert np.array_equal(a, b)
+    # A different structure (one more station) is refused.
+    other = problem.with_conditions(problem.conditions + (
+        pl.push(0.37 * problem.part.length, force=(0.0, 0.1), name="other"),))
+    assert lower(problem).retarget(other) is None

@@ -75,6 +75,9 @@ class Lowered:
     nz: int
     key: tuple = ()  # equal keys: same structure (a warm start can reuse unknowns)
     inputs: np.ndarray = field(default_factory=lambda: np.zeros(0))  # val, fol, prm flat
+    nodes: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=np.int64))
+    interval: float = 1.0  # the longest stretch between restarts (dimensionless)
+    problem_rows: tuple[int, ...] = ()  # the kernel station of each problem station
 
     # -- scales ---------------------------------------------------------------------------
     @property
@@ -85,15 +88,39 @@ class Lowered:
     def moment_scale(self) -> float:
         return self.stiffness / self.length
 
-    @property
-    def nodes(self) -> np.ndarray:
-        """Indices of the restart nodes."""
-        return np.nonzero(self.st_kind[:, 0] == NODE)[0]
-
-    def interval(self) -> float:
-        """The longest stretch between restarts (dimensionless)."""
-        cuts = np.concatenate([[0.0], self.st_s[self.nodes], [1.0]])
-        return float(np.diff(cuts).max())
+    def retarget(self, problem: Problem) -> Lowered | None:
+        """The same lowering for another problem with the same part and stations (only
+        targets and loads moved: a hand's next pose), or None. Cheaper than ``lower``."""
+        if problem.part is not self.problem.part and problem.part != self.problem.part:
+            return None
+        rows = self.problem_rows
+        if len(problem.stations) != len(rows):
+            return None
+        length = self.length
+        scales = (length, length, 1.0)
+        loads = (self.force_scale, self.force_scale, self.moment_scale)
+        val = np.zeros_like(self.target.val)
+        fol = np.zeros_like(self.target.fol)
+        for k, st, old in zip(rows, problem.stations, (self.station_of[k] for k in rows)):
+            if st.s != old.s or st.prescribed != old.prescribed:  # type: ignore[union-attr]
+                return None
+            for i in range(3):
+                val[k, i] = (st.kinematics[i] / scales[i] if st.prescribed[i]
+                             else st.dead_load[i] / loads[i])
+            fol[k] = (st.follower_load[0] / loads[0], st.follower_load[1] / loads[0])
+        prm = self.target.prm.copy()
+        prm[0], prm[1] = distributed_load(problem)
+        station_of = list(self.station_of)
+        for k, st in zip(rows, problem.stations):
+            station_of[k] = st
+        return Lowered(problem=problem, length=length, stiffness=self.stiffness,
+                       st_s=self.st_s, st_kind=self.st_kind, st_col=self.st_col,
+                       seg_lo=self.seg_lo, seg_hi=self.seg_hi, st_kappa=self.st_kappa,
+                       target=Arrays(val, fol, prm), station_of=tuple(station_of),
+                       nz=self.nz, key=self.key,
+                       inputs=np.concatenate([val.ravel(), fol.ravel(), prm]),
+                       nodes=self.nodes, interval=self.interval,
+                       problem_rows=self.problem_rows)
 
     # -- kernel calls ---------------------------------------------------------------------
     def mesh(self, density: int) -> Mesh:
@@ -209,6 +236,13 @@ class Lowered:
         return z
 
 
+def distributed_load(problem: Problem) -> tuple[float, float]:
+    """The self-weight per unit length, dimensionless (by EI / L^3)."""
+    part = problem.part
+    scale = part.mass_per_length * part.length**3 / part.bending_stiffness
+    return scale * problem.gravity[0], scale * problem.gravity[1]
+
+
 def load_wavenumber(problem: Problem) -> float:
     """A priori wavenumber (dimensionless) of the applied loads: sqrt of the total force
     plus the total moment and the largest rest curvature."""
@@ -288,17 +322,19 @@ def lower(problem: Problem, nodes: int | None = None) -> Lowered:
         if k < nst - 1:
             seg_lo[k] = lo
             seg_hi[k] = col
-    gx, gy = problem.gravity
-    mu = part.mass_per_length
-    prm = np.array([mu * gx * length**3 / stiffness, mu * gy * length**3 / stiffness,
-                    0.0, 0.0, 1.0])
+    prm = np.array([*distributed_load(problem), 0.0, 0.0, 1.0])
     if part.straight_at_rest:
         st_kappa = np.zeros(nst)
     else:
         st_kappa = np.array([part.rest_curvature_at(s * length) * length for s in st_s])
     key = (length, stiffness, st_s.tobytes(), st_kind.tobytes(), st_kappa.tobytes())
+    node_index = np.nonzero(st_kind[:, 0] == NODE)[0]
+    cuts = [0.0] + [float(st_s[k]) for k in node_index] + [1.0]
     return Lowered(problem=problem, length=length, stiffness=stiffness, st_s=st_s,
                    st_kind=st_kind, st_col=st_col, seg_lo=seg_lo, seg_hi=seg_hi,
                    st_kappa=st_kappa, target=Arrays(val, fol, prm),
                    station_of=tuple(st for _, st, _ in stations), nz=col, key=key,
-                   inputs=np.concatenate([val.ravel(), fol.ravel(), prm]))
+                   inputs=np.concatenate([val.ravel(), fol.ravel(), prm]), nodes=node_index,
+                   interval=max(b - a for a, b in zip(cuts, cuts[1:])),
+                   problem_rows=tuple(k for k, (_, st, _) in enumerate(stations)
+                                      if st is not None))

@@ -321,18 +321,19 @@ class _Run:
                                  int(math.ceil(k / self.solver.path_accuracy))))
 
     def warm(self, warm: Equilibrium, follow_only: bool,
-             before: Equilibrium | None = None) -> _Point | None:
+             history: tuple[Equilibrium, ...] = ()) -> _Point | None:
         low, opts = self.low, self.solver
         old = warm.state if isinstance(warm.state, _WarmState) else None
         same = old is not None and _same_structure(old.low, low)
         if same:
             assert old is not None
             z0, jac0, mesh = old.z, old.jac, old.mesh
-            predictor = _secant(before, old, low)
+            predictor = _extrapolate(history, old, low)
             if predictor is not None:
+                # From a close prediction a fresh Jacobian converges in about one
+                # iteration; the last point's would contract by only ~the step size.
                 z, r, status, jac, stats = self.newton(predictor, low.target, mesh,
-                                                       strict=True, tol=opts.tolerance,
-                                                       jac0=jac0)
+                                                       strict=True, tol=opts.tolerance)
                 if status == kernels.CONVERGED:
                     self.steps += 1
                     return self.polish(_Point(z, jac, mesh, stats, r))
@@ -389,23 +390,35 @@ class _Run:
         return _Point(z, jac, mesh, stats, r)
 
 
-def _secant(before: Equilibrium | None, old: _WarmState, low: Lowered) -> np.ndarray | None:
-    """Extrapolate the unknowns along a path of problems: the last two equilibria and
-    the distances between successive problems' inputs give a second-order predictor."""
-    if before is None or not isinstance(before.state, _WarmState):
+def _extrapolate(history: tuple[Equilibrium, ...], old: _WarmState,
+                 low: Lowered) -> np.ndarray | None:
+    """Predict the unknowns along a path of problems from the last equilibria: a
+    quadratic (or, with two points, linear) extrapolation in the distance travelled
+    through the problems' inputs. Only equilibria of the same structure count."""
+    states = [h.state for h in history[-2:]
+              if isinstance(h.state, _WarmState) and h.state.low.key == low.key]
+    if not states:
         return None
-    prior = before.state
-    if not _same_structure(prior.low, low):
+    points = states + [old]  # oldest first; at most three
+    taus = [0.0]
+    for a, b in zip(points, points[1:]):
+        taus.append(taus[-1] + _distance(a.low, b.low))
+    target = taus[-1] + _distance(old.low, low)
+    if any(b - a <= 0.0 for a, b in zip(taus, taus[1:])):
         return None
-    step_old = _distance(prior.low, old.low)
-    step_new = _distance(old.low, low)
-    if step_old == 0.0:
-        return None
-    return old.z + (step_new / step_old) * (old.z - prior.z)
+    z = 0.0
+    for i, (ti, pi) in enumerate(zip(taus, points)):
+        weight = 1.0
+        for j, tj in enumerate(taus):
+            if j != i:
+                weight *= (target - tj) / (ti - tj)
+        z = z + weight * pi.z
+    return z  # type: ignore[return-value]
 
 
 def _distance(a: Lowered, b: Lowered) -> float:
-    return float(np.linalg.norm(a.inputs - b.inputs))
+    d = a.inputs - b.inputs
+    return math.sqrt(float(d @ d))
 
 
 def _same_structure(a: Lowered, b: Lowered) -> bool:
@@ -425,14 +438,17 @@ def solve(problem: Problem, *, warm_start: Equilibrium | None = None,
 
 
 def _solve(problem: Problem, warm_start: Equilibrium | None, solver: ShootingSolver,
-           follow_only: bool, before: Equilibrium | None = None) -> Equilibrium:
+           follow_only: bool, history: tuple[Equilibrium, ...] = ()) -> Equilibrium:
     old = warm_start.state if warm_start is not None else None
-    nodes = len(old.low.nodes) + 1 if isinstance(old, _WarmState) else None
-    run = _Run(lower(problem, nodes=nodes), solver)
+    low = old.low.retarget(problem) if isinstance(old, _WarmState) else None
+    if low is None:
+        low = lower(problem, nodes=len(old.low.nodes) + 1 if isinstance(old, _WarmState)
+                    else None)
+    run = _Run(low, solver)
     point = None
     try:
         if warm_start is not None:
-            point = run.warm(warm_start, follow_only, before)
+            point = run.warm(warm_start, follow_only, history)
             if point is not None:
                 # What was said of the branch still holds along it.
                 run.notes[:0] = [n for n in warm_start.notes if n.startswith(_BRANCH_NOTE)]
@@ -462,7 +478,7 @@ def _renode(run: _Run, point: _Point) -> _Point:
     from it stay well conditioned."""
     low = run.low
     k = math.sqrt(float(point.stats[1]))
-    if k * low.interval() <= NODE_SPAN:
+    if k * low.interval <= NODE_SPAN:
         return point
     finer = lower(low.problem, nodes=math.ceil(1.25 * k / NODE_SPAN))
     here = Equilibrium(problem=low.problem, residual=point.residual, iterations=0, steps=0,
@@ -542,11 +558,14 @@ def trace(problems: Iterable[Problem], *, start: Equilibrium | None = None,
     instead of jumping silently to another branch.
     """
     solver = solver or ShootingSolver()
-    previous, before = start, None
+    previous = start
+    history: tuple[Equilibrium, ...] = ()  # the two before previous, oldest first
     for problem in problems:
         eq = _solve(problem, previous, solver, follow_only=previous is not None,
-                    before=before)
-        previous, before = eq, previous
+                    history=history)
+        if previous is not None:
+            history = (history + (previous,))[-2:]
+        previous = eq
         yield eq
 
 
