@@ -14,7 +14,6 @@ Timings are machine-dependent; the ratios, measured in the same run, are the fig
 from __future__ import annotations
 
 import argparse
-import math
 import os
 import statistics
 import sys

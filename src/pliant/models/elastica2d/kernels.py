@@ -513,6 +513,18 @@ def needed_density(stats, accuracy, min_density):
 
 
 @njit(cache=True)
+def _lerp_into(val, fol, prm, val0, fol0, prm0, val1, fol1, prm1, t):
+    """The homotopy's inputs at t: (val, fol, prm) = (1 - t) * start + t * end."""
+    for i in range(val.shape[0]):
+        for j in range(3):
+            val[i, j] = val0[i, j] + t * (val1[i, j] - val0[i, j])
+        for j in range(2):
+            fol[i, j] = fol0[i, j] + t * (fol1[i, j] - fol0[i, j])
+    for j in range(prm.shape[0]):
+        prm[j] = prm0[j] + t * (prm1[j] - prm0[j])
+
+
+@njit(cache=True)
 def follow(z0, jac0, density, st_s, st_kind, st_col, seg_lo, seg_hi, st_kappa,
            val0, fol0, prm0, val1, fol1, prm1, opts):
     """Continuation from (arrays0, z0), an exact solution, to arrays1.
@@ -521,10 +533,11 @@ def follow(z0, jac0, density, st_s, st_kind, st_col, seg_lo, seg_hi, st_kappa,
     the tangent at the start, the later ones the secant through the last two points.
     Each step's Newton corrector must contract (see ``newton``); the next step aims at
     a corrector distance of ``grow`` (each unknown relative to its size), and no step
-    may raise the wavenumber by more than ``wave_step``. Intermediate points only need to be on the branch: they converge to a loose
-    tolerance (relative to how far the homotopy moves its inputs) on a mesh of the
-    coarser path accuracy. The end point converges to the full
-    tolerance on a mesh refined until it resolves the solution to the accuracy asked for.
+    may raise the wavenumber by more than ``wave_step``. Intermediate points only need
+    to be on the branch: they converge to a loose tolerance (relative to how far the
+    homotopy moves its inputs) on a mesh of the coarser path accuracy. The end point
+    converges to the full tolerance on a mesh refined until it resolves the solution
+    to the accuracy asked for.
 
     The sign of det J is followed along the path: a step that flips it is rejected
     (it jumped to another branch, or crossed a fold or bifurcation too fast) until the
@@ -594,13 +607,7 @@ def follow(z0, jac0, density, st_s, st_kind, st_col, seg_lo, seg_hi, st_kappa,
     # (dG/dt by a forward difference: G(z0, 0) = 0 at the exact start).
     empty = np.zeros((0, NSTATE))
     eps = 1e-7
-    for i in range(val.shape[0]):
-        for j in range(3):
-            val[i, j] = val0[i, j] + eps * (val1[i, j] - val0[i, j])
-        for j in range(2):
-            fol[i, j] = fol0[i, j] + eps * (fol1[i, j] - fol0[i, j])
-    for j in range(prm.shape[0]):
-        prm[j] = prm0[j] + eps * (prm1[j] - prm0[j])
+    _lerp_into(val, fol, prm, val0, fol0, prm0, val1, fol1, prm1, eps)
     g_eps, j_eps, _ = shoot(z, st_s, st_kind, val, fol, st_col, seg_steps, seg_lo, seg_hi,
                             prm, st_kappa, True, empty)
     tangent, ok = lu_solve(j_eps, -g_eps / eps)
@@ -628,15 +635,8 @@ def follow(z0, jac0, density, st_s, st_kind, st_col, seg_lo, seg_hi, st_kappa,
         if k_prev >= 0.0 and t_prev >= 0.0 and k_now > k_prev:
             dt = min(dt, max(wave_step * (t - t_prev) / (k_now - k_prev), min_step))
         t_next = min(1.0, t + dt)
-        for i in range(val.shape[0]):
-            for j in range(3):
-                val[i, j] = val0[i, j] + t_next * (val1[i, j] - val0[i, j])
-            for j in range(2):
-                fol[i, j] = fol0[i, j] + t_next * (fol1[i, j] - fol0[i, j])
-        for j in range(prm.shape[0]):
-            prm[j] = prm0[j] + t_next * (prm1[j] - prm0[j])
+        _lerp_into(val, fol, prm, val0, fol0, prm0, val1, fol1, prm1, t_next)
         predictor = z.copy()
-        t_prev_used = t_prev >= 0.0
         if t_prev >= 0.0:
             w = (t_next - t) / (t - t_prev)
             for q in range(nz):

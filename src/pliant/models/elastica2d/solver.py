@@ -35,7 +35,7 @@ from pliant.core.equilibrium import Equilibrium, Samples, StationLoad
 from pliant.core.problem import Problem
 from pliant.errors import ConvergenceError
 from pliant.models.elastica2d import kernels
-from pliant.models.elastica2d.lowering import (APPLIED, NODE_SPAN, PRESCRIBED, Arrays,
+from pliant.models.elastica2d.lowering import (NODE_SPAN, PRESCRIBED, Arrays,
                                                Lowered, Mesh, load_wavenumber, lower)
 
 
@@ -178,9 +178,9 @@ class _Run:
                 singular_start=last == kernels.SINGULAR and steps == 0 and t == 0.0)
         if crossings:
             self.notes.append(
-                "the path from the unloaded part crosses a bifurcation (det J changes "
-                "sign); the equilibrium continued through it may be unstable, and a "
-                "neighbouring branch may be the one the part takes")
+                "the path to this problem crosses a bifurcation (det J changes sign); the "
+                "equilibrium continued through it may be unstable, and a neighbouring "
+                "branch may be the one the part takes")
         return _Point(z, jac, low.mesh(density), stats, r)
 
     # -- routes ---------------------------------------------------------------------------
@@ -194,9 +194,11 @@ class _Run:
         for count, legs in attempts:
             if count != len(self.low.nodes) + 1:
                 self.low = lower(problem, nodes=count)
+            said = len(self.notes)
             try:
                 return self.route(legs)
             except _Stalled as stall:
+                del self.notes[said:]  # what a failed route found does not hold
                 if best is None or stall.t > best.t:
                     best = stall
         assert best is not None
