@@ -6,6 +6,7 @@ numba kernels, so ``solve`` and ``trace`` are imported on first use.
 
 from pliant.core import Condition as Condition
 from pliant.core import Equilibrium as Equilibrium
+from pliant.core import Equilibrium3D as Equilibrium3D
 from pliant.core import Material as Material
 from pliant.core import Part as Part
 from pliant.core import Problem as Problem
@@ -18,8 +19,8 @@ from pliant.core import push as push
 
 __version__ = "0.1.0"
 
-_LAZY = {"solve": "pliant.models.elastica2d", "trace": "pliant.models.elastica2d",
-         "ShootingSolver": "pliant.models.elastica2d"}
+_LAZY = {"solve": "pliant.models.dispatch", "trace": "pliant.models.dispatch",
+         "ShootingSolver": "pliant.models.elastica2d", "RodSolver": "pliant.models.rod3d"}
 
 
 def __getattr__(name: str):

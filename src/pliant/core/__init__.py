@@ -6,6 +6,7 @@ from pliant.core.conditions import grip as grip
 from pliant.core.conditions import pin as pin
 from pliant.core.conditions import push as push
 from pliant.core.equilibrium import Equilibrium as Equilibrium
+from pliant.core.equilibrium import Equilibrium3D as Equilibrium3D
 from pliant.core.equilibrium import StationLoad as StationLoad
 from pliant.core.part import Material as Material
 from pliant.core.part import Part as Part

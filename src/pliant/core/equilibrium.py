@@ -25,8 +25,10 @@ from pliant.core.problem import Problem
 class StationLoad:
     """The load a condition applies to the part at its station.
 
-    force : (2,) float [N], global frame; moment : float [N m], counter-clockwise.
-    prescribed : which of (Fx, Fy, moment) are reactions (their pair was prescribed);
+    force : (2,) or (3,) float [N], global frame; moment : float [N m], counter-clockwise
+        (2D), or (3,) float [N m] (3D).
+    prescribed : which components are reactions (their pair was prescribed): (Fx, Fy,
+        moment) in 2D, (Fx, Fy, Fz, moment normal to the axis, twisting moment) in 3D;
         the others are the loads that were applied (a follower force is resolved into
         the global frame at the deformed angle).
     """
@@ -34,16 +36,18 @@ class StationLoad:
     name: str
     s: float
     force: np.ndarray
-    moment: float
-    prescribed: tuple[bool, bool, bool]
+    moment: Any
+    prescribed: tuple[bool, ...]
 
     @property
     def is_reaction(self) -> bool:
         return any(self.prescribed)
 
     def to_dict(self) -> dict[str, Any]:
+        moment = (float(self.moment) if np.ndim(self.moment) == 0
+                  else [float(m) for m in self.moment])
         return {"name": self.name, "s": self.s, "force": [float(f) for f in self.force],
-                "moment": float(self.moment), "prescribed": list(self.prescribed)}
+                "moment": moment, "prescribed": list(self.prescribed)}
 
 
 @dataclass(frozen=True, eq=False)
@@ -185,4 +189,145 @@ class Equilibrium:
             "notes": list(self.notes),
             "units": {"length": "m", "force": "N", "moment": "N m", "angle": "rad",
                       "energy": "J"},
+        }
+
+
+@dataclass(frozen=True, eq=False)
+class Samples3D:
+    """The arrays of a 3D equilibrium (see ``Equilibrium3D``)."""
+
+    s: np.ndarray
+    position: np.ndarray
+    frames: np.ndarray
+    element_s: np.ndarray
+    internal_force: np.ndarray
+    internal_moment: np.ndarray
+    energy: float
+    loads: dict[str, StationLoad]
+
+
+@dataclass(frozen=True, eq=False)
+class Equilibrium3D:
+    """An equilibrium of a 3D problem (the discrete rod).
+
+    residual, iterations, steps, notes, state : as in 2D.
+
+    The arrays are computed on first access: s : (N+1,) float [m], the nodes;
+    position : (N+1, 3) float [m]; frames : (N+1, 3, 3) float, the material frame at each
+    node (columns d1, d2, d3, d3 the tangent); element_s : (N,) float [m], element
+    midpoints; internal_force : (N, 3) float [N], the force the part beyond exerts on the
+    part before, global frame, per element; internal_moment : (N+1, 3) float [N m], the
+    moment the part beyond exerts on the part before, global frame, at the nodes;
+    loads : the load (force (3,) [N], moment (3,) [N m], global frame) every condition
+    applies to the part, by name (reactions where prescribed); energy : float [J], the
+    elastic energy (bending and torsion). Stability is computed on first access too.
+    """
+
+    problem: Problem
+    residual: float
+    iterations: int
+    steps: int
+    sampler: Callable[[], Samples3D] = field(repr=False)
+    notes: tuple[str, ...] = ()
+    state: Any = field(default=None, repr=False)
+    stability_check: Callable[[], tuple[bool | None, float | None]] | None = field(
+        default=None, repr=False)
+
+    @cached_property
+    def samples(self) -> Samples3D:
+        return self.sampler()
+
+    s = property(lambda self: self.samples.s)
+    position = property(lambda self: self.samples.position)
+    frames = property(lambda self: self.samples.frames)
+    element_s = property(lambda self: self.samples.element_s)
+    internal_force = property(lambda self: self.samples.internal_force)
+    internal_moment = property(lambda self: self.samples.internal_moment)
+    energy = property(lambda self: self.samples.energy)
+    loads = property(lambda self: self.samples.loads)
+
+    @cached_property
+    def stability(self) -> tuple[bool | None, float | None]:
+        """(stable, smallest eigenvalue of the constrained Hessian [N m]) for
+        conservative loads; (None, None) where follower loads or dead moments make the
+        problem non-conservative (a static test does not decide their stability)."""
+        if self.stability_check is None:
+            return None, None
+        return self.stability_check()
+
+    @property
+    def stable(self) -> bool | None:
+        return self.stability[0]
+
+    @property
+    def reactions(self) -> dict[str, StationLoad]:
+        return {k: v for k, v in self.loads.items() if v.is_reaction}
+
+    @property
+    def tangent(self) -> np.ndarray:
+        return self.frames[:, :, 2]
+
+    @property
+    def tip(self) -> tuple[np.ndarray, np.ndarray]:
+        """(position (3,) [m], tangent (3,)) at s = L."""
+        return self.position[-1].copy(), self.frames[-1, :, 2].copy()
+
+    @property
+    def torque(self) -> np.ndarray:
+        """(N+1,) [N m], the twisting moment about the tangent."""
+        return np.einsum("ij,ij->i", self.internal_moment, self.tangent)
+
+    @property
+    def axial_force(self) -> np.ndarray:
+        """(N,) [N], tension positive, per element."""
+        d3 = self.position[1:] - self.position[:-1]
+        d3 /= np.linalg.norm(d3, axis=1)[:, None]
+        return np.einsum("ij,ij->i", self.internal_force, d3)
+
+    @property
+    def curvature(self) -> np.ndarray:
+        """(N+1,) [1/m], the bending curvature |kappa| at the nodes (twist excluded)."""
+        part = self.problem.part
+        ei1, ei2, _ = part.stiffnesses
+        local = np.einsum("nji,nj->ni", self.frames, self.internal_moment)
+        rest = np.array([part.rest_darboux_at(float(si)) for si in self.s])
+        k1 = local[:, 0] / ei1 + rest[:, 0]
+        k2 = local[:, 1] / ei2 + rest[:, 1]
+        return np.hypot(k1, k2)
+
+    def max_moment(self) -> tuple[float, float]:
+        """(|M| max [N m] (bending and torsion), s [m] where it occurs)."""
+        norms = np.linalg.norm(self.internal_moment, axis=1)
+        i = int(np.argmax(norms))
+        return float(norms[i]), float(self.s[i])
+
+    def min_bend_radius(self) -> tuple[float, float]:
+        """(smallest bend radius [m], s [m]); inf for a straight part."""
+        kappa = self.curvature
+        i = int(np.argmax(kappa))
+        return (math.inf if kappa[i] == 0.0 else 1.0 / float(kappa[i])), float(self.s[i])
+
+    def to_dict(self) -> dict[str, Any]:
+        stable, eigen = self.stability
+        return {
+            "problem": self.problem.name,
+            "dimension": 3,
+            "s": self.s.tolist(),
+            "position": self.position.tolist(),
+            "frames": self.frames.tolist(),
+            "element_s": self.element_s.tolist(),
+            "internal_force": self.internal_force.tolist(),
+            "internal_moment": self.internal_moment.tolist(),
+            "loads": {k: v.to_dict() for k, v in self.loads.items()},
+            "tip": [self.tip[0].tolist(), self.tip[1].tolist()],
+            "energy": self.energy,
+            "max_moment": list(self.max_moment()),
+            "min_bend_radius": list(self.min_bend_radius()),
+            "stable": stable,
+            "smallest_eigenvalue": eigen,
+            "residual": self.residual,
+            "iterations": self.iterations,
+            "steps": self.steps,
+            "notes": list(self.notes),
+            "units": {"length": "m", "force": "N", "moment": "N m", "energy": "J"},
         }

@@ -59,11 +59,19 @@ class Part:
     length : float [m]
     bending_stiffness : float [N m^2], EI
     mass_per_length : float [kg/m], for self-weight
-    torsional_stiffness : float [N m^2] or None, GJ (used by the 3D model)
+    torsional_stiffness : float [N m^2] or None, GJ (the 3D model); when not given, that
+        of a solid round section of an incompressible material, GJ = EI / 1.5
+    bending_stiffness_2 : float [N m^2] or None, EI about the section's second axis d2
+        (3D, anisotropic sections); when not given, the section is isotropic
     outer_diameter, inner_diameter : float [m] or None, the tube section (display, contact)
     rest_curvature : float [1/m], or a sequence of (s [m], kappa [1/m]) knots interpolated
-        linearly; the curvature of the unloaded neutral line (pre-formed hoses)
+        linearly; the curvature of the unloaded neutral line (pre-formed hoses). In 3D it is
+        the curvature about the first section axis d1 (the 2D plane's normal).
+    rest_curvature_2, rest_twist : the same, about d2 and about the tangent d3 (3D)
     min_bend_radius : float [m] or None, the smallest radius the part tolerates
+
+    The material frame (d1, d2, d3) is right-handed with d3 the tangent; a 2D problem is
+    the 3D one in the plane z = 0 with d1 = +z, so that bending there is about d1.
     """
 
     length: float
@@ -75,7 +83,12 @@ class Part:
     rest_curvature: float | tuple[tuple[float, float], ...] = 0.0
     min_bend_radius: float | None = None
     name: str = "part"
+    bending_stiffness_2: float | None = None
+    rest_curvature_2: float | tuple[tuple[float, float], ...] = 0.0
+    rest_twist: float | tuple[tuple[float, float], ...] = 0.0
     rest_knots: tuple[tuple[float, float], ...] = field(init=False, repr=False)
+    rest_knots_2: tuple[tuple[float, float], ...] = field(init=False, repr=False)
+    twist_knots: tuple[tuple[float, float], ...] = field(init=False, repr=False)
 
     def __post_init__(self) -> None:
         set_ = object.__setattr__
@@ -98,31 +111,35 @@ class Part:
         if self.min_bend_radius is not None:
             set_(self, "min_bend_radius",
                  _positive("min_bend_radius", self.min_bend_radius, "m"))
-        set_(self, "rest_knots", self._knots(self.rest_curvature))
+        if self.bending_stiffness_2 is not None:
+            set_(self, "bending_stiffness_2",
+                 _positive("bending_stiffness_2", self.bending_stiffness_2, "N m^2"))
+        set_(self, "rest_knots", self._knots(self.rest_curvature, "rest_curvature"))
+        set_(self, "rest_knots_2", self._knots(self.rest_curvature_2, "rest_curvature_2"))
+        set_(self, "twist_knots", self._knots(self.rest_twist, "rest_twist"))
 
-    def _knots(self, rest: float | Sequence[Sequence[float]]) -> tuple[tuple[float, float], ...]:
+    def _knots(self, rest: float | Sequence[Sequence[float]],
+               name: str) -> tuple[tuple[float, float], ...]:
         if isinstance(rest, (int, float)):
             kappa = float(rest)
             if not math.isfinite(kappa):
-                raise InputError("rest_curvature", f"must be finite, got {kappa!r}")
+                raise InputError(name, f"must be finite, got {kappa!r}")
             return ((0.0, kappa), (self.length, kappa))
         knots: list[tuple[float, float]] = []
         for i, pair in enumerate(rest):
             if len(pair) != 2:
-                raise InputError(f"rest_curvature[{i}]",
-                                 "each knot is a pair (s [m], curvature [1/m])")
+                raise InputError(f"{name}[{i}]", "each knot is a pair (s [m], curvature [1/m])")
             s, kappa = float(pair[0]), float(pair[1])
             if not (math.isfinite(s) and math.isfinite(kappa)):
-                raise InputError(f"rest_curvature[{i}]", "must be finite numbers")
+                raise InputError(f"{name}[{i}]", "must be finite numbers")
             if not 0.0 <= s <= self.length:
-                raise InputError(f"rest_curvature[{i}]",
+                raise InputError(f"{name}[{i}]",
                                  f"s = {s} m lies outside the part [0, {self.length}] m")
             if knots and s <= knots[-1][0]:
-                raise InputError(f"rest_curvature[{i}]",
-                                 "knots must be given with strictly increasing s")
+                raise InputError(f"{name}[{i}]", "knots must be given with strictly increasing s")
             knots.append((s, kappa))
         if not knots:
-            raise InputError("rest_curvature", "give a number or at least one (s, kappa) knot")
+            raise InputError(name, "give a number or at least one (s, kappa) knot")
         return tuple(knots)
 
     @classmethod
@@ -148,14 +165,39 @@ class Part:
 
     @property
     def straight_at_rest(self) -> bool:
-        return all(kappa == 0.0 for _, kappa in self.rest_knots)
+        return all(kappa == 0.0 for knots in (self.rest_knots, self.rest_knots_2,
+                                              self.twist_knots) for _, kappa in knots)
+
+    @property
+    def stiffnesses(self) -> tuple[float, float, float]:
+        """(EI1, EI2, GJ) [N m^2]: bending about d1 and d2, torsion about d3."""
+        ei2 = self.bending_stiffness_2 or self.bending_stiffness
+        gj = self.torsional_stiffness or self.bending_stiffness / 1.5
+        return self.bending_stiffness, ei2, gj
 
     def rest_curvature_at(self, s: float) -> float:
         """Rest curvature [1/m] at arc length s [m] (linear between knots)."""
-        knots = self.rest_knots
-        if s <= knots[0][0]:
-            return knots[0][1]
-        for (s0, k0), (s1, k1) in zip(knots, knots[1:]):
-            if s <= s1:
-                return k0 + (k1 - k0) * (s - s0) / (s1 - s0)
-        return knots[-1][1]
+        return _interpolate(self.rest_knots, s)
+
+    def rest_darboux_at(self, s: float) -> tuple[float, float, float]:
+        """Rest curvatures about (d1, d2) and rest twist [1/m] at s [m] (3D)."""
+        return (_interpolate(self.rest_knots, s), _interpolate(self.rest_knots_2, s),
+                _interpolate(self.twist_knots, s))
+
+    @property
+    def knot_positions(self) -> tuple[float, ...]:
+        """Interior arc lengths [m] where a rest-curvature profile has a kink."""
+        out = set()
+        for knots in (self.rest_knots, self.rest_knots_2, self.twist_knots):
+            if len(knots) > 2:
+                out.update(s for s, _ in knots if 0.0 < s < self.length)
+        return tuple(sorted(out))
+
+
+def _interpolate(knots: tuple[tuple[float, float], ...], s: float) -> float:
+    if s <= knots[0][0]:
+        return knots[0][1]
+    for (s0, k0), (s1, k1) in zip(knots, knots[1:]):
+        if s <= s1:
+            return k0 + (k1 - k0) * (s - s0) / (s1 - s0)
+    return knots[-1][1]

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Iterable
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 from pliant.core.conditions import Condition
 from pliant.core.part import Part
@@ -63,6 +63,60 @@ class Station:
 
 
 @dataclass(frozen=True)
+class Station3D:
+    """The conditions that act at one arc length of a 3D part, merged.
+
+    owner : for each of (x, y, z, axis direction, twist), the name of the condition that
+        prescribes it, or None where it is applied.
+    position : the prescribed (x, y, z) [m]; 0 where free
+    tangent, normal : the prescribed axis direction and section axis d1 (unit), or None
+    dead_force, dead_moment : applied in the global frame [N], [N m], summed
+    follower_force, follower_moment : applied in the material frame (d1, d2, d3), summed
+    """
+
+    s: float
+    conditions: tuple[Condition, ...]
+    owner: tuple[str | None, ...]
+    position: tuple[float, float, float] = field(init=False)
+    tangent: tuple[float, float, float] | None = field(init=False)
+    normal: tuple[float, float, float] | None = field(init=False)
+    dead_force: tuple[float, float, float] = field(init=False)
+    dead_moment: tuple[float, float, float] = field(init=False)
+    follower_force: tuple[float, float, float] = field(init=False)
+    follower_moment: tuple[float, float, float] = field(init=False)
+
+    def __post_init__(self) -> None:
+        pos = [0.0, 0.0, 0.0]
+        tangent = normal = None
+        loads = {"dead_force": [0.0] * 3, "dead_moment": [0.0] * 3,
+                 "follower_force": [0.0] * 3, "follower_moment": [0.0] * 3}
+        for c in self.conditions:
+            for i, value in enumerate(c.position):
+                if value is not None:
+                    pos[i] = value
+            if c.tangent is not None:
+                tangent = c.tangent
+            if c.normal is not None:
+                normal = c.normal
+            kind = "follower" if c.follower else "dead"
+            for i, value in enumerate(c.force):
+                loads[f"{kind}_force"][i] += value or 0.0
+            if c.moment is not None:
+                for i, value in enumerate(c.moment):  # type: ignore[arg-type]
+                    loads[f"{kind}_moment"][i] += value
+        set_ = object.__setattr__
+        set_(self, "position", tuple(pos))
+        set_(self, "tangent", tangent)
+        set_(self, "normal", normal)
+        for key, value in loads.items():
+            set_(self, key, tuple(value))
+
+    @property
+    def prescribed(self) -> tuple[bool, ...]:
+        return tuple(o is not None for o in self.owner)
+
+
+@dataclass(frozen=True)
 class Problem:
     """A flexible part, conditions at stations along it, and gravity [m/s^2].
 
@@ -73,20 +127,42 @@ class Problem:
 
     part: Part
     conditions: tuple[Condition, ...]
-    gravity: tuple[float, float] = (0.0, 0.0)
+    gravity: tuple[float, ...] | None = None
     name: str = ""
-    stations: tuple[Station, ...] = field(init=False, repr=False, compare=False)
+    stations: tuple = field(init=False, repr=False, compare=False)
+    dimension: int = field(init=False, repr=False, compare=False)
 
     def __post_init__(self) -> None:
         conditions = tuple(self.conditions)
         if not all(isinstance(c, Condition) for c in conditions):
             raise InputError("conditions", "must be Condition objects (clamp, pin, grip, push)")
-        conditions = tuple(_named(c, i) for i, c in enumerate(conditions))
+        gravity = self.gravity
+        if gravity is not None:
+            try:
+                gravity = tuple(float(g) for g in gravity)
+            except (TypeError, ValueError):
+                raise InputError("gravity", f"must be 2 or 3 numbers in m/s^2, got "
+                                            f"{self.gravity!r}") from None
+            if len(gravity) not in (2, 3) or not all(math.isfinite(g) for g in gravity):
+                raise InputError("gravity", f"must be 2 (2D) or 3 (3D) finite numbers in m/s^2,"
+                                            f" got {self.gravity!r}")
+        dims = {c.dimension for c in conditions} - {0}
+        if gravity is not None and any(gravity):
+            dims.add(len(gravity))
+        if len(dims) > 1:
+            raise InputError("conditions", "mix 2D and 3D conditions (or gravity); give every "
+                                           "vector with the same number of axes")
+        dimension = dims.pop() if dims else (len(gravity) if gravity else 2)
+        if gravity is None or not any(gravity):
+            gravity = (0.0,) * dimension
+        elif len(gravity) != dimension:
+            raise InputError("gravity", f"has {len(gravity)} components in a {dimension}D "
+                                        "problem")
+        conditions = tuple(_named(_dimensioned(c, dimension), i)
+                           for i, c in enumerate(conditions))
         object.__setattr__(self, "conditions", conditions)
-        gravity = tuple(float(g) for g in self.gravity)
-        if len(gravity) != 2 or not all(math.isfinite(g) for g in gravity):
-            raise InputError("gravity", f"must be 2 finite numbers in m/s^2, got {self.gravity!r}")
         object.__setattr__(self, "gravity", gravity)
+        object.__setattr__(self, "dimension", dimension)
         names = [c.name for c in conditions]
         for n in names:
             if names.count(n) > 1:
@@ -97,12 +173,21 @@ class Problem:
             if not -STATION_MERGE * length <= c.s <= length * (1 + STATION_MERGE):
                 raise InputError(f"{c.name}.s", f"station s = {c.s} m lies outside the part "
                                  f"[0, {length}] m; move it onto the part")
-        object.__setattr__(self, "stations", _merge(conditions, length))
+        merge = _merge if dimension == 2 else _merge3
+        object.__setattr__(self, "stations", merge(conditions, length))
         self._check_rigid_motion()
         self._check_reach()
 
     def with_conditions(self, conditions: Iterable[Condition]) -> Problem:
         return Problem(self.part, tuple(conditions), self.gravity, self.name)
+
+    def _located(self, st) -> list[int]:
+        """The coordinates a station prescribes."""
+        n = self.dimension
+        return [k for k in range(n) if st.prescribed[k]]
+
+    def _coordinate(self, st, k: int) -> float:
+        return st.kinematic(k) if self.dimension == 2 else st.position[k]
 
     def condition(self, name: str) -> Condition:
         for c in self.conditions:
@@ -111,18 +196,18 @@ class Problem:
         raise KeyError(name)
 
     def _check_rigid_motion(self) -> None:
+        n = self.dimension
         prescribed = [st.prescribed for st in self.stations]
-        has_x = any(p[0] for p in prescribed)
-        has_y = any(p[1] for p in prescribed)
-        has_angle = any(p[2] for p in prescribed)
-        located = sum(1 for p in prescribed if p[0] or p[1])
-        missing = []
-        if not has_x:
-            missing.append("x")
-        if not has_y:
-            missing.append("y")
-        if not (has_angle or located >= 2):
-            missing.append("an angle (or positions at a second station)")
+        missing = ["xyz"[k] for k in range(n) if not any(p[k] for p in prescribed)]
+        located = sum(1 for p in prescribed if any(p[:n]))
+        if n == 2:
+            turns = any(p[2] for p in prescribed) or located >= 2
+            what = "an angle (or positions at a second station)"
+        else:
+            turns = any(p[3] for p in prescribed) or located >= 2
+            what = "an orientation (or positions at a second station)"
+        if not turns:
+            missing.append(what)
         if missing:
             raise IllPosedProblemError(
                 "too few conditions: nothing fixes " + ", ".join(missing) +
@@ -131,16 +216,18 @@ class Problem:
 
     def _check_reach(self) -> None:
         """Prescribed positions must be closer than the part between them is long."""
-        located = [st for st in self.stations if st.prescribed[0] or st.prescribed[1]]
+        located = [st for st in self.stations if self._located(st)]
         for i, a in enumerate(located):
             for b in located[i + 1:]:
                 arc = b.s - a.s
-                both = [k for k in (0, 1) if a.prescribed[k] and b.prescribed[k]]
+                both = [k for k in self._located(a) if k in self._located(b)]
                 if not both:
                     continue
-                gap = math.sqrt(sum((b.kinematic(k) - a.kinematic(k)) ** 2 for k in both))
+                gap = math.sqrt(sum((self._coordinate(b, k) - self._coordinate(a, k)) ** 2
+                                    for k in both))
                 if gap >= arc * (1.0 - 1e-9):
-                    what = "distance" if len(both) == 2 else f"{'xy'[both[0]]}-distance"
+                    what = ("distance" if len(both) == self.dimension
+                            else "-".join("xyz"[k] for k in both) + "-distance")
                     raise UnreachableTargetError(
                         f"{b.owner[both[0]]}.position",
                         f"the {what} {gap:.6g} m from {a.owner[both[0]]!r} reaches or exceeds "
@@ -151,18 +238,22 @@ class Problem:
 def _named(c: Condition, index: int) -> Condition:
     if c.name:
         return c
-    return Condition(s=c.s, name=f"condition{index + 1}", position=c.position, angle=c.angle,
-                     force=c.force, moment=c.moment, follower=c.follower)
+    return replace(c, name=f"condition{index + 1}")
+
+
+def _dimensioned(c: Condition, dimension: int) -> Condition:
+    """A condition that tells no dimension (a free station), made the problem's."""
+    if c.dimension:
+        if c.dimension != dimension:
+            raise InputError(f"{c.name or 'condition'}", f"is {c.dimension}D in a "
+                                                         f"{dimension}D problem")
+        return c
+    return replace(c, position=(None,) * dimension, force=(None,) * dimension)
 
 
 def _merge(conditions: tuple[Condition, ...], length: float) -> tuple[Station, ...]:
     """Group conditions by station and check that no pair is claimed twice."""
-    groups: list[list[Condition]] = []
-    for c in sorted(conditions, key=lambda c: c.s):
-        if groups and abs(c.s - groups[-1][0].s) <= STATION_MERGE * length:
-            groups[-1].append(c)
-        else:
-            groups.append([c])
+    groups = _group(conditions, length)
     stations = []
     for group in groups:
         owner: list[str | None] = [None, None, None]
@@ -193,6 +284,47 @@ def _merge(conditions: tuple[Condition, ...], length: float) -> tuple[Station, .
     return tuple(stations)
 
 
+def _merge3(conditions: tuple[Condition, ...], length: float) -> tuple[Station3D, ...]:
+    """Group 3D conditions by station and check that no component is claimed twice."""
+    groups = _group(conditions, length)
+    stations = []
+    names = ("x", "y", "z", "axis direction", "twist")
+    for group in groups:
+        owner: list[str | None] = [None] * 5
+        for c in group:
+            for i, p in enumerate(c.prescribed):
+                if p:
+                    if owner[i] is not None:
+                        raise IllPosedProblemError(
+                            f"{owner[i]} and {c.name} both prescribe the {names[i]} at "
+                            f"s = {c.s} m; keep one")
+                    owner[i] = c.name
+        for c in group:
+            for i in range(3):
+                if owner[i] is not None and c.force[i] is not None and (
+                        c.follower or owner[i] != c.name):
+                    raise IllPosedProblemError(
+                        f"at s = {c.s} m ({c.name}) {'xyz'[i]} is both prescribed and loaded; "
+                        "a prescribed component's load is the answer")
+            if c.moment is not None and owner[3] is not None:
+                raise IllPosedProblemError(
+                    f"at s = {c.s} m ({c.name}) the orientation is prescribed and a moment "
+                    "applied; a prescribed orientation's moment is the answer")
+        s = min(max(group[0].s, 0.0), length)
+        stations.append(Station3D(s=s, conditions=tuple(group), owner=tuple(owner)))
+    return tuple(stations)
+
+
+def _group(conditions: tuple[Condition, ...], length: float) -> list[list[Condition]]:
+    groups: list[list[Condition]] = []
+    for c in sorted(conditions, key=lambda c: c.s):
+        if groups and abs(c.s - groups[-1][0].s) <= STATION_MERGE * length:
+            groups[-1].append(c)
+        else:
+            groups.append([c])
+    return groups
+
+
 def _lerp(a: float | None, b: float | None, t: float) -> float | None:
     if a is None or b is None:
         return b
@@ -214,10 +346,23 @@ def interpolate(start: Problem, end: Problem, t: float) -> Problem:
             continue
         conditions.append(Condition(
             s=a.s + t * (c.s - a.s), name=c.name,
-            position=(_lerp(a.position[0], c.position[0], t),
-                      _lerp(a.position[1], c.position[1], t)),
+            position=_lerp_vector(a.position, c.position, t),
             angle=_lerp(a.angle, c.angle, t),
-            force=(_lerp(a.force[0], c.force[0], t), _lerp(a.force[1], c.force[1], t)),
-            moment=_lerp(a.moment, c.moment, t), follower=c.follower))
+            force=_lerp_vector(a.force, c.force, t),
+            moment=(_lerp(a.moment, c.moment, t)  # type: ignore[arg-type]
+                    if not isinstance(c.moment, tuple)
+                    else _lerp_vector(a.moment, c.moment, t)),  # type: ignore[arg-type]
+            follower=c.follower,
+            tangent=_lerp_vector(a.tangent, c.tangent, t) if c.tangent else None,
+            normal=_lerp_vector(a.normal, c.normal, t) if c.normal else None))
     gravity = tuple(ga + t * (gb - ga) for ga, gb in zip(start.gravity, end.gravity))
-    return Problem(end.part, tuple(conditions), gravity, end.name)  # type: ignore[arg-type]
+    return Problem(end.part, tuple(conditions), gravity, end.name)
+
+
+def _lerp_vector(a, b, t: float):
+    """Component by component; a missing start takes the end's value."""
+    if not b:
+        return b
+    if not a or not isinstance(a, tuple):
+        return b
+    return tuple(_lerp(x, y, t) for x, y in zip(a, b))

@@ -1,0 +1,731 @@
+"""Numba kernels of the 3D rod: a discrete inextensible Kirchhoff (Cosserat) rod.
+
+The discretisation is that of Lang, Linn and Arnold's quaternion Cosserat rods
+(Multibody System Dynamics 25, 2011), the model behind industrial cable simulation,
+made inextensible and unshearable by constraints:
+
+- nodes x_i (i = 0..N) on the centreline, elements e between x_e and x_e+1 of length h_e,
+  each with a unit quaternion q_e for its material frame (d1, d2, d3), d3 the tangent;
+- a *station frame* at every station node (the ends always), so that clamps, grips and
+  applied moments act on the section exactly where they are, not half an element away;
+- consecutive frames a, b meet at a joint with cell length hh (the distance between the
+  frames' locations); the discrete Darboux vector there is kappa = (2/hh) Im(conj(q_a) q_b),
+  a second-order approximation of the curvatures about d1, d2 and the twist;
+- elastic energy sum over joints of (hh/2) (kappa - kappa0)^T K (kappa - kappa0), with
+  K = diag(EI1, EI2, GJ);
+- constraints c_e = x_e+1 - x_e - h_e R(q_e) e3 = 0 (inextensible, unshearable); their
+  multipliers lambda_e are the internal forces n (the force the part beyond exerts on the
+  part before, as in 2D); station constraints' multipliers are the reactions.
+
+The unknowns are node positions, frame rotation increments theta (material, q <- q exp
+(theta)), element multipliers and station multipliers. The KKT residual is
+
+    R_x = -f + (d c / d x)^T lambda + (d s / d x)^T nu      (force balance at nodes)
+    R_theta = dU/dtheta + (d c / d theta)^T lambda + (d s / d theta)^T nu - Q   (moments)
+    R_lambda = c,  R_nu = s
+
+with f the applied nodal forces and Q the applied generalised moments (dead moments in
+the global frame, follower loads in the material frame). Its exact Jacobian is banded
+when the unknowns are numbered along s; it is solved by a banded LU with partial
+pivoting. Everything is dimensionless (lengths by L, stiffness by EI1).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit
+
+# Orientation kinds of a station.
+FREE = 0
+AXIS = 1
+FULL = 2
+
+
+# -- quaternions (w, x, y, z) ------------------------------------------------------------
+@njit(cache=True, inline="always")
+def qmul(a, b):
+    return np.array([
+        a[0] * b[0] - a[1] * b[1] - a[2] * b[2] - a[3] * b[3],
+        a[0] * b[1] + a[1] * b[0] + a[2] * b[3] - a[3] * b[2],
+        a[0] * b[2] - a[1] * b[3] + a[2] * b[0] + a[3] * b[1],
+        a[0] * b[3] + a[1] * b[2] - a[2] * b[1] + a[3] * b[0]])
+
+
+@njit(cache=True, inline="always")
+def qconj(a):
+    return np.array([a[0], -a[1], -a[2], -a[3]])
+
+
+@njit(cache=True)
+def qmat(q):
+    """Rotation matrix of a unit quaternion; its columns are d1, d2, d3."""
+    w, x, y, z = q[0], q[1], q[2], q[3]
+    return np.array([
+        [1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
+        [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],
+        [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)]])
+
+
+@njit(cache=True)
+def qexp(theta):
+    """exp of a rotation vector as a unit quaternion."""
+    angle = math.sqrt(theta[0] ** 2 + theta[1] ** 2 + theta[2] ** 2)
+    if angle < 1e-12:
+        return np.array([1.0, 0.5 * theta[0], 0.5 * theta[1], 0.5 * theta[2]])
+    c = math.cos(0.5 * angle)
+    s = math.sin(0.5 * angle) / angle
+    return np.array([c, s * theta[0], s * theta[1], s * theta[2]])
+
+
+@njit(cache=True, inline="always")
+def skew(v):
+    return np.array([[0.0, -v[2], v[1]], [v[2], 0.0, -v[0]], [-v[1], v[0], 0.0]])
+
+
+# -- banded storage: LAPACK's layout, transposed so that each matrix column is one
+# contiguous row: A[i, j] = ab[j, kl + ku + i - j] ---------------------------------------
+@njit(cache=True, inline="always")
+def _add(ab, kl, ku, i, j, v):
+    ab[j, kl + ku + i - j] += v
+
+
+@njit(cache=True)
+def _add_block(ab, kl, ku, i0, j0, block):
+    for r in range(block.shape[0]):
+        for c in range(block.shape[1]):
+            v = block[r, c]
+            if v != 0.0:
+                ab[j0 + c, kl + ku + i0 + r - j0 - c] += v
+
+
+@njit(cache=True)
+def band_lu(ab, kl, ku):
+    """LU with partial pivoting of a band matrix, in place (LAPACK's dgbtf2 on the
+    transposed layout). Returns (pivots, ok); ok is False for a zero pivot."""
+    n = ab.shape[0]
+    kv = kl + ku
+    piv = np.empty(n, dtype=np.int64)
+    ju = 0
+    scale = 0.0
+    for j in range(n):
+        for r in range(ab.shape[1]):
+            v = abs(ab[j, r])
+            if v > scale:
+                scale = v
+    if scale == 0.0 or not math.isfinite(scale):
+        return piv, False
+    for j in range(n):
+        km = min(kl, n - 1 - j)
+        p = 0
+        best = abs(ab[j, kv])
+        for r in range(1, km + 1):
+            v = abs(ab[j, kv + r])
+            if v > best:
+                best = v
+                p = r
+        piv[j] = j + p
+        if best <= 1e-14 * scale:
+            return piv, False
+        ju = max(ju, min(j + ku + p, n - 1))
+        if p != 0:
+            for c in range(j, ju + 1):
+                a = ab[c, kv + j - c]
+                ab[c, kv + j - c] = ab[c, kv + j + p - c]
+                ab[c, kv + j + p - c] = a
+        inv = 1.0 / ab[j, kv]
+        for r in range(1, km + 1):
+            ab[j, kv + r] *= inv
+        for c in range(j + 1, ju + 1):
+            u = ab[c, kv + j - c]
+            if u != 0.0:
+                for r in range(1, km + 1):
+                    ab[c, kv + j + r - c] -= ab[j, kv + r] * u
+    return piv, True
+
+
+@njit(cache=True)
+def band_lu_solve(ab, piv, kl, ku, rhs):
+    """Solve with the factors of ``band_lu`` (LAPACK's dgbtrs)."""
+    n = ab.shape[0]
+    kv = kl + ku
+    x = rhs.copy()
+    for j in range(n):
+        km = min(kl, n - 1 - j)
+        p = piv[j]
+        if p != j:
+            t = x[j]
+            x[j] = x[p]
+            x[p] = t
+        for r in range(1, km + 1):
+            x[j + r] -= ab[j, kv + r] * x[j]
+    for j in range(n - 1, -1, -1):
+        x[j] /= ab[j, kv]
+        t = x[j]
+        lo = max(0, j - kv)
+        for i in range(lo, j):
+            x[i] -= ab[j, kv + i - j] * t
+    return x
+
+
+@njit(cache=True)
+def band_solve(ab, kl, ku, rhs):
+    """Solve A x = rhs for a band matrix (ab is overwritten); returns (x, ok)."""
+    piv, ok = band_lu(ab, kl, ku)
+    if not ok:
+        return rhs.copy(), False
+    return band_lu_solve(ab, piv, kl, ku, rhs), True
+
+
+# -- assembly -----------------------------------------------------------------------------
+@njit(cache=True, inline="always")
+def _qm(aw, ax, ay, az, bw, bx, by, bz):
+    """Quaternion product as a tuple (no allocation)."""
+    return (aw * bw - ax * bx - ay * by - az * bz,
+            aw * bx + ax * bw + ay * bz - az * by,
+            aw * by - ax * bz + ay * bw + az * bx,
+            aw * bz + ax * by - ay * bx + az * bw)
+
+
+@njit(cache=True, inline="always")
+def _rot_into(q, out):
+    w, x, y, z = q[0], q[1], q[2], q[3]
+    out[0, 0] = 1 - 2 * (y * y + z * z)
+    out[0, 1] = 2 * (x * y - w * z)
+    out[0, 2] = 2 * (x * z + w * y)
+    out[1, 0] = 2 * (x * y + w * z)
+    out[1, 1] = 1 - 2 * (x * x + z * z)
+    out[1, 2] = 2 * (y * z - w * x)
+    out[2, 0] = 2 * (x * z - w * y)
+    out[2, 1] = 2 * (y * z + w * x)
+    out[2, 2] = 1 - 2 * (x * x + y * y)
+
+
+@njit(cache=True, inline="always")
+def _tmul(Rm, v0, v1, v2):
+    """R^T v as a tuple."""
+    return (Rm[0, 0] * v0 + Rm[1, 0] * v1 + Rm[2, 0] * v2,
+            Rm[0, 1] * v0 + Rm[1, 1] * v1 + Rm[2, 1] * v2,
+            Rm[0, 2] * v0 + Rm[1, 2] * v1 + Rm[2, 2] * v2)
+
+
+@njit(cache=True, inline="always")
+def _mul(Rm, v0, v1, v2):
+    """R v as a tuple."""
+    return (Rm[0, 0] * v0 + Rm[0, 1] * v1 + Rm[0, 2] * v2,
+            Rm[1, 0] * v0 + Rm[1, 1] * v1 + Rm[1, 2] * v2,
+            Rm[2, 0] * v0 + Rm[2, 1] * v1 + Rm[2, 2] * v2)
+
+
+@njit(cache=True)
+def _sym_e3(H, mu0, mu1, mu2, factor):
+    """H += factor * (e3 mu^T + mu e3^T - 2 mu3 I) / 2 (the second derivative of
+    R exp(theta) e3 contracted with R mu)."""
+    H[2, 0] += 0.5 * factor * mu0
+    H[2, 1] += 0.5 * factor * mu1
+    H[2, 2] += factor * mu2
+    H[0, 2] += 0.5 * factor * mu0
+    H[1, 2] += 0.5 * factor * mu1
+    H[0, 0] -= factor * mu2
+    H[1, 1] -= factor * mu2
+    H[2, 2] -= factor * mu2
+
+
+@njit(cache=True)
+def assemble(X, Q, lam, nu, h, elem_frame, joint_hh, joint_k0, K, fnode,
+             st_node, st_frame, st_pos_mask, st_pos, st_kind, st_axis_b, st_quat,
+             st_moment, st_ffollow, st_mfollow, gauge_frame, gauge_quat,
+             ix, ith, ilam, inu, nu_off, igauge, n, kl, ku, want_jac):
+    """KKT residual R (n,) and Jacobian in band storage (n, 2 kl + ku + 1), and energy.
+
+    X (N+1, 3) node positions; Q (F, 4) frame quaternions; lam (N, 3) element
+    multipliers; nu (m,) station multipliers (in station order, each station's position
+    components first, then its 2 (axis) or 3 (full) orientation ones; the twist gauge
+    last). Per station: node, frame, which positions are prescribed and their targets,
+    orientation kind with the axis basis (b1, b2 perpendicular to the target tangent) or
+    the target quaternion, dead moment (global), follower force and moment (material).
+    ix, ith, ilam, inu: first unknown of each node, frame, element, station; nu_off the
+    first entry of each station in nu; igauge the gauge's unknown (when there is one).
+    """
+    R = np.zeros(n)
+    ab = np.zeros((n, 2 * kl + ku + 1)) if want_jac else np.zeros((0, 0))
+    Rm = np.empty((3, 3))
+    B = np.empty((3, 3))
+    H = np.empty((3, 3))
+    Ja = np.empty((3, 3))
+    Jb = np.empty((3, 3))
+    Haa = np.empty((3, 3))
+    Hbb = np.empty((3, 3))
+    Hab = np.empty((3, 3))
+    applied = np.zeros((Q.shape[0], 3))  # generalised applied moments on each frame
+    energy = 0.0
+    N = h.shape[0]
+    kv = kl + ku
+    # Applied nodal forces (dead: weight, point loads).
+    for i in range(X.shape[0]):
+        for c in range(3):
+            R[ix[i] + c] -= fnode[i, c]
+    # Elements: inextensibility constraints c = x_e+1 - x_e - h R e3.
+    for e in range(N):
+        f = elem_frame[e]
+        _rot_into(Q[f], Rm)
+        row = ilam[e]
+        he = h[e]
+        for c in range(3):
+            R[row + c] = X[e + 1, c] - X[e, c] - he * Rm[c, 2]
+            R[ix[e] + c] -= lam[e, c]
+            R[ix[e + 1] + c] += lam[e, c]
+        mu0, mu1, mu2 = _tmul(Rm, lam[e, 0], lam[e, 1], lam[e, 2])
+        # (dc/dtheta)^T lambda = -h e3 x mu
+        t = ith[f]
+        R[t] += he * mu1
+        R[t + 1] -= he * mu0
+        if want_jac:
+            for c in range(3):
+                ab[ix[e + 1] + c, kv + row - ix[e + 1]] += 1.0
+                ab[ix[e] + c, kv + row - ix[e]] -= 1.0
+                ab[row + c, kv + ix[e + 1] - row] += 1.0
+                ab[row + c, kv + ix[e] - row] -= 1.0
+            # dc/dtheta = h R [e3]x: columns h (R[:,1], -R[:,0], 0)
+            for c in range(3):
+                d0 = he * Rm[c, 1]
+                d1 = -he * Rm[c, 0]
+                ab[t, kv + row + c - t] += d0
+                ab[t + 1, kv + row + c - t - 1] += d1
+                ab[row + c, kv + t - row - c] += d0
+                ab[row + c, kv + t + 1 - row - c] += d1
+            for a in range(3):
+                for b in range(3):
+                    H[a, b] = 0.0
+            _sym_e3(H, mu0, mu1, mu2, -he)
+            _add_block(ab, kl, ku, t, t, H)
+    # Joints: bending and twisting energy (hh/2) e^T K e, e = (2/hh) Im(conj(p) q) - k0.
+    for j in range(joint_hh.shape[0]):
+        hh = joint_hh[j]
+        p = Q[j]
+        q = Q[j + 1]
+        r0, r1, r2, r3 = _qm(p[0], -p[1], -p[2], -p[3], q[0], q[1], q[2], q[3])
+        k_0 = 2.0 / hh * r1
+        k_1 = 2.0 / hh * r2
+        k_2 = 2.0 / hh * r3
+        e0 = k_0 - joint_k0[j, 0]
+        e1 = k_1 - joint_k0[j, 1]
+        e2 = k_2 - joint_k0[j, 2]
+        ke0 = K[0] * e0
+        ke1 = K[1] * e1
+        ke2 = K[2] * e2
+        energy += 0.5 * hh * (e0 * ke0 + e1 * ke1 + e2 * ke2)
+        # Ja = -(r0 I - [rv]x) / hh, Jb = (r0 I + [rv]x) / hh
+        inv = 1.0 / hh
+        Ja[0, 0] = -r0 * inv
+        Ja[0, 1] = -r3 * inv
+        Ja[0, 2] = r2 * inv
+        Ja[1, 0] = r3 * inv
+        Ja[1, 1] = -r0 * inv
+        Ja[1, 2] = -r1 * inv
+        Ja[2, 0] = -r2 * inv
+        Ja[2, 1] = r1 * inv
+        Ja[2, 2] = -r0 * inv
+        Jb[0, 0] = r0 * inv
+        Jb[0, 1] = -r3 * inv
+        Jb[0, 2] = r2 * inv
+        Jb[1, 0] = r3 * inv
+        Jb[1, 1] = r0 * inv
+        Jb[1, 2] = -r1 * inv
+        Jb[2, 0] = -r2 * inv
+        Jb[2, 1] = r1 * inv
+        Jb[2, 2] = r0 * inv
+        ta = ith[j]
+        tb = ith[j + 1]
+        for c in range(3):
+            R[ta + c] += hh * (Ja[0, c] * ke0 + Ja[1, c] * ke1 + Ja[2, c] * ke2)
+            R[tb + c] += hh * (Jb[0, c] * ke0 + Jb[1, c] * ke1 + Jb[2, c] * ke2)
+        if want_jac:
+            diag = -0.25 * hh * (ke0 * k_0 + ke1 * k_1 + ke2 * k_2)
+            for a in range(3):
+                for b in range(3):
+                    Haa[a, b] = hh * (Ja[0, a] * K[0] * Ja[0, b] + Ja[1, a] * K[1] * Ja[1, b]
+                                      + Ja[2, a] * K[2] * Ja[2, b])
+                    Hbb[a, b] = hh * (Jb[0, a] * K[0] * Jb[0, b] + Jb[1, a] * K[1] * Jb[1, b]
+                                      + Jb[2, a] * K[2] * Jb[2, b])
+                    Hab[a, b] = hh * (Ja[0, a] * K[0] * Jb[0, b] + Ja[1, a] * K[1] * Jb[1, b]
+                                      + Ja[2, a] * K[2] * Jb[2, b])
+                Haa[a, a] += diag
+                Hbb[a, a] += diag
+            # Mixed second derivatives: d2 kappa / dtheta_a,k dtheta_b,l
+            # = -Im(E_k r E_l) / (2 hh), E_k the pure quaternion of e_k; contracted with
+            # K e and times hh this adds -Im(E_k r E_l) . (K e) / 2.
+            for k in range(3):
+                for ll in range(3):
+                    ek = (0.0, 1.0 if k == 0 else 0.0, 1.0 if k == 1 else 0.0,
+                          1.0 if k == 2 else 0.0)
+                    m0, m1, m2, m3 = _qm(ek[0], ek[1], ek[2], ek[3], r0, r1, r2, r3)
+                    w0, w1, w2, w3 = _qm(m0, m1, m2, m3, 0.0, 1.0 if ll == 0 else 0.0,
+                                         1.0 if ll == 1 else 0.0, 1.0 if ll == 2 else 0.0)
+                    Hab[k, ll] -= 0.5 * (ke0 * w1 + ke1 * w2 + ke2 * w3)
+            _add_block(ab, kl, ku, ta, ta, Haa)
+            _add_block(ab, kl, ku, tb, tb, Hbb)
+            _add_block(ab, kl, ku, ta, tb, Hab)
+            for a in range(3):
+                for b in range(3):
+                    ab[ta + b, kv + tb + a - ta - b] += Hab[b, a]
+    # Stations: prescribed components, applied moments and follower loads.
+    for s in range(st_node.shape[0]):
+        i = st_node[s]
+        f = st_frame[s]
+        _rot_into(Q[f], Rm)
+        t = ith[f]
+        k = inu[s]  # the unknown (and equation) of the station's next multiplier
+        v = nu_off[s]  # and its entry in nu
+        for c in range(3):
+            if st_pos_mask[s, c]:
+                R[k] = X[i, c] - st_pos[s, c]
+                R[ix[i] + c] += nu[v]
+                if want_jac:
+                    ab[ix[i] + c, kv + k - ix[i] - c] += 1.0
+                    ab[k, kv + ix[i] + c - k] += 1.0
+                k += 1
+                v += 1
+        kind = st_kind[s]
+        if kind == AXIS:
+            w0 = 0.0
+            w1 = 0.0
+            w2 = 0.0
+            for b in range(2):
+                b0, b1, b2 = st_axis_b[s, b, 0], st_axis_b[s, b, 1], st_axis_b[s, b, 2]
+                R[k] = b0 * Rm[0, 2] + b1 * Rm[1, 2] + b2 * Rm[2, 2]
+                mu0, mu1, mu2 = _tmul(Rm, b0, b1, b2)
+                g0, g1 = -mu1, mu0  # e3 x mu
+                nk = nu[v]
+                R[t] += nk * g0
+                R[t + 1] += nk * g1
+                w0 += nk * b0
+                w1 += nk * b1
+                w2 += nk * b2
+                if want_jac:
+                    ab[t, kv + k - t] += g0
+                    ab[t + 1, kv + k - t - 1] += g1
+                    ab[k, kv + t - k] += g0
+                    ab[k, kv + t + 1 - k] += g1
+                k += 1
+                v += 1
+            if want_jac:
+                mu0, mu1, mu2 = _tmul(Rm, w0, w1, w2)
+                for a in range(3):
+                    for b in range(3):
+                        H[a, b] = 0.0
+                _sym_e3(H, mu0, mu1, mu2, 1.0)
+                _add_block(ab, kl, ku, t, t, H)
+        elif kind == FULL:
+            tq = st_quat[s]
+            fq = Q[f]
+            r0, r1, r2, r3 = _qm(tq[0], -tq[1], -tq[2], -tq[3], fq[0], fq[1], fq[2], fq[3])
+            # ds/dtheta = (r0 I + [rv]x) / 2
+            B[0, 0] = 0.5 * r0
+            B[0, 1] = -0.5 * r3
+            B[0, 2] = 0.5 * r2
+            B[1, 0] = 0.5 * r3
+            B[1, 1] = 0.5 * r0
+            B[1, 2] = -0.5 * r1
+            B[2, 0] = -0.5 * r2
+            B[2, 1] = 0.5 * r1
+            B[2, 2] = 0.5 * r0
+            R[k] = r1
+            R[k + 1] = r2
+            R[k + 2] = r3
+            for c in range(3):
+                R[t + c] += B[0, c] * nu[v] + B[1, c] * nu[v + 1] + B[2, c] * nu[v + 2]
+            if want_jac:
+                for a in range(3):
+                    for b in range(3):
+                        ab[t + b, kv + k + a - t - b] += B[a, b]
+                        ab[k + a, kv + t + b - k - a] += B[a, b]
+                d = -0.25 * (nu[v] * r1 + nu[v + 1] * r2 + nu[v + 2] * r3)
+                for c in range(3):
+                    ab[t + c, kv] += d
+            k += 3
+        # Applied dead moment (global): generalised force R^T M on the frame.
+        M0, M1, M2 = st_moment[s, 0], st_moment[s, 1], st_moment[s, 2]
+        if M0 != 0.0 or M1 != 0.0 or M2 != 0.0:
+            m0, m1, m2 = _tmul(Rm, M0, M1, M2)
+            R[t] -= m0
+            R[t + 1] -= m1
+            R[t + 2] -= m2
+            applied[f, 0] += m0
+            applied[f, 1] += m1
+            applied[f, 2] += m2
+            if want_jac:  # -[R^T M]x
+                ab[t + 1, kv + t - t - 1] += m2
+                ab[t + 2, kv + t - t - 2] -= m1
+                ab[t, kv + t + 1 - t] -= m2
+                ab[t + 2, kv + t + 1 - t - 2] += m0
+                ab[t, kv + t + 2 - t] += m1
+                ab[t + 1, kv + t + 2 - t - 1] -= m0
+        # Follower moment (material): a constant generalised force.
+        for c in range(3):
+            R[t + c] -= st_mfollow[s, c]
+            applied[f, c] += st_mfollow[s, c]
+        # Follower force (material) at the node: R F_loc, d/dtheta = -R [F]x.
+        F0, F1, F2 = st_ffollow[s, 0], st_ffollow[s, 1], st_ffollow[s, 2]
+        if F0 != 0.0 or F1 != 0.0 or F2 != 0.0:
+            g0, g1, g2 = _mul(Rm, F0, F1, F2)
+            R[ix[i]] -= g0
+            R[ix[i] + 1] -= g1
+            R[ix[i] + 2] -= g2
+            if want_jac:  # R [F]x
+                for a in range(3):
+                    B[a, 0] = Rm[a, 1] * F2 - Rm[a, 2] * F1
+                    B[a, 1] = Rm[a, 2] * F0 - Rm[a, 0] * F2
+                    B[a, 2] = Rm[a, 0] * F1 - Rm[a, 1] * F0
+                _add_block(ab, kl, ku, ix[i], t, B)
+    # Twist gauge: the twist of one frame held where it was (isotropic parts that nothing
+    # else holds in twist; its multiplier must end near zero, else the problem is ill-posed).
+    if gauge_frame >= 0:
+        k = igauge
+        f = gauge_frame
+        t = ith[f]
+        gq = gauge_quat
+        fq = Q[f]
+        r0, r1, r2, r3 = _qm(gq[0], -gq[1], -gq[2], -gq[3], fq[0], fq[1], fq[2], fq[3])
+        R[k] = r3
+        g0, g1, g2 = -0.5 * r2, 0.5 * r1, 0.5 * r0  # row 3 of (r0 I + [rv]x) / 2
+        ng = nu[nu.shape[0] - 1]
+        R[t] += ng * g0
+        R[t + 1] += ng * g1
+        R[t + 2] += ng * g2
+        if want_jac:
+            ab[t, kv + k - t] += g0
+            ab[t + 1, kv + k - t - 1] += g1
+            ab[t + 2, kv + k - t - 2] += g2
+            ab[k, kv + t - k] += g0
+            ab[k, kv + t + 1 - k] += g1
+            ab[k, kv + t + 2 - k] += g2
+            d = -0.25 * ng * r3
+            for c in range(3):
+                ab[t + c, kv] += d
+    # Frames are updated in moving exponential coordinates, q <- q exp(delta), so the
+    # derivative of a frame's residual g (a gradient at the current frame) carries the
+    # commutator of exp(delta) exp(theta) = exp(delta + theta + delta x theta / 2 + ...):
+    # d g / d delta = (symmetric Hessian) + [g]x / 2. It vanishes at an equilibrium
+    # (g = 0), but Newton converges quadratically only with it. Applied moments are not
+    # gradients (their derivatives above are taken in the moving coordinates already).
+    if want_jac:
+        for f in range(Q.shape[0]):
+            t = ith[f]
+            g0 = R[t] + applied[f, 0]
+            g1 = R[t + 1] + applied[f, 1]
+            g2 = R[t + 2] + applied[f, 2]
+            ab[t + 1, kv + t - t - 1] += -0.5 * g2
+            ab[t + 2, kv + t - t - 2] += 0.5 * g1
+            ab[t, kv + t + 1 - t] += 0.5 * g2
+            ab[t + 2, kv + t + 1 - t - 2] += -0.5 * g0
+            ab[t, kv + t + 2 - t] += -0.5 * g1
+            ab[t + 1, kv + t + 2 - t - 1] += 0.5 * g0
+    return R, ab, energy
+
+
+@njit(cache=True)
+def apply_step(X, Q, lam, nu, du, ix, ith, ilam, inu, nu_off, nu_cnt, igauge, step):
+    """New (X, Q, lam, nu) after the Newton update step * du (frames on the group)."""
+    Xn = X.copy()
+    Qn = Q.copy()
+    lamn = lam.copy()
+    nun = nu.copy()
+    for i in range(X.shape[0]):
+        for c in range(3):
+            Xn[i, c] += step * du[ix[i] + c]
+    for f in range(Q.shape[0]):
+        theta = np.empty(3)
+        for c in range(3):
+            theta[c] = step * du[ith[f] + c]
+        qn = qmul(Q[f], qexp(theta))
+        norm = math.sqrt(np.dot(qn, qn))
+        for c in range(4):
+            Qn[f, c] = qn[c] / norm
+    # Keep consecutive frames in the same hemisphere (q and -q are the same rotation;
+    # the discrete curvature needs the short way round).
+    for f in range(1, Q.shape[0]):
+        if np.dot(Qn[f - 1], Qn[f]) < 0.0:
+            for c in range(4):
+                Qn[f, c] = -Qn[f, c]
+    for e in range(lam.shape[0]):
+        for c in range(3):
+            lamn[e, c] += step * du[ilam[e] + c]
+    for s in range(inu.shape[0]):
+        for k in range(nu_cnt[s]):
+            nun[nu_off[s] + k] += step * du[inu[s] + k]
+    if igauge >= 0:
+        nun[nu.shape[0] - 1] += step * du[igauge]
+    return Xn, Qn, lamn, nun
+
+
+@njit(cache=True)
+def max_abs(v):
+    m = 0.0
+    for i in range(v.shape[0]):
+        a = abs(v[i])
+        if a > m or a != a:
+            m = a
+    return m
+
+
+# Newton status codes (as in 2D).
+CONVERGED = 0
+MAX_ITERATIONS = 1
+SINGULAR = 2
+NOT_CONTRACTING = 3
+NOT_FINITE = 4
+
+
+@njit(cache=True)
+def newton(X, Q, lam, nu, h, elem_frame, joint_hh, joint_k0, K, fnode, st_node, st_frame,
+           st_pos_mask, st_pos, st_kind, st_axis_b, st_quat, st_moment, st_ffollow,
+           st_mfollow, gauge_frame, gauge_quat, ix, ith, ilam, inu, nu_off, nu_cnt, igauge,
+           n, kl, ku, tol, max_iter, contraction):
+    """Newton on the KKT system from (X, Q, lam, nu), keeping the factorised Jacobian
+    while an iteration contracts the residual tenfold (the band LU is most of the cost).
+
+    contraction > 0: a continuation corrector, rejected (NOT_CONTRACTING) as soon as an
+    iteration with a fresh Jacobian fails to shrink the residual by that factor;
+    contraction <= 0: damped Newton with backtracking on the residual's largest entry.
+    Returns (X, Q, lam, nu, residual, iterations, status, energy).
+    """
+    R, ab, energy = assemble(X, Q, lam, nu, h, elem_frame, joint_hh, joint_k0, K, fnode,
+                             st_node, st_frame, st_pos_mask, st_pos, st_kind, st_axis_b,
+                             st_quat, st_moment, st_ffollow, st_mfollow, gauge_frame,
+                             gauge_quat, ix, ith, ilam, inu, nu_off, igauge, n, kl, ku, True)
+    r = max_abs(R)
+    if not math.isfinite(r):
+        return X, Q, lam, nu, r, 0, NOT_FINITE, energy
+    piv, ok = band_lu(ab, kl, ku)
+    if not ok:
+        return X, Q, lam, nu, r, 0, SINGULAR, energy
+    fresh = True
+    it = 0
+    while it < max_iter:
+        if r <= tol:
+            return X, Q, lam, nu, r, it, CONVERGED, energy
+        it += 1
+        du = band_lu_solve(ab, piv, kl, ku, -R)
+        step = 1.0
+        accepted = False
+        for _ in range(30):
+            Xn, Qn, ln, nn = apply_step(X, Q, lam, nu, du, ix, ith, ilam, inu, nu_off, nu_cnt,
+                                        igauge, step)
+            Rn, _, en = assemble(Xn, Qn, ln, nn, h, elem_frame, joint_hh, joint_k0, K,
+                                 fnode, st_node, st_frame, st_pos_mask, st_pos, st_kind,
+                                 st_axis_b, st_quat, st_moment, st_ffollow, st_mfollow,
+                                 gauge_frame, gauge_quat, ix, ith, ilam, inu, nu_off,
+                                 igauge, n, kl, ku, False)
+            rn = max_abs(Rn)
+            if contraction > 0.0:
+                accepted = rn <= contraction * r or rn <= tol
+                break
+            if math.isfinite(rn) and rn <= (1.0 - 1e-4 * step) * r:
+                accepted = True
+                break
+            if not fresh:
+                break
+            step *= 0.5
+        if accepted:
+            slow = rn > 0.1 * r
+            X, Q, lam, nu, R, r, energy = Xn, Qn, ln, nn, Rn, rn, en
+        if not accepted or (slow and r > tol):
+            if not accepted and fresh:
+                return X, Q, lam, nu, r, it, NOT_CONTRACTING, energy
+            # Refactorise at the current point.
+            R, ab, energy = assemble(X, Q, lam, nu, h, elem_frame, joint_hh, joint_k0, K,
+                                     fnode, st_node, st_frame, st_pos_mask, st_pos, st_kind,
+                                     st_axis_b, st_quat, st_moment, st_ffollow, st_mfollow,
+                                     gauge_frame, gauge_quat, ix, ith, ilam, inu, nu_off,
+                                     igauge, n, kl, ku, True)
+            piv, ok = band_lu(ab, kl, ku)
+            if not ok:
+                return X, Q, lam, nu, r, it, SINGULAR, energy
+            fresh = True
+        else:
+            fresh = False
+    if r <= tol:
+        return X, Q, lam, nu, r, it, CONVERGED, energy
+    return X, Q, lam, nu, r, it, MAX_ITERATIONS, energy
+
+
+@njit(cache=True)
+def difference(X1, Q1, l1, n1, X2, Q2, l2, n2, ix, ith, ilam, inu, nu_off, nu_cnt, igauge,
+               n):
+    """The unknowns' change from state 1 to state 2 (frames as rotation vectors)."""
+    du = np.zeros(n)
+    for i in range(X1.shape[0]):
+        for c in range(3):
+            du[ix[i] + c] = X2[i, c] - X1[i, c]
+    for f in range(Q1.shape[0]):
+        r = qmul(qconj(Q1[f]), Q2[f])
+        if r[0] < 0.0:
+            r = -r
+        s = math.sqrt(r[1] ** 2 + r[2] ** 2 + r[3] ** 2)
+        angle = 2.0 * math.atan2(s, r[0])
+        factor = angle / s if s > 1e-14 else 2.0
+        for c in range(3):
+            du[ith[f] + c] = factor * r[c + 1]
+    for e in range(l1.shape[0]):
+        for c in range(3):
+            du[ilam[e] + c] = l2[e, c] - l1[e, c]
+    for s in range(inu.shape[0]):
+        for k in range(nu_cnt[s]):
+            du[inu[s] + k] = n2[nu_off[s] + k] - n1[nu_off[s] + k]
+    if igauge >= 0:
+        du[igauge] = n2[n2.shape[0] - 1] - n1[n1.shape[0] - 1]
+    return du
+
+
+@njit(cache=True)
+def node_outputs(Q, elem_frame, joint_hh, joint_k0, K, node_station_frame):
+    """Material frames (N+1, 3, 3) and internal moments (N+1, 3, global, dimensionless)
+    at the nodes. A node with a station frame takes that frame and the mean moment of
+    its two half-joints; any other node the normalised mean of its two elements' frames
+    and the moment of the joint between them."""
+    J = joint_hh.shape[0]
+    joint_m = np.empty((J, 3))
+    Rm = np.empty((3, 3))
+    for j in range(J):
+        p = Q[j]
+        q = Q[j + 1]
+        r0, r1, r2, r3 = _qm(p[0], -p[1], -p[2], -p[3], q[0], q[1], q[2], q[3])
+        inv = 2.0 / joint_hh[j]
+        l0 = K[0] * (inv * r1 - joint_k0[j, 0])
+        l1 = K[1] * (inv * r2 - joint_k0[j, 1])
+        l2 = K[2] * (inv * r3 - joint_k0[j, 2])
+        half = p + q
+        half /= math.sqrt(half[0] ** 2 + half[1] ** 2 + half[2] ** 2 + half[3] ** 2)
+        _rot_into(half, Rm)
+        m0, m1, m2 = _mul(Rm, l0, l1, l2)
+        joint_m[j, 0] = m0
+        joint_m[j, 1] = m1
+        joint_m[j, 2] = m2
+    n_nodes = node_station_frame.shape[0]
+    frames = np.empty((n_nodes, 3, 3))
+    moments = np.zeros((n_nodes, 3))
+    for i in range(n_nodes):
+        f = node_station_frame[i]
+        if f >= 0:
+            _rot_into(Q[f], Rm)
+            count = 0
+            for j in (f - 1, f):
+                if 0 <= j < J:
+                    for c in range(3):
+                        moments[i, c] += joint_m[j, c]
+                    count += 1
+            for c in range(3):
+                moments[i, c] /= max(count, 1)
+        else:
+            a = elem_frame[i - 1]
+            q = Q[a] + Q[elem_frame[i]]
+            q /= math.sqrt(q[0] ** 2 + q[1] ** 2 + q[2] ** 2 + q[3] ** 2)
+            _rot_into(q, Rm)
+            for c in range(3):
+                moments[i, c] = joint_m[a, c]
+        for r in range(3):
+            for c in range(3):
+                frames[i, r, c] = Rm[r, c]
+    return frames, moments

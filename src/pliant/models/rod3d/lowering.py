@@ -1,0 +1,389 @@
+"""Lower a 3D ``Problem`` into the discrete rod of ``kernels`` (dimensionless).
+
+Scales: lengths by L, stiffnesses by EI1, forces by EI1/L^2, moments by EI1/L. The mesh
+puts every station, and every knot of the rest-curvature profiles, on a node, and gives
+each station a frame of its own. Unknowns are numbered along s so the KKT Jacobian is
+banded: for each node its position, then its station's multipliers and frame, then the
+element that starts there (frame and multiplier).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from pliant.core.problem import Problem, Station3D
+from pliant.models.rod3d.kernels import AXIS, FULL
+
+
+def quat_from_matrix(R: np.ndarray) -> np.ndarray:
+    """Unit quaternion (w, x, y, z) of a rotation matrix (Shepperd's method)."""
+    tr = R[0, 0] + R[1, 1] + R[2, 2]
+    if tr > 0.0:
+        s = math.sqrt(tr + 1.0) * 2.0
+        q = [0.25 * s, (R[2, 1] - R[1, 2]) / s, (R[0, 2] - R[2, 0]) / s,
+             (R[1, 0] - R[0, 1]) / s]
+    elif R[0, 0] > R[1, 1] and R[0, 0] > R[2, 2]:
+        s = math.sqrt(1.0 + R[0, 0] - R[1, 1] - R[2, 2]) * 2.0
+        q = [(R[2, 1] - R[1, 2]) / s, 0.25 * s, (R[0, 1] + R[1, 0]) / s,
+             (R[0, 2] + R[2, 0]) / s]
+    elif R[1, 1] > R[2, 2]:
+        s = math.sqrt(1.0 + R[1, 1] - R[0, 0] - R[2, 2]) * 2.0
+        q = [(R[0, 2] - R[2, 0]) / s, (R[0, 1] + R[1, 0]) / s, 0.25 * s,
+             (R[1, 2] + R[2, 1]) / s]
+    else:
+        s = math.sqrt(1.0 + R[2, 2] - R[0, 0] - R[1, 1]) * 2.0
+        q = [(R[1, 0] - R[0, 1]) / s, (R[0, 2] + R[2, 0]) / s, (R[1, 2] + R[2, 1]) / s,
+             0.25 * s]
+    out = np.array(q)
+    return out / np.linalg.norm(out)
+
+
+def quat_matrix(q: np.ndarray) -> np.ndarray:
+    w, x, y, z = q
+    return np.array([[1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
+                     [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],
+                     [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)]])
+
+
+def frame_matrix(tangent, normal) -> np.ndarray:
+    """The rotation whose columns are d1 = normal, d2 = d3 x d1, d3 = tangent."""
+    d3 = np.asarray(tangent, float)
+    d1 = np.asarray(normal, float)
+    return np.column_stack([d1, np.cross(d3, d1), d3])
+
+
+def rotation_between(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """The smallest rotation taking unit vector a to unit vector b."""
+    v = np.cross(a, b)
+    c = float(np.dot(a, b))
+    if c < -1.0 + 1e-12:  # opposite: turn by pi about any axis normal to a
+        axis = np.cross(a, [1.0, 0.0, 0.0])
+        if np.linalg.norm(axis) < 1e-6:
+            axis = np.cross(a, [0.0, 1.0, 0.0])
+        axis /= np.linalg.norm(axis)
+        return 2.0 * np.outer(axis, axis) - np.eye(3)
+    vx = np.array([[0.0, -v[2], v[1]], [v[2], 0.0, -v[0]], [-v[1], v[0], 0.0]])
+    return np.eye(3) + vx + vx @ vx / (1.0 + c)
+
+
+def axis_basis(tangent) -> np.ndarray:
+    """Two unit vectors completing the tangent to an orthonormal basis, (2, 3)."""
+    t = np.asarray(tangent, float)
+    helper = np.array([1.0, 0.0, 0.0]) if abs(t[0]) < 0.9 else np.array([0.0, 1.0, 0.0])
+    b1 = np.cross(t, helper)
+    b1 /= np.linalg.norm(b1)
+    return np.vstack([b1, np.cross(t, b1)])
+
+
+@dataclass(frozen=True, eq=False)
+class Loads:
+    """The load- and target-dependent kernel inputs at one point of a homotopy."""
+
+    fnode: np.ndarray  # (N+1, 3) applied dead nodal forces
+    st_pos: np.ndarray  # (S, 3) prescribed positions
+    st_tangent: np.ndarray  # (S, 3) prescribed tangents (AXIS, FULL)
+    st_quat: np.ndarray  # (S, 4) prescribed orientations (FULL)
+    st_moment: np.ndarray  # (S, 3) dead moments (global)
+    st_ffollow: np.ndarray  # (S, 3) follower forces (material)
+    st_mfollow: np.ndarray  # (S, 3) follower moments (material)
+    joint_k0: np.ndarray  # (J, 3) rest Darboux vectors (with any bow)
+
+    def lerp(self, other: Loads, t: float) -> Loads:
+        """Linear in everything but the orientations, which turn along the shortest arc."""
+        tangent = _slerp_vectors(self.st_tangent, other.st_tangent, t)
+        quat = _slerp_quats(self.st_quat, other.st_quat, t)
+        return Loads(self.fnode + t * (other.fnode - self.fnode),
+                     self.st_pos + t * (other.st_pos - self.st_pos), tangent, quat,
+                     self.st_moment + t * (other.st_moment - self.st_moment),
+                     self.st_ffollow + t * (other.st_ffollow - self.st_ffollow),
+                     self.st_mfollow + t * (other.st_mfollow - self.st_mfollow),
+                     self.joint_k0 + t * (other.joint_k0 - self.joint_k0))
+
+
+def _slerp_vectors(a: np.ndarray, b: np.ndarray, t: float) -> np.ndarray:
+    out = np.empty_like(a)
+    for k in range(a.shape[0]):
+        cos = float(np.clip(np.dot(a[k], b[k]), -1.0, 1.0))
+        angle = math.acos(cos)
+        if angle < 1e-9:
+            out[k] = b[k]
+            continue
+        out[k] = (math.sin((1 - t) * angle) * a[k] + math.sin(t * angle) * b[k]) \
+            / math.sin(angle)
+    return out
+
+
+def _slerp_quats(a: np.ndarray, b: np.ndarray, t: float) -> np.ndarray:
+    out = np.empty_like(a)
+    for k in range(a.shape[0]):
+        bk = b[k] if np.dot(a[k], b[k]) >= 0.0 else -b[k]
+        out[k] = _slerp_vectors(a[k:k + 1], bk[None, :], t)[0]
+    return out
+
+
+@dataclass(frozen=True, eq=False)
+class Rod:
+    """A 3D problem discretised: mesh, frames, joints, stations, unknown numbering."""
+
+    problem: Problem
+    length: float
+    stiffness: float  # EI1 [N m^2], the stiffness scale
+    s_node: np.ndarray  # (N+1,) dimensionless
+    h: np.ndarray  # (N,)
+    frame_s: np.ndarray  # (F,) where each frame sits
+    elem_frame: np.ndarray  # (N,) the frame of each element
+    joint_hh: np.ndarray  # (J,) cell length of each joint (J = F - 1)
+    K: np.ndarray  # (3,) EI1, EI2, GJ by EI1
+    stations: tuple[Station3D, ...]
+    st_node: np.ndarray
+    st_frame: np.ndarray
+    st_pos_mask: np.ndarray  # (S, 3) int
+    st_kind: np.ndarray  # (S,) FREE, AXIS or FULL
+    gauge_frame: int
+    ix: np.ndarray
+    ith: np.ndarray
+    ilam: np.ndarray
+    inu: np.ndarray
+    nu_off: np.ndarray
+    nu_cnt: np.ndarray
+    igauge: int
+    n: int
+    kl: int
+    ku: int
+    m: int  # number of station multipliers (with the gauge)
+    target: Loads
+    key: tuple = ()
+    rest_k0: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)))
+    node_frame: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=np.int64))
+
+    @property
+    def force_scale(self) -> float:
+        return self.stiffness / self.length**2
+
+    @property
+    def moment_scale(self) -> float:
+        return self.stiffness / self.length
+
+    @property
+    def elements(self) -> int:
+        return int(self.h.shape[0])
+
+    def args(self, loads: Loads) -> tuple:
+        """The kernel's static and load arguments after (X, Q, lam, nu)."""
+        axis_b = np.zeros((loads.st_tangent.shape[0], 2, 3))
+        for k in range(axis_b.shape[0]):
+            if self.st_kind[k] == AXIS:
+                axis_b[k] = axis_basis(loads.st_tangent[k])
+        return (self.h, self.elem_frame, self.joint_hh, loads.joint_k0, self.K, loads.fnode,
+                self.st_node, self.st_frame, self.st_pos_mask, loads.st_pos, self.st_kind,
+                axis_b, loads.st_quat, loads.st_moment, loads.st_ffollow, loads.st_mfollow)
+
+    def index_args(self) -> tuple:
+        return (self.ix, self.ith, self.ilam, self.inu, self.nu_off, self.igauge, self.n,
+                self.kl, self.ku)
+
+    # -- the rest state -------------------------------------------------------------------
+    def rest_shape(self, joint_k0: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Nodes (N+1, 3) and frames (F, 4) of the unloaded part, from the origin with
+        the identity frame (d3 = +z); exactly at rest in the discrete energy."""
+        F = self.frame_s.shape[0]
+        Q = np.zeros((F, 4))
+        Q[0] = (1.0, 0.0, 0.0, 0.0)
+        for j in range(F - 1):
+            v = 0.5 * self.joint_hh[j] * joint_k0[j]
+            r = np.array([math.sqrt(max(0.0, 1.0 - float(v @ v))), *v])
+            Q[j + 1] = _qmul(Q[j], r)
+        X = np.zeros((self.elements + 1, 3))
+        for e in range(self.elements):
+            X[e + 1] = X[e] + self.h[e] * quat_matrix(Q[self.elem_frame[e]])[:, 2]
+        return X, Q
+
+    def placement(self, X: np.ndarray, Q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Rigid motion (G, T) that puts the rest shape where the conditions want it."""
+        tgt = self.target
+        G = None
+        for k in range(self.st_kind.shape[0]):
+            if self.st_kind[k] == FULL:
+                G = quat_matrix(tgt.st_quat[k]) @ quat_matrix(Q[self.st_frame[k]]).T
+                break
+        if G is None:
+            for k in range(self.st_kind.shape[0]):
+                if self.st_kind[k] == AXIS:
+                    have = quat_matrix(Q[self.st_frame[k]])[:, 2]
+                    G = rotation_between(have, tgt.st_tangent[k])
+                    break
+        located = [k for k in range(self.st_kind.shape[0]) if self.st_pos_mask[k].all()]
+        if G is None and len(located) >= 2:
+            a, b = located[0], located[-1]
+            have = X[self.st_node[b]] - X[self.st_node[a]]
+            want = tgt.st_pos[b] - tgt.st_pos[a]
+            if np.linalg.norm(have) > 1e-12 and np.linalg.norm(want) > 1e-12:
+                G = rotation_between(have / np.linalg.norm(have), want / np.linalg.norm(want))
+        if G is None:  # the 2D convention: d3 along +x, d1 along +z
+            G = frame_matrix((1.0, 0.0, 0.0), (0.0, 0.0, 1.0))
+        T = np.zeros(3)
+        for c in range(3):
+            for k in range(self.st_kind.shape[0]):
+                if self.st_pos_mask[k, c]:
+                    T[c] = tgt.st_pos[k, c] - (G @ X[self.st_node[k]])[c]
+                    break
+        return G, T
+
+    def rest(self, joint_k0: np.ndarray | None = None) -> tuple[Loads, tuple]:
+        """The homotopy's start: (loads, state) of the unloaded, placed part, where every
+        prescribed component takes the value the rest shape gives it."""
+        k0 = self.rest_k0 if joint_k0 is None else joint_k0
+        X, Q = self.rest_shape(k0)
+        G, T = self.placement(X, Q)
+        qg = quat_from_matrix(G)
+        X = X @ G.T + T
+        Q = np.array([_qmul(qg, q) for q in Q])
+        S = self.st_kind.shape[0]
+        st_pos = np.zeros((S, 3))
+        st_tangent = np.zeros((S, 3))
+        st_quat = np.zeros((S, 4))
+        for k in range(S):
+            st_pos[k] = np.where(self.st_pos_mask[k] == 1, X[self.st_node[k]], 0.0)
+            R = quat_matrix(Q[self.st_frame[k]])
+            st_tangent[k] = R[:, 2]
+            st_quat[k] = Q[self.st_frame[k]]
+            if self.st_kind[k] == FULL and np.dot(st_quat[k], self.target.st_quat[k]) < 0:
+                st_quat[k] = -st_quat[k]
+        zeros = np.zeros((S, 3))
+        loads = Loads(np.zeros_like(self.target.fnode), st_pos, st_tangent, st_quat, zeros,
+                      zeros, zeros, k0)
+        state = (X, Q, np.zeros((self.elements, 3)), np.zeros(self.m))
+        return loads, state
+
+
+def _qmul(a, b):
+    return np.array([a[0] * b[0] - a[1] * b[1] - a[2] * b[2] - a[3] * b[3],
+                     a[0] * b[1] + a[1] * b[0] + a[2] * b[3] - a[3] * b[2],
+                     a[0] * b[2] - a[1] * b[3] + a[2] * b[0] + a[3] * b[1],
+                     a[0] * b[3] + a[1] * b[2] - a[2] * b[1] + a[3] * b[0]])
+
+
+def _profile(knots: tuple[tuple[float, float], ...], s: np.ndarray) -> np.ndarray:
+    """A piecewise-linear rest-curvature profile at the arc lengths s [m]."""
+    ks = np.array([k[0] for k in knots])
+    kv = np.array([k[1] for k in knots])
+    return np.interp(s, ks, kv)
+
+
+def lower(problem: Problem, elements: int = 100) -> Rod:
+    """Discretise a 3D problem with about ``elements`` elements."""
+    part = problem.part
+    L = part.length
+    EI1 = part.bending_stiffness
+    K = np.array(part.stiffnesses) / EI1
+    fs, ms = EI1 / L**2, EI1 / L
+    stations = problem.stations
+    breaks = sorted({0.0, 1.0} | {st.s / L for st in stations}
+                    | {k / L for k in part.knot_positions})
+    pieces = [np.linspace(a, b, max(2, round(elements * (b - a))) + 1)[1:]
+              for a, b in zip(breaks, breaks[1:])]
+    s_node = np.concatenate([[0.0], *pieces])
+    s_node[-1] = 1.0
+    N = s_node.shape[0] - 1
+    h = np.diff(s_node)
+    st_node = np.array([int(np.argmin(np.abs(s_node - st.s / L))) for st in stations],
+                       dtype=np.int64)
+    S = len(stations)
+    # Frames along s: one at each station node (and both ends), one in each element.
+    has_frame = np.zeros(N + 1, dtype=bool)
+    has_frame[[0, N]] = True
+    has_frame[st_node] = True
+    frames_before = np.cumsum(has_frame)  # station frames at nodes <= i
+    node_frame = np.where(has_frame, frames_before - 1 + np.arange(N + 1), -1).astype(np.int64)
+    elem_frame = (frames_before[:-1] + np.arange(N)).astype(np.int64)
+    F = N + int(has_frame.sum())
+    frame_s_arr = np.empty(F)
+    frame_s_arr[elem_frame] = 0.5 * (s_node[1:] + s_node[:-1])
+    frame_s_arr[node_frame[has_frame]] = s_node[has_frame]
+    st_frame = node_frame[st_node]
+    joint_hh = np.diff(frame_s_arr)
+    mids = 0.5 * (frame_s_arr[:-1] + frame_s_arr[1:]) * L
+    rest_k0 = np.column_stack([_profile(part.rest_knots, mids), _profile(part.rest_knots_2, mids),
+                               _profile(part.twist_knots, mids)]) * L
+    # Stations.
+    st_pos_mask = np.zeros((S, 3), dtype=np.int64)
+    st_kind = np.zeros(S, dtype=np.int64)
+    st_pos = np.zeros((S, 3))
+    st_tangent = np.zeros((S, 3))
+    st_quat = np.zeros((S, 4))
+    st_moment = np.zeros((S, 3))
+    st_ffollow = np.zeros((S, 3))
+    st_mfollow = np.zeros((S, 3))
+    fnode = np.zeros((N + 1, 3))
+    for k, st in enumerate(stations):
+        mask = np.array(st.prescribed[:3])
+        st_pos_mask[k] = mask
+        st_pos[k] = np.where(mask, st.position, 0.0) / L
+        if st.normal is not None:
+            st_kind[k] = FULL
+            st_quat[k] = quat_from_matrix(frame_matrix(st.tangent, st.normal))
+            st_tangent[k] = st.tangent
+        elif st.tangent is not None:
+            st_kind[k] = AXIS
+            st_tangent[k] = st.tangent
+        st_moment[k] = np.array(st.dead_moment) / ms
+        st_ffollow[k] = np.array(st.follower_force) / fs
+        st_mfollow[k] = np.array(st.follower_moment) / ms
+        fnode[st_node[k]] += np.where(mask, 0.0, st.dead_force) / fs
+    weight = part.mass_per_length * np.asarray(problem.gravity) * L**3 / EI1
+    fnode[:-1] += 0.5 * h[:, None] * weight
+    fnode[1:] += 0.5 * h[:, None] * weight
+    # An isotropic part that nothing holds in twist has a free twist: a gauge fixes it.
+    holds_twist = any(st.normal is not None for st in stations)
+    gauge_frame = 0 if (not holds_twist and K[0] == K[1]) else -1
+    # Unknowns along s: per node its position, its station's multipliers and frame (and
+    # the gauge), then the element starting there: frame and multiplier.
+    nu_cnt = (st_pos_mask.sum(axis=1) + 2 * (st_kind == AXIS) + 3 * (st_kind == FULL)).astype(
+        np.int64)
+    nu_off = np.concatenate([[0], np.cumsum(nu_cnt)[:-1]]).astype(np.int64)
+    node_cnt = np.full(N + 1, 9, dtype=np.int64)  # x, element frame, element multiplier
+    node_cnt[N] = 3
+    node_cnt[has_frame] += 3
+    node_cnt[st_node] += nu_cnt
+    if gauge_frame >= 0:
+        node_cnt[0] += 1
+    start = np.concatenate([[0], np.cumsum(node_cnt)[:-1]]).astype(np.int64)
+    ix = start.copy()
+    inu = (start[st_node] + 3).astype(np.int64)
+    ith = np.empty(F, dtype=np.int64)
+    after = start + 3 + np.where(np.isin(np.arange(N + 1), st_node),
+                                 np.bincount(st_node, weights=nu_cnt, minlength=N + 1),
+                                 0).astype(np.int64)
+    ith[node_frame[has_frame]] = after[has_frame]
+    after = after + 3 * has_frame
+    igauge = -1
+    if gauge_frame >= 0:
+        igauge = int(after[0])
+        after[0] += 1
+    ith[elem_frame] = after[:-1]
+    ilam = (after[:-1] + 3).astype(np.int64)
+    n = int(node_cnt.sum())
+    m = int(nu_cnt.sum()) + (1 if gauge_frame >= 0 else 0)
+    # Band width: the widest coupling (element constraints, joints, stations, gauge).
+    width = int(max((ilam + 2 - ix[:-1]).max(), (ix[1:] + 2 - ilam).max(),
+                    (ilam + 2 - ith[elem_frame]).max(), (ith[1:] + 2 - ith[:-1]).max()))
+    for k in range(S):
+        ends = [inu[k] + max(nu_cnt[k], 1) - 1, ix[st_node[k]] + 2, ith[st_frame[k]] + 2]
+        starts = [inu[k], ix[st_node[k]], ith[st_frame[k]]]
+        width = max(width, max(ends) - min(starts))
+    if igauge >= 0:
+        width = max(width, abs(igauge - ith[gauge_frame]) + 2)
+    target = Loads(fnode, st_pos, st_tangent, st_quat, st_moment, st_ffollow, st_mfollow,
+                   rest_k0.copy())
+    key = (L, EI1, tuple(K), s_node.tobytes(), st_pos_mask.tobytes(), st_kind.tobytes(),
+           rest_k0.tobytes())
+    return Rod(problem=problem, length=L, stiffness=EI1, s_node=s_node, h=h,
+               frame_s=frame_s_arr, elem_frame=elem_frame, joint_hh=joint_hh, K=K,
+               stations=stations, st_node=st_node, st_frame=st_frame,
+               st_pos_mask=st_pos_mask, st_kind=st_kind, gauge_frame=gauge_frame, ix=ix,
+               ith=ith, ilam=ilam, inu=inu, nu_off=nu_off, nu_cnt=nu_cnt, igauge=igauge,
+               n=n, kl=width, ku=width, m=m, target=target, key=key, rest_k0=rest_k0,
+               node_frame=node_frame)

@@ -1,0 +1,499 @@
+"""Solve the 3D rod: ``solve(problem)`` and ``trace(problems)``.
+
+The same route as the 2D model: a homotopy from the unloaded part (loads scaled by t,
+prescribed positions moved along straight lines and orientations along the shortest
+arcs), each step a Newton corrector on the KKT system that must contract, with a tangent
+first predictor and secant ones after; steps are capped so that the load's wavenumber
+grows by at most one per step (buckling modes appear about pi apart in it). A singular
+start (an end pushed along the straight part) gets a bow imperfection toward the side
+the targets and loads push to, removed at the end, and a note says so.
+
+Stability (for conservative loads): the smallest eigenvalue of the Hessian of the
+Lagrangian restricted to the tangent space of the constraints, computed on demand.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from collections.abc import Iterable, Iterator
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from pliant.core.equilibrium import Equilibrium3D, Samples3D, StationLoad
+from pliant.core.problem import Problem
+from pliant.errors import ConvergenceError, IllPosedProblemError
+from pliant.models.rod3d import kernels
+from pliant.models.rod3d.kernels import AXIS, FULL
+from pliant.models.rod3d.lowering import Loads, Rod, axis_basis, lower, quat_matrix
+
+
+@dataclass(frozen=True)
+class RodSolver:
+    """Settings of the 3D solver (an immutable config).
+
+    elements : about how many elements the part is cut into (the error falls as h^2)
+    tolerance : the largest KKT residual accepted (dimensionless: forces by EI/L^2)
+    max_iterations : per Newton solve; contraction : how much each continuation
+        corrector iteration must shrink the residual
+    max_steps, min_step : budget of one homotopy (steps, smallest step in t)
+    grow : the distance between a step's prediction and its corrected point that the
+        step control aims at (each unknown relative to its size)
+    wave_step : the most a step may raise the wavenumber of the loads
+    bow : the chord shortening of the imperfection that leaves a singular start, as a
+        fraction of what the targets ask
+    time_budget : wall-clock seconds before a solve gives up
+    """
+
+    elements: int = 100
+    tolerance: float = 1e-10
+    max_iterations: int = 25
+    contraction: float = 0.5
+    max_steps: int = 1000
+    min_step: float = 1e-6
+    grow: float = 0.1
+    wave_step: float = 1.0
+    bow: float = 0.8
+    time_budget: float = 60.0
+
+
+State = tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]  # X, Q, lam, nu
+
+_BRANCH_NOTE = "the unloaded part was a singular start"
+
+
+@dataclass
+class _Stalled(Exception):
+    t: float
+    residual: float
+    reason: str
+    singular_start: bool = False
+    budget: bool = False
+
+
+@dataclass(frozen=True, eq=False)
+class _WarmState:
+    rod: Rod
+    state: State
+    gauge_quat: np.ndarray
+
+
+@dataclass
+class _Run:
+    rod: Rod
+    solver: RodSolver
+    gauge_quat: np.ndarray = field(default_factory=lambda: np.array([1.0, 0.0, 0.0, 0.0]))
+    iterations: int = 0
+    steps: int = 0
+    notes: list[str] = field(default_factory=list)
+    deadline: float = 0.0
+
+    def __post_init__(self) -> None:
+        self.deadline = time.perf_counter() + self.solver.time_budget
+
+    def _static(self) -> tuple:
+        rod = self.rod
+        return (rod.gauge_frame, self.gauge_quat, rod.ix, rod.ith, rod.ilam, rod.inu,
+                rod.nu_off, rod.nu_cnt, rod.igauge, rod.n, rod.kl, rod.ku)
+
+    def newton(self, state: State, loads: Loads, *, strict: bool, tol: float | None = None):
+        opts = self.solver
+        X, Q, lam, nu, r, it, status, energy = kernels.newton(
+            *state, *self.rod.args(loads), *self._static(),
+            opts.tolerance if tol is None else tol, opts.max_iterations,
+            opts.contraction if strict else 0.0)
+        self.iterations += it
+        return (X, Q, lam, nu), r, status, energy
+
+    def residual(self, state: State, loads: Loads, want_jac: bool = False):
+        rod = self.rod
+        return kernels.assemble(*state, *rod.args(loads), rod.gauge_frame, self.gauge_quat,
+                                rod.ix, rod.ith, rod.ilam, rod.inu, rod.nu_off, rod.igauge,
+                                rod.n, rod.kl, rod.ku, want_jac)
+
+    def step(self, state: State, du: np.ndarray, scale: float) -> State:
+        rod = self.rod
+        return kernels.apply_step(*state, du, rod.ix, rod.ith, rod.ilam, rod.inu, rod.nu_off,
+                                  rod.nu_cnt, rod.igauge, scale)
+
+    def difference(self, a: State, b: State) -> np.ndarray:
+        rod = self.rod
+        return kernels.difference(*a, *b, rod.ix, rod.ith, rod.ilam, rod.inu, rod.nu_off,
+                                  rod.nu_cnt, rod.igauge, rod.n)
+
+    def follow(self, start: Loads, end: Loads, state: State) -> State:
+        """Continuation from (start, state), an exact solution, to end."""
+        opts = self.solver
+        # The tangent at the start: J du = -dR/dt, dR/dt by a forward difference.
+        eps = 1e-7
+        R_eps, ab, _ = self.residual(state, start.lerp(end, eps), want_jac=True)
+        tangent, ok = kernels.band_solve(ab, self.rod.kl, self.rod.ku, -R_eps / eps)
+        if not ok:
+            raise _Stalled(0.0, math.inf, "the start is singular", singular_start=True)
+        load_f, load_c = _load_size(start, end)
+        root_f = math.sqrt(load_f)
+        t, dt = 0.0, 1.0
+        prev: tuple[float, State] | None = None
+        steps = 0
+        while True:
+            if steps >= opts.max_steps:
+                raise _Stalled(t, math.inf, f"the continuation budget of {opts.max_steps} "
+                               "steps ran out", budget=True)
+            if time.perf_counter() > self.deadline:
+                raise _Stalled(t, math.inf, f"the time budget of {opts.time_budget} s ran "
+                               "out", budget=True)
+            # No step may raise the loads' wavenumber sqrt(t F) + t C by more than wave_step.
+            k_next = math.sqrt(t) * root_f + t * load_c + opts.wave_step
+            if load_c > 0.0 or root_f > 0.0:
+                u = 2.0 * k_next / (root_f + math.sqrt(root_f**2 + 4.0 * load_c * k_next))
+                dt = min(dt, max(u * u - t, opts.min_step))
+            t_next = min(1.0, t + dt)
+            loads = start.lerp(end, t_next)
+            if prev is None:
+                predictor = self.step(state, tangent, t_next - t)
+            else:
+                t_prev, s_prev = prev
+                predictor = self.step(state, self.difference(s_prev, state),
+                                      (t_next - t) / (t - t_prev))
+            final = t_next >= 1.0
+            corrected, r, status, _ = self.newton(predictor, loads, strict=True,
+                                                  tol=None if final else max(
+                                                      opts.tolerance, 1e-7))
+            if status == kernels.CONVERGED:
+                steps += 1
+                self.steps += 1
+                du = self.difference(predictor, corrected)
+                miss = float(np.max(np.abs(du) / self.sizes(corrected)))
+                prev, state, t = (t, state), corrected, t_next
+                if final:
+                    return state
+                dt = min(1.0, dt * min(4.0, max(0.5, math.sqrt(opts.grow / max(miss, 1e-300)))))
+            else:
+                dt *= 0.25
+                if dt < opts.min_step:
+                    reason = ("the Jacobian became singular (a fold or bifurcation: the branch "
+                              "ends or turns back here)" if status == kernels.SINGULAR else
+                              "Newton stopped contracting however short the step (a fold: "
+                              "the branch ends or turns back here)")
+                    raise _Stalled(t, r, reason)
+
+    def sizes(self, state: State) -> np.ndarray:
+        """Each unknown's size, floored at 1 (frame rotations count as 1)."""
+        rod = self.rod
+        X, _, lam, nu = state
+        out = np.ones(rod.n)
+        for i in range(X.shape[0]):
+            out[rod.ix[i]:rod.ix[i] + 3] = np.maximum(1.0, np.abs(X[i]))
+        for e in range(lam.shape[0]):
+            out[rod.ilam[e]:rod.ilam[e] + 3] = np.maximum(1.0, np.abs(lam[e]))
+        for k in range(rod.inu.shape[0]):
+            cnt, off = rod.nu_cnt[k], rod.nu_off[k]
+            out[rod.inu[k]:rod.inu[k] + cnt] = np.maximum(1.0, np.abs(nu[off:off + cnt]))
+        return out
+
+    # -- routes ---------------------------------------------------------------------------
+    def cold(self) -> State:
+        rod, opts = self.rod, self.solver
+        rest, state = rod.rest()
+        self.gauge_quat = state[1][max(rod.gauge_frame, 0)].copy()
+        try:
+            return self.follow(rest, rod.target, state)
+        except _Stalled as stall:
+            if not stall.singular_start:
+                raise
+        side, axis, (a, b) = _bow_direction(rod, rest, state)
+        # A bow b cos(2 pi u) over a span w shortens its chord by w (b w)^2 / 16 pi^2; make
+        # that most of what the targets ask, as in 2D.
+        width = b - a
+        wanted = opts.bow * _shortening(rod, rest)
+        amplitude = min(40.0, max(0.01, 4.0 * math.pi / width * math.sqrt(wanted / width)))
+        bowed_k0 = rod.rest_k0.copy()
+        mids = 0.5 * (rod.frame_s[:-1] + rod.frame_s[1:])
+        inside = (mids >= a) & (mids <= b)
+        bowed_k0[inside] += amplitude * np.cos(2 * math.pi * (mids[inside] - a) / width)[:, None] \
+            * axis[None, :]
+        rest_b, state = rod.rest(bowed_k0)
+        self.gauge_quat = state[1][max(rod.gauge_frame, 0)].copy()
+        target_b = Loads(*(getattr(rod.target, f) for f in (
+            "fnode", "st_pos", "st_tangent", "st_quat", "st_moment", "st_ffollow",
+            "st_mfollow")), joint_k0=bowed_k0)
+        state = self.follow(rest_b, target_b, state)
+        state = self.follow(target_b, rod.target, state)
+        self.notes.append(
+            f"{_BRANCH_NOTE} (a bifurcation: it can buckle to any side); pliant took the "
+            f"branch that bows toward {np.round(side, 3).tolist()}, where its targets and loads "
+            "push it; other equilibria may exist")
+        return state
+
+    def warm(self, warm: Equilibrium3D) -> State | None:
+        old = warm.state
+        if not isinstance(old, _WarmState):
+            return None
+        if old.rod.key != self.rod.key:
+            return self.transfer(warm, old)
+        self.gauge_quat = old.gauge_quat
+        state, r, status, _ = self.newton(old.state, self.rod.target, strict=True)
+        if status == kernels.CONVERGED:
+            self.steps += 1
+            return state
+        try:
+            return self.follow(old.rod.target, self.rod.target, old.state)
+        except _Stalled:
+            return None
+
+
+    def transfer(self, warm: Equilibrium3D, old: _WarmState) -> State | None:
+        """Start from an equilibrium of a problem with other conditions on the same mesh
+        (a grip switched to force control): positions, frames and internal forces carry
+        over, a station's position multipliers come from its old reaction, and a damped
+        Newton finds the nearby equilibrium."""
+        rod = self.rod
+        if (old.rod.s_node.shape != rod.s_node.shape or not np.allclose(old.rod.s_node,
+                                                                         rod.s_node)
+                or old.rod.frame_s.shape != rod.frame_s.shape):
+            return None
+        X, Q, lam, _ = old.state
+        nu = np.zeros(rod.m)
+        loads = warm.loads
+        for k, st in enumerate(rod.stations):
+            v = int(rod.nu_off[k])
+            for c in range(3):
+                if rod.st_pos_mask[k, c]:
+                    owner = st.owner[c]
+                    if owner in loads:
+                        nu[v] = -loads[owner].force[c] / rod.force_scale
+                    v += 1
+        self.gauge_quat = old.gauge_quat if rod.gauge_frame >= 0 else self.gauge_quat
+        state, _, status, _ = self.newton((X.copy(), Q.copy(), lam.copy(), nu),
+                                          rod.target, strict=False)
+        if status == kernels.CONVERGED:
+            self.steps += 1
+            return state
+        return None
+
+
+def _load_size(start: Loads, end: Loads) -> tuple[float, float]:
+    force = float(np.abs(end.fnode - start.fnode).sum(axis=0).max()
+                  + np.abs(end.st_ffollow - start.st_ffollow).sum())
+    moment = float(np.abs(end.st_moment - start.st_moment).sum()
+                   + np.abs(end.st_mfollow - start.st_mfollow).sum())
+    return force, moment
+
+
+def _chord(rod: Rod) -> tuple[int, int] | None:
+    located = [k for k in range(rod.st_kind.shape[0]) if rod.st_pos_mask[k].all()]
+    return (located[0], located[-1]) if len(located) >= 2 else None
+
+
+def _shortening(rod: Rod, rest: Loads) -> float:
+    ends = _chord(rod)
+    if ends is None:
+        return 0.0
+    a, b = ends
+    have = float(np.linalg.norm(rest.st_pos[b] - rest.st_pos[a]))
+    want = float(np.linalg.norm(rod.target.st_pos[b] - rod.target.st_pos[a]))
+    return max(0.0, have - want)
+
+
+def _bow_direction(rod: Rod, rest: Loads, state: State):
+    """The side (a unit vector normal to the rest chord) the targets' motion and the
+    loads push the part to, the material axis to bend about to bow that way, and the
+    span (s_a, s_b) of the chord."""
+    X, Q = state[0], state[1]
+    ends = _chord(rod)
+    if ends is not None:
+        a, b = ends
+        chord = rest.st_pos[b] - rest.st_pos[a]
+        span = (float(rod.s_node[rod.st_node[a]]), float(rod.s_node[rod.st_node[b]]))
+    else:
+        chord = X[-1] - X[0]
+        span = (0.0, 1.0)
+    chord = chord / max(float(np.linalg.norm(chord)), 1e-300)
+    push = np.zeros(3)
+    for k in range(rod.st_kind.shape[0]):
+        moved = np.where(rod.st_pos_mask[k] == 1, rod.target.st_pos[k] - rest.st_pos[k], 0.0)
+        push += moved
+    width = span[1] - span[0]
+    push += rod.target.fnode.sum(axis=0) * width**3 / 48.0
+    side = push - np.dot(push, chord) * chord
+    if np.linalg.norm(side) < 1e-12:  # nothing says: the first section axis' side
+        d1 = quat_matrix(Q[0])[:, 0]
+        side = d1 - np.dot(d1, chord) * chord
+        if np.linalg.norm(side) < 1e-12:
+            side = quat_matrix(Q[0])[:, 1]
+    side = side / np.linalg.norm(side)
+    # Bending about the axis chord x side turns the tangent toward the side; in the rest
+    # frames (the straight part has one frame throughout).
+    axis_global = np.cross(chord, side)
+    axis = quat_matrix(Q[0]).T @ axis_global
+    return side, axis, span
+
+
+def solve(problem: Problem, *, warm_start: Equilibrium3D | None = None,
+          solver: RodSolver | None = None) -> Equilibrium3D:
+    """The equilibrium of a 3D problem; see the module docstring."""
+    return _solve(problem, warm_start, solver or RodSolver(), follow_only=False)
+
+
+def _solve(problem: Problem, warm_start: Equilibrium3D | None, solver: RodSolver,
+           follow_only: bool) -> Equilibrium3D:
+    if problem.dimension != 3:
+        raise IllPosedProblemError("the 3D model solves 3D problems; this one is 2D "
+                                   "(use pliant.solve, which picks the model)")
+    run = _Run(lower(problem, elements=solver.elements), solver)
+    state = None
+    try:
+        if warm_start is not None:
+            state = run.warm(warm_start)
+            if state is not None:
+                run.notes[:0] = [n for n in warm_start.notes if n.startswith(_BRANCH_NOTE)]
+            elif follow_only:
+                raise _Stalled(0.0, math.inf, "the warm start could not be followed to this "
+                               "problem (a fold: the branch ends or turns back here)")
+            else:
+                run.notes.append("the warm start could not be followed to this problem; "
+                                 "solved from the rest state instead")
+        if state is None:
+            state = run.cold()
+    except _Stalled as stall:
+        raise ConvergenceError(
+            f"no equilibrium: {stall.reason}; stopped at {stall.t:.3g} of the way "
+            f"(relative residual {stall.residual:.2e}); try smaller steps or check that "
+            "the targets can be reached", residual=stall.residual, progress=stall.t,
+            last_good=warm_start) from None
+    return _build(run, state)
+
+
+def _build(run: _Run, state: State) -> Equilibrium3D:
+    rod = run.rod
+    nu = state[3]
+    R, _, _ = run.residual(state, rod.target)
+    if rod.gauge_frame >= 0 and abs(nu[-1]) > 1e-6:
+        raise IllPosedProblemError(
+            "nothing holds the part's twist, yet a twisting moment acts on it; prescribe an "
+            "orientation (tangent and normal) somewhere")
+    return Equilibrium3D(
+        problem=rod.problem, residual=float(np.abs(R).max()), iterations=run.iterations,
+        steps=run.steps, sampler=_Sampler(run, state), notes=tuple(run.notes),
+        state=_WarmState(rod, state, run.gauge_quat),
+        stability_check=(lambda: _stability(run, state)) if _conservative(rod) else None)
+
+
+@dataclass(frozen=True, eq=False)
+class _Sampler:
+    """The arrays of an equilibrium, in SI units, made on first access."""
+
+    run: _Run
+    state: State
+
+    def __call__(self) -> Samples3D:
+        rod = self.run.rod
+        X, Q, lam, _ = self.state
+        L, fs, ms = rod.length, rod.force_scale, rod.moment_scale
+        _, _, energy = self.run.residual(self.state, rod.target)
+        frames, moments = kernels.node_outputs(Q, rod.elem_frame, rod.joint_hh,
+                                               rod.target.joint_k0, rod.K, rod.node_frame)
+        return Samples3D(s=rod.s_node * L, position=X * L, frames=frames,
+                         element_s=0.5 * (rod.s_node[1:] + rod.s_node[:-1]) * L,
+                         internal_force=lam * fs, internal_moment=moments * ms,
+                         energy=energy * rod.stiffness / L,
+                         loads=_station_loads(self.run, self.state))
+
+
+def _station_loads(run: _Run, state: State) -> dict[str, StationLoad]:
+    """Each condition's load on the part [N, N m]: its reactions from the multipliers,
+    its applied loads from the problem (followers resolved in their deformed frames)."""
+    rod = run.rod
+    _, Q, _, nu = state
+    fs, ms = rod.force_scale, rod.moment_scale
+    e3 = np.array([0.0, 0.0, 1.0])
+    out: dict[str, StationLoad] = {}
+    for k, st in enumerate(rod.stations):
+        Rm = quat_matrix(Q[rod.st_frame[k]])
+        v = int(rod.nu_off[k])
+        reaction_force = np.zeros(3)
+        for c in range(3):
+            if rod.st_pos_mask[k, c]:
+                reaction_force[c] = -nu[v] * fs
+                v += 1
+        reaction_moment = np.zeros(3)
+        if rod.st_kind[k] == AXIS:
+            general = np.zeros(3)  # generalised force (material) of the axis constraint
+            for bvec in axis_basis(rod.target.st_tangent[k]):
+                general -= nu[v] * np.cross(e3, Rm.T @ bvec)
+                v += 1
+            reaction_moment = Rm @ general * ms
+        elif rod.st_kind[k] == FULL:
+            r = _qmul(_qconj(rod.target.st_quat[k]), Q[rod.st_frame[k]])
+            grad = 0.5 * (r[0] * np.eye(3) + _skew(r[1:]))
+            reaction_moment = Rm @ (-(grad.T @ nu[v:v + 3])) * ms
+        for cond in st.conditions:
+            flags = [st.owner[c] == cond.name for c in range(5)]
+            force = np.where(flags[:3], reaction_force, 0.0)
+            moment = reaction_moment.copy() if flags[3] else np.zeros(3)
+            applied_f = np.array([f or 0.0 for f in cond.force])
+            applied_m = np.zeros(3) if cond.moment is None else np.array(cond.moment, float)
+            if cond.follower:
+                applied_f, applied_m = Rm @ applied_f, Rm @ applied_m
+            out[cond.name] = StationLoad(cond.name, cond.s, force + applied_f,
+                                         moment + applied_m, tuple(flags))
+    return out
+
+
+def _conservative(rod: Rod) -> bool:
+    t = rod.target
+    return not (np.any(t.st_moment) or np.any(t.st_ffollow) or np.any(t.st_mfollow))
+
+
+def _stability(run: _Run, state: State) -> tuple[bool, float]:
+    """Smallest eigenvalue of the Hessian of the Lagrangian on the constraints' tangent
+    space (positions and frame rotations): positive means stable."""
+    from scipy.linalg import eigh, null_space  # noqa: PLC0415 (heavy; on demand)
+
+    rod = run.rod
+    _, ab, _ = run.residual(state, rod.target, want_jac=True)
+    n, kl, ku = rod.n, rod.kl, rod.ku
+    K = np.zeros((n, n))
+    for j in range(n):
+        for i in range(max(0, j - ku), min(n, j + kl + 1)):
+            K[i, j] = ab[j, kl + ku + i - j]
+    primal = np.zeros(n, dtype=bool)
+    for i in range(rod.elements + 1):
+        primal[rod.ix[i]:rod.ix[i] + 3] = True
+    for f in range(rod.ith.shape[0]):
+        primal[rod.ith[f]:rod.ith[f] + 3] = True
+    H = K[np.ix_(primal, primal)]
+    A = K[np.ix_(~primal, primal)]
+    Z = null_space(A)
+    reduced = Z.T @ H @ Z
+    smallest = float(eigh(0.5 * (reduced + reduced.T), eigvals_only=True)[0])
+    scale = rod.moment_scale  # EI / L
+    return smallest > 1e-9 * max(1.0, float(np.abs(reduced).max())), smallest * scale
+
+
+def _qmul(a, b):
+    return np.array([a[0] * b[0] - a[1] * b[1] - a[2] * b[2] - a[3] * b[3],
+                     a[0] * b[1] + a[1] * b[0] + a[2] * b[3] - a[3] * b[2],
+                     a[0] * b[2] - a[1] * b[3] + a[2] * b[0] + a[3] * b[1],
+                     a[0] * b[3] + a[1] * b[2] - a[2] * b[1] + a[3] * b[0]])
+
+
+def _qconj(a):
+    return np.array([a[0], -a[1], -a[2], -a[3]])
+
+
+def _skew(v):
+    return np.array([[0.0, -v[2], v[1]], [v[2], 0.0, -v[0]], [-v[1], v[0], 0.0]])
+
+
+def trace(problems: Iterable[Problem], *, start: Equilibrium3D | None = None,
+          solver: RodSolver | None = None) -> Iterator[Equilibrium3D]:
+    """Follow a sequence of 3D problems, warm-starting each from the last; raises
+    ConvergenceError with ``last_good`` where the branch ends (a fold)."""
+    solver = solver or RodSolver()
+    previous = start
+    for problem in problems:
+        eq = _solve(problem, previous, solver, follow_only=previous is not None)
+        previous = eq
+        yield eq

@@ -1,0 +1,307 @@
+"""The 3D rod against closed forms, the 2D model, and invariants."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from scipy.optimize import brentq
+from scipy.special import ellipe, ellipk
+
+import pliant as pl
+from pliant.errors import IllPosedProblemError, InputError, UnreachableTargetError
+from pliant.models import rod3d
+from pliant.models.rod3d import kernels
+from pliant.models.rod3d.lowering import lower
+from pliant.models.rod3d.solver import _Run
+
+from .helpers import zoo
+
+UNIT = pl.Part(length=1.0, bending_stiffness=1.0, torsional_stiffness=0.8)
+
+
+def to_3d(problem: pl.Problem) -> pl.Problem:
+    """The same planar problem in 3D (plane z = 0, the section's d1 along +z; a 2D
+    follower (tangential, normal) is (0, -normal, tangential) in (d1, d2, d3))."""
+    conditions = []
+    for c in problem.conditions:
+        position = tuple(c.position) + (0.0 if any(p is not None for p in c.position)
+                                        else None,)
+        tangent = normal = None
+        if c.angle is not None:
+            tangent, normal = (math.cos(c.angle), math.sin(c.angle), 0.0), (0.0, 0.0, 1.0)
+        if c.follower:
+            force = (0.0, -(c.force[1] or 0.0), c.force[0] or 0.0)
+        else:
+            force = tuple(c.force) + (None,)
+        moment = None if c.moment is None else (0.0, 0.0, c.moment)
+        conditions.append(pl.Condition(s=c.s, name=c.name, position=position,
+                                       tangent=tangent, normal=normal, force=force,
+                                       moment=moment, follower=c.follower))
+    part = problem.part
+    part3 = pl.Part(length=part.length, bending_stiffness=part.bending_stiffness,
+                    mass_per_length=part.mass_per_length, rest_curvature=part.rest_curvature)
+    return pl.Problem(part3, tuple(conditions), tuple(problem.gravity) + (0.0,), problem.name)
+
+
+@pytest.mark.parametrize("name", ["case1", "case2", "case3", "gravity grip",
+                                  "compressed cantilever"])
+def test_planar_problems_agree_with_2d_at_second_order(name):
+    problem2 = zoo()[name]
+    # Sampled finely: linear interpolation of the reference must not set the error.
+    exact = pl.solve(problem2, solver=pl.ShootingSolver(samples=4000))
+    problem3 = to_3d(problem2)
+    errors = []
+    for elements in (40, 80):
+        eq = rod3d.solve(problem3, solver=rod3d.RodSolver(elements=elements))
+        assert np.abs(eq.position[:, 2]).max() < 1e-10  # stays in the plane
+        pos2 = np.column_stack([np.interp(eq.s, exact.s, exact.position[:, k])
+                                for k in (0, 1)])
+        errors.append(np.abs(eq.position[:, :2] - pos2).max())
+    order = math.log2(errors[0] / errors[1])
+    assert errors[1] < 2e-3 * problem2.part.length
+    assert 1.7 < order < 2.4, (errors, order)
+
+
+def helix(kappa: float, tau: float, twist: float, s: np.ndarray):
+    """Centreline, tangent and section axis d1 of a helix about +z (curvature kappa,
+    torsion tau) whose material frame twists at the rate ``twist``."""
+    w = math.hypot(kappa, tau)
+    a, c = kappa / w**2, tau / w**2
+    ws = w * s
+    r = np.column_stack([a * np.cos(ws), a * np.sin(ws), c * ws])
+    t = np.column_stack([-a * w * np.sin(ws), a * w * np.cos(ws), np.full_like(s, c * w)])
+    nrm = np.column_stack([-np.cos(ws), -np.sin(ws), np.zeros_like(s)])
+    b = np.cross(t, nrm)
+    phi = (twist - tau) * s
+    d1 = np.cos(phi)[:, None] * nrm + np.sin(phi)[:, None] * b
+    return r, t, d1, b
+
+
+def test_kirchhoff_helix():
+    """A helix is an equilibrium of a straight isotropic rod under the end wrench
+    n = w (GJ u3 - EI tau) e_z, m = EI kappa b + GJ u3 t (w = sqrt(kappa^2 + tau^2)):
+    hold the ends in the helix's poses and the rod takes its shape and that wrench."""
+    kappa, tau, u3 = 1.0, 0.5, 2.0
+    ei, gj = UNIT.stiffnesses[0], UNIT.stiffnesses[2]
+    s = np.array([0.0, 1.0])
+    r, t, d1, b = helix(kappa, tau, u3, s)
+    problem = pl.Problem(UNIT, (
+        pl.Condition(s=0.0, name="start", position=tuple(r[0]), tangent=tuple(t[0]),
+                     normal=tuple(d1[0])),
+        pl.Condition(s=1.0, name="end", position=tuple(r[1]), tangent=tuple(t[1]),
+                     normal=tuple(d1[1]))))
+    w = math.hypot(kappa, tau)
+    force = w * (gj * u3 - ei * tau) * np.array([0.0, 0.0, 1.0])
+    moment = ei * kappa * b[1] + gj * u3 * t[1]
+    shape, wrench = [], []
+    for elements in (50, 100):
+        eq = rod3d.solve(problem, solver=rod3d.RodSolver(elements=elements))
+        exact, _, _, _ = helix(kappa, tau, u3, eq.s)
+        shape.append(np.abs(eq.position - exact).max())
+        end = eq.reactions["end"]
+        wrench.append(max(np.abs(end.force - force).max(), np.abs(end.moment - moment).max()))
+    # Both the shape and the end wrench converge at second order.
+    assert shape[1] < 1e-4 and 1.7 < math.log2(shape[0] / shape[1]) < 2.4
+    assert wrench[1] < 5e-3 and 1.7 < math.log2(wrench[0] / wrench[1]) < 2.4
+    # The same wrench applied as loads (force space) keeps the helix: the round trip.
+    pushed = problem.with_conditions([problem.condition("start"),
+                                      pl.push(1.0, force=tuple(end.force),
+                                              moment=tuple(end.moment), name="end")])
+    back = rod3d.solve(pushed, warm_start=eq)
+    assert np.allclose(back.position[-1], r[1], atol=1e-8)
+    assert np.allclose(back.frames[-1][:, 2], t[1], atol=1e-8)
+
+
+def test_pure_torsion():
+    torque = 0.6
+    problem = pl.Problem(UNIT, (pl.clamp(0.0, position=(0.0, 0.0, 0.0)),
+                                pl.push(1.0, moment=(torque, 0.0, 0.0), name="tip")))
+    eq = rod3d.solve(problem)
+    assert np.allclose(eq.position[:, 1:], 0.0, atol=1e-12)  # stays straight
+    d1 = eq.frames[-1][:, 0]  # from +z, turned about +x by T L / GJ
+    angle = math.atan2(-d1[1], d1[2])
+    assert angle == pytest.approx(torque / UNIT.stiffnesses[2], rel=1e-4)
+    assert np.allclose(eq.reactions["clamp"].moment, (-torque, 0.0, 0.0), atol=1e-12)
+    assert np.allclose(eq.torque, torque, atol=1e-10)
+
+
+def test_end_moment_rolls_a_full_circle():
+    ei = UNIT.stiffnesses[0]
+    problem = pl.Problem(UNIT, (pl.clamp(0.0, position=(0.0, 0.0, 0.0)),
+                                pl.push(1.0, moment=(0.0, 0.0, 2 * math.pi * ei),
+                                        name="tip")))
+    errors = []
+    for elements in (50, 100):
+        eq = rod3d.solve(problem, solver=rod3d.RodSolver(elements=elements))
+        errors.append(float(np.linalg.norm(eq.position[-1])))
+        radius = 1.0 / (2 * math.pi)
+        centre = np.array([0.0, radius, 0.0])
+        assert np.allclose(np.linalg.norm(eq.position - centre, axis=1), radius, atol=1e-3)
+    assert errors[1] < 2e-3 and 1.7 < math.log2(errors[0] / errors[1]) < 2.4
+    assert eq.energy == pytest.approx(2 * math.pi**2 * ei, rel=1e-3)
+
+
+def test_clamped_clamped_post_buckling():
+    """Both ends clamped, pushed 10% closer: the axial force is 16 K(k)^2 EI / L^2 with
+    shortening 2 (1 - E/K), whichever side it buckles to."""
+    problem = pl.Problem(UNIT, (pl.clamp(0.0, position=(0.0, 0.0, 0.0)),
+                                pl.clamp(1.0, position=(0.9, 0.0, 0.0), name="end")))
+    m = brentq(lambda m: 2 * (1 - ellipe(m) / ellipk(m)) - 0.1, 1e-9, 0.99, xtol=1e-15)
+    exact = 16 * ellipk(m) ** 2
+    errors = []
+    for elements in (50, 100):
+        eq = rod3d.solve(problem, solver=rod3d.RodSolver(elements=elements))
+        errors.append(abs(eq.reactions["clamp"].force[0] - exact))
+        assert "singular start" in eq.notes[0]
+    assert errors[1] < 2e-3 * exact and 1.6 < math.log2(errors[0] / errors[1]) < 2.5
+
+
+def _rotation(axis, angle):
+    axis = np.asarray(axis, float) / np.linalg.norm(axis)
+    k = np.array([[0, -axis[2], axis[1]], [axis[2], 0, -axis[0]], [-axis[1], axis[0], 0]])
+    return np.eye(3) + math.sin(angle) * k + (1 - math.cos(angle)) * k @ k
+
+
+def hose_problem(G=None, T=None) -> pl.Problem:
+    G = np.eye(3) if G is None else G
+    T = np.zeros(3) if T is None else T
+    hose = pl.Part(length=1.0, bending_stiffness=0.05, mass_per_length=0.3,
+                   torsional_stiffness=0.03)
+    def v(x):
+        return tuple(G @ np.asarray(x, float))
+    def p(x):
+        return tuple(G @ np.asarray(x, float) + T)
+    return pl.Problem(hose, (
+        pl.clamp(0.0, position=p((0.0, 0.0, 0.0)), tangent=v((1.0, 0.0, 0.0)),
+                 normal=v((0.0, 0.0, 1.0))),
+        pl.push(0.4, force=v((0.0, 0.3, 0.2)), moment=v((0.01, 0.0, 0.02)), name="tap"),
+        pl.grip(1.0, position=p((0.6, 0.3, -0.2)), tangent=v((0.0, 1.0, 0.0)),
+                normal=v((1.0, 0.0, 0.0)), name="hand")), gravity=v((0.0, 0.0, -9.81)))
+
+
+def test_invariance_under_a_rigid_motion():
+    G = _rotation((1.0, 2.0, 0.5), 0.8)
+    T = np.array([0.3, -1.0, 2.0])
+    a = rod3d.solve(hose_problem())
+    b = rod3d.solve(hose_problem(G, T))
+    assert np.allclose(b.position, a.position @ G.T + T, atol=1e-9)
+    for name in a.loads:
+        assert np.allclose(b.loads[name].force, G @ a.loads[name].force, atol=1e-9)
+        assert np.allclose(b.loads[name].moment, G @ a.loads[name].moment, atol=1e-9)
+    assert b.energy == pytest.approx(a.energy, rel=1e-9)
+
+
+def test_global_balance():
+    eq = rod3d.solve(hose_problem())
+    problem = eq.problem
+    rod = eq.state.rod
+    weight = problem.part.mass_per_length * np.asarray(problem.gravity)
+    # Weight lumped at the nodes, as the model applies it.
+    lumped = np.zeros((rod.elements + 1, 3))
+    h = np.diff(eq.s)
+    lumped[:-1] += 0.5 * h[:, None] * weight
+    lumped[1:] += 0.5 * h[:, None] * weight
+    force = lumped.sum(axis=0) + sum(ld.force for ld in eq.loads.values())
+    moment = np.cross(eq.position, lumped).sum(axis=0)
+    for ld in eq.loads.values():
+        i = int(np.argmin(np.abs(eq.s - ld.s)))
+        moment += np.cross(eq.position[i], ld.force) + ld.moment
+    assert np.abs(force).max() < 1e-9
+    assert np.abs(moment).max() < 1e-9
+
+
+def test_jacobian_matches_finite_differences():
+    """The assembled KKT Jacobian against central differences of the residual, at a
+    perturbed state, with every kind of condition and load (axis and full grips, dead
+    and follower forces and moments, the twist gauge)."""
+    part = pl.Part(length=1.0, bending_stiffness=1.0, torsional_stiffness=0.7,
+                   mass_per_length=0.2, rest_curvature=0.5, rest_twist=0.3)
+    problem = pl.Problem(part, (
+        pl.Condition(s=0.0, name="pin", position=(0.0, 0.0, 0.0), tangent=(1, 0, 0)),
+        pl.push(0.3, force=(0.2, 0.5, -0.3), moment=(0.1, 0.2, 0.3), name="dead"),
+        pl.push(0.6, force=(0.4, -0.2, 0.1), moment=(-0.2, 0.1, 0.05), follower=True,
+                name="follower"),
+        pl.grip(1.0, position=(0.7, 0.3, 0.2), name="hand")), gravity=(0.0, 0.0, -9.81))
+    rod = lower(problem, elements=12)
+    assert rod.gauge_frame >= 0
+    run = _Run(rod, rod3d.RodSolver())
+    _, state = rod.rest()
+    run.gauge_quat = state[1][0].copy()
+    rng = np.random.default_rng(3)
+    state = run.step(state, 0.05 * rng.standard_normal(rod.n), 1.0)
+    R, ab, _ = run.residual(state, rod.target, want_jac=True)
+    n, kl, ku = rod.n, rod.kl, rod.ku
+    J = np.zeros((n, n))
+    for j in range(n):
+        for i in range(max(0, j - ku), min(n, j + kl + 1)):
+            J[i, j] = ab[j, kl + ku + i - j]
+    fd = np.empty_like(J)
+    for j in range(n):
+        du = np.zeros(n)
+        du[j] = 1e-6
+        rp, _, _ = run.residual(run.step(state, du, 1.0), rod.target)
+        rm, _, _ = run.residual(run.step(state, du, -1.0), rod.target)
+        fd[:, j] = (rp - rm) / 2e-6
+    assert np.allclose(J, fd, atol=1e-6 * max(1.0, np.abs(J).max()))
+
+
+def test_stability_changes_at_the_euler_load():
+    """A straight cantilever pushed along its axis is stable below the Euler load
+    pi^2 EI / 4 L^2 and unstable above it (the model's own value is within O(h^2))."""
+    critical = math.pi**2 / 4
+    verdicts = []
+    for factor in (0.97, 1.03):
+        problem = pl.Problem(UNIT, (pl.clamp(0.0, position=(0.0, 0.0, 0.0)),
+                                    pl.push(1.0, force=(-factor * critical, 0.0, 0.0),
+                                            name="tip")))
+        verdicts.append(rod3d.solve(problem).stability)
+    assert verdicts[0][0] is True and verdicts[0][1] > 0
+    assert verdicts[1][0] is False and verdicts[1][1] < 0
+    follower = pl.Problem(UNIT, (pl.clamp(0.0, position=(0.0, 0.0, 0.0)),
+                                 pl.push(1.0, force=(0.0, 1.0, 0.0), follower=True,
+                                         name="tip")))
+    assert rod3d.solve(follower).stable is None  # non-conservative: no static verdict
+
+
+def test_axis_grip_takes_no_twisting_moment():
+    hose = pl.Part(length=1.0, bending_stiffness=0.05, mass_per_length=0.3)
+    problem = pl.Problem(hose, (pl.clamp(0.0, position=(0.0, 0.0, 0.0)),
+                                pl.grip(1.0, position=(0.6, 0.2, 0.1), tangent=(0, 1, 0),
+                                        name="hand")), gravity=(0.0, 0.0, -9.81))
+    eq = rod3d.solve(problem)
+    hand = eq.reactions["hand"]
+    assert abs(hand.moment @ eq.frames[-1][:, 2]) < 1e-9
+    assert np.allclose(eq.frames[-1][:, 2], (0.0, 1.0, 0.0), atol=1e-9)
+    assert hand.prescribed == (True, True, True, True, False)
+
+
+def test_3d_bad_input():
+    with pytest.raises(InputError, match="mixes 2D and 3D"):
+        pl.Condition(s=0.0, position=(0.0, 0.0), force=(1.0, 0.0, 0.0))
+    with pytest.raises(IllPosedProblemError, match="give the tangent too"):
+        pl.Condition(s=0.0, position=(0.0, 0.0, 0.0), normal=(0.0, 0.0, 1.0))
+    with pytest.raises(IllPosedProblemError, match="prescribed orientation"):
+        pl.Condition(s=1.0, tangent=(1.0, 0.0, 0.0), moment=(0.0, 0.0, 1.0))
+    with pytest.raises(InputError, match="non-zero direction"):
+        pl.Condition(s=1.0, position=(0.0, 0.0, 0.0), tangent=(0.0, 0.0, 0.0))
+    with pytest.raises(InputError, match="3D"):
+        pl.Problem(UNIT, (pl.clamp(0.0, position=(0.0, 0.0, 0.0)),
+                          pl.push(1.0, force=(0.0, 1.0), name="tip")))
+    with pytest.raises(IllPosedProblemError, match="too few conditions"):
+        pl.Problem(UNIT, (pl.pin(0.0, position=(0.0, 0.0, 0.0)),))
+    with pytest.raises(UnreachableTargetError):
+        pl.Problem(UNIT, (pl.clamp(0.0, position=(0.0, 0.0, 0.0)),
+                          pl.grip(1.0, position=(0.8, 0.7, 0.0), name="hand")))
+    with pytest.raises(IllPosedProblemError, match="twist"):
+        rod3d.solve(pl.Problem(UNIT, (pl.pin(0.0, position=(0.0, 0.0, 0.0)),
+                                      pl.Condition(s=1.0, name="end", position=(0.9, 0.0, 0.1),
+                                                   tangent=(1.0, 0.0, 0.0)),
+                                      pl.push(0.5, moment=(0.3, 0.0, 0.0), name="twist"))))
+
+
+def test_dispatch_and_kernel_statuses():
+    eq = pl.solve(hose_problem())
+    assert isinstance(eq, pl.Equilibrium3D)
+    assert kernels.CONVERGED == 0
