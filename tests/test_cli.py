@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import math
 import subprocess
 import sys
 from pathlib import Path
@@ -90,3 +91,25 @@ def test_demo_solves_and_plots_the_paper_cases(tmp_path):
     for i in (1, 2, 3):
         assert f"paper case {i}" in out.stdout
         assert (tmp_path / "demo" / f"case{i}.png").stat().st_size > 20000
+
+
+def test_solve_3d_with_plot_and_meshes(tmp_path):
+    import trimesh
+
+    out = run("solve", str(EXAMPLES / "hoses" / "hose3d.toml"), "--plot",
+              str(tmp_path / "hose.png"), "--mesh", str(tmp_path / "hose.glb"),
+              "--elements", "40")
+    assert out.returncode == 0, out.stderr
+    assert "3D, 40 elements" in out.stdout and "stability: stable" in out.stdout
+    assert (tmp_path / "hose.png").stat().st_size > 20000
+    scene = trimesh.load(tmp_path / "hose.glb")
+    mesh = next(iter(scene.geometry.values())) if hasattr(scene, "geometry") else scene
+    assert mesh.is_watertight
+    # The tube's volume: the hose's section times its length, within the polygon's loss.
+    assert mesh.volume == pytest.approx(math.pi * 0.01**2 * 1.0, rel=0.03)
+    out = run("solve", str(EXAMPLES / "hoses" / "hose3d.toml"), "--mesh",
+              str(tmp_path / "hose.stl"), "--json", "--elements", "40")
+    assert out.returncode == 0, out.stderr
+    data = json.loads(out.stdout)
+    assert data["dimension"] == 3 and data["stable"] is True
+    assert trimesh.load(tmp_path / "hose.stl").is_watertight

@@ -52,6 +52,51 @@ def test_dump_then_parse_round_trip(name):
     assert again.part.bending_stiffness == problem.part.bending_stiffness
 
 
+THREE_D = """
+name = "hose"
+gravity = [0.0, 0.0, -9.81]
+[part]
+length = 0.8
+bending_stiffness = 0.05
+torsional_stiffness = 0.03
+mass_per_length = 0.3
+[solver]
+elements = 60
+[[condition]]
+name = "clamp"
+s = 0.0
+x = 0.0
+y = 0.0
+z = 0.0
+tangent = [1.0, 0.0, 0.0]
+normal = [0.0, 0.0, 1.0]
+[[condition]]
+name = "tap"
+s = 0.4
+follower_force = [0.0, 0.5, 0.0]
+[[condition]]
+name = "hand"
+s = 0.8
+x = 0.5
+y = 0.2
+z = 0.1
+tangent = [0.0, 1.0, 0.0]
+"""
+
+
+def test_3d_file():
+    from pliant.io.problem_file import parse_problem_file
+
+    problem, settings = parse_problem_file(THREE_D)
+    assert problem.dimension == 3 and settings.elements == 60
+    tap = problem.condition("tap")
+    assert tap.follower and tap.force == (0.0, 0.5, 0.0)
+    hand = problem.condition("hand")
+    assert hand.tangent == (0.0, 1.0, 0.0) and hand.normal is None
+    again = parse_problem(dump_problem(problem))
+    assert again.conditions == problem.conditions and again.gravity == problem.gravity
+
+
 def test_tube_section_and_material():
     text = MINIMAL.replace("bending_stiffness = 2.0", """outer_diameter = 0.02
 inner_diameter = 0.012
@@ -66,7 +111,8 @@ density = 1150.0""")
 @pytest.mark.parametrize("change,where", [
     (("length = 1.0", "length = -1.0"), "part.length"),
     (("length = 1.0", 'length = "long"'), "part.length"),
-    (("Fy = 3.0", "Fy = 3.0\nFz = 1.0"), "condition[1].Fz"),
+    (("Fy = 3.0", "Fy = 3.0\nFw = 1.0"), "condition[1].Fw"),
+    (("Fy = 3.0", "tangent = [1.0, 0.0, 0.0]"), "condition[0]: angle"),
     (("Fy = 3.0", "Fy = 3.0\nFt = 1.0"), "condition[1]"),
     (("bending_stiffness = 2.0", ""), "part"),
     (("s = 1.0", "s = 2.0"), "tip.s"),

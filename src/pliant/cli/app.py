@@ -31,15 +31,20 @@ EXAMPLES = Path(__file__).resolve().parents[3] / "examples"  # the repository (e
 def solve(
     file: Annotated[Path, typer.Argument(help="a problem file (TOML, SI units)")],
     json: Annotated[bool, typer.Option("--json", help="print the full result as JSON")] = False,
-    plot: Annotated[Path | None, typer.Option(help="draw the shape and N, Q, M diagrams "
+    plot: Annotated[Path | None, typer.Option(help="draw the shape and its internal forces "
                                                    "to this PNG file")] = None,
+    mesh: Annotated[Path | None, typer.Option(help="export the deformed tube (.glb, .gltf, "
+                                                   ".stl, .obj, .ply)")] = None,
+    elements: Annotated[int | None, typer.Option(help="3D: about how many elements "
+                                                      "(default: the file's [solver], or 100)")]
+    = None,
 ) -> None:
-    """Solve a problem file: shape, internal forces, reactions."""
+    """Solve a problem file (2D or 3D): shape, internal forces, reactions."""
     from pliant.cli.report import print_json, print_summary, timed_solve  # noqa: PLC0415
-    from pliant.io.problem_file import load_problem  # noqa: PLC0415
+    from pliant.io.problem_file import load_problem_file  # noqa: PLC0415
 
-    problem = load_problem(file)
-    eq, seconds = timed_solve(problem)
+    problem, settings = load_problem_file(file)
+    eq, seconds = timed_solve(problem, elements or settings.elements)
     if json:
         print_json(eq, seconds)
     else:
@@ -50,6 +55,13 @@ def solve(
         plot_equilibrium(eq, plot)
         if not json:
             typer.echo(f"plot written to {plot}")
+    if mesh is not None:
+        from pliant.io.mesh_export import export_mesh, part_radius  # noqa: PLC0415
+
+        export_mesh(eq, mesh)
+        if not json:
+            note = "" if problem.part.outer_diameter else " (display radius: no outer_diameter)"
+            typer.echo(f"mesh written to {mesh}, radius {part_radius(eq):.4g} m{note}")
 
 
 @app.command()

@@ -12,8 +12,9 @@ from pliant.core.equilibrium import Equilibrium
 from pliant.errors import OutputError
 
 
-def plot_equilibrium(eq: Equilibrium, path: str | Path) -> Path:
-    """Draw the deformed part (loads as arrows) and N, Q, M against s to a PNG file.
+def plot_equilibrium(eq, path: str | Path) -> Path:
+    """Draw the deformed part (loads as arrows) and its internal forces against s to a
+    PNG file (2D: N, Q, M; 3D: the shape coloured by bending moment, |M|, torque, N).
 
     The file is written atomically: a failure leaves any earlier file untouched.
     """
@@ -24,6 +25,15 @@ def plot_equilibrium(eq: Equilibrium, path: str | Path) -> Path:
 
     path = Path(path)
     fig = plt.figure(figsize=(11, 6.5), layout="constrained")
+    if eq.problem.dimension == 3:
+        _draw_3d(fig, eq)
+    else:
+        _draw_2d(fig, eq)
+    _save(fig, path, plt)
+    return path
+
+
+def _draw_2d(fig, eq: Equilibrium) -> None:
     grid = fig.add_gridspec(3, 2, width_ratios=(1.25, 1))
     shape = fig.add_subplot(grid[:, 0])
     length = eq.problem.part.length
@@ -66,6 +76,62 @@ def plot_equilibrium(eq: Equilibrium, path: str | Path) -> Path:
         ax.grid(alpha=0.3)
         if row == 2:
             ax.set_xlabel("s [m]")
+
+
+def _draw_3d(fig, eq) -> None:
+    from matplotlib import cm  # noqa: PLC0415
+    from mpl_toolkits.mplot3d.art3d import Line3DCollection  # noqa: PLC0415
+
+    grid = fig.add_gridspec(3, 2, width_ratios=(1.3, 1))
+    ax = fig.add_subplot(grid[:, 0], projection="3d")
+    pos = eq.position
+    tangent = eq.tangent
+    bending = np.linalg.norm(eq.internal_moment - eq.torque[:, None] * tangent, axis=1)
+    segments = np.stack([pos[:-1], pos[1:]], axis=1)
+    norm = matplotlib_norm(bending)
+    lines = Line3DCollection(segments, cmap=cm.viridis, norm=norm, linewidths=3.0)
+    lines.set_array(0.5 * (bending[:-1] + bending[1:]))
+    ax.add_collection3d(lines)
+    fig.colorbar(lines, ax=ax, shrink=0.6, label="bending moment |M| [N m]")
+    length = eq.problem.part.length
+    scale = max((float(np.linalg.norm(ld.force)) for ld in eq.loads.values()), default=0.0)
+    for ld in eq.loads.values():
+        i = int(np.argmin(np.abs(eq.s - ld.s)))
+        colour = "tab:red" if ld.is_reaction else "tab:green"
+        ax.scatter(*pos[i], color=colour, s=25)
+        if scale > 0.0 and np.linalg.norm(ld.force) > 0.0:
+            ax.quiver(*pos[i], *(ld.force / scale * 0.25 * length), color=colour)
+        ax.text(*pos[i], f" {ld.name}", color=colour, fontsize=8)
+    span = np.ptp(pos, axis=0).max() / 2 or length / 2
+    centre = pos.mean(axis=0)
+    ax.set_xlim(centre[0] - span, centre[0] + span)
+    ax.set_ylim(centre[1] - span, centre[1] + span)
+    ax.set_zlim(centre[2] - span, centre[2] + span)
+    ax.set_xlabel("x [m]")
+    ax.set_ylabel("y [m]")
+    ax.set_zlabel("z [m]")
+    ax.set_title(f"{eq.problem.name or 'equilibrium'}: shape and loads on the part\n"
+                 "(red: reactions a support or hand must give, green: applied)", fontsize=10)
+    panels = ((eq.s, bending, "|M| bending [N m]"), (eq.s, eq.torque, "torque [N m]"),
+              (eq.element_s, eq.axial_force, "N [N]"))
+    for row, (s, values, label) in enumerate(panels):
+        axp = fig.add_subplot(grid[row, 1])
+        axp.plot(s, values, color="tab:purple")
+        axp.axhline(0.0, color="grey", lw=0.6)
+        axp.set_ylabel(label)
+        axp.grid(alpha=0.3)
+        if row == 2:
+            axp.set_xlabel("s [m]")
+
+
+def matplotlib_norm(values: np.ndarray):
+    from matplotlib.colors import Normalize  # noqa: PLC0415
+
+    top = float(values.max()) if values.size else 1.0
+    return Normalize(vmin=0.0, vmax=top if top > 0.0 else 1.0)
+
+
+def _save(fig, path: Path, plt) -> None:
     try:
         path.parent.mkdir(parents=True, exist_ok=True)
         fd, tmp = tempfile.mkstemp(suffix=".png", dir=path.parent, prefix=f".{path.stem}-")
@@ -81,4 +147,3 @@ def plot_equilibrium(eq: Equilibrium, path: str | Path) -> Path:
     finally:
         Path(tmp).unlink(missing_ok=True)
         plt.close(fig)
-    return path

@@ -10,18 +10,22 @@ from typing import Any
 from rich.console import Console
 from rich.table import Table
 
-from pliant.core.equilibrium import Equilibrium
 from pliant.core.problem import Problem
 
 
-def timed_solve(problem: Problem) -> tuple[Equilibrium, float]:
+def timed_solve(problem: Problem, elements: int = 100) -> tuple[Any, float]:
     """Solve, and time a second cold solve: the first one in a process also pays for
     loading the compiled kernels, which is not the solver's speed."""
-    from pliant.models.elastica2d import solve  # noqa: PLC0415
+    from pliant.models.dispatch import solve  # noqa: PLC0415
 
-    eq = solve(problem)
+    solver = None
+    if problem.dimension == 3:
+        from pliant.models.rod3d import RodSolver  # noqa: PLC0415
+
+        solver = RodSolver(elements=elements)
+    eq = solve(problem, solver=solver)
     start = time.perf_counter()
-    solve(problem)
+    solve(problem, solver=solver)
     return eq, time.perf_counter() - start
 
 
@@ -31,8 +35,11 @@ def _fmt(value: float, unit: str) -> str:
     return f"{value:.6g} {unit}"
 
 
-def print_summary(eq: Equilibrium, seconds: float, console: Console | None = None) -> None:
+def print_summary(eq: Any, seconds: float, console: Console | None = None) -> None:
     console = console or Console()
+    if eq.problem.dimension == 3:
+        _summary_3d(eq, seconds, console)
+        return
     problem = eq.problem
     x, y, angle = eq.tip
     console.print(f"[bold]{problem.name or 'problem'}[/bold]: solved in "
@@ -65,6 +72,50 @@ def print_summary(eq: Equilibrium, seconds: float, console: Console | None = Non
         console.print(f"note: {note}")
 
 
+def _vec(v) -> str:
+    return "(" + ", ".join(f"{x:.5g}" for x in v) + ")"
+
+
+def _summary_3d(eq: Any, seconds: float, console: Console) -> None:
+    problem = eq.problem
+    console.print(f"[bold]{problem.name or 'problem'}[/bold] (3D, {eq.state.rod.elements} "
+                  f"elements): solved in {seconds * 1e3:.2f} ms ({eq.iterations} Newton "
+                  f"iterations, {eq.steps} continuation steps, residual {eq.residual:.1e})")
+    position, tangent = eq.tip
+    console.print(f"tip (s = {problem.part.length:g} m): position {_vec(position)} m, "
+                  f"tangent {_vec(tangent)}")
+    table = Table(title="loads on the part (global frame)", title_justify="left")
+    for column in ("condition", "s [m]", "force [N]", "moment [N m]", "kind"):
+        table.add_column(column)
+    for load in eq.loads.values():
+        names = ("Fx", "Fy", "Fz", "M (axis)", "M (twist)")
+        kind = ("applied" if not any(load.prescribed) else "reaction (" + ", ".join(
+            n for n, p in zip(names, load.prescribed) if p) + ")")
+        table.add_row(load.name, f"{load.s:g}", _vec(load.force), _vec(load.moment), kind)
+    console.print(table)
+    moment, at = eq.max_moment()
+    console.print(f"max |M| = {_fmt(moment, 'N m')} at s = {at:.4g} m; max |torque| = "
+                  f"{_fmt(float(abs(eq.torque).max()), 'N m')}")
+    radius, at = eq.min_bend_radius()
+    line = f"smallest bend radius = {_fmt(radius, 'm')} at s = {at:.4g} m"
+    allowed = problem.part.min_bend_radius
+    if allowed is not None:
+        verdict = "[red]below[/red]" if radius < allowed else "above"
+        line += f" ({verdict} the part's minimum {allowed:g} m)"
+    console.print(line)
+    stable, eigen = eq.stability
+    if stable is None:
+        console.print("stability: not decided by a static test (follower loads or dead "
+                      "moments make the problem non-conservative)")
+    else:
+        word = "stable" if stable else "[red]UNSTABLE[/red] (it would snap)"
+        console.print(f"stability: {word}; smallest eigenvalue of the constrained "
+                      f"Hessian {eigen:.4g} N m")
+    console.print(f"elastic energy = {_fmt(eq.energy, 'J')}")
+    for note in eq.notes:
+        console.print(f"note: {note}")
+
+
 def _finite(value: Any) -> Any:
     """JSON has no infinity: write null instead."""
     if isinstance(value, float) and not math.isfinite(value):
@@ -76,7 +127,7 @@ def _finite(value: Any) -> Any:
     return value
 
 
-def print_json(eq: Equilibrium, seconds: float) -> None:
+def print_json(eq: Any, seconds: float) -> None:
     data = eq.to_dict()
     data["solve_seconds"] = seconds
     print(json.dumps(_finite(data), indent=1, allow_nan=False))

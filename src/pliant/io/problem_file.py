@@ -20,7 +20,7 @@ from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_valida
 from pliant.core.conditions import Condition
 from pliant.core.part import Material, Part
 from pliant.core.problem import Problem
-from pliant.errors import FileFormatError, PliantError
+from pliant.errors import FileFormatError, InputError, PliantError
 
 
 
@@ -50,7 +50,11 @@ class PartModel(_Strict):
     inner_diameter: float = Field(0.0, ge=0, description="[m]")
     material: MaterialModel | None = None
     rest_curvature: float | list[tuple[float, float]] = Field(
-        0.0, description="[1/m], or [[s, kappa], ...] knots")
+        0.0, description="[1/m], or [[s, kappa], ...] knots (about d1)")
+    rest_curvature_2: float | list[tuple[float, float]] = Field(
+        0.0, description="[1/m] about d2 (3D)")
+    rest_twist: float | list[tuple[float, float]] = Field(0.0, description="[1/m] (3D)")
+    bending_stiffness_2: float | None = Field(None, gt=0, description="EI about d2 (3D)")
     min_bend_radius: float | None = Field(None, gt=0, description="[m]")
 
     @model_validator(mode="after")
@@ -63,9 +67,13 @@ class PartModel(_Strict):
         return self
 
     def build(self) -> Part:
-        rest = (self.rest_curvature if isinstance(self.rest_curvature, float)
-                else tuple(self.rest_curvature))
-        common = {"name": self.name, "rest_curvature": rest,
+        def knots(value):
+            return value if isinstance(value, float) else tuple(value)
+
+        common = {"name": self.name, "rest_curvature": knots(self.rest_curvature),
+                  "rest_curvature_2": knots(self.rest_curvature_2),
+                  "rest_twist": knots(self.rest_twist),
+                  "bending_stiffness_2": self.bending_stiffness_2,
                   "min_bend_radius": self.min_bend_radius}
         if self.material is not None:
             assert self.outer_diameter is not None
@@ -82,7 +90,7 @@ class PartModel(_Strict):
                 fields = {k: getattr(part, k) for k in (
                     "length", "bending_stiffness", "mass_per_length", "torsional_stiffness",
                     "outer_diameter", "inner_diameter", "rest_curvature", "min_bend_radius",
-                    "name")}
+                    "name", "rest_curvature_2", "rest_twist", "bending_stiffness_2")}
                 fields.update(overrides)
                 part = Part(**fields)
             return part
@@ -94,6 +102,9 @@ class PartModel(_Strict):
                     **common)
 
 
+Vec3 = tuple[float, float, float]
+
+
 class ConditionModel(_Strict):
     """[[condition]]: what is known at one station (see the module docstring)."""
 
@@ -101,32 +112,70 @@ class ConditionModel(_Strict):
     s: float = Field(description="arc length from the first end [m]")
     x: float | None = Field(None, description="prescribed x [m]")
     y: float | None = Field(None, description="prescribed y [m]")
-    angle: float | None = Field(None, description="prescribed tangent angle [rad]")
+    z: float | None = Field(None, description="prescribed z [m] (3D)")
+    angle: float | None = Field(None, description="prescribed tangent angle [rad] (2D)")
+    tangent: Vec3 | None = Field(None, description="prescribed axis direction (3D)")
+    normal: Vec3 | None = Field(None, description="with tangent, the section axis d1 (3D)")
     Fx: float | None = Field(None, description="applied dead force, x [N]")
     Fy: float | None = Field(None, description="applied dead force, y [N]")
-    moment: float | None = Field(None, description="applied moment [N m]")
-    Ft: float | None = Field(None, description="follower force along the tangent [N]")
-    Fn: float | None = Field(None, description="follower force along the normal [N]")
+    Fz: float | None = Field(None, description="applied dead force, z [N] (3D)")
+    moment: float | Vec3 | None = Field(None, description="applied moment [N m]: a number "
+                                                          "in 2D, [Mx, My, Mz] in 3D")
+    Ft: float | None = Field(None, description="follower force along the tangent [N] (2D)")
+    Fn: float | None = Field(None, description="follower force along the normal [N] (2D)")
+    follower_force: Vec3 | None = Field(None, description="follower force in the section "
+                                                          "frame (d1, d2, d3) [N] (3D)")
+    follower_moment: Vec3 | None = Field(None, description="follower moment in the section "
+                                                           "frame (d1, d2, d3) [N m] (3D)")
     note: str = ""
 
     @model_validator(mode="after")
-    def _one_kind_of_force(self) -> ConditionModel:
-        dead = self.Fx is not None or self.Fy is not None
-        follower = self.Ft is not None or self.Fn is not None
+    def _one_kind_of_load(self) -> ConditionModel:
+        dead = any(v is not None for v in (self.Fx, self.Fy, self.Fz))
+        follower = any(v is not None for v in (self.Ft, self.Fn, self.follower_force,
+                                               self.follower_moment))
         if dead and follower:
-            raise ValueError("a condition applies either a dead force (Fx, Fy) or a "
-                             "follower force (Ft, Fn); split it into two conditions")
+            raise ValueError("a condition applies either dead forces (Fx, Fy, Fz) or "
+                             "follower loads; split it into two conditions")
+        if self.follower_moment is not None and self.moment is not None:
+            raise ValueError("a condition applies either a dead moment or a follower "
+                             "moment; split it into two conditions")
         return self
 
-    def build(self, index: int) -> Condition:
-        follower = self.Ft is not None or self.Fn is not None
-        force = (self.Ft, self.Fn) if follower else (self.Fx, self.Fy)
+    @property
+    def is_3d(self) -> bool:
+        return (self.z is not None or self.Fz is not None or self.tangent is not None
+                or self.normal is not None or isinstance(self.moment, tuple)
+                or self.follower_force is not None or self.follower_moment is not None)
+
+    def build(self, index: int, dimension: int) -> Condition:
+        name = self.name or f"condition{index + 1}"
+        if dimension == 2:
+            follower = self.Ft is not None or self.Fn is not None
+            force = ((self.Ft or 0.0, self.Fn or 0.0) if follower else (self.Fx, self.Fy))
+            return Condition(s=self.s, name=name, position=(self.x, self.y), angle=self.angle,
+                             force=force, moment=self.moment, follower=follower)
+        if self.angle is not None or self.Ft is not None or self.Fn is not None:
+            raise ValueError("angle, Ft and Fn are 2D; in 3D give tangent (and normal), "
+                             "follower_force and follower_moment")
+        follower = self.follower_force is not None or self.follower_moment is not None
         if follower:
-            force = (force[0] if force[0] is not None else 0.0,
-                     force[1] if force[1] is not None else 0.0)
-        return Condition(s=self.s, name=self.name or f"condition{index + 1}",
-                         position=(self.x, self.y), angle=self.angle, force=force,
-                         moment=self.moment, follower=follower)
+            force = self.follower_force
+            moment = self.follower_moment
+        else:
+            force, moment = (self.Fx, self.Fy, self.Fz), self.moment
+        if isinstance(moment, (int, float)):
+            raise ValueError("in 3D a moment is a vector [Mx, My, Mz]")
+        return Condition(s=self.s, name=name, position=(self.x, self.y, self.z),
+                         tangent=self.tangent, normal=self.normal,
+                         force=force if force is not None else (None, None, None),
+                         moment=moment, follower=follower)
+
+
+class SolverModel(_Strict):
+    """[solver]: settings of the model (3D: how many elements)."""
+
+    elements: int = Field(100, ge=4, le=100000, description="about how many elements (3D)")
 
 
 class ProblemFile(_Strict):
@@ -136,13 +185,28 @@ class ProblemFile(_Strict):
     description: str = ""
     choices: str = ""
     part: PartModel
-    gravity: tuple[float, float] = (0.0, 0.0)
+    gravity: tuple[float, float] | Vec3 | None = None
+    solver: SolverModel = Field(default_factory=SolverModel)
     condition: list[ConditionModel] = Field(default_factory=list)
+
+    @property
+    def dimension(self) -> int:
+        three = (self.gravity is not None and len(self.gravity) == 3) or any(
+            c.is_3d for c in self.condition)
+        return 3 if three else 2
 
     def build(self) -> Problem:
         part = self.part.build()
-        conditions = tuple(c.build(i) for i, c in enumerate(self.condition))
-        return Problem(part, conditions, self.gravity, self.name)
+        dimension = self.dimension
+        conditions = []
+        for i, c in enumerate(self.condition):
+            try:
+                conditions.append(c.build(i, dimension))
+            except ValueError as err:
+                if isinstance(err, PliantError):
+                    raise
+                raise InputError(f"condition[{i}]", str(err)) from None
+        return Problem(part, tuple(conditions), self.gravity, self.name)
 
 
 def _where(loc: tuple[Any, ...]) -> str:
@@ -154,6 +218,11 @@ def _where(loc: tuple[Any, ...]) -> str:
 
 def parse_problem(text: str, source: str = "<string>") -> Problem:
     """Parse TOML text into a ``Problem``; errors name the source and the field."""
+    return parse_problem_file(text, source)[0]
+
+
+def parse_problem_file(text: str, source: str = "<string>") -> tuple[Problem, SolverModel]:
+    """Parse TOML text into a ``Problem`` and its ``[solver]`` settings."""
     try:
         data = tomllib.loads(text)
     except tomllib.TOMLDecodeError as err:
@@ -170,13 +239,18 @@ def parse_problem(text: str, source: str = "<string>") -> Problem:
         more = f" (and {len(err.errors()) - 1} more)" if len(err.errors()) > 1 else ""
         raise FileFormatError(f"{source}: {where}: {message}{more}") from None
     try:
-        return model.build()
+        return model.build(), model.solver
     except PliantError as err:
         raise FileFormatError(f"{source}: {err}") from None
 
 
 def load_problem(path: str | Path) -> Problem:
     """Read a problem file (TOML, SI units)."""
+    return load_problem_file(path)[0]
+
+
+def load_problem_file(path: str | Path) -> tuple[Problem, SolverModel]:
+    """Read a problem file (TOML, SI units) and its ``[solver]`` settings."""
     path = Path(path)
     try:
         text = path.read_text(encoding="utf-8")
@@ -184,7 +258,7 @@ def load_problem(path: str | Path) -> Problem:
         raise FileFormatError(f"{path}: no such file; check the path") from None
     except OSError as err:
         raise FileFormatError(f"{path}: cannot be read: {err.strerror}") from None
-    return parse_problem(text, str(path))
+    return parse_problem_file(text, str(path))
 
 
 def dump_problem(problem: Problem, description: str = "") -> str:
@@ -193,35 +267,51 @@ def dump_problem(problem: Problem, description: str = "") -> str:
     lines = [f"name = {_toml(problem.name)}"]
     if description:
         lines.append(f"description = {_toml(description)}")
-    if problem.gravity != (0.0, 0.0):
-        lines.append(f"gravity = [{_num(problem.gravity[0])}, {_num(problem.gravity[1])}]")
+    if any(problem.gravity) or problem.dimension == 3:
+        lines.append(f"gravity = {_vec(problem.gravity)}")
     lines += ["", "[part]", f"name = {_toml(part.name)}", f"length = {_num(part.length)}",
               f"bending_stiffness = {_num(part.bending_stiffness)}",
               f"mass_per_length = {_num(part.mass_per_length)}"]
-    if part.torsional_stiffness is not None:
-        lines.append(f"torsional_stiffness = {_num(part.torsional_stiffness)}")
+    for key in ("torsional_stiffness", "bending_stiffness_2", "min_bend_radius"):
+        value = getattr(part, key)
+        if value is not None:
+            lines.append(f"{key} = {_num(value)}")
     if part.outer_diameter is not None:
         lines.append(f"outer_diameter = {_num(part.outer_diameter)}")
         lines.append(f"inner_diameter = {_num(part.inner_diameter)}")
-    if part.min_bend_radius is not None:
-        lines.append(f"min_bend_radius = {_num(part.min_bend_radius)}")
-    if isinstance(part.rest_curvature, (int, float)):
-        lines.append(f"rest_curvature = {_num(float(part.rest_curvature))}")
-    else:
-        knots = ", ".join(f"[{_num(s)}, {_num(k)}]" for s, k in part.rest_knots)
-        lines.append(f"rest_curvature = [{knots}]")
+    for key, knots in (("rest_curvature", part.rest_knots),
+                       ("rest_curvature_2", part.rest_knots_2), ("rest_twist", part.twist_knots)):
+        lines.append(f"{key} = [{', '.join(f'[{_num(s)}, {_num(k)}]' for s, k in knots)}]")
+    three = problem.dimension == 3
     for c in problem.conditions:
         lines += ["", "[[condition]]", f"name = {_toml(c.name)}", f"s = {_num(c.s)}"]
-        for key, value in (("x", c.position[0]), ("y", c.position[1]), ("angle", c.angle)):
+        for key, value in zip("xyz", c.position):
             if value is not None:
                 lines.append(f"{key} = {_num(value)}")
-        keys = ("Ft", "Fn") if c.follower else ("Fx", "Fy")
+        if c.angle is not None:
+            lines.append(f"angle = {_num(c.angle)}")
+        if c.tangent is not None:
+            lines.append(f"tangent = {_vec(c.tangent)}")
+        if c.normal is not None:
+            lines.append(f"normal = {_vec(c.normal)}")
+        if c.follower and three:
+            if any(f is not None for f in c.force):
+                lines.append(f"follower_force = {_vec(tuple(f or 0.0 for f in c.force))}")
+            if c.moment is not None:
+                lines.append(f"follower_moment = {_vec(c.moment)}")
+            continue
+        keys = ("Ft", "Fn") if c.follower else ("Fx", "Fy", "Fz")
         for key, value in zip(keys, c.force):
             if value is not None:
                 lines.append(f"{key} = {_num(value)}")
         if c.moment is not None:
-            lines.append(f"moment = {_num(c.moment)}")
+            moment = c.moment
+            lines.append(f"moment = {_vec(moment) if isinstance(moment, tuple) else _num(moment)}")
     return "\n".join(lines) + "\n"
+
+
+def _vec(values) -> str:
+    return "[" + ", ".join(_num(v) for v in values) + "]"
 
 
 def _num(value: float) -> str:
