@@ -7,7 +7,7 @@ import math
 import numpy as np
 import pytest
 from scipy.optimize import brentq
-from scipy.special import ellipeinc, ellipk, ellipe, ellipkinc
+from scipy.special import ellipe, ellipeinc, ellipk, ellipkinc
 
 import pliant as pl
 from pliant.models.elastica2d import ShootingSolver, solve

@@ -3,7 +3,6 @@ agreement with solve_bvp, exact derivatives, warm starts and continuation."""
 
 from __future__ import annotations
 
-
 import numpy as np
 import pytest
 

@@ -8,8 +8,7 @@ import numpy as np
 import pytest
 
 import pliant as pl
-from pliant.errors import (ConvergenceError, IllPosedProblemError, InputError,
-                           UnreachableTargetError)
+from pliant.errors import ConvergenceError, IllPosedProblemError, InputError, UnreachableTargetError
 from pliant.models.elastica2d import ShootingSolver, solve
 
 UNIT = pl.Part(length=1.0, bending_stiffness=1.0)

@@ -10,11 +10,18 @@ from scipy.optimize import brentq
 from scipy.special import ellipe, ellipk
 
 import pliant as pl
-from pliant.errors import IllPosedProblemError, InputError, UnreachableTargetError
+from pliant.errors import (
+    ConvergenceError,
+    IllPosedProblemError,
+    InputError,
+    UnreachableTargetError,
+)
 from pliant.models import rod3d
 from pliant.models.rod3d import kernels
 from pliant.models.rod3d.lowering import lower
-from pliant.models.rod3d.solver import _Run
+from pliant.models.rod3d.solver import _Run, _Stalled
+from pliant.models.rod3d.solver import _stability as stability_of
+from pliant.models.rod3d.solver import _stability_dense as stability_dense
 
 from .helpers import zoo
 
@@ -39,8 +46,11 @@ def to_3d(problem: pl.Problem) -> pl.Problem:
         conditions.append(pl.Condition(s=c.s, name=c.name, position=position,
                                        tangent=tangent, normal=normal, force=force,
                                        moment=moment, follower=c.follower))
+    # A strip three times stiffer out of the plane, as a planar model assumes: an
+    # isotropic part may leave the plane (see test_isotropic_case3_leaves_the_plane).
     part = problem.part
     part3 = pl.Part(length=part.length, bending_stiffness=part.bending_stiffness,
+                    bending_stiffness_2=3.0 * part.bending_stiffness,
                     mass_per_length=part.mass_per_length, rest_curvature=part.rest_curvature)
     return pl.Problem(part3, tuple(conditions), tuple(problem.gravity) + (0.0,), problem.name)
 
@@ -62,6 +72,36 @@ def test_planar_problems_agree_with_2d_at_second_order(name):
     order = math.log2(errors[0] / errors[1])
     assert errors[1] < 2e-3 * problem2.part.length
     assert 1.7 < order < 2.4, (errors, order)
+
+
+def test_isotropic_case3_leaves_the_plane():
+    """The paper's case 3 (tip brought to (0.7, 0.4) with its angle held) in 3D with a
+    round part (GJ = EI / 1.5): the planar equilibrium, the 2D model's answer, is
+    unstable out of the plane (the smallest eigenvalue of the constrained Hessian is
+    about -5 EI/L, converged under refinement); the solver says so and returns the
+    stable equilibrium that leaves the plane instead."""
+    problem = to_3d(zoo()["case3"])
+    round_part = pl.Part(length=1.0, bending_stiffness=1.0)
+    problem = pl.Problem(round_part, problem.conditions)
+    eq = rod3d.solve(problem, solver=rod3d.RodSolver(elements=40))
+    assert eq.stable and np.abs(eq.position[:, 2]).max() > 0.1
+    assert "gives no stable branch" in eq.notes[0]
+    # The planar branch: the same problem on a strip, then the strip made round.
+    planar = rod3d.solve(to_3d(zoo()["case3"]), solver=rod3d.RodSolver(elements=40))
+    assert np.abs(planar.position[:, 2]).max() < 1e-10
+    values = []
+    for elements in (40, 80):
+        strip = rod3d.solve(to_3d(zoo()["case3"]), solver=rod3d.RodSolver(elements=elements))
+        run = _Run(strip.state.rod.retarget(problem, elements) or lower(problem, elements),
+                   rod3d.RodSolver(elements=elements))
+        state, _, status, _ = run.newton(strip.state.state, run.rod.target, strict=False)
+        assert status == kernels.CONVERGED
+        assert np.abs(state[0][:, 2]).max() < 1e-10  # still planar
+        stable, value = stability_of(run, state)
+        assert not stable
+        values.append(value)
+    assert values[1] == pytest.approx(-5.05, abs=0.1)
+    assert abs(values[1] - values[0]) < 0.02 * abs(values[1])
 
 
 def helix(kappa: float, tau: float, twist: float, s: np.ndarray):
@@ -259,6 +299,14 @@ def test_stability_changes_at_the_euler_load():
         verdicts.append(rod3d.solve(problem).stability)
     assert verdicts[0][0] is True and verdicts[0][1] > 0
     assert verdicts[1][0] is False and verdicts[1][1] < 0
+    # The eigenvalue is that of the continuous operator (unknowns weighed by the length
+    # they stand for): it converges under refinement, here at first order.
+    half = pl.Problem(UNIT, (pl.clamp(0.0, position=(0.0, 0.0, 0.0)),
+                             pl.push(1.0, force=(-0.5 * critical, 0.0, 0.0), name="tip")))
+    values = [rod3d.solve(half, solver=rod3d.RodSolver(elements=n)).stability[1]
+              for n in (50, 100, 200)]
+    assert 1.7 < (values[1] - values[0]) / (values[2] - values[1]) < 2.3
+    assert abs(values[2] - values[1]) < 0.01 * values[2]
     follower = pl.Problem(UNIT, (pl.clamp(0.0, position=(0.0, 0.0, 0.0)),
                                  pl.push(1.0, force=(0.0, 1.0, 0.0), follower=True,
                                          name="tip")))
@@ -305,3 +353,107 @@ def test_dispatch_and_kernel_statuses():
     eq = pl.solve(hose_problem())
     assert isinstance(eq, pl.Equilibrium3D)
     assert kernels.CONVERGED == 0
+
+
+STRIP = pl.Part(length=1.0, bending_stiffness=1.0, bending_stiffness_2=30.0,
+                torsional_stiffness=0.8)
+
+
+def strip_turned(turn: float) -> pl.Problem:
+    """A flat strip (flatwise EI = 1, edgewise 30), clamped at both ends 10% closer than
+    its length; the far end turned by ``turn`` about y, in the strip's bending plane."""
+    return pl.Problem(STRIP, (
+        pl.clamp(0.0, position=(0.0, 0.0, 0.0), tangent=(1, 0, 0), normal=(0, 1, 0)),
+        pl.clamp(1.0, position=(0.9, 0.0, 0.0), tangent=(math.cos(turn), 0.0, math.sin(turn)),
+                 normal=(0, 1, 0), name="end")))
+
+
+def test_trace_stops_at_a_snap_through_with_the_last_good_state():
+    """The 3D twin of the 2D snap-through: the strip bows flatwise (its weak axis), and
+    turning the end into the bow ends the branch at a fold. trace stops there with the
+    last good equilibrium instead of jumping to the snapped shape; on the way the
+    smallest eigenvalue of the constrained Hessian falls toward zero, as it must at a
+    fold, and the mid-span's sensitivity to the turn grows. Turned the other way, the
+    strip follows smoothly."""
+    turns = np.linspace(0.0, 1.0, 101)[1:]
+    seen = []
+    with pytest.raises(ConvergenceError) as err:
+        for eq in rod3d.trace([strip_turned(a) for a in turns]):
+            seen.append(eq)
+    assert "fold" in str(err.value)
+    assert err.value.last_good is seen[-1]
+    assert "[0.0, 0.0, 1.0]" in seen[0].notes[0]
+    assert 0.3 < len(seen) / 100 < 0.9
+    mid = np.array([eq.position[np.argmin(np.abs(eq.s - 0.5))] for eq in seen])
+    assert np.abs(mid[:, 1]).max() < 1e-9 and mid[0, 2] > 0.15  # bowed flatwise, up
+    slope = np.abs(np.diff(mid[:, 2]) / np.diff(turns[:len(seen)]))
+    assert slope[-1] > 10 * slope[0]
+    first, last = seen[0].stability, seen[-1].stability
+    assert first[0] and last[0] and last[1] < 0.3 * first[1]
+    *_, other = rod3d.trace([strip_turned(-a) for a in turns])
+    assert other.residual < 1e-9 and other.stable
+
+
+def test_trace_warm_steps_match_cold_solves_on_one_mesh():
+    """Each warm step of a hand's path is the equilibrium a cold solve finds (the
+    branch is unique here), and the steps reuse the first step's mesh."""
+    hose = pl.Part(length=1.0, bending_stiffness=0.05, mass_per_length=0.3,
+                   torsional_stiffness=0.033)
+
+    def carried(t: float) -> pl.Problem:
+        return pl.Problem(hose, (pl.clamp(0.0, position=(0.0, 0.0, 0.0)),
+                                 pl.grip(1.0, position=(0.9 - 0.35 * t, 0.3 * t, 0.2 * t),
+                                         tangent=(-1.0, t, 0.0), name="hand")),
+                          gravity=(0.0, 0.0, -9.81))
+
+    path = [carried(t) for t in np.linspace(0.1, 1.0, 10)]
+    steps = list(rod3d.trace(path))
+    for eq in steps[1:]:
+        assert eq.state.rod.key == steps[0].state.rod.key
+    for eq in steps[::3]:
+        cold = rod3d.solve(eq.problem)
+        assert np.allclose(eq.position, cold.position, atol=1e-9)
+        assert np.allclose(eq.reactions["hand"].force, cold.reactions["hand"].force, atol=1e-8)
+
+
+def test_past_a_fold_the_part_snaps_and_settles():
+    """Where every route meets a fold, the solver lets the part snap: from the last
+    state before the fold, a pseudo-transient relaxation settles it just past the fold
+    and the route goes on. For the strip turned past its fold (0.8 rad, the fold is
+    near 0.57) that is the strip bowed the other way: the equilibrium a cold solve finds
+    on the other side, stable."""
+    turns = np.linspace(0.0, 1.0, 101)[1:]
+    with pytest.raises(ConvergenceError) as err:
+        for _ in rod3d.trace([strip_turned(a) for a in turns]):
+            pass
+    last = err.value.last_good
+    run = _Run(last.state.rod.retarget(strip_turned(0.8), 100), rod3d.RodSolver())
+    fold = _Stalled(0.6, 1e-6, "a fold", state=last.state.state, gauge=last.state.gauge_quat,
+                    loads=last.state.rod.target, ahead=(run.rod.target,))
+    state = run.beyond_fold(fold)
+    assert "snaps through" in run.notes[0]
+    cold = rod3d.solve(strip_turned(0.8))
+    assert "[-0.0, -0.0, -1.0]" in cold.notes[0]
+    assert np.allclose(state[0], cold.position, atol=1e-9)
+    assert cold.stable
+
+
+@pytest.mark.parametrize(("factor", "side", "weight", "stable"),
+                         [(0.5, 0.1, 0.3, True), (4.0, 0.1, 0.3, True),
+                          (1.03, 0.0, 0.0, False), (4.0, 0.0, 0.0, False)])
+def test_stability_by_lanczos_matches_the_dense_eigensolver(factor, side, weight, stable):
+    """The shift-invert Lanczos test (milliseconds) against the dense null space and
+    eigensolver: a cantilever pushed along its axis with a side push and its weight
+    (bent onto a stable branch, even past the Euler load), and without them (straight,
+    unstable past the Euler load)."""
+    hose = pl.Part(length=1.0, bending_stiffness=1.0, torsional_stiffness=0.8,
+                   mass_per_length=weight)
+    problem = pl.Problem(hose, (pl.clamp(0.0, position=(0.0, 0.0, 0.0)),
+                                pl.push(1.0, force=(-factor * math.pi**2 / 4, 0.0, side),
+                                        name="tip")), gravity=(0.0, 0.0, -9.81))
+    eq = rod3d.solve(problem, solver=rod3d.RodSolver(elements=30))
+    run = _Run(eq.state.rod, rod3d.RodSolver(elements=30))
+    run.gauge_quat = eq.state.gauge_quat
+    fast, dense = stability_of(run, eq.state.state), stability_dense(run, eq.state.state)
+    assert fast[0] == dense[0] == stable
+    assert fast[1] == pytest.approx(dense[1], rel=1e-7, abs=1e-9)

@@ -23,7 +23,6 @@ from pliant.core.problem import Problem
 from pliant.errors import FileFormatError, InputError, PliantError
 
 
-
 class _Strict(BaseModel):
     model_config = ConfigDict(extra="forbid", allow_inf_nan=False)
 

@@ -35,8 +35,15 @@ from pliant.core.equilibrium import Equilibrium, Samples, StationLoad
 from pliant.core.problem import Problem
 from pliant.errors import ConvergenceError
 from pliant.models.elastica2d import kernels
-from pliant.models.elastica2d.lowering import (NODE_SPAN, PRESCRIBED, Arrays,
-                                               Lowered, Mesh, load_wavenumber, lower)
+from pliant.models.elastica2d.lowering import (
+    NODE_SPAN,
+    PRESCRIBED,
+    Arrays,
+    Lowered,
+    Mesh,
+    load_wavenumber,
+    lower,
+)
 
 
 @dataclass(frozen=True)

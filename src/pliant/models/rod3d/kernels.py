@@ -729,3 +729,47 @@ def node_outputs(Q, elem_frame, joint_hh, joint_k0, K, node_station_frame):
             for c in range(3):
                 frames[i, r, c] = Rm[r, c]
     return frames, moments
+
+
+@njit(cache=True)
+def unknown_sizes(X, lam, nu, ix, ilam, inu, nu_off, nu_cnt, n):
+    """Each unknown's size floored at 1 (frame rotations count as 1)."""
+    out = np.ones(n)
+    for i in range(X.shape[0]):
+        for c in range(3):
+            out[ix[i] + c] = max(1.0, abs(X[i, c]))
+    for e in range(lam.shape[0]):
+        for c in range(3):
+            out[ilam[e] + c] = max(1.0, abs(lam[e, c]))
+    for s in range(inu.shape[0]):
+        for k in range(nu_cnt[s]):
+            out[inu[s] + k] = max(1.0, abs(nu[nu_off[s] + k]))
+    return out
+
+
+@njit(cache=True)
+def rest_shape(h, elem_frame, joint_hh, joint_k0):
+    """Nodes (N+1, 3) and frames (F, 4) of the unloaded part from the origin with the
+    identity frame (d3 = +z): consecutive frames differ by the relative rotation whose
+    discrete curvature is exactly the rest curvature, so the shape has zero energy."""
+    F = joint_hh.shape[0] + 1
+    Q = np.zeros((F, 4))
+    Q[0, 0] = 1.0
+    for j in range(F - 1):
+        v0 = 0.5 * joint_hh[j] * joint_k0[j, 0]
+        v1 = 0.5 * joint_hh[j] * joint_k0[j, 1]
+        v2 = 0.5 * joint_hh[j] * joint_k0[j, 2]
+        w = math.sqrt(max(0.0, 1.0 - v0 * v0 - v1 * v1 - v2 * v2))
+        q0, q1, q2, q3 = _qm(Q[j, 0], Q[j, 1], Q[j, 2], Q[j, 3], w, v0, v1, v2)
+        Q[j + 1, 0] = q0
+        Q[j + 1, 1] = q1
+        Q[j + 1, 2] = q2
+        Q[j + 1, 3] = q3
+    N = h.shape[0]
+    X = np.zeros((N + 1, 3))
+    Rm = np.empty((3, 3))
+    for e in range(N):
+        _rot_into(Q[elem_frame[e]], Rm)
+        for c in range(3):
+            X[e + 1, c] = X[e, c] + h[e] * Rm[c, 2]
+    return X, Q

@@ -10,12 +10,12 @@ element that starts there (frame and multiplier).
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
 from pliant.core.problem import Problem, Station3D
-from pliant.models.rod3d.kernels import AXIS, FULL
+from pliant.models.rod3d.kernels import AXIS, FREE, FULL
 
 
 def quat_from_matrix(R: np.ndarray) -> np.ndarray:
@@ -158,6 +158,28 @@ class Rod:
     key: tuple = ()
     rest_k0: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)))
     node_frame: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=np.int64))
+    requested: int = 0  # the element count asked of lower()
+
+    def retarget(self, problem: Problem, elements: int) -> Rod | None:
+        """The same discretisation for another problem with the same part and stations
+        (only targets and loads moved: a hand's next pose), or None."""
+        if elements != self.requested or problem.dimension != 3:
+            return None
+        if problem.part is not self.problem.part and problem.part != self.problem.part:
+            return None
+        old = self.stations
+        if len(problem.stations) != len(old) or any(
+                a.s != b.s or a.prescribed != b.prescribed for a, b in zip(problem.stations, old)):
+            return None
+        targets = _targets(problem, self.st_node, self.h)
+        # A quaternion and its negative are one rotation: keep the old hemisphere so the
+        # constraint's multipliers keep their signs.
+        quat = targets[3]
+        for k in range(quat.shape[0]):
+            if np.dot(quat[k], self.target.st_quat[k]) < 0.0:
+                quat[k] = -quat[k]
+        return replace(self, problem=problem, stations=problem.stations,
+                       target=Loads(*targets, joint_k0=self.target.joint_k0))
 
     @property
     def force_scale(self) -> float:
@@ -189,17 +211,9 @@ class Rod:
     def rest_shape(self, joint_k0: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Nodes (N+1, 3) and frames (F, 4) of the unloaded part, from the origin with
         the identity frame (d3 = +z); exactly at rest in the discrete energy."""
-        F = self.frame_s.shape[0]
-        Q = np.zeros((F, 4))
-        Q[0] = (1.0, 0.0, 0.0, 0.0)
-        for j in range(F - 1):
-            v = 0.5 * self.joint_hh[j] * joint_k0[j]
-            r = np.array([math.sqrt(max(0.0, 1.0 - float(v @ v))), *v])
-            Q[j + 1] = _qmul(Q[j], r)
-        X = np.zeros((self.elements + 1, 3))
-        for e in range(self.elements):
-            X[e + 1] = X[e] + self.h[e] * quat_matrix(Q[self.elem_frame[e]])[:, 2]
-        return X, Q
+        from pliant.models.rod3d.kernels import rest_shape  # noqa: PLC0415
+
+        return rest_shape(self.h, self.elem_frame, self.joint_hh, joint_k0)
 
     def placement(self, X: np.ndarray, Q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Rigid motion (G, T) that puts the rest shape where the conditions want it."""
@@ -240,7 +254,7 @@ class Rod:
         G, T = self.placement(X, Q)
         qg = quat_from_matrix(G)
         X = X @ G.T + T
-        Q = np.array([_qmul(qg, q) for q in Q])
+        Q = _qmul_rows(qg, Q)
         S = self.st_kind.shape[0]
         st_pos = np.zeros((S, 3))
         st_tangent = np.zeros((S, 3))
@@ -259,6 +273,15 @@ class Rod:
         return loads, state
 
 
+def _qmul_rows(a: np.ndarray, B: np.ndarray) -> np.ndarray:
+    """a * B[k] for every row k of B (F, 4)."""
+    w, x, y, z = a
+    return np.column_stack([w * B[:, 0] - x * B[:, 1] - y * B[:, 2] - z * B[:, 3],
+                            w * B[:, 1] + x * B[:, 0] + y * B[:, 3] - z * B[:, 2],
+                            w * B[:, 2] - x * B[:, 3] + y * B[:, 0] + z * B[:, 1],
+                            w * B[:, 3] + x * B[:, 2] - y * B[:, 1] + z * B[:, 0]])
+
+
 def _qmul(a, b):
     return np.array([a[0] * b[0] - a[1] * b[1] - a[2] * b[2] - a[3] * b[3],
                      a[0] * b[1] + a[1] * b[0] + a[2] * b[3] - a[3] * b[2],
@@ -273,13 +296,44 @@ def _profile(knots: tuple[tuple[float, float], ...], s: np.ndarray) -> np.ndarra
     return np.interp(s, ks, kv)
 
 
+def _targets(problem: Problem, st_node: np.ndarray, h: np.ndarray) -> tuple:
+    """The load- and target-dependent arrays of a problem on a mesh (dimensionless):
+    nodal dead forces, prescribed positions, tangents and orientations, moments and
+    follower loads."""
+    part = problem.part
+    L, EI1 = part.length, part.bending_stiffness
+    fs, ms = EI1 / L**2, EI1 / L
+    S = len(problem.stations)
+    st_pos = np.zeros((S, 3))
+    st_tangent = np.zeros((S, 3))
+    st_quat = np.zeros((S, 4))
+    st_moment = np.zeros((S, 3))
+    st_ffollow = np.zeros((S, 3))
+    st_mfollow = np.zeros((S, 3))
+    fnode = np.zeros((h.shape[0] + 1, 3))
+    for k, st in enumerate(problem.stations):
+        mask = np.array(st.prescribed[:3])
+        st_pos[k] = np.where(mask, st.position, 0.0) / L
+        if st.tangent is not None:
+            st_tangent[k] = st.tangent
+        if st.normal is not None:
+            st_quat[k] = quat_from_matrix(frame_matrix(st.tangent, st.normal))
+        st_moment[k] = np.array(st.dead_moment) / ms
+        st_ffollow[k] = np.array(st.follower_force) / fs
+        st_mfollow[k] = np.array(st.follower_moment) / ms
+        fnode[st_node[k]] += np.where(mask, 0.0, st.dead_force) / fs
+    weight = part.mass_per_length * np.asarray(problem.gravity) * L**3 / EI1
+    fnode[:-1] += 0.5 * h[:, None] * weight
+    fnode[1:] += 0.5 * h[:, None] * weight
+    return fnode, st_pos, st_tangent, st_quat, st_moment, st_ffollow, st_mfollow
+
+
 def lower(problem: Problem, elements: int = 100) -> Rod:
     """Discretise a 3D problem with about ``elements`` elements."""
     part = problem.part
     L = part.length
     EI1 = part.bending_stiffness
     K = np.array(part.stiffnesses) / EI1
-    fs, ms = EI1 / L**2, EI1 / L
     stations = problem.stations
     breaks = sorted({0.0, 1.0} | {st.s / L for st in stations}
                     | {k / L for k in part.knot_positions})
@@ -309,33 +363,10 @@ def lower(problem: Problem, elements: int = 100) -> Rod:
     rest_k0 = np.column_stack([_profile(part.rest_knots, mids), _profile(part.rest_knots_2, mids),
                                _profile(part.twist_knots, mids)]) * L
     # Stations.
-    st_pos_mask = np.zeros((S, 3), dtype=np.int64)
-    st_kind = np.zeros(S, dtype=np.int64)
-    st_pos = np.zeros((S, 3))
-    st_tangent = np.zeros((S, 3))
-    st_quat = np.zeros((S, 4))
-    st_moment = np.zeros((S, 3))
-    st_ffollow = np.zeros((S, 3))
-    st_mfollow = np.zeros((S, 3))
-    fnode = np.zeros((N + 1, 3))
-    for k, st in enumerate(stations):
-        mask = np.array(st.prescribed[:3])
-        st_pos_mask[k] = mask
-        st_pos[k] = np.where(mask, st.position, 0.0) / L
-        if st.normal is not None:
-            st_kind[k] = FULL
-            st_quat[k] = quat_from_matrix(frame_matrix(st.tangent, st.normal))
-            st_tangent[k] = st.tangent
-        elif st.tangent is not None:
-            st_kind[k] = AXIS
-            st_tangent[k] = st.tangent
-        st_moment[k] = np.array(st.dead_moment) / ms
-        st_ffollow[k] = np.array(st.follower_force) / fs
-        st_mfollow[k] = np.array(st.follower_moment) / ms
-        fnode[st_node[k]] += np.where(mask, 0.0, st.dead_force) / fs
-    weight = part.mass_per_length * np.asarray(problem.gravity) * L**3 / EI1
-    fnode[:-1] += 0.5 * h[:, None] * weight
-    fnode[1:] += 0.5 * h[:, None] * weight
+    st_pos_mask = np.array([st.prescribed[:3] for st in stations], dtype=np.int64).reshape(S, 3)
+    st_kind = np.array([FULL if st.normal is not None else AXIS if st.tangent is not None
+                        else FREE for st in stations], dtype=np.int64)
+    targets = _targets(problem, st_node, h)
     # An isotropic part that nothing holds in twist has a free twist: a gauge fixes it.
     holds_twist = any(st.normal is not None for st in stations)
     gauge_frame = 0 if (not holds_twist and K[0] == K[1]) else -1
@@ -376,8 +407,7 @@ def lower(problem: Problem, elements: int = 100) -> Rod:
         width = max(width, max(ends) - min(starts))
     if igauge >= 0:
         width = max(width, abs(igauge - ith[gauge_frame]) + 2)
-    target = Loads(fnode, st_pos, st_tangent, st_quat, st_moment, st_ffollow, st_mfollow,
-                   rest_k0.copy())
+    target = Loads(*targets, joint_k0=rest_k0.copy())
     key = (L, EI1, tuple(K), s_node.tobytes(), st_pos_mask.tobytes(), st_kind.tobytes(),
            rest_k0.tobytes())
     return Rod(problem=problem, length=L, stiffness=EI1, s_node=s_node, h=h,
@@ -386,4 +416,4 @@ def lower(problem: Problem, elements: int = 100) -> Rod:
                st_pos_mask=st_pos_mask, st_kind=st_kind, gauge_frame=gauge_frame, ix=ix,
                ith=ith, ilam=ilam, inu=inu, nu_off=nu_off, nu_cnt=nu_cnt, igauge=igauge,
                n=n, kl=width, ku=width, m=m, target=target, key=key, rest_k0=rest_k0,
-               node_frame=node_frame)
+               node_frame=node_frame, requested=elements)

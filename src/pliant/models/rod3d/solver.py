@@ -1,23 +1,38 @@
 """Solve the 3D rod: ``solve(problem)`` and ``trace(problems)``.
 
-The same route as the 2D model: a homotopy from the unloaded part (loads scaled by t,
-prescribed positions moved along straight lines and orientations along the shortest
-arcs), each step a Newton corrector on the KKT system that must contract, with a tangent
-first predictor and secant ones after; steps are capped so that the load's wavenumber
-grows by at most one per step (buckling modes appear about pi apart in it). A singular
-start (an end pushed along the straight part) gets a bow imperfection toward the side
-the targets and loads push to, removed at the end, and a note says so.
+The route, for a problem with no warm start (as in the 2D model):
+
+1. A homotopy from the unloaded part (loads scaled by t, prescribed positions moved
+   along straight lines and orientations along the shortest arcs); each step a Newton
+   corrector on the KKT system that must contract, with a tangent first predictor and
+   secant ones after; steps are capped so that the loads' wavenumber grows by at most
+   one per step (buckling modes appear about pi apart in it).
+2. A singular start (an end pushed along the straight part: it may buckle to any side)
+   runs on a part bowed toward the side the targets and loads push it to, then the bow
+   is removed. If that branch meets a fold or ends unstable (for conservative loads),
+   the opposite side and the two across are tried, and the first stable one is kept.
+   A note says which.
+3. When a route stalls at a fold, other routes are tried: targets first then loads,
+   held points swung round the first support along arcs, loads first then targets.
+4. When every route meets a fold, the part snaps there: just past the fold it is let
+   settle by a pseudo-transient relaxation (implicit Euler of the constrained gradient
+   flow), and the route goes on from where it lands. A note says so.
+
+With a warm start, the previous equilibrium's mesh is reused when only targets and
+loads moved, one Newton from it is tried, then a homotopy from it; ``trace`` never leaves
+its branch: a fold ends it with a ConvergenceError carrying the last good equilibrium.
 
 Stability (for conservative loads): the smallest eigenvalue of the Hessian of the
-Lagrangian restricted to the tangent space of the constraints, computed on demand.
+Lagrangian on the tangent space of the constraints, in the metric of the part's length
+(so it converges under refinement), by shift-invert Lanczos on the band KKT matrix.
 """
 
 from __future__ import annotations
 
 import math
 import time
-from collections.abc import Iterable, Iterator
-from dataclasses import dataclass, field
+from collections.abc import Callable, Iterable, Iterator
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -70,6 +85,10 @@ class _Stalled(Exception):
     reason: str
     singular_start: bool = False
     budget: bool = False
+    state: State | None = None  # the last good state on the path
+    gauge: np.ndarray | None = None  # its twist gauge
+    loads: Loads | None = None  # its loads and targets
+    ahead: tuple[Loads, ...] = ()  # what was left of the route: the leg's end and after
 
 
 @dataclass(frozen=True, eq=False)
@@ -88,6 +107,7 @@ class _Run:
     steps: int = 0
     notes: list[str] = field(default_factory=list)
     deadline: float = 0.0
+    stall: _Stalled | None = None  # why the last follow from a warm start stopped
 
     def __post_init__(self) -> None:
         self.deadline = time.perf_counter() + self.solver.time_budget
@@ -104,7 +124,18 @@ class _Run:
             opts.tolerance if tol is None else tol, opts.max_iterations,
             opts.contraction if strict else 0.0)
         self.iterations += it
+        if status == kernels.CONVERGED and not self._axes_agree(Q, loads):
+            status = kernels.NOT_CONTRACTING
         return (X, Q, lam, nu), r, status, energy
+
+    def _axes_agree(self, Q: np.ndarray, loads: Loads) -> bool:
+        """An axis grip's constraint (d3 normal to two vectors across the axis) also holds
+        with d3 reversed: a Newton that jumped to that sheet has not met the grip."""
+        rod = self.rod
+        for k in np.nonzero(rod.st_kind == AXIS)[0]:
+            if quat_matrix(Q[rod.st_frame[k]])[:, 2] @ loads.st_tangent[k] <= 0.0:
+                return False
+        return True
 
     def residual(self, state: State, loads: Loads, want_jac: bool = False):
         rod = self.rod
@@ -129,7 +160,7 @@ class _Run:
         eps = 1e-7
         R_eps, ab, _ = self.residual(state, start.lerp(end, eps), want_jac=True)
         tangent, ok = kernels.band_solve(ab, self.rod.kl, self.rod.ku, -R_eps / eps)
-        if not ok:
+        if not ok or not float(np.abs(tangent).max()) < 1e10:  # singular up to rounding
             raise _Stalled(0.0, math.inf, "the start is singular", singular_start=True)
         load_f, load_c = _load_size(start, end)
         root_f = math.sqrt(load_f)
@@ -139,10 +170,11 @@ class _Run:
         while True:
             if steps >= opts.max_steps:
                 raise _Stalled(t, math.inf, f"the continuation budget of {opts.max_steps} "
-                               "steps ran out", budget=True)
+                               "steps ran out", budget=True, state=state,
+                               gauge=self.gauge_quat.copy())
             if time.perf_counter() > self.deadline:
                 raise _Stalled(t, math.inf, f"the time budget of {opts.time_budget} s ran "
-                               "out", budget=True)
+                               "out", budget=True, state=state, gauge=self.gauge_quat.copy())
             # No step may raise the loads' wavenumber sqrt(t F) + t C by more than wave_step.
             k_next = math.sqrt(t) * root_f + t * load_c + opts.wave_step
             if load_c > 0.0 or root_f > 0.0:
@@ -176,55 +208,249 @@ class _Run:
                               "ends or turns back here)" if status == kernels.SINGULAR else
                               "Newton stopped contracting however short the step (a fold: "
                               "the branch ends or turns back here)")
-                    raise _Stalled(t, r, reason)
+                    raise _Stalled(t, r, reason, state=state, gauge=self.gauge_quat.copy(),
+                                   loads=start.lerp(end, t), ahead=(end,))
 
     def sizes(self, state: State) -> np.ndarray:
         """Each unknown's size, floored at 1 (frame rotations count as 1)."""
         rod = self.rod
-        X, _, lam, nu = state
-        out = np.ones(rod.n)
-        for i in range(X.shape[0]):
-            out[rod.ix[i]:rod.ix[i] + 3] = np.maximum(1.0, np.abs(X[i]))
-        for e in range(lam.shape[0]):
-            out[rod.ilam[e]:rod.ilam[e] + 3] = np.maximum(1.0, np.abs(lam[e]))
-        for k in range(rod.inu.shape[0]):
-            cnt, off = rod.nu_cnt[k], rod.nu_off[k]
-            out[rod.inu[k]:rod.inu[k] + cnt] = np.maximum(1.0, np.abs(nu[off:off + cnt]))
-        return out
+        return kernels.unknown_sizes(state[0], state[2], state[3], rod.ix, rod.ilam, rod.inu,
+                                     rod.nu_off, rod.nu_cnt, rod.n)
 
     # -- routes ---------------------------------------------------------------------------
     def cold(self) -> State:
+        """Try the routes in turn; past a fold on all, look beyond it; else raise the
+        furthest stall."""
+        best: _Stalled | None = None
+        for legs in (self.straight, self.two_stage, self.swing, self.loads_first):
+            said = len(self.notes)
+            try:
+                return self.route(legs)
+            except _Stalled as stall:
+                del self.notes[said:]  # what a failed route found does not hold
+                if best is None or stall.t > best.t:
+                    best = stall
+                if stall.budget and time.perf_counter() > self.deadline:
+                    break
+        assert best is not None
+        if best.budget:
+            raise best
+        return self.beyond_fold(best)
+
+    def route(self, legs: Callable[[Loads], list[Loads]]) -> State:
+        """Follow the legs from the rest state to the problem. A singular start (an end
+        pushed along the straight part: it may buckle to any side) runs the whole route
+        on a part bowed toward the side the targets and loads push it to, and a last leg
+        removes the bow."""
         rod, opts = self.rod, self.solver
         rest, state = rod.rest()
         self.gauge_quat = state[1][max(rod.gauge_frame, 0)].copy()
         try:
-            return self.follow(rest, rod.target, state)
+            return self.through(rest, legs(rest), state)
         except _Stalled as stall:
             if not stall.singular_start:
                 raise
-        side, axis, (a, b) = _bow_direction(rod, rest, state)
+        side, chord, (a, b) = _bow_direction(rod, rest, state)
         # A bow b cos(2 pi u) over a span w shortens its chord by w (b w)^2 / 16 pi^2; make
         # that most of what the targets ask, as in 2D.
         width = b - a
         wanted = opts.bow * _shortening(rod, rest)
         amplitude = min(40.0, max(0.01, 4.0 * math.pi / width * math.sqrt(wanted / width)))
-        bowed_k0 = rod.rest_k0.copy()
         mids = 0.5 * (rod.frame_s[:-1] + rod.frame_s[1:])
         inside = (mids >= a) & (mids <= b)
-        bowed_k0[inside] += amplitude * np.cos(2 * math.pi * (mids[inside] - a) / width)[:, None] \
-            * axis[None, :]
-        rest_b, state = rod.rest(bowed_k0)
-        self.gauge_quat = state[1][max(rod.gauge_frame, 0)].copy()
-        target_b = Loads(*(getattr(rod.target, f) for f in (
-            "fnode", "st_pos", "st_tangent", "st_quat", "st_moment", "st_ffollow",
-            "st_mfollow")), joint_k0=bowed_k0)
-        state = self.follow(rest_b, target_b, state)
-        state = self.follow(target_b, rod.target, state)
+        shape = amplitude * np.cos(2 * math.pi * (mids[inside] - a) / width)[:, None]
+        across = np.cross(chord, side)
+        # The side the targets and loads push it to first; if that branch meets a fold,
+        # the opposite side, then the two across.
+        best: _Stalled | None = None
+        unstable: tuple[State, np.ndarray, np.ndarray] | None = None
+        for choice, bow_side in enumerate((side, -side, across, -across)):
+            # Bending about chord x side turns the tangent toward the side; in the rest
+            # frames (the straight part has one frame throughout).
+            axis = quat_matrix(state[1][0]).T @ np.cross(chord, bow_side)
+            bowed_k0 = rod.rest_k0.copy()
+            bowed_k0[inside] += shape * axis[None, :]
+            rest_b, bowed = rod.rest(bowed_k0)
+            self.gauge_quat = bowed[1][max(rod.gauge_frame, 0)].copy()
+            targets = [replace(leg, joint_k0=bowed_k0) for leg in legs(rest_b)] + [rod.target]
+            try:
+                found = self.through(rest_b, targets, bowed)
+            except _Stalled as stall:
+                if best is None or stall.t > best.t:
+                    best = stall
+                if stall.budget:
+                    break
+                continue
+            # An unstable branch is not where a real part settles: try the other sides
+            # for a stable one (for conservative loads, where stability is defined).
+            if _conservative(rod) and not _stability(self, found)[0]:
+                if unstable is None:
+                    unstable = (found, bow_side, self.gauge_quat)
+                continue
+            why = ("where its targets and loads push it" if choice == 0 else
+                   "as the side its targets and loads push it to gives no stable branch")
+            self._bow_note(bow_side, why)
+            return found
+        if unstable is not None:
+            found, bow_side, self.gauge_quat = unstable
+            self._bow_note(bow_side, "the only branch found, and it is unstable")
+            return found
+        assert best is not None
+        raise best
+
+    def _bow_note(self, side: np.ndarray, why: str) -> None:
         self.notes.append(
             f"{_BRANCH_NOTE} (a bifurcation: it can buckle to any side); pliant took the "
-            f"branch that bows toward {np.round(side, 3).tolist()}, where its targets and loads "
-            "push it; other equilibria may exist")
+            f"branch that bows toward {np.round(side, 3).tolist()}, {why}; other equilibria "
+            "may exist")
+
+    def through(self, start: Loads, targets: list[Loads], state: State) -> State:
+        """Follow the homotopies start -> targets[0] -> targets[1] -> ...; a stall's
+        progress counts over the whole route."""
+        for i, end in enumerate(targets):
+            try:
+                state = self.follow(start, end, state)
+            except _Stalled as stall:
+                stall.t = (i + stall.t) / len(targets)
+                stall.ahead = stall.ahead + tuple(targets[i + 1:])
+                raise
+            start = end
         return state
+
+    def straight(self, rest: Loads) -> list[Loads]:
+        """Loads and targets together: positions along straight lines, orientations along
+        the shortest arcs."""
+        return [self.rod.target]
+
+    def two_stage(self, rest: Loads) -> list[Loads]:
+        """Targets first, with no load; then the loads."""
+        t = self.rod.target
+        zeros = np.zeros_like(t.st_moment)
+        placed = Loads(np.zeros_like(t.fnode), t.st_pos, t.st_tangent, t.st_quat, zeros,
+                       zeros, zeros, t.joint_k0)
+        return [placed, t]
+
+    def loads_first(self, rest: Loads) -> list[Loads]:
+        """Loads first, with the held points where the rest shape has them; then the
+        targets."""
+        t = self.rod.target
+        loaded = Loads(t.fnode, rest.st_pos, rest.st_tangent, rest.st_quat, t.st_moment,
+                       t.st_ffollow, t.st_mfollow, t.joint_k0)
+        return [loaded, t]
+
+    def swing(self, rest: Loads, legs: int = 8) -> list[Loads]:
+        """Carry the held points round the first one along arcs (their distance from it
+        and their bearing, turned about one axis, move linearly), as a hand would,
+        instead of along straight lines that may sweep through the first support."""
+        rod = self.rod
+        ends = _chord(rod)
+        if ends is None:
+            raise _Stalled(0.0, math.inf, "nothing to swing around")
+        pivot = ends[0]
+        located = [k for k in range(rod.st_kind.shape[0])
+                   if rod.st_pos_mask[k].all() and k != pivot]
+        arcs = []
+        for k in located:
+            a = rest.st_pos[k] - rest.st_pos[pivot]
+            b = rod.target.st_pos[k] - rod.target.st_pos[pivot]
+            ra, rb = float(np.linalg.norm(a)), float(np.linalg.norm(b))
+            if ra < 1e-12 or rb < 1e-12:
+                arcs.append(None)
+                continue
+            normal = np.cross(a, b)
+            if np.linalg.norm(normal) < 1e-9 * ra * rb:  # collinear: any axis across a
+                normal = np.cross(a, np.eye(3)[int(np.argmin(np.abs(a)))])
+            normal /= np.linalg.norm(normal)
+            angle = math.atan2(float(np.dot(np.cross(a, b), normal)), float(np.dot(a, b)))
+            arcs.append((a / ra, ra, rb, normal, angle))
+
+        def at(t: float) -> Loads:
+            loads = rest.lerp(rod.target, t)
+            pos = loads.st_pos.copy()
+            for k, arc in zip(located, arcs):
+                if arc is None:
+                    continue
+                u, ra, rb, normal, angle = arc
+                turn = t * angle
+                direction = (u * math.cos(turn) + np.cross(normal, u) * math.sin(turn)
+                             + normal * np.dot(normal, u) * (1 - math.cos(turn)))
+                pos[k] = pos[pivot] + ((1 - t) * ra + t * rb) * direction
+            return replace(loads, st_pos=pos)
+
+        return [at(i / legs) for i in range(1, legs)] + [rod.target]
+
+    def beyond_fold(self, stall: _Stalled, snaps: int = 4) -> State:
+        """Every route met a fold: a part loaded that way snaps through there. Follow
+        what it does: just past the fold, let it settle by a pseudo-transient relaxation
+        (an implicit gradient flow under the constraints) from the last state before the
+        fold, then go on along the route; up to ``snaps`` times. Say so."""
+        at = []
+        while True:
+            if (stall.state is None or stall.loads is None or not stall.ahead
+                    or len(at) >= snaps):
+                raise stall
+            at.append(stall.t)
+            self.gauge_quat = stall.gauge
+            end, *rest = stall.ahead
+            past = stall.loads.lerp(end, min(1.0, max(1e-3, 10.0 * self.solver.min_step)))
+            state = self.relax(stall.state, past)
+            if state is None:
+                raise stall
+            try:
+                state = self.through(past, [end, *rest], state)
+            except _Stalled as again:
+                stall = again
+                continue
+            times = "once" if len(at) == 1 else f"{len(at)} times"
+            self.notes.append(
+                f"every path from the unloaded part meets a fold: loaded along it, the part "
+                f"snaps through ({times}, first at {at[0]:.3g} of the way); this is the "
+                "equilibrium it reaches after the snap, found by letting it settle (a "
+                "pseudo-transient relaxation) and following on: other equilibria may exist")
+            return state
+
+    def relax(self, state: State, loads: Loads, max_steps: int = 600,
+              stride: float = 0.02) -> State | None:
+        """Pseudo-transient continuation: implicit Euler steps of the gradient flow
+        W du/dtau = -grad E under the constraints, each one Newton iteration on
+        [K + W / dtau, A^T; A, 0] [du; dlam] = -R. The pseudo-time step adapts so that
+        each step moves the part about ``stride`` L; as the flow settles the steps grow
+        and it ends as Newton. Implicit Euler leaves a saddle (an equilibrium just past a
+        fold) along its unstable direction, where a Newton would stay or wander."""
+        rod = self.rod
+        primal, weight = _metric(rod)
+        shift_of = np.where(primal, weight, 0.0)
+        kl, ku = rod.kl, rod.ku
+        R, ab, _ = self.residual(state, loads, want_jac=True)
+        if not np.isfinite(R).all():
+            return None
+        sigma = float((np.abs(ab[primal, kl + ku]) / shift_of[primal]).max())
+        ceiling = 1e8 * max(sigma, 1.0)
+        for _ in range(max_steps):
+            if time.perf_counter() > self.deadline or sigma > ceiling:
+                return None  # out of time, or no step short enough: it cannot settle
+            ab[:, kl + ku] += sigma * shift_of
+            du, ok = kernels.band_solve(ab, kl, ku, -R)
+            move = float(np.abs(du[primal]).max()) if ok else math.inf
+            if not math.isfinite(move) or move > 4.0 * stride:
+                sigma *= 4.0  # too long a step: a shorter one
+                R, ab, _ = self.residual(state, loads, want_jac=True)
+                continue
+            state = self.step(state, du, 1.0)
+            R, ab, _ = self.residual(state, loads, want_jac=True)
+            self.iterations += 1
+            if move < 0.25 * stride:
+                sigma *= 0.25
+                if sigma < 1e-12:  # a Newton step: settled
+                    break
+            elif move < stride:
+                sigma *= 0.5
+            else:
+                sigma *= 2.0
+        else:
+            return None
+        state, r, status, _ = self.newton(state, loads, strict=False)
+        return state if status == kernels.CONVERGED else None
 
     def warm(self, warm: Equilibrium3D) -> State | None:
         old = warm.state
@@ -239,9 +465,9 @@ class _Run:
             return state
         try:
             return self.follow(old.rod.target, self.rod.target, old.state)
-        except _Stalled:
+        except _Stalled as stall:
+            self.stall = stall
             return None
-
 
     def transfer(self, warm: Equilibrium3D, old: _WarmState) -> State | None:
         """Start from an equilibrium of a problem with other conditions on the same mesh
@@ -298,8 +524,7 @@ def _shortening(rod: Rod, rest: Loads) -> float:
 
 def _bow_direction(rod: Rod, rest: Loads, state: State):
     """The side (a unit vector normal to the rest chord) the targets' motion and the
-    loads push the part to, the material axis to bend about to bow that way, and the
-    span (s_a, s_b) of the chord."""
+    loads push the part to, the chord's direction and its span (s_a, s_b)."""
     X, Q = state[0], state[1]
     ends = _chord(rod)
     if ends is not None:
@@ -317,17 +542,15 @@ def _bow_direction(rod: Rod, rest: Loads, state: State):
     width = span[1] - span[0]
     push += rod.target.fnode.sum(axis=0) * width**3 / 48.0
     side = push - np.dot(push, chord) * chord
-    if np.linalg.norm(side) < 1e-12:  # nothing says: the first section axis' side
-        d1 = quat_matrix(Q[0])[:, 0]
-        side = d1 - np.dot(d1, chord) * chord
+    if np.linalg.norm(side) < 1e-12:
+        # Nothing says: bend about the weaker section axis (a strip bows flatwise; an
+        # isotropic part bows toward d2, in the plane normal to d1, as the 2D model does).
+        frame = quat_matrix(Q[0])
+        weak, other = (0, 1) if rod.K[0] <= rod.K[1] else (1, 0)
+        side = frame[:, other] - np.dot(frame[:, other], chord) * chord
         if np.linalg.norm(side) < 1e-12:
-            side = quat_matrix(Q[0])[:, 1]
-    side = side / np.linalg.norm(side)
-    # Bending about the axis chord x side turns the tangent toward the side; in the rest
-    # frames (the straight part has one frame throughout).
-    axis_global = np.cross(chord, side)
-    axis = quat_matrix(Q[0]).T @ axis_global
-    return side, axis, span
+            side = frame[:, weak]
+    return side / np.linalg.norm(side), chord, span
 
 
 def solve(problem: Problem, *, warm_start: Equilibrium3D | None = None,
@@ -341,7 +564,10 @@ def _solve(problem: Problem, warm_start: Equilibrium3D | None, solver: RodSolver
     if problem.dimension != 3:
         raise IllPosedProblemError("the 3D model solves 3D problems; this one is 2D "
                                    "(use pliant.solve, which picks the model)")
-    run = _Run(lower(problem, elements=solver.elements), solver)
+    rod = None
+    if warm_start is not None and isinstance(warm_start.state, _WarmState):
+        rod = warm_start.state.rod.retarget(problem, solver.elements)  # skips re-meshing
+    run = _Run(rod or lower(problem, elements=solver.elements), solver)
     state = None
     try:
         if warm_start is not None:
@@ -349,8 +575,8 @@ def _solve(problem: Problem, warm_start: Equilibrium3D | None, solver: RodSolver
             if state is not None:
                 run.notes[:0] = [n for n in warm_start.notes if n.startswith(_BRANCH_NOTE)]
             elif follow_only:
-                raise _Stalled(0.0, math.inf, "the warm start could not be followed to this "
-                               "problem (a fold: the branch ends or turns back here)")
+                raise run.stall or _Stalled(0.0, math.inf, "the warm start could not be "
+                                            "followed to this problem")
             else:
                 run.notes.append("the warm start could not be followed to this problem; "
                                  "solved from the rest state instead")
@@ -446,9 +672,79 @@ def _conservative(rod: Rod) -> bool:
     return not (np.any(t.st_moment) or np.any(t.st_ffollow) or np.any(t.st_mfollow))
 
 
+def _metric(rod: Rod) -> tuple[np.ndarray, np.ndarray]:
+    """Which unknowns are primal (positions and frame rotations, not multipliers), and
+    the length each stands for (lumped: half the elements at a node, a frame's element
+    or joint span): the metric that makes the discrete Hessian's eigenvalues those of
+    the continuous operator, and pseudo-time a physical relaxation."""
+    n = rod.n
+    primal = np.zeros(n, dtype=bool)
+    weight = np.zeros(n)
+    node_len = np.zeros(rod.elements + 1)
+    node_len[:-1] += 0.5 * rod.h
+    node_len[1:] += 0.5 * rod.h
+    frame_len = np.zeros(rod.ith.shape[0])
+    frame_len[rod.elem_frame] = rod.h
+    end_len = np.concatenate([[rod.joint_hh[0]], rod.joint_hh[:-1] + rod.joint_hh[1:],
+                              [rod.joint_hh[-1]]]) * 0.5
+    frame_len = np.where(frame_len > 0.0, frame_len, end_len)
+    for i in range(rod.elements + 1):
+        primal[rod.ix[i]:rod.ix[i] + 3] = True
+        weight[rod.ix[i]:rod.ix[i] + 3] = node_len[i]
+    for f in range(rod.ith.shape[0]):
+        primal[rod.ith[f]:rod.ith[f] + 3] = True
+        weight[rod.ith[f]:rod.ith[f] + 3] = frame_len[f]
+    return primal, weight
+
+
 def _stability(run: _Run, state: State) -> tuple[bool, float]:
-    """Smallest eigenvalue of the Hessian of the Lagrangian on the constraints' tangent
-    space (positions and frame rotations): positive means stable."""
+    """(stable, smallest eigenvalue [N m]) of the Hessian of the Lagrangian on the
+    constraints' tangent space (positions and frame rotations, weighed by the metric of
+    ``_metric``): positive definite means stable.
+
+    Shift-invert Lanczos (ARPACK) at a shift -c below any negative eigenvalue, each step
+    one solve with the band LU of the shifted KKT matrix (its solutions lie in the
+    tangent space), so the eigenvalue nearest -c is the smallest: milliseconds where a
+    dense null space takes a tenth of a second. The geometric terms that can make the
+    Hessian indefinite are bounded by the internal force n and moment m (by Young's
+    inequality, by |n| + |m|^2 / 2 min(EI, GJ) in these units); c is twice that bound.
+    """
+    from scipy.sparse import diags  # noqa: PLC0415 (heavy; on demand)
+    from scipy.sparse.linalg import ArpackError, LinearOperator, eigsh  # noqa: PLC0415
+
+    rod = run.rod
+    X, Q, lam, _ = state
+    _, moments = kernels.node_outputs(Q, rod.elem_frame, rod.joint_hh, rod.target.joint_k0,
+                                      rod.K, rod.node_frame)
+    force = float(np.abs(lam).max(initial=0.0))
+    moment = float(np.abs(moments).max(initial=0.0))
+    c = 2.0 * (1.0 + force + moment**2 / (2.0 * float(rod.K.min())))
+    primal, weight = _metric(rod)
+    _, ab, _ = run.residual(state, rod.target, want_jac=True)
+    n, kl, ku = rod.n, rod.kl, rod.ku
+    ab[:, kl + ku] += c * np.where(primal, weight, 0.0)
+    piv, ok = kernels.band_lu(ab, kl, ku)
+    if not ok:
+        return _stability_dense(run, state)
+    size = int(primal.sum())
+
+    def solve(r: np.ndarray) -> np.ndarray:
+        rhs = np.zeros(n)
+        rhs[primal] = r.ravel()
+        return kernels.band_lu_solve(ab, piv, kl, ku, rhs)[primal]
+
+    inverse = LinearOperator((size, size), matvec=solve, dtype=float)
+    unused = LinearOperator((size, size), matvec=lambda x: x, dtype=float)
+    try:
+        value = float(eigsh(unused, k=1, M=diags(weight[primal]), sigma=-c, which="LM",
+                            OPinv=inverse, return_eigenvectors=False, tol=1e-10)[0])
+    except ArpackError:
+        return _stability_dense(run, state)
+    return value > 1e-9, value * rod.moment_scale  # EI / L
+
+
+def _stability_dense(run: _Run, state: State) -> tuple[bool, float]:
+    """The same test with a dense null space and eigensolver (the fallback)."""
     from scipy.linalg import eigh, null_space  # noqa: PLC0415 (heavy; on demand)
 
     rod = run.rod
@@ -458,18 +754,17 @@ def _stability(run: _Run, state: State) -> tuple[bool, float]:
     for j in range(n):
         for i in range(max(0, j - ku), min(n, j + kl + 1)):
             K[i, j] = ab[j, kl + ku + i - j]
-    primal = np.zeros(n, dtype=bool)
-    for i in range(rod.elements + 1):
-        primal[rod.ix[i]:rod.ix[i] + 3] = True
-    for f in range(rod.ith.shape[0]):
-        primal[rod.ith[f]:rod.ith[f] + 3] = True
+    primal, weight = _metric(rod)
     H = K[np.ix_(primal, primal)]
     A = K[np.ix_(~primal, primal)]
     Z = null_space(A)
     reduced = Z.T @ H @ Z
-    smallest = float(eigh(0.5 * (reduced + reduced.T), eigvals_only=True)[0])
+    metric = Z.T @ (weight[primal][:, None] * Z)
+    smallest = float(eigh(0.5 * (reduced + reduced.T), 0.5 * (metric + metric.T),
+                          eigvals_only=True, subset_by_index=(0, 0))[0])
     scale = rod.moment_scale  # EI / L
-    return smallest > 1e-9 * max(1.0, float(np.abs(reduced).max())), smallest * scale
+    return smallest > 1e-9 * max(1.0, float(np.abs(reduced).max()) / float(
+        np.abs(metric).max())), smallest * scale
 
 
 def _qmul(a, b):
