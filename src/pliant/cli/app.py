@@ -36,7 +36,7 @@ def solve(
     mesh: Annotated[Path | None, typer.Option(help="export the deformed tube (.glb, .gltf, "
                                                    ".stl, .obj, .ply)")] = None,
     elements: Annotated[int | None, typer.Option(help="3D: about how many elements "
-                                                      "(default: the file's [solver], or 100)")]
+                                                      "(default: the file's \\[solver], or 100)")]
     = None,
 ) -> None:
     """Solve a problem file (2D or 3D): shape, internal forces, reactions."""

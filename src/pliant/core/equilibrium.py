@@ -250,7 +250,10 @@ class Equilibrium3D:
     def stability(self) -> tuple[bool | None, float | None]:
         """(stable, smallest eigenvalue of the constrained Hessian [N m]) for
         conservative loads; (None, None) where follower loads or dead moments make the
-        problem non-conservative (a static test does not decide their stability)."""
+        problem non-conservative (a static test does not decide their stability). The
+        eigenvalue is taken in the metric of the part's length (each unknown weighed by
+        the length it stands for), so it converges as the mesh is refined; where the
+        equilibrium is unstable it is the negative eigenvalue nearest zero."""
         if self.stability_check is None:
             return None, None
         return self.stability_check()
