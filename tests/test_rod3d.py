@@ -16,14 +16,15 @@ from pliant.errors import (
     InputError,
     UnreachableTargetError,
 )
+from pliant.io.problem_file import load_problem
 from pliant.models import rod3d
 from pliant.models.rod3d import kernels
-from pliant.models.rod3d.lowering import lower
+from pliant.models.rod3d.lowering import _slerp_vectors, lower
 from pliant.models.rod3d.solver import _Run, _Stalled
 from pliant.models.rod3d.solver import _stability as stability_of
 from pliant.models.rod3d.solver import _stability_dense as stability_dense
 
-from .helpers import zoo
+from .helpers import EXAMPLES, zoo
 
 UNIT = pl.Part(length=1.0, bending_stiffness=1.0, torsional_stiffness=0.8)
 
@@ -457,3 +458,41 @@ def test_stability_by_lanczos_matches_the_dense_eigensolver(factor, side, weight
     fast, dense = stability_of(run, eq.state.state), stability_dense(run, eq.state.state)
     assert fast[0] == dense[0] == stable
     assert fast[1] == pytest.approx(dense[1], rel=1e-7, abs=1e-9)
+
+
+def test_hose_in_a_port_carried_by_two_hands():
+    """The everyday problem of examples/hoses/two_hands.toml: plugged into a port
+    pointing up, held half way by position and at its end by position and an axis
+    pointing down (the opposite of the port's: the end must swing round, toward where
+    the hand is). Heavy for its stiffness (q L^3 / EI = 43): loaded along any path it
+    snaps, and the answer is where it settles: conditions met, balanced, stable, no
+    moment at the hand that holds by position only, no twisting moment at the end."""
+    problem = load_problem(EXAMPLES / "hoses" / "two_hands.toml")
+    eq = rod3d.solve(problem)
+    assert eq.residual < 1e-9 and eq.stable
+    assert "snaps through" in eq.notes[0]
+    for cond in problem.conditions:
+        i = int(np.argmin(np.abs(eq.s - cond.s)))
+        assert np.allclose(eq.position[i], cond.position, atol=1e-10)
+    assert np.allclose(eq.frames[-1][:, 2], (0.0, 0.0, -1.0), atol=1e-10)
+    assert np.abs(eq.reactions["left hand"].moment).max() == 0.0
+    assert abs(eq.reactions["right hand"].moment @ eq.frames[-1][:, 2]) < 1e-10
+    weight = problem.part.mass_per_length * problem.part.length * 9.81
+    vertical = sum(ld.force[2] for ld in eq.loads.values())
+    assert vertical == pytest.approx(weight, rel=1e-9)
+
+
+def test_a_reversed_tangent_swings_toward_the_station_motion():
+    """Opposite tangents have no shortest arc: the homotopy turns them about the axis
+    that swings the tangent toward where the station moves; unit length throughout,
+    exact at both ends."""
+    a = np.array([[0.0, 0.0, 1.0]])
+    hint = np.array([[0.4, 0.3, 0.7]])
+    for t in (0.0, 0.25, 0.5, 1.0):
+        v = _slerp_vectors(a, -a, t, hint)[0]
+        assert np.linalg.norm(v) == pytest.approx(1.0)
+        assert v[2] == pytest.approx(math.cos(math.pi * t))
+    assert np.allclose(_slerp_vectors(a, -a, 0.5, hint)[0], (0.8, 0.6, 0.0))
+    assert np.allclose(_slerp_vectors(a, -a, 1.0, hint)[0], -a[0])
+    v = _slerp_vectors(a, -a, 0.5, None)[0]  # no hint: still a unit vector across a
+    assert abs(v @ a[0]) < 1e-12 and np.linalg.norm(v) == pytest.approx(1.0)

@@ -90,26 +90,43 @@ class Loads:
     st_ffollow: np.ndarray  # (S, 3) follower forces (material)
     st_mfollow: np.ndarray  # (S, 3) follower moments (material)
     joint_k0: np.ndarray  # (J, 3) rest Darboux vectors (with any bow)
+    turn: np.ndarray | None = None  # (S, 3) where to swing a tangent that must reverse
 
     def lerp(self, other: Loads, t: float) -> Loads:
-        """Linear in everything but the orientations, which turn along the shortest arc."""
-        tangent = _slerp_vectors(self.st_tangent, other.st_tangent, t)
+        """Linear in everything but the orientations, which turn along the shortest arc
+        (a tangent that must reverse turns toward ``turn``)."""
+        hint = self.turn if self.turn is not None else other.turn
+        tangent = _slerp_vectors(self.st_tangent, other.st_tangent, t, hint)
         quat = _slerp_quats(self.st_quat, other.st_quat, t)
         return Loads(self.fnode + t * (other.fnode - self.fnode),
                      self.st_pos + t * (other.st_pos - self.st_pos), tangent, quat,
                      self.st_moment + t * (other.st_moment - self.st_moment),
                      self.st_ffollow + t * (other.st_ffollow - self.st_ffollow),
                      self.st_mfollow + t * (other.st_mfollow - self.st_mfollow),
-                     self.joint_k0 + t * (other.joint_k0 - self.joint_k0))
+                     self.joint_k0 + t * (other.joint_k0 - self.joint_k0), hint)
 
 
-def _slerp_vectors(a: np.ndarray, b: np.ndarray, t: float) -> np.ndarray:
+def _slerp_vectors(a: np.ndarray, b: np.ndarray, t: float,
+                   hint: np.ndarray | None = None) -> np.ndarray:
+    """Rows of a turned toward the rows of b by the fraction t of their angle. Opposite
+    rows have no shortest arc: they turn about the axis that swings a toward the hint's
+    row (the way the station moves), or else toward the coordinate axis least along a."""
     out = np.empty_like(a)
     for k in range(a.shape[0]):
         cos = float(np.clip(np.dot(a[k], b[k]), -1.0, 1.0))
         angle = math.acos(cos)
         if angle < 1e-9:
             out[k] = b[k]
+            continue
+        if math.pi - angle < 1e-6:
+            toward = hint[k] if hint is not None else np.zeros(a.shape[1])
+            toward = toward - np.dot(toward, a[k]) * a[k]
+            if np.linalg.norm(toward) < 1e-9:
+                toward = np.eye(a.shape[1])[int(np.argmin(np.abs(a[k])))]
+                toward = toward - np.dot(toward, a[k]) * a[k]
+            toward = toward / np.linalg.norm(toward)
+            turned = math.cos(t * math.pi) * a[k] + math.sin(t * math.pi) * toward
+            out[k] = b[k] if t >= 1.0 else turned
             continue
         out[k] = (math.sin((1 - t) * angle) * a[k] + math.sin(t * angle) * b[k]) \
             / math.sin(angle)
@@ -267,8 +284,9 @@ class Rod:
             if self.st_kind[k] == FULL and np.dot(st_quat[k], self.target.st_quat[k]) < 0:
                 st_quat[k] = -st_quat[k]
         zeros = np.zeros((S, 3))
+        turn = np.where(self.st_pos_mask == 1, self.target.st_pos - st_pos, 0.0)
         loads = Loads(np.zeros_like(self.target.fnode), st_pos, st_tangent, st_quat, zeros,
-                      zeros, zeros, k0)
+                      zeros, zeros, k0, turn)
         state = (X, Q, np.zeros((self.elements, 3)), np.zeros(self.m))
         return loads, state
 

@@ -327,7 +327,7 @@ class _Run:
         t = self.rod.target
         zeros = np.zeros_like(t.st_moment)
         placed = Loads(np.zeros_like(t.fnode), t.st_pos, t.st_tangent, t.st_quat, zeros,
-                       zeros, zeros, t.joint_k0)
+                       zeros, zeros, t.joint_k0, rest.turn)
         return [placed, t]
 
     def loads_first(self, rest: Loads) -> list[Loads]:
@@ -335,7 +335,7 @@ class _Run:
         targets."""
         t = self.rod.target
         loaded = Loads(t.fnode, rest.st_pos, rest.st_tangent, rest.st_quat, t.st_moment,
-                       t.st_ffollow, t.st_mfollow, t.joint_k0)
+                       t.st_ffollow, t.st_mfollow, t.joint_k0, rest.turn)
         return [loaded, t]
 
     def swing(self, rest: Loads, legs: int = 8) -> list[Loads]:
