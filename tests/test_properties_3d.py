@@ -123,19 +123,19 @@ def test_converged_and_consistent_or_typed_error(spec):
 
 @settings(max_examples=40, deadline=None, derandomize=True,
           suppress_health_check=[HealthCheck.too_slow])
-@given(force=st.tuples(*[st.floats(-20, 20)] * 3), moment=st.tuples(*[st.floats(-3, 3)] * 3),
-       weight=st.floats(0.0, 20.0))
-def test_everyday_loadings_always_converge(force, moment, weight):
+@given(force=st.tuples(*[st.floats(-20, 20)] * 3), weight=st.floats(0.0, 20.0))
+def test_everyday_loadings_always_converge(force, weight):
     """A clamped round hose under any dead tip force up to F L^2 / EI = 20 in each
-    direction, a tip moment up to 3 EI / L about each axis and its own weight up to
-    q L^3 / EI = 20: always an answer. (Strips and follower loads are left to the test
-    above: there the path can genuinely fold: a strip bent about its strong axis buckles
-    sideways, lateral-torsional buckling at M = pi/2 sqrt(EI_weak GJ) / L, and a follower
-    tension and moment of 1 with a weight of 5 folds in the 2D model at the same point.)"""
+    direction and its own weight up to q L^3 / EI = 20 (conservative loads): always an
+    answer. Dead moments, follower loads and strips are left to the test above: with
+    them a path can genuinely fold with nothing static to settle into past it (a dead
+    moment in 3D does work as the part whirls; a strip bent about its strong axis
+    buckles sideways at M = pi/2 sqrt(EI_weak GJ) / L; a follower tension and moment of
+    1 with a weight of 5 folds in the 2D model at the same point)."""
     part = pl.Part(length=1.0, bending_stiffness=1.0, torsional_stiffness=0.8,
                    mass_per_length=weight / 9.81)
     problem = pl.Problem(part, (pl.clamp(0.0, position=(0.0, 0.0, 0.0)),
-                                pl.push(1.0, force=force, moment=moment, name="tip")),
+                                pl.push(1.0, force=force, name="tip")),
                          gravity=(0.0, 0.0, -9.81))
     eq = rod3d.solve(problem, solver=rod3d.RodSolver(elements=40))
     assert eq.residual <= 1e-9
