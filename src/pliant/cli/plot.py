@@ -2,14 +2,11 @@
 
 from __future__ import annotations
 
-import os
-import tempfile
 from pathlib import Path
 
 import numpy as np
 
 from pliant.core.equilibrium import Equilibrium
-from pliant.errors import OutputError
 
 
 def plot_equilibrium(eq, path: str | Path) -> Path:
@@ -132,18 +129,10 @@ def matplotlib_norm(values: np.ndarray):
 
 
 def _save(fig, path: Path, plt) -> None:
+    from pliant.io.atomic import atomic_write  # noqa: PLC0415
+
     try:
-        path.parent.mkdir(parents=True, exist_ok=True)
-        fd, tmp = tempfile.mkstemp(suffix=".png", dir=path.parent, prefix=f".{path.stem}-")
-    except OSError as err:
-        plt.close(fig)
-        raise OutputError(f"cannot write the plot {path}: {err.strerror or err}") from None
-    try:
-        with os.fdopen(fd, "wb") as handle:
-            fig.savefig(handle, format="png", dpi=110)
-        os.replace(tmp, path)
-    except OSError as err:
-        raise OutputError(f"cannot write the plot {path}: {err.strerror or err}") from None
+        atomic_write(path, lambda handle: fig.savefig(handle, format="png", dpi=110),
+                     "the plot")
     finally:
-        Path(tmp).unlink(missing_ok=True)
         plt.close(fig)

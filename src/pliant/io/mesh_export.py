@@ -2,14 +2,13 @@
 
 from __future__ import annotations
 
-import os
-import tempfile
 from pathlib import Path
 
 import numpy as np
 
 from pliant.core.tube import tube_mesh
 from pliant.errors import OutputError
+from pliant.io.atomic import atomic_write
 
 FORMATS = {".glb": "glb", ".gltf": "gltf", ".stl": "stl", ".obj": "obj", ".ply": "ply"}
 
@@ -46,17 +45,5 @@ def export_mesh(eq, path: str | Path, sides: int = 24) -> Path:
     points, frames = centreline_and_frames(eq)
     vertices, faces = tube_mesh(points, part_radius(eq), frames, sides=sides)
     mesh = trimesh.Trimesh(vertices=vertices, faces=faces, process=False)
-    try:
-        path.parent.mkdir(parents=True, exist_ok=True)
-        fd, tmp = tempfile.mkstemp(suffix=path.suffix, dir=path.parent, prefix=f".{path.stem}-")
-    except OSError as err:
-        raise OutputError(f"cannot write the mesh {path}: {err.strerror or err}") from None
-    try:
-        with os.fdopen(fd, "wb") as handle:
-            mesh.export(file_obj=handle, file_type=kind)
-        os.replace(tmp, path)
-    except OSError as err:
-        raise OutputError(f"cannot write the mesh {path}: {err.strerror or err}") from None
-    finally:
-        Path(tmp).unlink(missing_ok=True)
-    return path
+    return atomic_write(path, lambda handle: mesh.export(file_obj=handle, file_type=kind),
+                        "the mesh")

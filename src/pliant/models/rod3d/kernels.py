@@ -37,6 +37,9 @@ import math
 import numpy as np
 from numba import njit
 
+from pliant.models.banded import add_block as _add_block
+from pliant.models.banded import band_lu, band_lu_solve, band_solve  # noqa: F401
+
 # Orientation kinds of a station.
 FREE = 0
 AXIS = 1
@@ -82,100 +85,6 @@ def qexp(theta):
 @njit(cache=True, inline="always")
 def skew(v):
     return np.array([[0.0, -v[2], v[1]], [v[2], 0.0, -v[0]], [-v[1], v[0], 0.0]])
-
-
-# -- banded storage: LAPACK's layout, transposed so that each matrix column is one
-# contiguous row: A[i, j] = ab[j, kl + ku + i - j] ---------------------------------------
-@njit(cache=True, inline="always")
-def _add(ab, kl, ku, i, j, v):
-    ab[j, kl + ku + i - j] += v
-
-
-@njit(cache=True)
-def _add_block(ab, kl, ku, i0, j0, block):
-    for r in range(block.shape[0]):
-        for c in range(block.shape[1]):
-            v = block[r, c]
-            if v != 0.0:
-                ab[j0 + c, kl + ku + i0 + r - j0 - c] += v
-
-
-@njit(cache=True)
-def band_lu(ab, kl, ku):
-    """LU with partial pivoting of a band matrix, in place (LAPACK's dgbtf2 on the
-    transposed layout). Returns (pivots, ok); ok is False for a zero pivot."""
-    n = ab.shape[0]
-    kv = kl + ku
-    piv = np.empty(n, dtype=np.int64)
-    ju = 0
-    scale = 0.0
-    for j in range(n):
-        for r in range(ab.shape[1]):
-            v = abs(ab[j, r])
-            if v > scale:
-                scale = v
-    if scale == 0.0 or not math.isfinite(scale):
-        return piv, False
-    for j in range(n):
-        km = min(kl, n - 1 - j)
-        p = 0
-        best = abs(ab[j, kv])
-        for r in range(1, km + 1):
-            v = abs(ab[j, kv + r])
-            if v > best:
-                best = v
-                p = r
-        piv[j] = j + p
-        if best <= 1e-14 * scale:
-            return piv, False
-        ju = max(ju, min(j + ku + p, n - 1))
-        if p != 0:
-            for c in range(j, ju + 1):
-                a = ab[c, kv + j - c]
-                ab[c, kv + j - c] = ab[c, kv + j + p - c]
-                ab[c, kv + j + p - c] = a
-        inv = 1.0 / ab[j, kv]
-        for r in range(1, km + 1):
-            ab[j, kv + r] *= inv
-        for c in range(j + 1, ju + 1):
-            u = ab[c, kv + j - c]
-            if u != 0.0:
-                for r in range(1, km + 1):
-                    ab[c, kv + j + r - c] -= ab[j, kv + r] * u
-    return piv, True
-
-
-@njit(cache=True)
-def band_lu_solve(ab, piv, kl, ku, rhs):
-    """Solve with the factors of ``band_lu`` (LAPACK's dgbtrs)."""
-    n = ab.shape[0]
-    kv = kl + ku
-    x = rhs.copy()
-    for j in range(n):
-        km = min(kl, n - 1 - j)
-        p = piv[j]
-        if p != j:
-            t = x[j]
-            x[j] = x[p]
-            x[p] = t
-        for r in range(1, km + 1):
-            x[j + r] -= ab[j, kv + r] * x[j]
-    for j in range(n - 1, -1, -1):
-        x[j] /= ab[j, kv]
-        t = x[j]
-        lo = max(0, j - kv)
-        for i in range(lo, j):
-            x[i] -= ab[j, kv + i - j] * t
-    return x
-
-
-@njit(cache=True)
-def band_solve(ab, kl, ku, rhs):
-    """Solve A x = rhs for a band matrix (ab is overwritten); returns (x, ok)."""
-    piv, ok = band_lu(ab, kl, ku)
-    if not ok:
-        return rhs.copy(), False
-    return band_lu_solve(ab, piv, kl, ku, rhs), True
 
 
 # -- assembly -----------------------------------------------------------------------------

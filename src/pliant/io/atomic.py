@@ -1,0 +1,33 @@
+"""Atomic file writes: a result is written to a temporary file beside its target and
+renamed over it, so a failure leaves any earlier file untouched and never a half-written
+one."""
+
+from __future__ import annotations
+
+import os
+import tempfile
+from collections.abc import Callable
+from pathlib import Path
+from typing import BinaryIO
+
+from pliant.errors import OutputError
+
+
+def atomic_write(path: str | Path, write: Callable[[BinaryIO], None], what: str) -> Path:
+    """Call ``write`` with a binary file and move it to ``path`` when it succeeds;
+    ``what`` names the result in errors ("the plot", "the mesh")."""
+    path = Path(path)
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        fd, tmp = tempfile.mkstemp(suffix=path.suffix, dir=path.parent, prefix=f".{path.stem}-")
+    except OSError as err:
+        raise OutputError(f"cannot write {what} {path}: {err.strerror or err}") from None
+    try:
+        with os.fdopen(fd, "wb") as handle:
+            write(handle)
+        os.replace(tmp, path)
+    except OSError as err:
+        raise OutputError(f"cannot write {what} {path}: {err.strerror or err}") from None
+    finally:
+        Path(tmp).unlink(missing_ok=True)
+    return path

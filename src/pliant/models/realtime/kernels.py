@@ -1,0 +1,164 @@
+"""Numba kernels of the real-time bar network.
+
+The network's nodes X_i (i = 0..n-1) are the control points of the part's B-spline. Its
+bars join each node to the next ``reach`` nodes; bar b = (i, j) carries the force density
+w_b (force per unit length, fictive), so it pulls node i by w_b (X_j - X_i). The first
+family (i, i+1) keeps its length: its force density is q_b + mu_b, mu_b the multiplier of
+the constraint |X_j - X_i|^2 = l_b^2. Grips constrain linear combinations of the nodes,
+one coordinate at a time: sum_a G[r, a] X[start_r + a, c] = g_k for a point of the curve,
+and = alpha_r t_c for its derivative (the tangent's direction t is held, its parametric
+speed alpha_r is free: the lengths set it), with multiplier lam_k (the fictive grip
+force). Fixed fictive nodal
+loads p close the balance: the bar forces on each node, its load and the grip forces:
+
+    R_node(i, c)  = sum_{b = (i, j)} w_b (X_j - X_i)_c + sum_{b = (j, i)} w_b (X_j - X_i)_c
+                    + p_ic + sum_k G_ki lam_k [c_k = c] = 0
+    R_length(b)   = (|X_j - X_i|^2 - l_b^2) / 2 = 0
+    R_grip(k)     = sum_a G[r_k, a] X[start_{r_k} + a, c_k] - g_k (or - alpha_r t_c) = 0
+    R_alpha(r)    = - sum_{k of row r} lam_k t_{c_k} = 0
+
+The equations are those of a constrained stationary point of
+E = 1/2 sum_b q_b |X_j - X_i|^2 - p . X (R is minus its gradient); for fixed mu they
+are linear in X: the force density method. Unknowns are numbered node by node (its
+coordinates, the multiplier of the bar that starts there, the grips anchored there, the
+speeds of the tangents held there) so the Jacobian is banded.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit
+
+from pliant.models.banded import add, band_lu, band_lu_solve
+
+CONVERGED = 0
+NOT_CONVERGED = 1
+SINGULAR = 2
+
+
+@njit(cache=True)
+def assemble(X, mu, lam, alpha, bar_i, bar_j, q, l0sq, p, g_start, g_val, con_row, con_c,
+             con_rhs, con_alpha, ix, imu, icon, ialpha, n_unknowns, kl, ku, keep, want_jac):
+    """Residual (n_unknowns,) and, with want_jac, its banded Jacobian. keep: hold the
+    first family's lengths; else mu stays as it is and the system is linear in X (the
+    plain force density method)."""
+    n, d = X.shape
+    R = np.zeros(n_unknowns)
+    ab = np.zeros((n_unknowns if want_jac else 0, 2 * kl + ku + 1))
+    n_len = mu.shape[0]
+    for b in range(bar_i.shape[0]):
+        i = bar_i[b]
+        j = bar_j[b]
+        w = q[b] + (mu[b] if b < n_len else 0.0)
+        for c in range(d):
+            v = X[j, c] - X[i, c]
+            R[ix[i] + c] += w * v
+            R[ix[j] + c] -= w * v
+            if want_jac:
+                add(ab, kl, ku, ix[i] + c, ix[i] + c, -w)
+                add(ab, kl, ku, ix[i] + c, ix[j] + c, w)
+                add(ab, kl, ku, ix[j] + c, ix[i] + c, w)
+                add(ab, kl, ku, ix[j] + c, ix[j] + c, -w)
+        if b < n_len and not keep:
+            if want_jac:
+                add(ab, kl, ku, imu[b], imu[b], 1.0)  # mu frozen: d mu = 0
+        elif b < n_len:
+            sq = 0.0
+            for c in range(d):
+                v = X[j, c] - X[i, c]
+                sq += v * v
+                if want_jac:
+                    add(ab, kl, ku, ix[i] + c, imu[b], v)
+                    add(ab, kl, ku, ix[j] + c, imu[b], -v)
+                    add(ab, kl, ku, imu[b], ix[i] + c, -v)
+                    add(ab, kl, ku, imu[b], ix[j] + c, v)
+            R[imu[b]] = 0.5 * (sq - l0sq[b])
+    for i in range(n):
+        for c in range(d):
+            R[ix[i] + c] += p[i, c]
+    for k in range(con_row.shape[0]):
+        r = con_row[k]
+        c = con_c[k]
+        value = -con_rhs[k]
+        for a in range(g_val.shape[1]):
+            node = g_start[r] + a
+            gv = g_val[r, a]
+            if gv == 0.0:
+                continue
+            value += gv * X[node, c]
+            R[ix[node] + c] += gv * lam[k]
+            if want_jac:
+                add(ab, kl, ku, ix[node] + c, icon[k], gv)
+                add(ab, kl, ku, icon[k], ix[node] + c, gv)
+        a = con_alpha[k]
+        if a >= 0:  # a held tangent: its direction, at the free speed alpha
+            value += con_rhs[k] - alpha[a] * con_rhs[k]
+            R[ialpha[a]] -= lam[k] * con_rhs[k]
+            if want_jac:
+                add(ab, kl, ku, icon[k], ialpha[a], -con_rhs[k])
+                add(ab, kl, ku, ialpha[a], icon[k], -con_rhs[k])
+        R[icon[k]] = value
+    return R, ab
+
+
+@njit(cache=True)
+def max_abs(v):
+    m = 0.0
+    for x in v:
+        a = abs(x)
+        if a > m or not math.isfinite(a):
+            m = a if math.isfinite(a) else math.inf
+    return m
+
+
+@njit(cache=True)
+def _apply(X, mu, lam, alpha, du, ix, imu, icon, ialpha, step):
+    n, d = X.shape
+    Xn = X.copy()
+    mun = mu.copy()
+    lamn = lam.copy()
+    alphan = alpha.copy()
+    for a in range(alpha.shape[0]):
+        alphan[a] += step * du[ialpha[a]]
+    for i in range(n):
+        for c in range(d):
+            Xn[i, c] += step * du[ix[i] + c]
+    for b in range(mu.shape[0]):
+        mun[b] += step * du[imu[b]]
+    for k in range(lam.shape[0]):
+        lamn[k] += step * du[icon[k]]
+    return Xn, mun, lamn, alphan
+
+
+@njit(cache=True)
+def newton(X, mu, lam, alpha, bar_i, bar_j, q, l0sq, p, g_start, g_val, con_row, con_c,
+           con_rhs, con_alpha, ix, imu, icon, ialpha, n_unknowns, kl, ku, keep, tol, max_iter):
+    """Newton with backtracking on the largest residual entry from (X, mu, lam, alpha).
+    Returns (X, mu, lam, alpha, residual, iterations, status)."""
+    R, ab = assemble(X, mu, lam, alpha, bar_i, bar_j, q, l0sq, p, g_start, g_val, con_row,
+                     con_c, con_rhs, con_alpha, ix, imu, icon, ialpha, n_unknowns, kl, ku,
+                     keep, True)
+    r = max_abs(R)
+    it = 0
+    while r > tol and it < max_iter:
+        it += 1
+        piv, ok = band_lu(ab, kl, ku)
+        if not ok:
+            return X, mu, lam, alpha, r, it, SINGULAR
+        du = band_lu_solve(ab, piv, kl, ku, -R)
+        step = 1.0
+        for _ in range(12):
+            Xn, mun, lamn, alphan = _apply(X, mu, lam, alpha, du, ix, imu, icon, ialpha, step)
+            Rn, abn = assemble(Xn, mun, lamn, alphan, bar_i, bar_j, q, l0sq, p, g_start,
+                               g_val, con_row, con_c, con_rhs, con_alpha, ix, imu, icon,
+                               ialpha, n_unknowns, kl, ku, keep, True)
+            rn = max_abs(Rn)
+            if rn < r or rn <= tol:
+                break
+            step *= 0.5
+        else:
+            return X, mu, lam, alpha, r, it, NOT_CONVERGED
+        X, mu, lam, alpha, R, ab, r = Xn, mun, lamn, alphan, Rn, abn, rn
+    return X, mu, lam, alpha, r, it, CONVERGED if r <= tol else NOT_CONVERGED

@@ -1,0 +1,232 @@
+"""The accurate side of a session: warm-started solves, their picklable results, and the
+executors that run them inline (deterministic) or in a worker process (live: the frame
+loop never waits for them).
+
+A worker process, not a thread: the accurate models spend their time in numba kernels
+and Python loops that hold the GIL, so a thread would stall the frame loop for as long
+as each of them runs; a process runs beside it on another core, and only the problem
+and a summary of the answer cross the pipe.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from pliant.core.equilibrium import StationLoad
+from pliant.core.problem import Problem
+from pliant.errors import PliantError
+
+
+@dataclass(frozen=True)
+class AccurateResult:
+    """An accurate equilibrium as a session publishes it (real forces, SI units).
+
+    index : the event whose pose it answers; problem : that pose; s (N,) [m] and
+    position (N, 2 or 3) [m] along the part; loads : by condition name, the real force
+    [N] and moment [N m] each applies to the part (reactions where prescribed);
+    residual, iterations, notes, stable, smallest_eigenvalue [N m] (3D, conservative
+    loads), solve_seconds; error : why there is no equilibrium (then the arrays are
+    empty and the session keeps the last good one).
+    """
+
+    index: int
+    problem: Problem
+    s: np.ndarray
+    position: np.ndarray
+    loads: dict[str, StationLoad]
+    residual: float = math.nan
+    iterations: int = 0
+    notes: tuple[str, ...] = ()
+    stable: bool | None = None
+    smallest_eigenvalue: float | None = None
+    solve_seconds: float = 0.0
+    error: str | None = None
+
+    @property
+    def ok(self) -> bool:
+        return self.error is None
+
+    @property
+    def reactions(self) -> dict[str, StationLoad]:
+        """The loads of the conditions that prescribe something (what a hand, a
+        support or a robot must give)."""
+        return {k: v for k, v in self.loads.items() if any(v.prescribed)}
+
+
+@dataclass
+class AccurateSolver:
+    """Solves each pose warm-started from the last equilibrium (falling back to a cold
+    solve when the warm start cannot be followed), keeping that equilibrium."""
+
+    elements: int | None = None
+    last: Any = None
+    _solver: Any = field(default=None, init=False, repr=False)
+
+    def solve(self, index: int, problem: Problem) -> AccurateResult:
+        from pliant.models import dispatch  # noqa: PLC0415 (the heavy models, on demand)
+
+        start = time.perf_counter()
+        solver = None
+        if problem.dimension == 3 and self.elements:
+            from pliant.models.rod3d import RodSolver  # noqa: PLC0415
+
+            solver = RodSolver(elements=self.elements)
+        try:
+            try:
+                eq = dispatch.solve(problem, warm_start=self.last, solver=solver)
+            except PliantError:
+                if self.last is None:
+                    raise
+                eq = dispatch.solve(problem, solver=solver)
+        except PliantError as err:
+            return AccurateResult(index, problem, np.zeros(0), np.zeros((0, problem.dimension)),
+                                  {}, error=str(err),
+                                  solve_seconds=time.perf_counter() - start)
+        self.last = eq
+        stable, smallest = (eq.stability if problem.dimension == 3 else (None, None))
+        return AccurateResult(index=index, problem=problem, s=np.array(eq.s),
+                              position=np.array(eq.position), loads=dict(eq.loads),
+                              residual=float(eq.residual), iterations=int(eq.iterations),
+                              notes=tuple(eq.notes), stable=stable,
+                              smallest_eigenvalue=smallest,
+                              solve_seconds=time.perf_counter() - start)
+
+
+class InlineExecutor:
+    """Runs each solve at once, in the caller: deterministic (replays, tests)."""
+
+    def __init__(self, elements: int | None = None) -> None:
+        self.solver = AccurateSolver(elements=elements)
+        self._done: AccurateResult | None = None
+
+    @property
+    def busy(self) -> bool:
+        return False
+
+    def submit(self, index: int, problem: Problem) -> None:
+        self._done = self.solver.solve(index, problem)
+
+    def poll(self) -> AccurateResult | None:
+        done, self._done = self._done, None
+        return done
+
+    def wait(self, timeout: float | None = None) -> AccurateResult | None:
+        return self.poll()
+
+    def close(self) -> None:
+        pass
+
+
+class ProcessExecutor:
+    """Runs solves in one worker process (``python -m pliant.session.worker``), one at a
+    time; ``poll`` never waits. Messages are length-prefixed pickles over the worker's
+    stdin and stdout; a reader thread (blocked in I/O, so it holds no lock the frame loop
+    needs) queues the answers. A plain subprocess rather than multiprocessing: a user's
+    script needs no ``if __name__ == "__main__"`` guard, on any platform."""
+
+    def __init__(self, elements: int | None = None) -> None:
+        import queue  # noqa: PLC0415
+        import subprocess  # noqa: PLC0415
+        import sys  # noqa: PLC0415
+        import threading  # noqa: PLC0415
+
+        self._process = subprocess.Popen(
+            [sys.executable, "-m", "pliant.session.worker", str(elements or 0)],
+            stdin=subprocess.PIPE, stdout=subprocess.PIPE)
+        self._answers: queue.Queue = queue.Queue()
+        self._reader = threading.Thread(target=self._read, daemon=True,
+                                        name="pliant-accurate-reader")
+        self._reader.start()
+        self._busy = False
+        self._submitted: tuple[int, Problem] | None = None
+
+    def _read(self) -> None:
+        stream = self._process.stdout
+        while True:
+            message = read_message(stream)
+            self._answers.put(message)
+            if message is None:
+                return
+
+    @property
+    def busy(self) -> bool:
+        return self._busy
+
+    def submit(self, index: int, problem: Problem) -> None:
+        self._submitted = (index, problem)
+        try:
+            write_message(self._process.stdin, (index, problem))
+        except (OSError, ValueError):
+            self._answers.put(None)  # the worker is gone: poll says so
+        self._busy = True
+
+    def _take(self, message) -> AccurateResult:
+        self._busy = False
+        if message is None:
+            index, problem = self._submitted or (0, None)
+            return AccurateResult(index, problem, np.zeros(0), np.zeros((0, 0)), {},
+                                  error="the accurate worker process stopped; restart the "
+                                  "session")
+        return message
+
+    def poll(self) -> AccurateResult | None:
+        import queue  # noqa: PLC0415
+
+        if not self._busy:
+            return None
+        try:
+            return self._take(self._answers.get_nowait())
+        except queue.Empty:
+            return None
+
+    def wait(self, timeout: float | None = None) -> AccurateResult | None:
+        import queue  # noqa: PLC0415
+
+        if not self._busy:
+            return None
+        try:
+            return self._take(self._answers.get(timeout=timeout))
+        except queue.Empty:
+            return None
+
+    def close(self) -> None:
+        try:
+            write_message(self._process.stdin, None)
+            self._process.stdin.close()
+        except (OSError, ValueError):
+            pass
+        try:
+            self._process.wait(timeout=2.0)
+        except Exception:  # noqa: BLE001 (it must end whatever happened)
+            self._process.kill()
+            self._process.wait()
+        if self._process.stdout is not None:
+            self._process.stdout.close()
+
+
+def write_message(stream, message) -> None:
+    """A length-prefixed pickle (None: the stop message)."""
+    import pickle  # noqa: PLC0415
+
+    payload = pickle.dumps(message, protocol=pickle.HIGHEST_PROTOCOL)
+    stream.write(len(payload).to_bytes(8, "little") + payload)
+    stream.flush()
+
+
+def read_message(stream):
+    """The next message, or None at the end of the stream."""
+    import pickle  # noqa: PLC0415
+
+    head = stream.read(8)
+    if len(head) < 8:
+        return None
+    size = int.from_bytes(head, "little")
+    payload = stream.read(size)
+    if len(payload) < size:
+        return None
+    return pickle.loads(payload)  # noqa: S301 (our own worker's answers)

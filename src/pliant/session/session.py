@@ -1,0 +1,224 @@
+"""A manipulation session: the coupling of the paper's Fig. 1.
+
+Grip events come in (a hand, a tracker); each returns a real-time frame at once (the bar
+network moved to the new grip poses, its tube mesh). The session measures drift: the
+network's length error and the distance from its curve to the last accurate shape. Past
+a tolerance, or when asked, it hands the current pose to the accurate model
+(warm-started from the last equilibrium); when the answer arrives it is published (shape
+and real forces) and the network is retuned to it. In live mode the accurate model runs
+in a worker process and ``apply`` never waits for it; in inline mode (replays, tests) it
+runs at once, so a replayed event stream gives the same frames every time.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import time
+from collections.abc import Callable, Iterable
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from pliant.core.conditions import Condition
+from pliant.core.problem import Problem
+from pliant.errors import ConvergenceError, InputError
+from pliant.models.realtime import RealtimeFrame, RealtimeModel
+from pliant.session.accurate import AccurateResult, InlineExecutor, ProcessExecutor
+
+
+@dataclass(frozen=True)
+class GripEvent:
+    """A grip moved: the condition ``grip`` takes the given position [m] and, where
+    given, its axis ``tangent`` and section ``normal`` (3D) or ``angle`` [rad] (2D).
+    ``t`` is when it happened [s] (recorded; replays ignore it)."""
+
+    grip: str
+    position: tuple[float, ...] | None = None
+    tangent: tuple[float, float, float] | None = None
+    normal: tuple[float, float, float] | None = None
+    angle: float | None = None
+    t: float = 0.0
+
+
+@dataclass(frozen=True)
+class Drift:
+    """How far the real-time shape may be from the truth: the control polygon's length
+    error and the curve's (relative), and the largest distance from the curve to the last
+    accurate shape at the same s (relative to L; it grows as the grips move away from
+    the accurate pose)."""
+
+    length_error: float
+    curve_length_error: float
+    distance_to_accurate: float
+
+
+@dataclass(frozen=True)
+class Frame:
+    """What a session returns for each event, at once.
+
+    index : the event's number; realtime : the network's frame (curve, tube mesh,
+    fictive grip forces); drift; accurate : the latest accurate result (real forces),
+    answering event ``accurate.index`` (it may be older than this frame); pending : an
+    accurate solve is running; solved : this event triggered one; seconds : how long
+    this call took.
+    """
+
+    index: int
+    realtime: RealtimeFrame
+    drift: Drift
+    accurate: AccurateResult | None
+    pending: bool
+    solved: bool
+    seconds: float
+
+
+@dataclass
+class Session:
+    """An interactive session on one problem (2D or 3D).
+
+    live : run the accurate model in a worker process (else inline, deterministic);
+    control_points, bending : of the real-time model; distance_tolerance and
+    length_tolerance : the drift (relative to L) past which an accurate solve is started;
+    elements : the 3D model's resolution; on_accurate : called with each accurate
+    result as it is published.
+    """
+
+    problem: Problem
+    live: bool = False
+    control_points: int = 50
+    bending: float = 0.1
+    distance_tolerance: float = 0.02
+    length_tolerance: float = 0.005
+    elements: int | None = None
+    on_accurate: Callable[[AccurateResult], None] | None = None
+    index: int = field(default=0, init=False)
+    events: list[GripEvent] = field(default_factory=list, init=False)
+    accurate: AccurateResult | None = field(default=None, init=False)
+    solves: list[AccurateResult] = field(default_factory=list, init=False)
+
+    def __post_init__(self) -> None:
+        self.model = RealtimeModel(self.problem, control_points=self.control_points,
+                                   bending=self.bending)
+        self._executor = (ProcessExecutor(self.elements) if self.live
+                          else InlineExecutor(self.elements))
+        self._requested = False
+        self._reference: np.ndarray | None = None  # the accurate shape at the curve's s
+        self._start = time.perf_counter()
+        # The first accurate solve, waited for: the network starts from it.
+        self._executor.submit(0, self.problem)
+        first = self._executor.wait(timeout=None if not self.live else 600.0)
+        if first is None or not first.ok:
+            self.close()
+            why = first.error if first is not None else "the accurate model did not answer"
+            raise ConvergenceError(f"the session cannot start: {why}", residual=float("nan"))
+        self._publish(first)
+        self.model.frame(self.problem)  # loads the kernels now, not in the first frame
+
+    # -- events ----------------------------------------------------------------------------
+    def apply(self, event: GripEvent) -> Frame:
+        """Move a grip; return the frame at once (never waits for the accurate model)."""
+        start = time.perf_counter()
+        if not any(c.name == event.grip for c in self.problem.conditions):
+            raise InputError("grip", f"no condition is named {event.grip!r}; the conditions "
+                             "are " + ", ".join(repr(c.name) for c in self.problem.conditions))
+        self.problem = self.problem.with_conditions(
+            _moved(c, event) if c.name == event.grip else c for c in self.problem.conditions)
+        self.index += 1
+        stamped = event if event.t else dataclasses.replace(event, t=start - self._start)
+        self.events.append(stamped)
+        return self._frame(start)
+
+    def request_accurate(self) -> None:
+        """Ask for an accurate solve at the next event (or ``poll``), drift or not."""
+        self._requested = True
+
+    def poll(self) -> Frame:
+        """A frame at the current pose, taking any accurate result that has arrived."""
+        return self._frame(time.perf_counter())
+
+    def wait(self, timeout: float = 60.0) -> AccurateResult | None:
+        """Block until the running accurate solve ends (for scripts and tests; a frame
+        loop polls instead); publish its result."""
+        done = self._executor.wait(timeout)
+        if done is not None:
+            self._publish(done)
+        return done
+
+    def close(self) -> None:
+        self._executor.close()
+
+    def __enter__(self) -> Session:
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.close()
+
+    # -- internals -------------------------------------------------------------------------
+    def _frame(self, start: float) -> Frame:
+        done = self._executor.poll()
+        if done is not None:
+            self._publish(done)
+        realtime = self.model.frame(self.problem)
+        drift = self._drift(realtime)
+        solved = False
+        if not self._executor.busy and (
+                self._requested or not realtime.converged
+                or drift.distance_to_accurate > self.distance_tolerance
+                or max(drift.length_error, drift.curve_length_error) > self.length_tolerance):
+            self._requested = False
+            self._executor.submit(self.index, self.problem)
+            solved = True
+            done = self._executor.poll()  # inline: already there
+            if done is not None:
+                self._publish(done)
+                realtime = self.model.frame(self.problem)
+                drift = self._drift(realtime)
+        return Frame(index=self.index, realtime=realtime, drift=drift, accurate=self.accurate,
+                     pending=self._executor.busy, solved=solved,
+                     seconds=time.perf_counter() - start)
+
+    def _publish(self, result: AccurateResult) -> None:
+        self.solves.append(result)
+        if not result.ok:
+            return  # keep the last good shape; the drift stays and says so
+        self.accurate = result
+        self.model.retune(result)
+        L = self.problem.part.length
+        s_curve = self.model.u_curve * L
+        self._reference = np.column_stack([np.interp(s_curve, *_distinct(result.s, x))
+                                           for x in result.position.T])
+        if self.on_accurate is not None:
+            self.on_accurate(result)
+
+    def _drift(self, realtime: RealtimeFrame) -> Drift:
+        L = self.problem.part.length
+        curve = realtime.curve[:, :self.problem.dimension]
+        distance = (float(np.linalg.norm(curve - self._reference, axis=1).max()) / L
+                    if self._reference is not None else float("inf"))
+        return Drift(realtime.length_error, realtime.curve_length_error, distance)
+
+
+def replay(problem: Problem, events: Iterable[GripEvent], **options) -> list[Frame]:
+    """Replay a recorded event stream inline: the same frames and the same accurate
+    solves every run."""
+    options.pop("live", None)
+    with Session(problem, live=False, **options) as session:
+        return [session.apply(event) for event in events]
+
+
+def _moved(cond: Condition, event: GripEvent) -> Condition:
+    changes = {}
+    if event.position is not None:
+        changes["position"] = tuple(event.position)
+    if event.tangent is not None:
+        changes["tangent"] = tuple(event.tangent)
+    if event.normal is not None:
+        changes["normal"] = tuple(event.normal)
+    if event.angle is not None:
+        changes["angle"] = event.angle
+    return dataclasses.replace(cond, **changes)
+
+
+def _distinct(s: np.ndarray, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    keep = np.concatenate([[True], np.diff(s) > 0.0])
+    return s[keep], x[keep]

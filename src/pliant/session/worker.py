@@ -1,0 +1,29 @@
+"""The accurate-model worker of a live session: ``python -m pliant.session.worker N``
+(N: the 3D resolution, 0 for the default). It reads (index, problem) messages on stdin
+and writes ``AccurateResult``s on stdout, warm-starting each solve from the last."""
+
+from __future__ import annotations
+
+import os
+import sys
+
+from pliant.session.accurate import AccurateSolver, read_message, write_message
+
+
+def main() -> None:
+    elements = int(sys.argv[1]) if len(sys.argv) > 1 else 0
+    # The protocol owns the real stdout; anything printed goes to stderr instead.
+    channel = os.fdopen(os.dup(sys.stdout.fileno()), "wb")
+    sys.stdout = sys.stderr
+    requests = sys.stdin.buffer
+    solver = AccurateSolver(elements=elements or None)
+    while True:
+        message = read_message(requests)
+        if message is None:
+            return
+        index, problem = message
+        write_message(channel, solver.solve(index, problem))
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,114 @@
+"""The coupling layer: frames at once, drift-triggered accurate solves that retune the
+network, deterministic replays, recordings, and a live frame loop that an accurate
+solve does not block."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+import pliant as pl
+from pliant.errors import FileFormatError, InputError, UnreachableTargetError
+from pliant.io.recording import load_recording, save_recording
+from pliant.session import GripEvent, Session, replay
+
+HOSE = pl.Part(length=1.0, bending_stiffness=0.05, mass_per_length=0.3, outer_diameter=0.02)
+PROBLEM_3D = pl.Problem(HOSE, (pl.clamp(0.0, position=(0.0, 0.0, 0.0)),
+                               pl.pin(1.0, position=(0.9, 0.0, 0.0), name="hand")),
+                        gravity=(0.0, 0.0, -9.81))
+PROBLEM_2D = pl.Problem(HOSE, (pl.clamp(0.0), pl.pin(1.0, position=(0.9, 0.0), name="hand")),
+                        gravity=(0.0, -9.81))
+
+
+def carried(dimension: int, steps: int) -> list[GripEvent]:
+    """A hand carrying the end from (0.9, 0, 0) to (0.55, 0.3, 0.2) (2D: (0.55, 0.3))."""
+    return [GripEvent("hand", position=(0.9 - 0.35 * t, 0.3 * t, 0.2 * t)[:dimension])
+            for t in np.linspace(1.0 / steps, 1.0, steps)]
+
+
+@pytest.mark.parametrize("problem", [PROBLEM_2D, PROBLEM_3D], ids=["2D", "3D"])
+def test_replay_is_deterministic_and_publishes_real_forces(problem):
+    """A replayed manipulation gives the same frames and the same accurate solves every
+    run; every accurate solve answers the pose of the event that triggered it, with the
+    forces a direct solve of that pose gives; inline, no frame is ever farther from its
+    accurate shape than the drift tolerance."""
+    events = carried(problem.dimension, 40)
+    first = replay(problem, events, control_points=30)
+    second = replay(problem, events, control_points=30)
+    assert len(first) == len(second) == 40
+    for a, b in zip(first, second):
+        assert np.array_equal(a.realtime.curve, b.realtime.curve)
+        assert np.array_equal(a.realtime.vertices, b.realtime.vertices)
+        assert a.solved == b.solved and a.accurate.index == b.accurate.index
+        assert np.array_equal(a.accurate.reactions["hand"].force,
+                              b.accurate.reactions["hand"].force)
+    triggered = [f for f in first if f.solved]
+    assert 3 <= len(triggered) < 40  # the network carries the frames in between
+    for frame in triggered:
+        assert frame.accurate.index == frame.index
+    for frame in first:
+        assert frame.drift.distance_to_accurate <= 0.02
+        assert frame.drift.length_error < 1e-6
+    last = triggered[-1].accurate
+    direct = pl.solve(last.problem)
+    assert np.allclose(last.reactions["hand"].force, direct.reactions["hand"].force,
+                       rtol=1e-6, atol=1e-9)
+
+
+def test_drift_tolerance_and_requests_set_when_to_solve():
+    events = carried(2, 30)
+    loose = replay(PROBLEM_2D, events, control_points=20, distance_tolerance=0.05)
+    tight = replay(PROBLEM_2D, events, control_points=20, distance_tolerance=0.01)
+    assert sum(f.solved for f in loose) < sum(f.solved for f in tight)
+    with Session(PROBLEM_2D, control_points=20, distance_tolerance=10.0) as session:
+        quiet = session.apply(events[0])
+        assert not quiet.solved and quiet.accurate.index == 0
+        session.request_accurate()
+        asked = session.apply(events[1])
+        assert asked.solved and asked.accurate.index == 2
+
+
+def test_bad_events_are_typed_and_leave_the_session_usable():
+    with Session(PROBLEM_3D, control_points=20) as session:
+        with pytest.raises(InputError, match="no condition is named 'foot'"):
+            session.apply(GripEvent("foot", position=(0.5, 0.0, 0.0)))
+        with pytest.raises(UnreachableTargetError):
+            session.apply(GripEvent("hand", position=(2.0, 0.0, 0.0)))
+        frame = session.apply(GripEvent("hand", position=(0.85, 0.05, 0.0)))
+        assert frame.index == 1 and frame.realtime.converged
+        assert np.allclose(frame.realtime.curve[-1], (0.85, 0.05, 0.0), atol=1e-12)
+
+
+def test_recordings_round_trip_and_reject_bad_files(tmp_path):
+    events = [GripEvent("hand", position=(0.8, 0.1, 0.05), t=0.5),
+              GripEvent("hand", position=(0.7, 0.2, 0.1), tangent=(0.0, 1.0, 0.0), t=1.0)]
+    path = save_recording(tmp_path / "take.json", PROBLEM_3D, events)
+    problem, loaded = load_recording(path)
+    assert loaded == events
+    assert problem.conditions == PROBLEM_3D.conditions and problem.gravity == PROBLEM_3D.gravity
+    bad = tmp_path / "bad.json"
+    bad.write_text('{"format": "pliant-recording", "version": 1, "problem": "", '
+                   '"events": [{"grip": "hand", "t": -1}]}')
+    with pytest.raises(FileFormatError, match=r"bad.json: events.0.t"):
+        load_recording(bad)
+    bad.write_text("not json")
+    with pytest.raises(FileFormatError, match="not valid JSON"):
+        load_recording(bad)
+
+
+def test_live_frames_are_not_blocked_by_accurate_solves():
+    """Live, the accurate model runs in a worker process: with every accurate solve
+    taking tens of milliseconds (3D, 400 elements) and one almost always running, no
+    frame waits for one (frame times measured by the session's own clock)."""
+    events = carried(3, 300)
+    with Session(PROBLEM_3D, live=True, elements=400, control_points=30) as session:
+        frames = [session.apply(event) for event in events]
+        session.wait(timeout=60.0)
+        final = session.poll()
+    solves = [r for r in session.solves[1:] if r.ok]
+    assert len(solves) >= 3
+    slowest_solve = min(r.solve_seconds for r in solves)
+    overlapped = [f for f in frames if f.pending]
+    assert len(overlapped) > len(frames) / 2
+    assert max(f.seconds for f in overlapped) < 0.5 * slowest_solve
+    assert final.accurate.index > frames[len(frames) // 2].index
