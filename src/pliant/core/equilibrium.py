@@ -193,6 +193,39 @@ class Equilibrium:
 
 
 @dataclass(frozen=True, eq=False)
+class Contacts:
+    """The contact forces on a part, one row per touching point.
+
+    s (k,) [m] where along the part; point (k, 3) [m] the point of the neutral line;
+    force (k, 3) [N] what the obstacle applies to the part (normal to its surface:
+    frictionless); obstacle (k,) the obstacle's name. A distributed contact shows as
+    several neighbouring rows.
+    """
+
+    s: np.ndarray
+    point: np.ndarray
+    force: np.ndarray
+    obstacle: tuple[str, ...]
+
+    def __len__(self) -> int:
+        return int(self.s.shape[0])
+
+    def by_obstacle(self) -> dict[str, np.ndarray]:
+        """The total force [N] each obstacle applies to the part."""
+        out: dict[str, np.ndarray] = {}
+        for name, f in zip(self.obstacle, self.force):
+            out[name] = out.get(name, np.zeros(3)) + f
+        return out
+
+    def to_dict(self) -> dict[str, Any]:
+        return {"s": self.s.tolist(), "point": self.point.tolist(),
+                "force": self.force.tolist(), "obstacle": list(self.obstacle)}
+
+
+NO_CONTACTS = Contacts(np.zeros(0), np.zeros((0, 3)), np.zeros((0, 3)), ())
+
+
+@dataclass(frozen=True, eq=False)
 class Samples3D:
     """The arrays of a 3D equilibrium (see ``Equilibrium3D``)."""
 
@@ -204,6 +237,7 @@ class Samples3D:
     internal_moment: np.ndarray
     energy: float
     loads: dict[str, StationLoad]
+    contacts: Contacts = NO_CONTACTS
 
 
 @dataclass(frozen=True, eq=False)
@@ -219,8 +253,9 @@ class Equilibrium3D:
     part before, global frame, per element; internal_moment : (N+1, 3) float [N m], the
     moment the part beyond exerts on the part before, global frame, at the nodes;
     loads : the load (force (3,) [N], moment (3,) [N m], global frame) every condition
-    applies to the part, by name (reactions where prescribed); energy : float [J], the
-    elastic energy (bending and torsion). Stability is computed on first access too.
+    applies to the part, by name (reactions where prescribed); contacts : the forces
+    obstacles apply to it (``Contacts``); energy : float [J], the elastic energy (bending
+    and torsion). Stability is computed on first access too.
     """
 
     problem: Problem
@@ -245,6 +280,7 @@ class Equilibrium3D:
     internal_moment = property(lambda self: self.samples.internal_moment)
     energy = property(lambda self: self.samples.energy)
     loads = property(lambda self: self.samples.loads)
+    contacts = property(lambda self: self.samples.contacts)
 
     @cached_property
     def stability(self) -> tuple[bool | None, float | None]:
@@ -322,6 +358,7 @@ class Equilibrium3D:
             "internal_force": self.internal_force.tolist(),
             "internal_moment": self.internal_moment.tolist(),
             "loads": {k: v.to_dict() for k, v in self.loads.items()},
+            "contacts": self.contacts.to_dict(),
             "tip": [self.tip[0].tolist(), self.tip[1].tolist()],
             "energy": self.energy,
             "max_moment": list(self.max_moment()),

@@ -122,13 +122,15 @@ class Problem:
 
     Stations without a condition are free. The problem must fix the part's rigid motion:
     x and y prescribed somewhere, and the angle prescribed somewhere or positions
-    prescribed at two stations.
+    prescribed at two stations. ``obstacles`` (3D): rigid obstacles the part must not
+    enter (``pliant.scene.Obstacle``); the part touches them with its outer radius.
     """
 
     part: Part
     conditions: tuple[Condition, ...]
     gravity: tuple[float, ...] | None = None
     name: str = ""
+    obstacles: tuple = ()
     stations: tuple = field(init=False, repr=False, compare=False)
     dimension: int = field(init=False, repr=False, compare=False)
 
@@ -163,6 +165,11 @@ class Problem:
         object.__setattr__(self, "conditions", conditions)
         object.__setattr__(self, "gravity", gravity)
         object.__setattr__(self, "dimension", dimension)
+        obstacles = tuple(self.obstacles)
+        if obstacles and dimension != 3:
+            raise InputError("obstacles", "contact with obstacles is 3D; give the conditions "
+                             "and gravity three components")
+        object.__setattr__(self, "obstacles", obstacles)
         names = [c.name for c in conditions]
         for n in names:
             if names.count(n) > 1:
@@ -179,7 +186,7 @@ class Problem:
         self._check_reach()
 
     def with_conditions(self, conditions: Iterable[Condition]) -> Problem:
-        return Problem(self.part, tuple(conditions), self.gravity, self.name)
+        return Problem(self.part, tuple(conditions), self.gravity, self.name, self.obstacles)
 
     def _located(self, st) -> list[int]:
         """The coordinates a station prescribes."""
@@ -356,7 +363,7 @@ def interpolate(start: Problem, end: Problem, t: float) -> Problem:
             tangent=_lerp_vector(a.tangent, c.tangent, t) if c.tangent else None,
             normal=_lerp_vector(a.normal, c.normal, t) if c.normal else None))
     gravity = tuple(ga + t * (gb - ga) for ga, gb in zip(start.gravity, end.gravity))
-    return Problem(end.part, tuple(conditions), gravity, end.name)
+    return Problem(end.part, tuple(conditions), gravity, end.name, end.obstacles)
 
 
 def _lerp_vector(a, b, t: float):

@@ -37,8 +37,10 @@ import math
 import numpy as np
 from numba import njit
 
+from pliant.models.banded import add as _add
 from pliant.models.banded import add_block as _add_block
 from pliant.models.banded import band_lu, band_lu_solve, band_solve  # noqa: F401
+from pliant.scene.distance import query_point
 
 # Orientation kinds of a station.
 FREE = 0
@@ -682,3 +684,79 @@ def rest_shape(h, elem_frame, joint_hh, joint_k0):
         for c in range(3):
             X[e + 1, c] = X[e, c] + h[e] * Rm[c, 2]
     return X, Q
+
+
+# -- contact -------------------------------------------------------------------------------
+@njit(cache=True)
+def contact_terms(X, gam, probe_elem, probe_a, iprobe, ix, L, radius, offset, band, scale,
+                  field, R, ab, kl, ku, want_jac):
+    """Add the frictionless contacts to a KKT residual (and its Jacobian), in place.
+
+    Each probe p = (1 - a) x_e + a x_e+1 has the gap g = (D(p L) - radius) / L + offset
+    (D the scene's signed distance) and the multiplier gam >= 0, the normal force it takes
+    (by EI / L^2); the force gam n (n = grad D) acts on its two nodes. The unilateral
+    condition is the complementarity function min(gam, scale g) = 0, solved by a
+    semismooth Newton: a probe with gam <= scale g is free (its row: gam = 0), else it
+    touches (its row: g = 0); switching is the active-set update. The curvature of the
+    surface (d n / d p) enters the force's Jacobian by central differences of n.
+    Returns (gaps (K,), normals (K, 3), obstacles (K,), active (K,) bool).
+    """
+    K = probe_elem.shape[0]
+    gaps = np.empty(K)
+    normals = np.empty((K, 3))
+    which = np.empty(K, dtype=np.int64)
+    active = np.zeros(K, dtype=np.bool_)
+    p = np.empty(3)
+    for k in range(K):
+        e = probe_elem[k]
+        a = probe_a[k]
+        for c in range(3):
+            p[c] = ((1.0 - a) * X[e, c] + a * X[e + 1, c]) * L
+        d, nx, ny, nz, o = query_point(p, band, *field)
+        g = (d - radius) / L + offset
+        gaps[k] = g
+        normals[k, 0], normals[k, 1], normals[k, 2] = nx, ny, nz
+        which[k] = o
+        ip = iprobe[k]
+        w0, w1 = 1.0 - a, a
+        n = normals[k]
+        lam = gam[k]
+        for c in range(3):
+            R[ix[e] + c] -= w0 * lam * n[c]
+            R[ix[e + 1] + c] -= w1 * lam * n[c]
+        touching = lam > scale * g
+        active[k] = touching
+        R[ip] = scale * g if touching else lam
+        if not want_jac:
+            continue
+        for c in range(3):
+            _add(ab, kl, ku, ix[e] + c, ip, -w0 * n[c])
+            _add(ab, kl, ku, ix[e + 1] + c, ip, -w1 * n[c])
+        if touching:
+            for c in range(3):
+                _add(ab, kl, ku, ip, ix[e] + c, scale * w0 * n[c])
+                _add(ab, kl, ku, ip, ix[e + 1] + c, scale * w1 * n[c])
+        else:
+            _add(ab, kl, ku, ip, ip, 1.0)
+        if lam != 0.0:
+            # d n / d p by central differences (the surface's curvature), times L.
+            eps = 1e-6 * max(L, 1.0)
+            H = np.empty((3, 3))
+            for j in range(3):
+                p[j] += eps
+                _, px, py, pz, _ = query_point(p, band, *field)
+                p[j] -= 2.0 * eps
+                _, mx, my, mz, _ = query_point(p, band, *field)
+                p[j] += eps
+                H[0, j] = (px - mx) / (2.0 * eps) * L
+                H[1, j] = (py - my) / (2.0 * eps) * L
+                H[2, j] = (pz - mz) / (2.0 * eps) * L
+            for c in range(3):
+                for j in range(3):
+                    v = -lam * H[c, j]
+                    if v != 0.0:
+                        _add(ab, kl, ku, ix[e] + c, ix[e] + j, w0 * w0 * v)
+                        _add(ab, kl, ku, ix[e] + c, ix[e + 1] + j, w0 * w1 * v)
+                        _add(ab, kl, ku, ix[e + 1] + c, ix[e] + j, w1 * w0 * v)
+                        _add(ab, kl, ku, ix[e + 1] + c, ix[e + 1] + j, w1 * w1 * v)
+    return gaps, normals, which, active

@@ -91,6 +91,7 @@ class Loads:
     st_mfollow: np.ndarray  # (S, 3) follower moments (material)
     joint_k0: np.ndarray  # (J, 3) rest Darboux vectors (with any bow)
     turn: np.ndarray | None = None  # (S, 3) where to swing a tangent that must reverse
+    offset: float = 0.0  # added to every contact gap: obstacles grown back from nothing
 
     def lerp(self, other: Loads, t: float) -> Loads:
         """Linear in everything but the orientations, which turn along the shortest arc
@@ -103,7 +104,8 @@ class Loads:
                      self.st_moment + t * (other.st_moment - self.st_moment),
                      self.st_ffollow + t * (other.st_ffollow - self.st_ffollow),
                      self.st_mfollow + t * (other.st_mfollow - self.st_mfollow),
-                     self.joint_k0 + t * (other.joint_k0 - self.joint_k0), hint)
+                     self.joint_k0 + t * (other.joint_k0 - self.joint_k0), hint,
+                     self.offset + t * (other.offset - self.offset))
 
 
 def _slerp_vectors(a: np.ndarray, b: np.ndarray, t: float,
@@ -176,6 +178,13 @@ class Rod:
     rest_k0: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)))
     node_frame: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=np.int64))
     requested: int = 0  # the element count asked of lower()
+    # Contact: probes at every node and element midpoint, p = (1 - a) x_e + a x_e+1,
+    # each with a multiplier (its contact force) numbered beside its node.
+    probe_elem: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=np.int64))
+    probe_a: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    iprobe: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=np.int64))
+    obstacles: object = None  # a pliant.scene.DistanceField, or None
+    radius: float = 0.0  # the part's outer radius [m]
 
     def retarget(self, problem: Problem, elements: int) -> Rod | None:
         """The same discretisation for another problem with the same part and stations
@@ -183,6 +192,8 @@ class Rod:
         if elements != self.requested or problem.dimension != 3:
             return None
         if problem.part is not self.problem.part and problem.part != self.problem.part:
+            return None
+        if problem.obstacles != self.problem.obstacles:
             return None
         old = self.stations
         if len(problem.stations) != len(old) or any(
@@ -285,9 +296,20 @@ class Rod:
                 st_quat[k] = -st_quat[k]
         zeros = np.zeros((S, 3))
         turn = np.where(self.st_pos_mask == 1, self.target.st_pos - st_pos, 0.0)
+        # Where the unloaded part passes through an obstacle, the homotopy starts with
+        # every gap widened enough to clear it (the obstacles grow back along the way).
+        offset = 0.0
+        if self.obstacles is not None:
+            a = self.probe_a[:, None]
+            points = ((1.0 - a) * X[self.probe_elem] + a * X[self.probe_elem + 1])
+            d, _, _ = self.obstacles.query(points, band=2.0 * self.radius)
+            deepest = float(np.min((d - self.radius) / self.length))
+            if deepest < 0.0:
+                offset = -deepest + 0.01
         loads = Loads(np.zeros_like(self.target.fnode), st_pos, st_tangent, st_quat, zeros,
-                      zeros, zeros, k0, turn)
-        state = (X, Q, np.zeros((self.elements, 3)), np.zeros(self.m))
+                      zeros, zeros, k0, turn, offset)
+        state = (X, Q, np.zeros((self.elements, 3)), np.zeros(self.m),
+                 np.zeros(self.probe_elem.shape[0]))
         return loads, state
 
 
@@ -399,6 +421,16 @@ def lower(problem: Problem, elements: int = 100) -> Rod:
     node_cnt[st_node] += nu_cnt
     if gauge_frame >= 0:
         node_cnt[0] += 1
+    # Contact probes, last in each node's block: the node (unless a station holds its
+    # whole position: the hand or clamp takes that point), then its element's midpoint.
+    contact = bool(problem.obstacles)
+    held = np.zeros(N + 1, dtype=bool)
+    held[st_node[st_pos_mask.all(axis=1)]] = True
+    node_probe = contact & ~held
+    mid_probe = np.zeros(N + 1, dtype=bool)
+    mid_probe[:N] = contact
+    probes_at = node_probe.astype(np.int64) + mid_probe
+    node_cnt = node_cnt + probes_at
     start = np.concatenate([[0], np.cumsum(node_cnt)[:-1]]).astype(np.int64)
     ix = start.copy()
     inu = (start[st_node] + 3).astype(np.int64)
@@ -425,13 +457,34 @@ def lower(problem: Problem, elements: int = 100) -> Rod:
         width = max(width, max(ends) - min(starts))
     if igauge >= 0:
         width = max(width, abs(igauge - ith[gauge_frame]) + 2)
+    probe_elem = np.zeros(0, dtype=np.int64)
+    probe_a = np.zeros(0)
+    iprobe = np.zeros(0, dtype=np.int64)
+    obstacles = None
+    if contact:
+        from pliant.scene.distance import DistanceField  # noqa: PLC0415
+
+        first = start + node_cnt - probes_at
+        nodes = np.nonzero(node_probe)[0]
+        mids = np.nonzero(mid_probe)[0]
+        probe_elem = np.concatenate([np.minimum(nodes, N - 1), mids])
+        probe_a = np.concatenate([np.where(nodes < N, 0.0, 1.0), np.full(mids.shape[0], 0.5)])
+        iprobe = np.concatenate([first[nodes], first[mids] + node_probe[mids]]).astype(np.int64)
+        order = np.argsort(iprobe)
+        probe_elem, probe_a, iprobe = probe_elem[order], probe_a[order], iprobe[order]
+        for k in range(iprobe.shape[0]):
+            e = probe_elem[k]
+            width = max(width, abs(iprobe[k] - ix[e]), abs(ix[e + 1] + 2 - iprobe[k]))
+        obstacles = DistanceField(list(problem.obstacles))
     target = Loads(*targets, joint_k0=rest_k0.copy())
     key = (L, EI1, tuple(K), s_node.tobytes(), st_pos_mask.tobytes(), st_kind.tobytes(),
-           rest_k0.tobytes())
+           rest_k0.tobytes(), iprobe.shape[0])
     return Rod(problem=problem, length=L, stiffness=EI1, s_node=s_node, h=h,
                frame_s=frame_s_arr, elem_frame=elem_frame, joint_hh=joint_hh, K=K,
                stations=stations, st_node=st_node, st_frame=st_frame,
                st_pos_mask=st_pos_mask, st_kind=st_kind, gauge_frame=gauge_frame, ix=ix,
                ith=ith, ilam=ilam, inu=inu, nu_off=nu_off, nu_cnt=nu_cnt, igauge=igauge,
                n=n, kl=width, ku=width, m=m, target=target, key=key, rest_k0=rest_k0,
-               node_frame=node_frame, requested=elements)
+               node_frame=node_frame, requested=elements, probe_elem=probe_elem,
+               probe_a=probe_a, iprobe=iprobe, obstacles=obstacles,
+               radius=0.5 * (part.outer_diameter or 0.0))

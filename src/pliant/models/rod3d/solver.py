@@ -36,12 +36,20 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from pliant.core.equilibrium import Equilibrium3D, Samples3D, StationLoad
+from pliant.core.equilibrium import (
+    NO_CONTACTS,
+    Contacts,
+    Equilibrium3D,
+    Samples3D,
+    StationLoad,
+)
 from pliant.core.problem import Problem
 from pliant.errors import ConvergenceError, IllPosedProblemError
 from pliant.models.rod3d import kernels
 from pliant.models.rod3d.kernels import AXIS, FULL
 from pliant.models.rod3d.lowering import Loads, Rod, axis_basis, lower, quat_matrix
+
+CONTACT_SCALE = 1.0  # weighs a gap against a contact force in min(gam, scale g)
 
 
 @dataclass(frozen=True)
@@ -73,7 +81,9 @@ class RodSolver:
     time_budget: float = 60.0
 
 
-State = tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]  # X, Q, lam, nu
+# X, Q, lam, nu and gam: positions, frames, element and station multipliers, and the
+# contact probes' normal forces (empty without obstacles).
+State = tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]
 
 _BRANCH_NOTE = "the unloaded part was a singular start"
 
@@ -119,14 +129,51 @@ class _Run:
 
     def newton(self, state: State, loads: Loads, *, strict: bool, tol: float | None = None):
         opts = self.solver
-        X, Q, lam, nu, r, it, status, energy = kernels.newton(
-            *state, *self.rod.args(loads), *self._static(),
-            opts.tolerance if tol is None else tol, opts.max_iterations,
-            opts.contraction if strict else 0.0)
+        tol = opts.tolerance if tol is None else tol
+        if self.rod.iprobe.shape[0]:
+            new, r, it, status, energy = self._newton_contact(state, loads, strict, tol)
+        else:
+            X, Q, lam, nu, r, it, status, energy = kernels.newton(
+                *state[:4], *self.rod.args(loads), *self._static(), tol,
+                opts.max_iterations, opts.contraction if strict else 0.0)
+            new = (X, Q, lam, nu, state[4])
         self.iterations += it
-        if status == kernels.CONVERGED and not self._axes_agree(Q, loads):
+        if status == kernels.CONVERGED and not self._axes_agree(new[1], loads):
             status = kernels.NOT_CONTRACTING
-        return (X, Q, lam, nu), r, status, energy
+        return new, r, status, energy
+
+    def _newton_contact(self, state: State, loads: Loads, strict: bool, tol: float):
+        """The semismooth Newton of a problem with obstacles: the same acceptance as the
+        kernel's (contraction as a corrector, else backtracking), the Jacobian rebuilt
+        every iteration (the active set may change). Returns (state, residual,
+        iterations, status, energy)."""
+        opts = self.solver
+        R, ab, energy = self.residual(state, loads, want_jac=True)
+        r = float(np.abs(R).max())
+        if not np.isfinite(r):
+            return state, r, 0, kernels.NOT_FINITE, energy
+        it = 0
+        while r > tol:
+            if it >= opts.max_iterations:
+                return state, r, it, kernels.MAX_ITERATIONS, energy
+            it += 1
+            du, ok = kernels.band_solve(ab, self.rod.kl, self.rod.ku, -R)
+            if not ok:
+                return state, r, it, kernels.SINGULAR, energy
+            step = 1.0
+            for _ in range(1 if strict else 30):
+                trial = self.step(state, du, step)
+                Rn, abn, en = self.residual(trial, loads, want_jac=True)
+                rn = float(np.abs(Rn).max())
+                accepted = (rn <= opts.contraction * r or rn <= tol) if strict else (
+                    np.isfinite(rn) and rn <= (1.0 - 1e-4 * step) * r)
+                if accepted:
+                    break
+                step *= 0.5
+            else:
+                return state, r, it, kernels.NOT_CONTRACTING, energy
+            state, R, ab, r, energy = trial, Rn, abn, rn, en
+        return state, r, it, kernels.CONVERGED, energy
 
     def _axes_agree(self, Q: np.ndarray, loads: Loads) -> bool:
         """An axis grip's constraint (d3 normal to two vectors across the axis) also holds
@@ -139,19 +186,41 @@ class _Run:
 
     def residual(self, state: State, loads: Loads, want_jac: bool = False):
         rod = self.rod
-        return kernels.assemble(*state, *rod.args(loads), rod.gauge_frame, self.gauge_quat,
-                                rod.ix, rod.ith, rod.ilam, rod.inu, rod.nu_off, rod.igauge,
-                                rod.n, rod.kl, rod.ku, want_jac)
+        R, ab, energy = kernels.assemble(*state[:4], *rod.args(loads), rod.gauge_frame,
+                                         self.gauge_quat, rod.ix, rod.ith, rod.ilam, rod.inu,
+                                         rod.nu_off, rod.igauge, rod.n, rod.kl, rod.ku,
+                                         want_jac)
+        if rod.iprobe.shape[0]:
+            self.contacts(state, loads, R, ab, want_jac)
+        return R, ab, energy
+
+    def contacts(self, state: State, loads: Loads, R: np.ndarray | None = None,
+                 ab: np.ndarray | None = None, want_jac: bool = False):
+        """Add the contact terms to (R, ab) and return (gaps, normals, obstacles, active)
+        of the probes (see ``kernels.contact_terms``)."""
+        rod = self.rod
+        if R is None:
+            R = np.zeros(rod.n)
+        if ab is None:
+            ab = np.zeros((0, 2 * rod.kl + rod.ku + 1))
+        band = 2.0 * rod.radius + 0.05 * rod.length
+        return kernels.contact_terms(state[0], state[4], rod.probe_elem, rod.probe_a,
+                                     rod.iprobe, rod.ix, rod.length, rod.radius, loads.offset,
+                                     band, CONTACT_SCALE, rod.obstacles.args, R, ab, rod.kl,
+                                     rod.ku, want_jac)
 
     def step(self, state: State, du: np.ndarray, scale: float) -> State:
         rod = self.rod
-        return kernels.apply_step(*state, du, rod.ix, rod.ith, rod.ilam, rod.inu, rod.nu_off,
-                                  rod.nu_cnt, rod.igauge, scale)
+        X, Q, lam, nu = kernels.apply_step(*state[:4], du, rod.ix, rod.ith, rod.ilam, rod.inu,
+                                           rod.nu_off, rod.nu_cnt, rod.igauge, scale)
+        return X, Q, lam, nu, state[4] + scale * du[rod.iprobe]
 
     def difference(self, a: State, b: State) -> np.ndarray:
         rod = self.rod
-        return kernels.difference(*a, *b, rod.ix, rod.ith, rod.ilam, rod.inu, rod.nu_off,
-                                  rod.nu_cnt, rod.igauge, rod.n)
+        du = kernels.difference(*a[:4], *b[:4], rod.ix, rod.ith, rod.ilam, rod.inu,
+                                rod.nu_off, rod.nu_cnt, rod.igauge, rod.n)
+        du[rod.iprobe] = b[4] - a[4]
+        return du
 
     def follow(self, start: Loads, end: Loads, state: State) -> State:
         """Continuation from (start, state), an exact solution, to end."""
@@ -214,8 +283,10 @@ class _Run:
     def sizes(self, state: State) -> np.ndarray:
         """Each unknown's size, floored at 1 (frame rotations count as 1)."""
         rod = self.rod
-        return kernels.unknown_sizes(state[0], state[2], state[3], rod.ix, rod.ilam, rod.inu,
-                                     rod.nu_off, rod.nu_cnt, rod.n)
+        sizes = kernels.unknown_sizes(state[0], state[2], state[3], rod.ix, rod.ilam, rod.inu,
+                                      rod.nu_off, rod.nu_cnt, rod.n)
+        sizes[rod.iprobe] = np.maximum(1.0, np.abs(state[4]))
+        return sizes
 
     # -- routes ---------------------------------------------------------------------------
     def cold(self) -> State:
@@ -479,7 +550,7 @@ class _Run:
                                                                          rod.s_node)
                 or old.rod.frame_s.shape != rod.frame_s.shape):
             return None
-        X, Q, lam, _ = old.state
+        X, Q, lam = old.state[:3]
         nu = np.zeros(rod.m)
         loads = warm.loads
         for k, st in enumerate(rod.stations):
@@ -491,7 +562,9 @@ class _Run:
                         nu[v] = -loads[owner].force[c] / rod.force_scale
                     v += 1
         self.gauge_quat = old.gauge_quat if rod.gauge_frame >= 0 else self.gauge_quat
-        state, _, status, _ = self.newton((X.copy(), Q.copy(), lam.copy(), nu),
+        gam = old.state[4] if old.state[4].shape == rod.iprobe.shape else np.zeros(
+            rod.iprobe.shape[0])
+        state, _, status, _ = self.newton((X.copy(), Q.copy(), lam.copy(), nu, gam.copy()),
                                           rod.target, strict=False)
         if status == kernels.CONVERGED:
             self.steps += 1
@@ -615,7 +688,7 @@ class _Sampler:
 
     def __call__(self) -> Samples3D:
         rod = self.run.rod
-        X, Q, lam, _ = self.state
+        X, Q, lam = self.state[:3]
         L, fs, ms = rod.length, rod.force_scale, rod.moment_scale
         _, _, energy = self.run.residual(self.state, rod.target)
         frames, moments = kernels.node_outputs(Q, rod.elem_frame, rod.joint_hh,
@@ -624,14 +697,31 @@ class _Sampler:
                          element_s=0.5 * (rod.s_node[1:] + rod.s_node[:-1]) * L,
                          internal_force=lam * fs, internal_moment=moments * ms,
                          energy=energy * rod.stiffness / L,
-                         loads=_station_loads(self.run, self.state))
+                         loads=_station_loads(self.run, self.state),
+                         contacts=_contacts(self.run, self.state))
+
+
+def _contacts(run: _Run, state: State) -> Contacts:
+    """The probes that push on the part: where, with what force, from which obstacle."""
+    rod = run.rod
+    gam = state[4]
+    if not gam.shape[0]:
+        return NO_CONTACTS
+    _, normals, which, _ = run.contacts(state, rod.target)
+    on = np.nonzero(gam > 0.0)[0]
+    e, a = rod.probe_elem[on], rod.probe_a[on]
+    X = state[0]
+    points = ((1.0 - a)[:, None] * X[e] + a[:, None] * X[e + 1]) * rod.length
+    names = tuple(rod.obstacles.obstacles[o].name for o in which[on])
+    return Contacts(s=(rod.s_node[e] + a * rod.h[e]) * rod.length, point=points,
+                    force=gam[on, None] * normals[on] * rod.force_scale, obstacle=names)
 
 
 def _station_loads(run: _Run, state: State) -> dict[str, StationLoad]:
     """Each condition's load on the part [N, N m]: its reactions from the multipliers,
     its applied loads from the problem (followers resolved in their deformed frames)."""
     rod = run.rod
-    _, Q, _, nu = state
+    Q, nu = state[1], state[3]
     fs, ms = rod.force_scale, rod.moment_scale
     e3 = np.array([0.0, 0.0, 1.0])
     out: dict[str, StationLoad] = {}
@@ -713,7 +803,7 @@ def _stability(run: _Run, state: State) -> tuple[bool, float]:
     from scipy.sparse.linalg import ArpackError, LinearOperator, eigsh  # noqa: PLC0415
 
     rod = run.rod
-    X, Q, lam, _ = state
+    X, Q, lam = state[:3]
     _, moments = kernels.node_outputs(Q, rod.elem_frame, rod.joint_hh, rod.target.joint_k0,
                                       rod.K, rod.node_frame)
     force = float(np.abs(lam).max(initial=0.0))

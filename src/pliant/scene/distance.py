@@ -1,0 +1,660 @@
+"""Signed distances from points to the obstacles of a scene, with their gradients.
+
+Primitives (sphere, box, capped cylinder, half-space) have exact closed-form distances.
+A triangle mesh has two levels:
+
+- a signed distance grid (trilinear interpolation and its gradient), computed once per
+  mesh (exact in a band round the surface, a Euclidean distance transform beyond it)
+  and cached on disk under the hash of its vertices and faces: cheap, and within 2.6
+  cells of the truth;
+- an exact query (the closest triangle found through a uniform hash of the triangles;
+  the sign from the angle-weighted pseudonormal of the closest feature, Baerentzen and
+  Aanaes, IEEE TVCG 11(3), 2005), used wherever the grid says the surface may be closer
+  than the caller's band (where contact is decided).
+
+A mesh that is not closed has no inside: its distance is unsigned (a shell the part must
+keep clear of). Every obstacle is packed into flat arrays (``Packed``) so that the
+accurate and real-time kernels can query the whole scene inside numba.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import math
+import os
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+from numba import njit
+
+SPHERE, BOX, CYLINDER, HALFSPACE, MESH = 0, 1, 2, 3, 4
+GRID_VERSION = 2
+# How far a grid value may be from the truth, in cells: sqrt(3) beyond the exact band
+# (the nearest-band-node bound), plus sqrt(3)/2 of trilinear interpolation.
+GRID_ERROR = 2.6
+
+
+# -- triangles -----------------------------------------------------------------------------
+@njit(cache=True)
+def closest_on_triangle(p, a, b, c):
+    """The point of triangle abc closest to p, as (x, y, z, feature): feature 0 the face,
+    1, 2, 3 the edges ab, bc, ca, 4, 5, 6 the vertices a, b, c (Ericson, Real-Time
+    Collision Detection, 5.1.5). Scalars only: it runs in the innermost loop."""
+    abx, aby, abz = b[0] - a[0], b[1] - a[1], b[2] - a[2]
+    acx, acy, acz = c[0] - a[0], c[1] - a[1], c[2] - a[2]
+    apx, apy, apz = p[0] - a[0], p[1] - a[1], p[2] - a[2]
+    d1 = abx * apx + aby * apy + abz * apz
+    d2 = acx * apx + acy * apy + acz * apz
+    if d1 <= 0.0 and d2 <= 0.0:
+        return a[0], a[1], a[2], 4
+    bpx, bpy, bpz = p[0] - b[0], p[1] - b[1], p[2] - b[2]
+    d3 = abx * bpx + aby * bpy + abz * bpz
+    d4 = acx * bpx + acy * bpy + acz * bpz
+    if d3 >= 0.0 and d4 <= d3:
+        return b[0], b[1], b[2], 5
+    vc = d1 * d4 - d3 * d2
+    if vc <= 0.0 and d1 >= 0.0 and d3 <= 0.0:
+        v = d1 / (d1 - d3)
+        return a[0] + v * abx, a[1] + v * aby, a[2] + v * abz, 1
+    cpx, cpy, cpz = p[0] - c[0], p[1] - c[1], p[2] - c[2]
+    d5 = abx * cpx + aby * cpy + abz * cpz
+    d6 = acx * cpx + acy * cpy + acz * cpz
+    if d6 >= 0.0 and d5 <= d6:
+        return c[0], c[1], c[2], 6
+    vb = d5 * d2 - d1 * d6
+    if vb <= 0.0 and d2 >= 0.0 and d6 <= 0.0:
+        w = d2 / (d2 - d6)
+        return a[0] + w * acx, a[1] + w * acy, a[2] + w * acz, 3
+    va = d3 * d6 - d5 * d4
+    if va <= 0.0 and (d4 - d3) >= 0.0 and (d5 - d6) >= 0.0:
+        w = (d4 - d3) / ((d4 - d3) + (d5 - d6))
+        return (b[0] + w * (c[0] - b[0]), b[1] + w * (c[1] - b[1]), b[2] + w * (c[2] - b[2]),
+                2)
+    denom = 1.0 / (va + vb + vc)
+    v = vb * denom
+    w = vc * denom
+    return (a[0] + abx * v + acx * w, a[1] + aby * v + acy * w, a[2] + abz * v + acz * w, 0)
+
+
+@njit(cache=True)
+def build_bvh(tri, leaf_size=4):
+    """An axis-aligned bounding box tree over the triangles (median splits on the
+    longest axis of the centroids). Returns (order, lo, hi, left, right, start, count):
+    triangles order[start:start + count] in each leaf; left = -1 marks a leaf."""
+    T = tri.shape[0]
+    centroid = np.empty((T, 3))
+    tlo = np.empty((T, 3))
+    thi = np.empty((T, 3))
+    for t in range(T):
+        for a in range(3):
+            x0, x1, x2 = tri[t, 0, a], tri[t, 1, a], tri[t, 2, a]
+            centroid[t, a] = (x0 + x1 + x2) / 3.0
+            tlo[t, a] = min(x0, min(x1, x2))
+            thi[t, a] = max(x0, max(x1, x2))
+    order = np.arange(T)
+    cap = 2 * T + 1
+    lo = np.empty((cap, 3))
+    hi = np.empty((cap, 3))
+    left = np.full(cap, -1, dtype=np.int64)
+    right = np.full(cap, -1, dtype=np.int64)
+    start = np.zeros(cap, dtype=np.int64)
+    count = np.zeros(cap, dtype=np.int64)
+    stack = np.empty((cap, 2), dtype=np.int64)  # (node, unused)
+    nodes = 1
+    start[0] = 0
+    count[0] = T
+    top = 1
+    stack[0, 0] = 0
+    while top > 0:
+        top -= 1
+        node = stack[top, 0]
+        s0, n0 = start[node], count[node]
+        for a in range(3):
+            lo[node, a] = np.inf
+            hi[node, a] = -np.inf
+        for e in range(s0, s0 + n0):
+            t = order[e]
+            for a in range(3):
+                lo[node, a] = min(lo[node, a], tlo[t, a])
+                hi[node, a] = max(hi[node, a], thi[t, a])
+        if n0 <= leaf_size:
+            continue
+        cmin = np.full(3, np.inf)
+        cmax = np.full(3, -np.inf)
+        for e in range(s0, s0 + n0):
+            for a in range(3):
+                c = centroid[order[e], a]
+                cmin[a] = min(cmin[a], c)
+                cmax[a] = max(cmax[a], c)
+        axis = int(np.argmax(cmax - cmin))
+        keys = np.empty(n0)
+        for e in range(n0):
+            keys[e] = centroid[order[s0 + e], axis]
+        perm = np.argsort(keys)
+        seg = order[s0:s0 + n0].copy()
+        for e in range(n0):
+            order[s0 + e] = seg[perm[e]]
+        half = n0 // 2
+        a_, b_ = nodes, nodes + 1
+        nodes += 2
+        left[node], right[node] = a_, b_
+        start[a_], count[a_] = s0, half
+        start[b_], count[b_] = s0 + half, n0 - half
+        stack[top, 0] = a_
+        stack[top + 1, 0] = b_
+        top += 2
+    return (order, lo[:nodes].copy(), hi[:nodes].copy(), left[:nodes].copy(),
+            right[:nodes].copy(), start[:nodes].copy(), count[:nodes].copy())
+
+
+@njit(cache=True, inline="always")
+def _box_distance2(p, lo, hi):
+    d2 = 0.0
+    for a in range(3):
+        if p[a] < lo[a]:
+            d2 += (lo[a] - p[a]) ** 2
+        elif p[a] > hi[a]:
+            d2 += (p[a] - hi[a]) ** 2
+    return d2
+
+
+@njit(cache=True)
+def _mesh_exact(p, tri, pseudo, solid, order, lo, hi, left, right, start, count):
+    """(signed distance, unit gradient) from p to a mesh, exact: a branch-and-bound walk
+    of its box tree. pseudo (T, 7, 3): the pseudonormals of each triangle's face, edges
+    and vertices (the sign)."""
+    best = np.inf
+    best_t = -1
+    best_r = 0
+    bq0 = bq1 = bq2 = 0.0
+    stack = np.empty(64, dtype=np.int64)
+    stack[0] = 0
+    top = 1
+    while top > 0:
+        top -= 1
+        node = stack[top]
+        if _box_distance2(p, lo[node], hi[node]) >= best:
+            continue
+        if left[node] < 0:
+            for e in range(start[node], start[node] + count[node]):
+                t = order[e]
+                qx, qy, qz, region = closest_on_triangle(p, tri[t, 0], tri[t, 1], tri[t, 2])
+                d2 = (p[0] - qx) ** 2 + (p[1] - qy) ** 2 + (p[2] - qz) ** 2
+                if d2 < best:
+                    best = d2
+                    best_t = t
+                    best_r = region
+                    bq0, bq1, bq2 = qx, qy, qz
+            continue
+        a_, b_ = left[node], right[node]
+        dl = _box_distance2(p, lo[a_], hi[a_])
+        dr = _box_distance2(p, lo[b_], hi[b_])
+        if top + 2 > stack.shape[0]:
+            grown = np.empty(2 * stack.shape[0], dtype=np.int64)
+            grown[:top] = stack[:top]
+            stack = grown
+        if dl < dr:  # the nearer child is walked first
+            stack[top] = b_
+            stack[top + 1] = a_
+        else:
+            stack[top] = a_
+            stack[top + 1] = b_
+        top += 2
+    dist = math.sqrt(best)
+    gx, gy, gz = p[0] - bq0, p[1] - bq1, p[2] - bq2
+    if dist > 1e-300:
+        grad = np.array([gx / dist, gy / dist, gz / dist])
+    else:
+        grad = pseudo[best_t, 0].copy()
+    if solid:
+        n = pseudo[best_t, best_r]
+        if gx * n[0] + gy * n[1] + gz * n[2] < 0.0:
+            return -dist, -grad
+    return dist, grad
+
+
+# -- primitives (local frame; scalars in and out: they run per point) ---------------------
+@njit(cache=True)
+def _box(x, y, z, hx, hy, hz):
+    qx, qy, qz = abs(x) - hx, abs(y) - hy, abs(z) - hz
+    ox, oy, oz = max(qx, 0.0), max(qy, 0.0), max(qz, 0.0)
+    out_len = math.sqrt(ox * ox + oy * oy + oz * oz)
+    sx = 1.0 if x >= 0.0 else -1.0
+    sy = 1.0 if y >= 0.0 else -1.0
+    sz = 1.0 if z >= 0.0 else -1.0
+    if out_len > 0.0:
+        return out_len, sx * ox / out_len, sy * oy / out_len, sz * oz / out_len
+    if qx >= qy and qx >= qz:
+        return qx, sx, 0.0, 0.0
+    if qy >= qz:
+        return qy, 0.0, sy, 0.0
+    return qz, 0.0, 0.0, sz
+
+
+@njit(cache=True)
+def _cylinder(x, y, z, radius, half):
+    """Capped cylinder along local z."""
+    rho = math.sqrt(x * x + y * y)
+    qx = rho - radius
+    qz = abs(z) - half
+    rx, ry = (x / rho, y / rho) if rho > 1e-300 else (1.0, 0.0)
+    sz = 1.0 if z >= 0.0 else -1.0
+    if qx > 0.0 and qz > 0.0:  # beyond the rim
+        d = math.sqrt(qx * qx + qz * qz)
+        return d, qx * rx / d, qx * ry / d, qz * sz / d
+    if qx >= qz:  # the side is nearer (or the only face outside)
+        return qx, rx, ry, 0.0
+    return qz, 0.0, 0.0, sz
+
+
+@njit(cache=True)
+def _primitive(kind, x, y, z, param):
+    """(distance, gradient x, y, z) of a primitive in its frame."""
+    if kind == SPHERE:
+        r = math.sqrt(x * x + y * y + z * z)
+        if r > 1e-300:
+            return r - param[0], x / r, y / r, z / r
+        return -param[0], 0.0, 0.0, 1.0
+    if kind == BOX:
+        return _box(x, y, z, param[0], param[1], param[2])
+    if kind == CYLINDER:
+        return _cylinder(x, y, z, param[0], param[1])
+    return z, 0.0, 0.0, 1.0  # HALFSPACE: solid below the local plane z = 0
+
+
+# -- grids ---------------------------------------------------------------------------------
+@njit(cache=True)
+def grid_sample(x, y, z, origin, size, dims, values, base):
+    """Trilinear interpolation of a grid of node values (stored from ``base``) at the
+    local point (x, y, z): (value, gradient x, y, z, how far the point lies outside the
+    grid); outside, the values are those at the nearest grid point."""
+    outside2 = 0.0
+    fx, fy, fz = (x - origin[0]) / size, (y - origin[1]) / size, (z - origin[2]) / size
+    tx, ty, tz = dims[0] - 1, dims[1] - 1, dims[2] - 1
+    if fx < 0.0:
+        outside2 += (fx * size) ** 2
+        fx = 0.0
+    elif fx > tx:
+        outside2 += ((fx - tx) * size) ** 2
+        fx = float(tx)
+    if fy < 0.0:
+        outside2 += (fy * size) ** 2
+        fy = 0.0
+    elif fy > ty:
+        outside2 += ((fy - ty) * size) ** 2
+        fy = float(ty)
+    if fz < 0.0:
+        outside2 += (fz * size) ** 2
+        fz = 0.0
+    elif fz > tz:
+        outside2 += ((fz - tz) * size) ** 2
+        fz = float(tz)
+    i0 = min(int(fx), tx - 1)
+    j0 = min(int(fy), ty - 1)
+    k0 = min(int(fz), tz - 1)
+    fx -= i0
+    fy -= j0
+    fz -= k0
+    sy = dims[2]
+    sx = dims[1] * sy
+    b = base + i0 * sx + j0 * sy + k0
+    v0 = values[b]
+    v1 = values[b + 1]
+    v2 = values[b + sy]
+    v3 = values[b + sy + 1]
+    v4 = values[b + sx]
+    v5 = values[b + sx + 1]
+    v6 = values[b + sx + sy]
+    v7 = values[b + sx + sy + 1]
+    c00 = v0 * (1 - fx) + v4 * fx
+    c01 = v1 * (1 - fx) + v5 * fx
+    c10 = v2 * (1 - fx) + v6 * fx
+    c11 = v3 * (1 - fx) + v7 * fx
+    c0 = c00 * (1 - fy) + c10 * fy
+    c1 = c01 * (1 - fy) + c11 * fy
+    d = c0 * (1 - fz) + c1 * fz
+    gx = ((v4 - v0) * (1 - fy) * (1 - fz) + (v5 - v1) * (1 - fy) * fz
+          + (v6 - v2) * fy * (1 - fz) + (v7 - v3) * fy * fz) / size
+    gy = ((v2 - v0) * (1 - fx) * (1 - fz) + (v3 - v1) * (1 - fx) * fz
+          + (v6 - v4) * fx * (1 - fz) + (v7 - v5) * fx * fz) / size
+    gz = (c1 - c0) / size
+    return d, gx, gy, gz, math.sqrt(outside2)
+
+
+# -- the whole scene -----------------------------------------------------------------------
+@njit(cache=True)
+def query_point(p, band, kind, rot, trans, param, mesh_id, tri, pseudo, solid, tri_off,
+                order, node_lo, node_hi, left, right, start, count, node_off, g_values,
+                g_off, g_origin, g_size, g_dims):
+    """(signed distance, unit gradient x, y, z, obstacle) of the nearest obstacle to p
+    (world frame). A mesh answers from its grid where the grid shows its surface farther
+    than ``band`` beyond the grid's own error, else exactly."""
+    best = np.inf
+    bx = by = bz = 0.0
+    best_o = -1
+    for o in range(kind.shape[0]):
+        R = rot[o]
+        ux, uy, uz = p[0] - trans[o, 0], p[1] - trans[o, 1], p[2] - trans[o, 2]
+        x = R[0, 0] * ux + R[1, 0] * uy + R[2, 0] * uz
+        y = R[0, 1] * ux + R[1, 1] * uy + R[2, 1] * uz
+        z = R[0, 2] * ux + R[1, 2] * uy + R[2, 2] * uz
+        if kind[o] == MESH:
+            m = mesh_id[o]
+            d, gx, gy, gz, outside = grid_sample(x, y, z, g_origin[m], g_size[m], g_dims[m],
+                                                 g_values, g_off[m])
+            # No surface lies nearer than this: the grid's bound, or outside the grid the
+            # distance to the mesh's box (its tree's root).
+            lower = d
+            if outside > 0.0:
+                n0 = node_off[m]
+                cx = max(node_lo[n0, 0] - x, 0.0, x - node_hi[n0, 0])
+                cy = max(node_lo[n0, 1] - y, 0.0, y - node_hi[n0, 1])
+                cz = max(node_lo[n0, 2] - z, 0.0, z - node_hi[n0, 2])
+                lower = max(d - outside, math.sqrt(cx * cx + cy * cy + cz * cz))
+                d += outside
+            if lower <= band + GRID_ERROR * g_size[m] and lower < best:
+                t0, t1 = tri_off[m], tri_off[m + 1]
+                n0, n1 = node_off[m], node_off[m + 1]
+                d, g = _mesh_exact(np.array([x, y, z]), tri[t0:t1], pseudo[t0:t1], solid[m],
+                                   order[t0:t1], node_lo[n0:n1], node_hi[n0:n1],
+                                   left[n0:n1], right[n0:n1], start[n0:n1], count[n0:n1])
+                gx, gy, gz = g[0], g[1], g[2]
+        else:
+            d, gx, gy, gz = _primitive(kind[o], x, y, z, param[o])
+        if d < best:
+            best = d
+            bx = R[0, 0] * gx + R[0, 1] * gy + R[0, 2] * gz
+            by = R[1, 0] * gx + R[1, 1] * gy + R[1, 2] * gz
+            bz = R[2, 0] * gx + R[2, 1] * gy + R[2, 2] * gz
+            best_o = o
+    return best, bx, by, bz, best_o
+
+
+@njit(cache=True)
+def query_points(points, band, kind, rot, trans, param, mesh_id, tri, pseudo, solid,
+                 tri_off, order, node_lo, node_hi, left, right, start, count, node_off,
+                 g_values, g_off, g_origin, g_size, g_dims):
+    n = points.shape[0]
+    d = np.empty(n)
+    g = np.empty((n, 3))
+    o = np.empty(n, dtype=np.int64)
+    for i in range(n):
+        d[i], g[i, 0], g[i, 1], g[i, 2], o[i] = query_point(
+            points[i], band, kind, rot, trans, param, mesh_id, tri, pseudo, solid, tri_off,
+            order, node_lo, node_hi, left, right, start, count, node_off, g_values, g_off,
+            g_origin, g_size, g_dims)
+    return d, g, o
+
+
+@njit(cache=True)
+def _band_values(origin, size, dims, reach, tri, pseudo, solid, bvh):
+    """Exact signed distances at the grid nodes within ``reach`` of a triangle's bounding
+    box (the band round the surface); NaN elsewhere."""
+    order, lo_, hi_, left, right, start, count = bvh
+    nx, ny, nz = dims[0], dims[1], dims[2]
+    values = np.full(nx * ny * nz, np.nan)
+    p = np.empty(3)
+    lo = np.empty(3, dtype=np.int64)
+    hi = np.empty(3, dtype=np.int64)
+    for t in range(tri.shape[0]):
+        for a in range(3):
+            mn = min(tri[t, 0, a], min(tri[t, 1, a], tri[t, 2, a])) - reach
+            mx = max(tri[t, 0, a], max(tri[t, 1, a], tri[t, 2, a])) + reach
+            lo[a] = max(int(math.ceil((mn - origin[a]) / size)), 0)
+            hi[a] = min(int(math.floor((mx - origin[a]) / size)), dims[a] - 1)
+        for i in range(lo[0], hi[0] + 1):
+            for j in range(lo[1], hi[1] + 1):
+                for k in range(lo[2], hi[2] + 1):
+                    node = (i * ny + j) * nz + k
+                    if not math.isnan(values[node]):
+                        continue
+                    p[0] = origin[0] + i * size
+                    p[1] = origin[1] + j * size
+                    p[2] = origin[2] + k * size
+                    values[node] = _mesh_exact(p, tri, pseudo, solid, order, lo_, hi_, left,
+                                               right, start, count)[0]
+    return values
+
+
+def _fill_grid(origin, size, dims, tri, pseudo, solid, bvh):
+    """The signed distance grid: exact in a band round the surface, and beyond it the
+    distance to the nearest band node plus that node's distance (an upper bound within
+    sqrt(3) cells of the truth), with that node's sign."""
+    from scipy.ndimage import distance_transform_edt  # noqa: PLC0415 (set-up only)
+
+    values = _band_values(origin, size, dims, 1.5 * size, tri, pseudo, solid, bvh)
+    grid = values.reshape(tuple(dims))
+    band = ~np.isnan(grid)
+    gap, nearest = distance_transform_edt(~band, sampling=size, return_indices=True)
+    near = grid[tuple(nearest)]
+    filled = np.where(band, grid, np.sign(near) * (gap + np.abs(near)))
+    return np.ascontiguousarray(filled.ravel())
+
+
+# -- Python side ---------------------------------------------------------------------------
+@dataclass(frozen=True)
+class MeshData:
+    """A triangle mesh ready for queries, in its own frame: triangles, pseudonormals
+    (face, 3 edges, 3 vertices per triangle), whether it is closed, its box tree
+    (order, lo, hi, left, right, start, count) and its signed distance grid."""
+
+    tri: np.ndarray
+    pseudo: np.ndarray
+    solid: bool
+    bvh: tuple
+    g_values: np.ndarray
+    g_origin: np.ndarray
+    g_size: float
+    g_dims: np.ndarray
+
+    @property
+    def bounds(self) -> np.ndarray:
+        flat = self.tri.reshape(-1, 3)
+        return np.array([flat.min(axis=0), flat.max(axis=0)])
+
+
+def cache_dir() -> Path:
+    """Where distance grids are kept: $PLIANT_CACHE, else ~/.cache/pliant."""
+    root = os.environ.get("PLIANT_CACHE")
+    return Path(root) if root else Path.home() / ".cache" / "pliant"
+
+
+def prepare_mesh(vertices: np.ndarray, faces: np.ndarray, resolution: int = 64,
+                 cache: bool = True) -> MeshData:
+    """Pseudonormals, box tree and signed distance grid of a mesh (the grid cached on
+    disk under the hash of the mesh and the resolution)."""
+    vertices = np.ascontiguousarray(vertices, dtype=float)
+    faces = np.ascontiguousarray(faces, dtype=np.int64)
+    tri = np.ascontiguousarray(vertices[faces])
+    pseudo, solid = _pseudonormals(vertices, faces)
+    bvh = build_bvh(tri)
+    lo, hi = vertices.min(axis=0), vertices.max(axis=0)
+    extent = max(float((hi - lo).max()), 1e-9)
+    # Distance grid: a margin of a tenth of the extent round the mesh.
+    g_size = extent * 1.2 / (resolution - 1)
+    g_origin = lo - 0.1 * extent
+    g_dims = np.ceil((hi - lo + 0.2 * extent) / g_size).astype(np.int64) + 1
+    key = hashlib.sha256(vertices.tobytes() + faces.tobytes()
+                         + f"{resolution}:{GRID_VERSION}".encode()).hexdigest()[:32]
+    path = cache_dir() / "sdf" / f"{key}.npy"
+    values = None
+    if cache and path.is_file():
+        try:
+            values = np.load(path)
+            if values.shape != (int(np.prod(g_dims)),):
+                values = None
+        except (OSError, ValueError):
+            values = None
+    if values is None:
+        values = _fill_grid(g_origin, g_size, g_dims, tri, pseudo, solid, bvh)
+        if cache:
+            _save_grid(path, values)
+    return MeshData(tri, pseudo, solid, bvh, values, g_origin, g_size, g_dims)
+
+
+def _save_grid(path: Path, values: np.ndarray) -> None:
+    """Best effort: a cache that cannot be written only costs time."""
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        tmp = path.with_suffix(f".{os.getpid()}.tmp")
+        with open(tmp, "wb") as handle:
+            np.save(handle, values)
+        os.replace(tmp, path)
+    except OSError:
+        pass
+
+
+def _pseudonormals(vertices: np.ndarray, faces: np.ndarray) -> tuple[np.ndarray, bool]:
+    """(T, 7, 3) pseudonormals: face normal, the three edges' (sum of the adjacent face
+    normals), the three vertices' (angle-weighted); and whether every edge has exactly
+    two faces (a closed mesh, with an inside)."""
+    tri = vertices[faces]
+    normals = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
+    norms = np.linalg.norm(normals, axis=1)
+    normals = normals / np.where(norms > 0, norms, 1.0)[:, None]
+    T = faces.shape[0]
+    pseudo = np.zeros((T, 7, 3))
+    pseudo[:, 0] = normals
+    # Edges: (ab, bc, ca) keyed by sorted vertex pairs.
+    pairs = np.stack([faces[:, [0, 1]], faces[:, [1, 2]], faces[:, [2, 0]]], axis=1)  # (T,3,2)
+    keys = np.sort(pairs, axis=2).reshape(-1, 2)
+    _, inverse, counts = np.unique(keys, axis=0, return_inverse=True, return_counts=True)
+    inverse = inverse.ravel()
+    edge_sum = np.zeros((counts.shape[0], 3))
+    np.add.at(edge_sum, inverse, np.repeat(normals, 3, axis=0))
+    edge_n = edge_sum[inverse].reshape(T, 3, 3)
+    pseudo[:, 1:4] = edge_n / np.maximum(np.linalg.norm(edge_n, axis=2), 1e-300)[..., None]
+    # Vertices: angle-weighted.
+    vert_sum = np.zeros_like(vertices)
+    for corner in range(3):
+        a = tri[:, corner]
+        b = tri[:, (corner + 1) % 3]
+        c = tri[:, (corner + 2) % 3]
+        u = b - a
+        w = c - a
+        cos = np.einsum("ij,ij->i", u, w) / np.maximum(
+            np.linalg.norm(u, axis=1) * np.linalg.norm(w, axis=1), 1e-300)
+        angle = np.arccos(np.clip(cos, -1.0, 1.0))
+        np.add.at(vert_sum, faces[:, corner], angle[:, None] * normals)
+    vert_n = vert_sum / np.maximum(np.linalg.norm(vert_sum, axis=1), 1e-300)[:, None]
+    pseudo[:, 4:7] = vert_n[faces]
+    return pseudo, bool(np.all(counts == 2))
+
+
+@dataclass(frozen=True, eq=False)
+class Obstacle:
+    """A rigid obstacle: a primitive or a mesh, placed by a rotation and a translation
+    (local to world: x = R x_local + t). param: sphere (radius), box (half sizes),
+    cylinder (radius, half length, along local z), half-space (none: solid below the
+    local plane z = 0)."""
+
+    name: str
+    kind: int
+    rotation: np.ndarray
+    translation: np.ndarray
+    param: np.ndarray
+    mesh: MeshData | None = None
+
+    @staticmethod
+    def sphere(name: str, radius: float, center) -> Obstacle:
+        return Obstacle(name, SPHERE, np.eye(3), np.asarray(center, float),
+                        np.array([radius, 0.0, 0.0, 0.0]))
+
+    @staticmethod
+    def box(name: str, size, position, rotation=None) -> Obstacle:
+        half = 0.5 * np.asarray(size, float)
+        return Obstacle(name, BOX, _rot(rotation), np.asarray(position, float),
+                        np.array([*half, 0.0]))
+
+    @staticmethod
+    def cylinder(name: str, radius: float, length: float, position, rotation=None) -> Obstacle:
+        return Obstacle(name, CYLINDER, _rot(rotation), np.asarray(position, float),
+                        np.array([radius, 0.5 * length, 0.0, 0.0]))
+
+    @staticmethod
+    def halfspace(name: str, point, normal) -> Obstacle:
+        """Solid on the side opposite ``normal`` of the plane through ``point``."""
+        return Obstacle(name, HALFSPACE, _frame_with_z(normal), np.asarray(point, float),
+                        np.zeros(4))
+
+    @staticmethod
+    def from_mesh(name: str, vertices, faces, position=(0.0, 0.0, 0.0), rotation=None,
+                  resolution: int = 64) -> Obstacle:
+        return Obstacle(name, MESH, _rot(rotation), np.asarray(position, float),
+                        np.zeros(4), prepare_mesh(vertices, faces, resolution))
+
+
+def _rot(rotation) -> np.ndarray:
+    if rotation is None:
+        return np.eye(3)
+    R = np.asarray(rotation, float)
+    if R.shape != (3, 3) or not np.allclose(R.T @ R, np.eye(3), atol=1e-9):
+        raise ValueError("a rotation must be a 3 x 3 orthonormal matrix")
+    return R
+
+
+def _frame_with_z(normal) -> np.ndarray:
+    z = np.asarray(normal, float)
+    z = z / np.linalg.norm(z)
+    a = np.eye(3)[int(np.argmin(np.abs(z)))]
+    x = a - (a @ z) * z
+    x /= np.linalg.norm(x)
+    return np.column_stack([x, np.cross(z, x), z])
+
+
+class DistanceField:
+    """The signed distance to the nearest of a scene's obstacles, for batches of points
+    (``query``) and, packed in ``args``, inside numba kernels (``query_point``)."""
+
+    def __init__(self, obstacles: list[Obstacle]) -> None:
+        self.obstacles = list(obstacles)
+        m = len(self.obstacles)
+        meshes = [o.mesh for o in self.obstacles if o.mesh is not None]
+        mesh_id = np.full(m, -1, dtype=np.int64)
+        k = 0
+        for i, o in enumerate(self.obstacles):
+            if o.mesh is not None:
+                mesh_id[i] = k
+                k += 1
+        kind = np.array([o.kind for o in self.obstacles], dtype=np.int64)
+        rot = np.array([o.rotation for o in self.obstacles]).reshape(m, 3, 3)
+        trans = np.array([o.translation for o in self.obstacles]).reshape(m, 3)
+        param = np.array([o.param for o in self.obstacles]).reshape(m, 4)
+
+        def cat(arrays, shape, dtype=float):
+            return np.concatenate(arrays) if arrays else np.zeros(shape, dtype=dtype)
+
+        def offsets(sizes):
+            return np.concatenate([[0], np.cumsum(sizes)]).astype(np.int64)
+
+        tri = cat([x.tri for x in meshes], (0, 3, 3))
+        pseudo = cat([x.pseudo for x in meshes], (0, 7, 3))
+        trees = [x.bvh for x in meshes]
+        self.args = (
+            kind, rot, trans, param, mesh_id, tri, pseudo,
+            np.array([x.solid for x in meshes], dtype=np.bool_),
+            offsets([x.tri.shape[0] for x in meshes]),
+            cat([b[0] for b in trees], (0,), np.int64),
+            cat([b[1] for b in trees], (0, 3)), cat([b[2] for b in trees], (0, 3)),
+            cat([b[3] for b in trees], (0,), np.int64), cat([b[4] for b in trees], (0,), np.int64),
+            cat([b[5] for b in trees], (0,), np.int64), cat([b[6] for b in trees], (0,), np.int64),
+            offsets([b[1].shape[0] for b in trees]),
+            cat([x.g_values for x in meshes], (0,)),
+            offsets([x.g_values.shape[0] for x in meshes]),
+            np.array([x.g_origin for x in meshes]).reshape(-1, 3),
+            np.array([x.g_size for x in meshes], dtype=float),
+            np.array([x.g_dims for x in meshes], dtype=np.int64).reshape(-1, 3),
+        )
+
+    def __len__(self) -> int:
+        return len(self.obstacles)
+
+    def query(self, points, band: float = 0.0) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(signed distances (n,), unit gradients (n, 3), obstacle indices (n,)) of
+        points (n, 3) [m]; exact within ``band`` of a mesh's surface."""
+        points = np.ascontiguousarray(np.atleast_2d(points), dtype=float)
+        if not self.obstacles:
+            n = points.shape[0]
+            return np.full(n, np.inf), np.zeros((n, 3)), np.full(n, -1, dtype=np.int64)
+        return query_points(points, float(band), *self.args)
