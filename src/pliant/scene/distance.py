@@ -164,6 +164,15 @@ def _mesh_exact(p, tri, pseudo, solid, order, lo, hi, left, right, start, count)
     """(signed distance, unit gradient) from p to a mesh, exact: a branch-and-bound walk
     of its box tree. pseudo (T, 7, 3): the pseudonormals of each triangle's face, edges
     and vertices (the sign)."""
+    dist, grad, _, _ = _mesh_feature(p, tri, pseudo, solid, order, lo, hi, left, right,
+                                     start, count)
+    return dist, grad
+
+
+@njit(cache=True)
+def _mesh_feature(p, tri, pseudo, solid, order, lo, hi, left, right, start, count):
+    """(signed distance, unit gradient, triangle, feature) of the mesh point nearest p:
+    the feature as ``closest_on_triangle`` numbers it."""
     best = np.inf
     best_t = -1
     best_r = 0
@@ -210,8 +219,8 @@ def _mesh_exact(p, tri, pseudo, solid, order, lo, hi, left, right, start, count)
     if solid:
         n = pseudo[best_t, best_r]
         if gx * n[0] + gy * n[1] + gz * n[2] < 0.0:
-            return -dist, -grad
-    return dist, grad
+            return -dist, -grad, best_t, best_r
+    return dist, grad, best_t, best_r
 
 
 # -- primitives (local frame; scalars in and out: they run per point) ---------------------
@@ -261,6 +270,104 @@ def _primitive(kind, x, y, z, param):
     if kind == CYLINDER:
         return _cylinder(x, y, z, param[0], param[1])
     return z, 0.0, 0.0, 1.0  # HALFSPACE: solid below the local plane z = 0
+
+
+@njit(cache=True)
+def _feature_hessian(dist, n, tangent, kind):
+    """The signed distance's Hessian beyond a feature of the closest point: H = (I - n n^T
+    - dc/dp) / d with dc/dp the closest point's motion (I - n n^T on a face: H = 0; the
+    edge direction e e^T on an edge; 0 at a vertex). kind 0 face, 1 edge, 2 vertex."""
+    H = np.zeros((3, 3))
+    if kind == 0 or abs(dist) < 1e-12:
+        return H
+    for i in range(3):
+        for j in range(3):
+            H[i, j] = (1.0 if i == j else 0.0) - n[i] * n[j]
+            if kind == 1:
+                H[i, j] -= tangent[i] * tangent[j]
+    return H / dist
+
+
+@njit(cache=True)
+def _primitive_hessian(kind, x, y, z, param):
+    """The Hessian of a primitive's signed distance in its frame, exact piece by piece
+    (the pieces meet where the gradient is continuous and its derivative jumps: a
+    semismooth Newton needs the piece's own, not a difference straddling the seam)."""
+    H = np.zeros((3, 3))
+    if kind == SPHERE:
+        r = math.sqrt(x * x + y * y + z * z)
+        if r > 1e-12:
+            u = np.array([x, y, z]) / r
+            for i in range(3):
+                for j in range(3):
+                    H[i, j] = ((1.0 if i == j else 0.0) - u[i] * u[j]) / r
+        return H
+    if kind == BOX:
+        q = np.array([abs(x) - param[0], abs(y) - param[1], abs(z) - param[2]])
+        if q.max() <= 0.0:
+            return H  # inside: a face's distance
+        d, gx, gy, gz = _box(x, y, z, param[0], param[1], param[2])
+        g = np.array([gx, gy, gz])
+        for i in range(3):
+            for j in range(3):
+                H[i, j] = ((1.0 if (i == j and q[i] > 0.0) else 0.0) - g[i] * g[j]) / d
+        return H
+    if kind == CYLINDER:
+        rho = math.sqrt(x * x + y * y)
+        if rho < 1e-12:
+            return H
+        radius, half = param[0], param[1]
+        qx, qz = rho - radius, abs(z) - half
+        t = np.array([-y / rho, x / rho, 0.0])
+        if qx > 0.0 and qz > 0.0:  # the rim: a circle
+            d, gx, gy, gz = _cylinder(x, y, z, radius, half)
+            g = np.array([gx, gy, gz])
+            for i in range(3):
+                for j in range(3):
+                    H[i, j] = ((1.0 if i == j else 0.0) - g[i] * g[j]
+                               - radius / rho * t[i] * t[j]) / d
+            return H
+        if qx >= qz:  # the side: curved round the axis only
+            for i in range(3):
+                for j in range(3):
+                    H[i, j] = t[i] * t[j] / rho
+        return H
+    return H  # HALFSPACE, caps
+
+
+@njit(cache=True)
+def hessian_point(p, o, kind, rot, trans, param, mesh_id, tri, pseudo, solid, tri_off,
+                  order, node_lo, node_hi, left, right, start, count, node_off, g_values,
+                  g_off, g_origin, g_size, g_dims):
+    """The Hessian (3, 3, world frame) of obstacle o's signed distance at p: the rate
+    at which its unit gradient (the contact normal) turns as p moves. Takes the same
+    packed field as ``query_point`` (the grids unused: contact is decided exactly)."""
+    R = rot[o]
+    ux, uy, uz = p[0] - trans[o, 0], p[1] - trans[o, 1], p[2] - trans[o, 2]
+    x = R[0, 0] * ux + R[1, 0] * uy + R[2, 0] * uz
+    y = R[0, 1] * ux + R[1, 1] * uy + R[2, 1] * uz
+    z = R[0, 2] * ux + R[1, 2] * uy + R[2, 2] * uz
+    if kind[o] == MESH:
+        m = mesh_id[o]
+        t0, t1 = tri_off[m], tri_off[m + 1]
+        n0, n1 = node_off[m], node_off[m + 1]
+        d, g, t, region = _mesh_feature(np.array([x, y, z]), tri[t0:t1], pseudo[t0:t1],
+                                        solid[m], order[t0:t1], node_lo[n0:n1],
+                                        node_hi[n0:n1], left[n0:n1], right[n0:n1],
+                                        start[n0:n1], count[n0:n1])
+        e = np.zeros(3)
+        feature = 0
+        if 1 <= region <= 3:
+            a = tri[t0 + t, region - 1]
+            b = tri[t0 + t, region % 3]
+            e = (b - a) / max(np.sqrt(((b - a) ** 2).sum()), 1e-300)
+            feature = 1
+        elif region >= 4:
+            feature = 2
+        Hl = _feature_hessian(d, g, e, feature)
+    else:
+        Hl = _primitive_hessian(kind[o], x, y, z, param[o])
+    return R @ Hl @ R.T
 
 
 # -- grids ---------------------------------------------------------------------------------

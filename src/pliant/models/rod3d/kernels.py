@@ -40,7 +40,7 @@ from numba import njit
 from pliant.models.banded import add as _add
 from pliant.models.banded import add_block as _add_block
 from pliant.models.banded import band_lu, band_lu_solve, band_solve  # noqa: F401
-from pliant.scene.distance import query_point
+from pliant.scene.distance import hessian_point, query_point
 
 # Orientation kinds of a station.
 FREE = 0
@@ -698,7 +698,7 @@ def contact_terms(X, gam, probe_elem, probe_a, iprobe, ix, L, radius, offset, ba
     condition is the complementarity function min(gam, scale g) = 0, solved by a
     semismooth Newton: a probe with gam <= scale g is free (its row: gam = 0), else it
     touches (its row: g = 0); switching is the active-set update. The curvature of the
-    surface (d n / d p) enters the force's Jacobian by central differences of n.
+    surface (d n / d p) enters the force's Jacobian, from the obstacle's exact Hessian.
     Returns (gaps (K,), normals (K, 3), obstacles (K,), active (K,) bool).
     """
     K = probe_elem.shape[0]
@@ -739,18 +739,8 @@ def contact_terms(X, gam, probe_elem, probe_a, iprobe, ix, L, radius, offset, ba
         else:
             _add(ab, kl, ku, ip, ip, 1.0)
         if lam != 0.0:
-            # d n / d p by central differences (the surface's curvature), times L.
-            eps = 1e-6 * max(L, 1.0)
-            H = np.empty((3, 3))
-            for j in range(3):
-                p[j] += eps
-                _, px, py, pz, _ = query_point(p, band, *field)
-                p[j] -= 2.0 * eps
-                _, mx, my, mz, _ = query_point(p, band, *field)
-                p[j] += eps
-                H[0, j] = (px - mx) / (2.0 * eps) * L
-                H[1, j] = (py - my) / (2.0 * eps) * L
-                H[2, j] = (pz - mz) / (2.0 * eps) * L
+            # d n / d p, the surface's curvature, exact on the piece p lies on; times L.
+            H = hessian_point(p, o, *field) * L
             for c in range(3):
                 for j in range(3):
                     v = -lam * H[c, j]

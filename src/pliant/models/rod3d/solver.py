@@ -49,6 +49,7 @@ from pliant.models.rod3d import kernels
 from pliant.models.rod3d.kernels import AXIS, FULL
 from pliant.models.rod3d.lowering import Loads, Rod, axis_basis, lower, quat_matrix
 
+_SWITCHES = 6  # active-set changes a Newton may take without contracting
 CONTACT_SCALE = 1.0  # weighs a gap against a contact force in min(gam, scale g)
 
 
@@ -118,6 +119,7 @@ class _Run:
     notes: list[str] = field(default_factory=list)
     deadline: float = 0.0
     stall: _Stalled | None = None  # why the last follow from a warm start stopped
+    active: np.ndarray | None = None  # the probes touching at the last residual
 
     def __post_init__(self) -> None:
         self.deadline = time.perf_counter() + self.solver.time_budget
@@ -152,7 +154,9 @@ class _Run:
         r = float(np.abs(R).max())
         if not np.isfinite(r):
             return state, r, 0, kernels.NOT_FINITE, energy
+        active = self.active
         it = 0
+        switches = 0  # full steps taken on a change of the active set alone
         while r > tol:
             if it >= opts.max_iterations:
                 return state, r, it, kernels.MAX_ITERATIONS, energy
@@ -161,13 +165,27 @@ class _Run:
             if not ok:
                 return state, r, it, kernels.SINGULAR, energy
             step = 1.0
-            for _ in range(1 if strict else 30):
+            # A probe pressing on a seam of its obstacle (where a face meets an edge's
+            # rounding) has a Jacobian that jumps there: full steps may cycle across it,
+            # so a corrector with contacts may also shorten its step.
+            damped = not strict or bool(np.any(active))
+            for _ in range(30 if damped else 1):
                 trial = self.step(state, du, step)
                 Rn, abn, en = self.residual(trial, loads, want_jac=True)
                 rn = float(np.abs(Rn).max())
-                accepted = (rn <= opts.contraction * r or rn <= tol) if strict else (
-                    np.isfinite(rn) and rn <= (1.0 - 1e-4 * step) * r)
+                accepted = (np.isfinite(rn) and rn <= (1.0 - 1e-4 * step) * r) if damped else (
+                    rn <= opts.contraction * r or rn <= tol)
+                if strict and step == 1.0 and rn > opts.contraction * r and rn > tol:
+                    accepted = False  # a corrector's full step must contract
+                if (not accepted and step == 1.0 and switches < _SWITCHES
+                        and np.isfinite(rn) and not np.array_equal(self.active, active)):
+                    # A full step that changes which probes touch is the semismooth
+                    # Newton's active-set update: the residual of the old set says
+                    # nothing of the new one, so it is taken (a bounded number of times).
+                    switches += 1
+                    accepted = True
                 if accepted:
+                    active = self.active
                     break
                 step *= 0.5
             else:
@@ -191,7 +209,7 @@ class _Run:
                                          rod.nu_off, rod.igauge, rod.n, rod.kl, rod.ku,
                                          want_jac)
         if rod.iprobe.shape[0]:
-            self.contacts(state, loads, R, ab, want_jac)
+            self.active = self.contacts(state, loads, R, ab, want_jac)[3]
         return R, ab, energy
 
     def contacts(self, state: State, loads: Loads, R: np.ndarray | None = None,
@@ -335,13 +353,18 @@ class _Run:
         # the opposite side, then the two across.
         best: _Stalled | None = None
         unstable: tuple[State, np.ndarray, np.ndarray] | None = None
-        for choice, bow_side in enumerate((side, -side, across, -across)):
+        sides = []
+        for bow_side in (side, -side, across, -across):
             # Bending about chord x side turns the tangent toward the side; in the rest
             # frames (the straight part has one frame throughout).
             axis = quat_matrix(state[1][0]).T @ np.cross(chord, bow_side)
             bowed_k0 = rod.rest_k0.copy()
             bowed_k0[inside] += shape * axis[None, :]
-            rest_b, bowed = rod.rest(bowed_k0)
+            sides.append((bow_side, bowed_k0, rod.rest(bowed_k0)))
+        # A bow into an obstacle starts inside it (the obstacle then grows back round the
+        # part, dragging it over its edges): the sides that keep clear come first.
+        sides.sort(key=lambda c: c[2][0].offset > 0.0)
+        for bow_side, bowed_k0, (rest_b, bowed) in sides:
             self.gauge_quat = bowed[1][max(rod.gauge_frame, 0)].copy()
             targets = [replace(leg, joint_k0=bowed_k0) for leg in legs(rest_b)] + [rod.target]
             try:
@@ -358,7 +381,7 @@ class _Run:
                 if unstable is None:
                     unstable = (found, bow_side, self.gauge_quat)
                 continue
-            why = ("where its targets and loads push it" if choice == 0 else
+            why = ("where its targets and loads push it" if bow_side is side else
                    "as the side its targets and loads push it to gives no stable branch")
             self._bow_note(bow_side, why)
             return found
@@ -708,7 +731,8 @@ def _contacts(run: _Run, state: State) -> Contacts:
     if not gam.shape[0]:
         return NO_CONTACTS
     _, normals, which, _ = run.contacts(state, rod.target)
-    on = np.nonzero(gam > 0.0)[0]
+    # Forces at rounding level (a probe just touching) are not contacts.
+    on = np.nonzero(gam > 1e-10 * max(1.0, float(gam.max())))[0]
     e, a = rod.probe_elem[on], rod.probe_a[on]
     X = state[0]
     points = ((1.0 - a)[:, None] * X[e] + a[:, None] * X[e + 1]) * rod.length

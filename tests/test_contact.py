@@ -1,0 +1,175 @@
+"""Contact in the 3D rod against closed forms and the 2D model, a drape that statics
+predicts, no penetration, warm steps through contact, and random grips round an
+obstacle: a non-penetrating equilibrium or a typed error."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+from scipy.optimize import brentq
+
+import pliant as pl
+from pliant.errors import PliantError
+from pliant.models import rod3d
+from pliant.scene import Obstacle
+
+RADIUS = 0.01
+ACROSS_Y = np.array([[1.0, 0.0, 0.0], [0.0, 0.0, -1.0], [0.0, 1.0, 0.0]])  # z axis -> y
+
+
+def part(weight: float) -> pl.Part:
+    """L = 1 m, EI = 1 N m^2, weight q L^3 / EI = weight, outer radius 1 cm."""
+    return pl.Part(length=1.0, bending_stiffness=1.0, mass_per_length=weight / 9.81,
+                   outer_diameter=2 * RADIUS)
+
+
+def penetration(eq) -> float:
+    """The deepest the tube goes into any obstacle, sampled densely along the part,
+    relative to its radius."""
+    X = eq.position
+    t = np.linspace(0.0, 1.0, 21)[:, None, None]
+    points = (X[:-1] + t * (X[1:] - X[:-1])).reshape(-1, 3)
+    d, _, _ = eq.state.rod.obstacles.query(points, band=1.0)
+    return float(max(0.0, (RADIUS - d).max()) / RADIUS)
+
+
+def sag(spacing: float, rho: float) -> float:
+    """The deepest a chord of length ``spacing`` between two points outside a circle of
+    radius rho dips into it (its sagitta), relative to the tube's radius: how far the
+    tube may go into an obstacle between two probes that keep out of it (rho: the
+    obstacle's radius of curvature there plus the tube's; the tube's alone at an edge)."""
+    return (rho - math.sqrt(rho * rho - spacing * spacing / 4.0)) / RADIUS + 1e-6
+
+
+@pytest.mark.parametrize("a", [1.0, 0.8])
+def test_propped_cantilever(a):
+    """A cantilever under its weight (q L^3 / EI = 0.1, small deflection) resting on a
+    thin rod across it at x = a: the prop carries q (6 L^2 - 4 L a + a^2) / 8a (3 q L / 8
+    at the tip)."""
+    prop = Obstacle.cylinder("prop", 0.005, 0.2, (a, 0.0, -(RADIUS + 0.005)), ACROSS_Y)
+    problem = pl.Problem(part(0.1), (pl.clamp(0.0, position=(0.0, 0.0, 0.0)),),
+                         gravity=(0.0, 0.0, -9.81), obstacles=(prop,))
+    eq = rod3d.solve(problem)
+    total = eq.contacts.by_obstacle()["prop"]
+    assert total[2] == pytest.approx(0.1 * (6 - 4 * a + a * a) / (8 * a), rel=2e-3)
+    assert abs(total[0]) < 2e-3 * total[2] and total[1] == 0.0  # tilted by the slope
+    assert penetration(eq) < 1e-6
+
+
+def test_tip_on_a_floor_matches_the_2d_model_with_the_tip_held_at_that_height():
+    """Large deflection: a heavy cantilever (q L^3 / EI = 10) droops onto a frictionless
+    floor that stops its tip 0.5 m down; the 2D model with the tip's height prescribed
+    (and x free: a frictionless support) gives the same support force and tip."""
+    floor = Obstacle.halfspace("floor", (0.0, 0.0, -0.5 - RADIUS), (0.0, 0.0, 1.0))
+    problem = pl.Problem(part(10.0), (pl.clamp(0.0, position=(0.0, 0.0, 0.0)),),
+                         gravity=(0.0, 0.0, -9.81), obstacles=(floor,))
+    eq = rod3d.solve(problem)
+    planar = pl.solve(pl.Problem(pl.Part(length=1.0, bending_stiffness=1.0,
+                                         mass_per_length=10.0 / 9.81),
+                                 (pl.clamp(0.0), pl.Condition(s=1.0, name="tip",
+                                                              position=(None, -0.5))),
+                                 gravity=(0.0, -9.81)))
+    assert len(eq.contacts) == 1 and eq.contacts.s[0] == pytest.approx(1.0)
+    assert eq.contacts.force[0, 2] == pytest.approx(planar.reactions["tip"].force[1], rel=5e-4)
+    assert eq.position[-1, 0] == pytest.approx(planar.position[-1, 0], abs=1e-4)
+    # The floor, the clamp and the weight balance.
+    vertical = eq.contacts.force[:, 2].sum() + eq.loads["clamp"].force[2]
+    assert vertical == pytest.approx(10.0, rel=1e-9)
+
+
+def test_drape_over_a_drum_touches_where_statics_says():
+    """A heavy part (q L^3 / EI = 400) clamped horizontally at the top of a drum (radius
+    0.1 m) wraps round it: it conforms (curvature 1 / (R + r)) until the moment of the
+    hanging rest falls to EI / (R + r). The 2D model of the hanging rest, clamped along
+    the drum at angle phi, gives that angle; the 3D contact ends there (to a probe
+    spacing), no probe is inside the drum and the tube penetrates by less than 1% of its
+    radius anywhere (the chord sag between probes 2.5 mm apart round a radius of 0.11 m:
+    0.07%)."""
+    rho = 0.1 + RADIUS
+    q = 400.0
+
+    def clamp_moment(phi: float) -> float:
+        rest = pl.Part(length=0.5 - rho * phi, bending_stiffness=1.0, mass_per_length=q / 9.81)
+        free = pl.Problem(rest, (pl.clamp(0.0, position=(rho * math.sin(phi),
+                                                         rho * math.cos(phi)),
+                                          angle=-phi),), gravity=(0.0, -9.81))
+        return pl.solve(free).loads["clamp"].moment
+
+    phi = brentq(lambda f: clamp_moment(f) - 1.0 / rho, 0.05, 1.5, xtol=1e-10)
+    drum = Obstacle.cylinder("drum", 0.1, 0.3, (0.0, 0.0, 0.0), ACROSS_Y)
+    problem = pl.Problem(part(q), (pl.clamp(0.5, position=(0.0, 0.0, rho), tangent=(1, 0, 0),
+                                            normal=(0, 0, 1), name="top"),),
+                         gravity=(0.0, 0.0, -9.81), obstacles=(drum,))
+    eq = rod3d.solve(problem, solver=rod3d.RodSolver(elements=200))
+    reach = np.abs(eq.contacts.s - 0.5)
+    assert reach.max() == pytest.approx(rho * phi, abs=0.0025)  # a probe spacing
+    assert np.allclose(eq.contacts.s - 0.5, -(eq.contacts.s - 0.5)[::-1], atol=1e-9)
+    assert np.allclose(eq.position[:, 0], -eq.position[::-1, 0], atol=1e-9)
+    gaps = np.linalg.norm(eq.position[:, [0, 2]], axis=1) - rho
+    assert gaps.min() > -1e-9 * RADIUS
+    assert penetration(eq) < 0.01
+
+
+def test_warm_steps_press_a_part_onto_a_block_and_lift_it_off():
+    """A hand lowers the end of a hose onto a block and lifts it again: contact comes
+    and goes along the trace, each step balanced, the force continuous and zero when
+    lifted. The hose bends over the block's edge: between probes 5 mm apart the tube
+    may cut the edge by the chord's sag round its own radius (3.2% of it)."""
+    block = Obstacle.box("block", (0.2, 0.2, 0.1), (0.7, 0.0, -0.12))
+    hose = pl.Part(length=1.0, bending_stiffness=0.05, mass_per_length=0.3,
+                   outer_diameter=2 * RADIUS)
+
+    def held(z: float) -> pl.Problem:
+        return pl.Problem(hose, (pl.clamp(0.0, position=(0.0, 0.0, 0.0)),
+                                 pl.pin(1.0, position=(0.95, 0.0, z), name="hand")),
+                          gravity=(0.0, 0.0, -9.81), obstacles=(block,))
+
+    heights = np.concatenate([np.linspace(0.2, -0.15, 25), np.linspace(-0.15, 0.2, 25)[1:]])
+    forces = []
+    for eq in rod3d.trace([held(z) for z in heights]):
+        assert eq.residual < 1e-9 and penetration(eq) < sag(0.005, RADIUS)
+        total = eq.contacts.by_obstacle().get("block", np.zeros(3))
+        weight = 0.3 * 9.81
+        vertical = total[2] + eq.loads["clamp"].force[2] + eq.loads["hand"].force[2]
+        assert vertical == pytest.approx(weight, rel=1e-8)
+        forces.append(total[2])
+    forces = np.array(forces)
+    assert forces[0] == 0.0 and forces[-1] == 0.0 and forces.max() > 0.1
+    # Frictionless and elastic: no hysteresis, the way up retraces the way down.
+    assert np.allclose(forces, forces[::-1], rtol=1e-6, atol=1e-9)
+    # The force rises from zero at touchdown: between the last free step and the first
+    # touching one, finer steps take it up from much nearer zero.
+    first = int(np.argmax(forces > 0.0))
+    fine = np.linspace(heights[first - 1], heights[first], 9)
+    finer = [eq.contacts.by_obstacle().get("block", np.zeros(3))[2]
+             for eq in rod3d.trace([held(z) for z in fine])]
+    assert finer[0] == 0.0 and np.all(np.diff(finer) >= 0.0)
+    assert 0.0 < max(f for f in finer if f > 0.0) and min(f for f in finer if f > 0.0) < (
+        0.3 * forces[first])
+
+
+@settings(max_examples=25, deadline=None, derandomize=True,
+          suppress_health_check=[HealthCheck.too_slow])
+@given(x=st.floats(0.55, 0.85), y=st.floats(-0.3, 0.3), z=st.floats(-0.3, 0.3),
+       height=st.floats(-0.12, 0.12), weight=st.floats(0.0, 2.0))
+def test_random_grips_round_an_obstacle_never_penetrate(x, y, z, height, weight):
+    """A hose clamped at the origin, its end held anywhere beyond a pole across its
+    path: a converged equilibrium that keeps out of the pole (up to the chord sag between
+    probes L / 120 apart round its side, or round its rim's edge), or a typed error."""
+    pole = Obstacle.cylinder("pole", 0.04, 0.6, (0.35, 0.0, height), ACROSS_Y)
+    hose = pl.Part(length=1.0, bending_stiffness=0.05, mass_per_length=weight / 9.81,
+                   outer_diameter=2 * RADIUS)
+    try:
+        problem = pl.Problem(hose, (pl.clamp(0.0, position=(0.0, 0.0, 0.0)),
+                                    pl.pin(1.0, position=(x, y, z), name="hand")),
+                             gravity=(0.0, 0.0, -9.81), obstacles=(pole,))
+        eq = rod3d.solve(problem, solver=rod3d.RodSolver(elements=60))
+    except PliantError:
+        return
+    assert eq.residual < 1e-9
+    assert penetration(eq) < sag(1.0 / 120, RADIUS)
+    assert np.all(eq.contacts.force @ np.array([0.0, 1.0, 0.0]) < 1e-9)  # normal to the pole
