@@ -114,6 +114,37 @@ def test_gradients_match_finite_differences():
     assert np.allclose(np.linalg.norm(g, axis=1), 1.0)
 
 
+def test_hessians_match_finite_differences_of_the_gradient():
+    """The contact Jacobian's curvature term: each obstacle's exact piecewise Hessian
+    against central differences of its gradient at random points (none within the step of
+    a seam between pieces), symmetric, with the gradient in its null space."""
+    mesh = SHAPES["torus"]
+    obstacles = [Obstacle.from_mesh("t", mesh.vertices, mesh.faces),
+                 Obstacle.cylinder("c", 0.05, 0.2, (0.3, 0.0, 0.0), _rotation((0, 1, 1), 0.7)),
+                 Obstacle.box("b", (0.1, 0.2, 0.1), (-0.3, 0.0, 0.0),
+                              rotation=_rotation((1, 1, 0), 0.4)),
+                 Obstacle.sphere("s", 0.05, (0.0, 0.3, 0.0))]
+    rng = np.random.default_rng(5)
+    eps = 1e-7
+    for o, obstacle in enumerate(obstacles):
+        field = DistanceField(obstacles)
+        args = field.args
+        checked = 0
+        for p in obstacle.translation + rng.normal(scale=0.12, size=(150, 3)):
+            d, *g, nearest = distance.query_point(p, 1.0, *args)
+            if nearest != o or d < 0.0:
+                continue
+            H = distance.hessian_point(p, o, *args)
+            fd = np.column_stack([
+                (np.array(distance.query_point(p + eps * e, 1.0, *args)[1:4])
+                 - np.array(distance.query_point(p - eps * e, 1.0, *args)[1:4])) / (2 * eps)
+                for e in np.eye(3)])
+            checked += 1
+            assert np.allclose(H, fd, atol=1e-4 * max(1.0, np.abs(fd).max()))
+            assert np.allclose(H, H.T, atol=1e-9) and np.abs(H @ np.array(g)).max() < 1e-9
+        assert checked > 40
+
+
 def test_primitives_against_meshes_of_the_same_shape():
     """A box primitive is exactly its box mesh; a cylinder primitive is its fine mesh to
     within the tessellation's sagitta; rotated and moved consistently."""
