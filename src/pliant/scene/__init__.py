@@ -3,3 +3,6 @@ touches."""
 
 from pliant.scene.distance import DistanceField as DistanceField
 from pliant.scene.distance import Obstacle as Obstacle
+from pliant.scene.interference import Interference as Interference
+from pliant.scene.interference import of_curve as interference_of_curve
+from pliant.scene.interference import of_equilibrium as interference
