@@ -85,12 +85,13 @@ def test_plot_is_written_atomically(tmp_path):
     assert not any(p.name.startswith(".") for p in tmp_path.iterdir())
 
 
-def test_demo_solves_and_plots_the_paper_cases(tmp_path):
-    out = run("demo", "--out", str(tmp_path / "demo"))
+@pytest.mark.parametrize("case", [1, 2, 3])
+def test_the_paper_cases_solve_and_plot(tmp_path, case):
+    out = run("solve", str(EXAMPLES / "paper" / f"case{case}.toml"), "--plot",
+              str(tmp_path / f"case{case}.png"))
     assert out.returncode == 0, out.stderr
-    for i in (1, 2, 3):
-        assert f"paper case {i}" in out.stdout
-        assert (tmp_path / "demo" / f"case{i}.png").stat().st_size > 20000
+    assert f"paper case {case}" in out.stdout
+    assert (tmp_path / f"case{case}.png").stat().st_size > 20000
 
 
 def test_solve_3d_with_plot_and_meshes(tmp_path):

@@ -83,7 +83,7 @@ def test_a_solved_part_on_a_prop_touches_it_and_nothing_else():
                    outer_diameter=2 * r)
     eq = rod3d.solve(pl.Problem(part, (pl.clamp(0.0, position=(0, 0, 0)),),
                                 gravity=(0, 0, -9.81), obstacles=(prop, wall)))
-    report = eq.interference(margin=0.01)
+    report = interference(eq, margin=0.01)
     by_name = {c.obstacle: c for c in report.clearances}
     assert abs(by_name["prop"].clearance) < 1e-7 and by_name["prop"].s == pytest.approx(1.0)
     assert by_name["wall"].clearance == pytest.approx(0.1 - r, abs=1e-4)

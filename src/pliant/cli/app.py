@@ -65,25 +65,81 @@ def solve(
 
 
 @app.command()
-def demo(
-    out: Annotated[Path, typer.Option(help="folder for the plots")] = Path("pliant-demo"),
+def run(
+    file: Annotated[Path, typer.Argument(help="a scene file (TOML, SI units) with a [path]")],
+    out: Annotated[Path, typer.Option(help="folder for the report (JSON), the plot (PNG) "
+                                           "and the final scene (GLB)")] = Path("pliant-out"),
+    elements: Annotated[int | None, typer.Option(help="about how many elements "
+                                                      "(default: the file's \\[solver])")]
+    = None,
 ) -> None:
-    """The main job for now: solve and plot the paper's three cases (examples/paper)."""
-    from pliant.cli.plot import plot_equilibrium  # noqa: PLC0415
-    from pliant.cli.report import print_summary, timed_solve  # noqa: PLC0415
-    from pliant.io.problem_file import load_problem  # noqa: PLC0415
+    """Follow a scene's manipulation: solve every step of its [path], report the force and
+    moment at the grip, contacts, clearances and bend radius, and write them out."""
+    _run_scene(file, out, elements)
 
-    files = sorted((EXAMPLES / "paper").glob("case*.toml"))
-    if not files:
-        raise PliantError(f"no paper examples found under {EXAMPLES / 'paper'}")
-    out.mkdir(parents=True, exist_ok=True)
-    for file in files:
-        problem = load_problem(file)
-        eq, seconds = timed_solve(problem)
-        print_summary(eq, seconds)
-        target = out / f"{file.stem}.png"
-        plot_equilibrium(eq, target)
-        typer.echo(f"plot written to {target}\n")
+
+def _run_scene(file: Path, out: Path, elements: int | None) -> None:
+    import json as _json  # noqa: PLC0415
+
+    import numpy as np  # noqa: PLC0415
+    from rich.console import Console  # noqa: PLC0415
+    from rich.progress import Progress  # noqa: PLC0415
+
+    from pliant.assembly import follow_path  # noqa: PLC0415
+    from pliant.cli.plot import plot_path  # noqa: PLC0415
+    from pliant.cli.report import _finite, print_interference, print_path  # noqa: PLC0415
+    from pliant.io.atomic import atomic_write  # noqa: PLC0415
+    from pliant.io.mesh_export import export_scene  # noqa: PLC0415
+    from pliant.io.problem_file import load_scene  # noqa: PLC0415
+
+    scene = load_scene(file)
+    if not scene.path:
+        raise PliantError(f"{file}: no [path] to follow; give one (see the README), or "
+                          "use `pliant solve` for a single pose")
+    problem = scene.problem
+    console = Console()
+    console.print(f"[bold]{problem.name or file.stem}[/bold]: {problem.part.name}, "
+                  f"{len(problem.obstacles)} obstacles, {len(scene.path)} steps")
+    with Progress(console=console, transient=True) as bar:
+        task = bar.add_task("solving the path", total=len(scene.path) + 1)
+        result = follow_path(problem, scene.path, _grip_of(file),
+                             margin=scene.margin,
+                             elements=elements or scene.solver.elements,
+                             on_step=lambda k, r: bar.advance(task))
+    if not result.steps:
+        raise PliantError(f"{file}: the start pose could not be solved: {result.stopped}")
+    print_path(result, problem.part, console)
+    console.print("at the last step solved:")
+    print_interference(result.interference, console)
+    for name, force in result.final.contacts.by_obstacle().items():
+        console.print(f"{name} pushes on the part with {np.linalg.norm(force):.3g} N "
+                      f"({', '.join(f'{f:.3g}' if abs(f) > 1e-9 else '0' for f in force)})")
+    stem = file.stem
+    report = out / f"{stem}.json"
+    atomic_write(report, lambda h: h.write(_json.dumps(_finite(result.to_dict()),
+                                                       indent=1).encode()), "the report")
+    plot = plot_path(result, out / f"{stem}.png", problem.part.min_bend_radius)
+    glb = export_scene(result.final, out / f"{stem}.glb")
+    console.print(f"written: {report}, {plot}, {glb} (the last pose with the obstacles)")
+
+
+def _grip_of(file: Path) -> str:
+    import tomllib  # noqa: PLC0415
+
+    return tomllib.loads(file.read_text(encoding="utf-8"))["path"]["grip"]
+
+
+@app.command()
+def demo(
+    out: Annotated[Path, typer.Option(help="folder for the report, plot and scene")] = Path(
+        "pliant-demo"),
+) -> None:
+    """The main job on the bundled default scene: an oil line carried round an engine
+    bay's exhaust manifold onto its port (examples/scenes/engine_bay.toml)."""
+    scene = EXAMPLES / "scenes" / "engine_bay.toml"
+    if not scene.is_file():
+        raise PliantError(f"the bundled scene is missing: {scene}")
+    _run_scene(scene, out, None)
 
 
 def main() -> None:

@@ -136,3 +136,46 @@ def _save(fig, path: Path, plt) -> None:
                      "the plot")
     finally:
         plt.close(fig)
+
+
+def plot_path(run, path: str | Path, min_bend_radius: float | None = None) -> Path:
+    """Draw a manipulation's record against its progress: the grip's force and moment,
+    the smallest clearance (with the margin) and the smallest bend radius (with the
+    part's minimum), to a PNG file, atomically."""
+    import matplotlib  # noqa: PLC0415
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt  # noqa: PLC0415
+
+    path = Path(path)
+    steps = run.steps
+    progress = np.array([r.progress for r in steps]) * 100.0
+    fig, axes = plt.subplots(2, 2, figsize=(11, 6.5), layout="constrained", sharex=True)
+    (force, moment), (clearance, bend) = axes
+    force.plot(progress, [r.force_norm for r in steps], color="tab:blue")
+    force.set_ylabel(f"|force| at {run.grip} [N]")
+    for k in run.snaps:
+        for ax in (force, moment):
+            ax.axvline(progress[k], color="tab:red", ls=":", label="snap")
+    moment.plot(progress, [r.moment_norm for r in steps], color="tab:purple")
+    moment.set_ylabel(f"|moment| at {run.grip} [N m]")
+    clearance.plot(progress, [r.clearance * 1e3 for r in steps], color="tab:green")
+    clearance.axhline(run.margin * 1e3, color="tab:orange", ls="--", label="margin")
+    clearance.axhline(0.0, color="tab:red", lw=0.8)
+    touching = [p for p, r in zip(progress, steps) if r.contacts]
+    if touching:
+        clearance.plot(touching, [0.0] * len(touching), "x", color="tab:red",
+                       label="touching")
+    clearance.set_ylabel("smallest clearance [mm]")
+    clearance.legend(loc="best")
+    bend.plot(progress, [r.bend_radius * 1e3 for r in steps], color="tab:brown")
+    if min_bend_radius is not None:
+        bend.axhline(min_bend_radius * 1e3, color="tab:red", ls="--", label="part's minimum")
+        bend.legend(loc="best")
+    bend.set_ylabel("smallest bend radius [mm]")
+    for ax in (clearance, bend):
+        ax.set_xlabel("progress along the path [%]")
+    for ax in axes.ravel():
+        ax.grid(alpha=0.3)
+    _save(fig, path, plt)
+    return path

@@ -131,3 +131,81 @@ def print_json(eq: Any, seconds: float) -> None:
     data = eq.to_dict()
     data["solve_seconds"] = seconds
     print(json.dumps(_finite(data), indent=1, allow_nan=False))
+
+
+def print_interference(report: Any, console: Console | None = None) -> None:
+    """The clearance of the part to each obstacle, and what is too close or inside."""
+    console = console or Console()
+    table = Table(title=f"clearance to the obstacles (margin {report.margin * 1e3:g} mm)",
+                  title_justify="left")
+    for column in ("obstacle", "smallest clearance [mm]", "at s [m]"):
+        table.add_column(column)
+    for c in report.clearances:
+        style = "red" if c.clearance < -report.tolerance else (
+            "yellow" if c.clearance < report.margin else "")
+        text = ("0 (touching)" if abs(c.clearance) <= report.tolerance
+                else f"{c.clearance * 1e3:.2f}")
+        table.add_row(c.obstacle, f"[{style}]{text}[/{style}]" if style else text,
+                      f"{c.s:.4g}")
+    console.print(table)
+    for span in report.penetrations:
+        console.print(f"[red]penetrates[/red] {span.obstacle} over s = {span.s_start:.4g} "
+                      f"to {span.s_end:.4g} m, {-span.worst * 1e3:.2f} mm deep at "
+                      f"s = {span.s_worst:.4g} m")
+    for span in report.too_close:
+        console.print(f"[yellow]within the margin[/yellow] of {span.obstacle} over s = "
+                      f"{span.s_start:.4g} to {span.s_end:.4g} m (closest "
+                      f"{max(span.worst, 0.0) * 1e3:.2f} mm at s = {span.s_worst:.4g} m)")
+
+
+def print_path(run: Any, part: Any, console: Console | None = None, rows: int = 12) -> None:
+    """A manipulation's record (about ``rows`` steps) and its verdict."""
+    console = console or Console()
+    table = Table(title=f"along the path ({len(run.steps) - 1} of {run.planned} steps "
+                        "solved; force and moment the grip applies)", title_justify="left")
+    for column in ("step", "%", f"{run.grip} x y z [m]", "|F| [N]", "|M| [N m]",
+                   "clear. [mm]", "nearest", "contact [N]", "bend R [mm]"):
+        table.add_column(column)
+    every = max(1, (len(run.steps) - 1) // rows)
+    shown = sorted(set(range(0, len(run.steps), every)) | {len(run.steps) - 1})
+    for k in shown:
+        r = run.steps[k]
+        table.add_row(str(k), f"{r.progress * 100:.0f}",
+                      " ".join(f"{x:.2f}" for x in r.grip_position), f"{r.force_norm:.3g}",
+                      f"{r.moment_norm:.3g}", f"{max(r.clearance, 0.0) * 1e3:.1f}"
+                      if r.clearance > -1e-6 else f"[red]{r.clearance * 1e3:.1f}[/red]",
+                      r.nearest, f"{r.contact_force:.3g}" if r.contacts else "",
+                      f"{r.bend_radius * 1e3:.0f}")
+    console.print(table)
+    force, kf = run.peak("force")
+    moment, km = run.peak("moment")
+    console.print(f"peak force at {run.grip}: {force:.3g} N (step {kf}); peak moment: "
+                  f"{moment:.3g} N m (step {km})")
+    tightest = min(run.steps, key=lambda r: r.bend_radius)
+    line = (f"tightest bend: radius {tightest.bend_radius * 1e3:.1f} mm at s = "
+            f"{tightest.bend_at:.3g} m (progress {tightest.progress:.0%})")
+    if part.min_bend_radius is not None:
+        line += (" [red]below[/red]" if tightest.bend_radius < part.min_bend_radius
+                 else " above") + f" the part's minimum {part.min_bend_radius * 1e3:g} mm"
+    console.print(line)
+    touching = [k for k, r in enumerate(run.steps) if r.contacts]
+    inside = [k for k, r in enumerate(run.steps) if r.clearance < -1e-6]
+    close = [k for k, r in enumerate(run.steps) if r.clearance < run.margin]
+    console.print(f"steps touching an obstacle: {len(touching)}"
+                  + (f" (first at step {touching[0]})" if touching else "")
+                  + f"; within the {run.margin * 1e3:g} mm margin: {len(close)}"
+                  + f"; penetrating: {len(inside)}")
+    if run.snaps:
+        console.print(f"[red]the part snaps[/red] (its shape could not be followed, it jumps "
+                      f"to another) at steps {', '.join(map(str, run.snaps))}")
+    if run.unstable:
+        console.print(f"[red]unstable shapes[/red] (a real part would not stay there) at "
+                      f"{len(run.unstable)} steps, first {run.unstable[0]}")
+    if run.stopped:
+        console.print(f"[red]stopped[/red]: {run.stopped}")
+    else:
+        console.print("the path was followed to its end")
+    total = sum(r.seconds for r in run.steps[1:])
+    if len(run.steps) > 1:
+        console.print(f"solve time: {total * 1e3 / (len(run.steps) - 1):.1f} ms per step "
+                      f"(warm), {run.steps[0].seconds * 1e3:.0f} ms for the start")

@@ -268,14 +268,6 @@ class Equilibrium3D:
     stability_check: Callable[[], tuple[bool | None, float | None]] | None = field(
         default=None, repr=False)
 
-    def interference(self, margin: float = 0.0, tolerance: float = 1e-6) -> Any:
-        """The clearance of the tube to each obstacle of the problem: smallest
-        clearances, penetrations, spans closer than ``margin`` [m] (see
-        ``pliant.scene.interference``)."""
-        from pliant.scene.interference import of_equilibrium  # noqa: PLC0415
-
-        return of_equilibrium(self, margin=margin, tolerance=tolerance)
-
     @cached_property
     def samples(self) -> Samples3D:
         return self.sampler()

@@ -47,3 +47,56 @@ def export_mesh(eq, path: str | Path, sides: int = 24) -> Path:
     mesh = trimesh.Trimesh(vertices=vertices, faces=faces, process=False)
     return atomic_write(path, lambda handle: mesh.export(file_obj=handle, file_type=kind),
                         "the mesh")
+
+
+def obstacle_mesh(obstacle, halfspace_size: float = 2.0):
+    """A trimesh of an obstacle in the world frame (a half-space as a square slab of
+    ``halfspace_size`` [m] and 1 cm thick under its plane), for viewers and exports."""
+    import trimesh  # noqa: PLC0415
+
+    from pliant.scene.distance import BOX, CYLINDER, HALFSPACE, MESH, SPHERE  # noqa: PLC0415
+
+    p = obstacle.param
+    if obstacle.kind == SPHERE:
+        mesh = trimesh.creation.icosphere(subdivisions=3, radius=p[0])
+    elif obstacle.kind == BOX:
+        mesh = trimesh.creation.box(extents=2.0 * p[:3])
+    elif obstacle.kind == CYLINDER:
+        mesh = trimesh.creation.cylinder(radius=p[0], height=2.0 * p[1], sections=48)
+    elif obstacle.kind == HALFSPACE:
+        mesh = trimesh.creation.box(extents=(halfspace_size, halfspace_size, 0.01))
+        mesh.apply_translation((0.0, 0.0, -0.005))
+    elif obstacle.kind == MESH:
+        tri = obstacle.mesh.tri
+        mesh = trimesh.Trimesh(vertices=tri.reshape(-1, 3),
+                               faces=np.arange(tri.shape[0] * 3).reshape(-1, 3))
+        mesh.merge_vertices()
+    else:  # pragma: no cover (every kind is above)
+        raise ValueError(f"unknown obstacle kind {obstacle.kind}")
+    transform = np.eye(4)
+    transform[:3, :3] = obstacle.rotation
+    transform[:3, 3] = obstacle.translation
+    mesh.apply_transform(transform)
+    return mesh
+
+
+def export_scene(eq, path: str | Path, sides: int = 24) -> Path:
+    """Write the deformed tube and its problem's obstacles to one glTF binary (.glb),
+    each a named node (the part orange, the obstacles grey), atomically."""
+    import trimesh  # noqa: PLC0415
+
+    path = Path(path)
+    if path.suffix.lower() != ".glb":
+        raise OutputError(f"cannot write {path}: a scene is written as a .glb file")
+    points, frames = centreline_and_frames(eq)
+    vertices, faces = tube_mesh(points, part_radius(eq), frames, sides=sides)
+    scene = trimesh.Scene()
+    part = trimesh.Trimesh(vertices=vertices, faces=faces, process=False)
+    part.visual.face_colors = (230, 120, 30, 255)
+    scene.add_geometry(part, node_name=eq.problem.part.name or "part", geom_name="part")
+    for obstacle in eq.problem.obstacles:
+        mesh = obstacle_mesh(obstacle)
+        mesh.visual.face_colors = (150, 155, 160, 255)
+        scene.add_geometry(mesh, node_name=obstacle.name, geom_name=obstacle.name)
+    return atomic_write(path, lambda handle: handle.write(scene.export(file_type="glb")),
+                        "the scene")

@@ -1,8 +1,13 @@
 """Problem files: TOML, validated with pydantic, SI units.
 
 A file holds a ``[part]``, an optional ``gravity``, and one ``[[condition]]`` table per
-station. A condition's keys say which components are prescribed and which are applied:
-``x``, ``y``, ``angle`` prescribe (the answer is the reaction), ``Fx``, ``Fy``,
+station. A 3D file may also be a scene: ``[[obstacle]]`` tables (primitives, or meshes
+read by trimesh from paths relative to the file), ``[[port]]`` tables (a position and an
+axis a condition can name), ``[[clip]]`` tables (the part held at a point along it, by
+position and axis), a ``[path]`` for one grip to follow and a clearance ``margin``.
+
+A condition's keys say which components are prescribed and which are applied: ``x``,
+``y``, ``angle`` prescribe (the answer is the reaction), ``Fx``, ``Fy``,
 ``moment`` apply a dead load, and ``Ft``, ``Fn`` apply a follower force (tangential and
 normal to the deformed neutral line). Switching a hand from holding to pushing is a
 one-word change: ``y = 0.3`` becomes ``Fy = 2.0``. See the README for the whole format.
@@ -12,9 +17,11 @@ from __future__ import annotations
 
 import math
 import tomllib
+from dataclasses import dataclass, field, replace
 from pathlib import Path
-from typing import Any
+from typing import Any, Literal
 
+import numpy as np
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
 
 from pliant.core.conditions import Condition
@@ -47,7 +54,8 @@ class PartModel(_Strict):
     mass_per_length: float | None = Field(None, ge=0, description="[kg/m]")
     outer_diameter: float | None = Field(None, gt=0, description="[m]")
     inner_diameter: float = Field(0.0, ge=0, description="[m]")
-    material: MaterialModel | None = None
+    material: MaterialModel | str | None = Field(
+        None, description="a [part.material] table, or a name from the bundled library")
     rest_curvature: float | list[tuple[float, float]] = Field(
         0.0, description="[1/m], or [[s, kappa], ...] knots (about d1)")
     rest_curvature_2: float | list[tuple[float, float]] = Field(
@@ -60,9 +68,10 @@ class PartModel(_Strict):
     def _stiffness_given(self) -> PartModel:
         if self.bending_stiffness is None and self.material is None:
             raise ValueError("give bending_stiffness [N m^2], or outer_diameter and a "
-                             "[part.material] with youngs_modulus")
+                             "material (a library name, or a [part.material] table with "
+                             "youngs_modulus)")
         if self.material is not None and self.outer_diameter is None:
-            raise ValueError("a [part.material] needs outer_diameter [m] to make a section")
+            raise ValueError("a material needs outer_diameter [m] to make a section")
         return self
 
     def build(self) -> Part:
@@ -76,7 +85,12 @@ class PartModel(_Strict):
                   "min_bend_radius": self.min_bend_radius}
         if self.material is not None:
             assert self.outer_diameter is not None
-            material = Material(**self.material.model_dump())
+            if isinstance(self.material, str):
+                from pliant.io.materials import material as library_material  # noqa: PLC0415
+
+                material = library_material(self.material)
+            else:
+                material = Material(**self.material.model_dump())
             part = Part.tube(self.length, self.outer_diameter, material,
                              inner_diameter=self.inner_diameter, **common)
             # Measured values, when also given, win over the section's.
@@ -126,10 +140,15 @@ class ConditionModel(_Strict):
                                                           "frame (d1, d2, d3) [N] (3D)")
     follower_moment: Vec3 | None = Field(None, description="follower moment in the section "
                                                            "frame (d1, d2, d3) [N m] (3D)")
+    port: str | None = Field(None, description="at a [[port]]: its position and axis")
     note: str = ""
 
     @model_validator(mode="after")
     def _one_kind_of_load(self) -> ConditionModel:
+        if self.port is not None and any(v is not None for v in (
+                self.x, self.y, self.z, self.tangent, self.angle)):
+            raise ValueError("a condition at a port takes its position and axis from the "
+                             "port; drop x, y, z, tangent (or drop port)")
         dead = any(v is not None for v in (self.Fx, self.Fy, self.Fz))
         follower = any(v is not None for v in (self.Ft, self.Fn, self.follower_force,
                                                self.follower_moment))
@@ -144,6 +163,7 @@ class ConditionModel(_Strict):
     @property
     def is_3d(self) -> bool:
         return (self.z is not None or self.Fz is not None or self.tangent is not None
+                or self.port is not None
                 or self.normal is not None or isinstance(self.moment, tuple)
                 or self.follower_force is not None or self.follower_moment is not None)
 
@@ -171,6 +191,127 @@ class ConditionModel(_Strict):
                          moment=moment, follower=follower)
 
 
+class ObstacleModel(_Strict):
+    """[[obstacle]]: a rigid obstacle of the scene, placed by position and rotation
+    (local to world, rows) or by axis (where its local z points: a cylinder's axis, a
+    half-space's outward normal)."""
+
+    name: str
+    shape: Literal["box", "sphere", "cylinder", "halfspace", "mesh"]
+    position: Vec3 = Field((0.0, 0.0, 0.0), description="centre, or a point of the "
+                                                         "plane, or the mesh's origin [m]")
+    rotation: tuple[Vec3, Vec3, Vec3] | None = None
+    axis: Vec3 | None = None
+    size: Vec3 | None = Field(None, description="box: full sizes along local x, y, z [m]")
+    radius: float | None = Field(None, gt=0, description="sphere, cylinder [m]")
+    length: float | None = Field(None, gt=0, description="cylinder [m]")
+    file: str | None = Field(None, description="mesh: STL, OBJ, PLY, glTF, relative to "
+                                               "this file")
+    scale: float = Field(1.0, gt=0, description="mesh: its units in m (0.001 for mm)")
+    resolution: int = Field(64, ge=8, le=512, description="mesh: distance grid cells")
+    note: str = ""
+
+    @model_validator(mode="after")
+    def _shape_fields(self) -> ObstacleModel:
+        need = {"box": ("size",), "sphere": ("radius",), "cylinder": ("radius", "length"),
+                "halfspace": (), "mesh": ("file",)}[self.shape]
+        missing = [k for k in need if getattr(self, k) is None]
+        if missing:
+            raise ValueError(f"a {self.shape} needs {', '.join(missing)}")
+        if self.rotation is not None and self.axis is not None:
+            raise ValueError("give rotation or axis, not both")
+        if self.size is not None and min(self.size) <= 0.0:
+            raise ValueError("size: every side must be > 0 [m]")
+        return self
+
+    def build(self, base: Path | None) -> Any:
+        from pliant.scene.distance import Obstacle, _frame_with_z  # noqa: PLC0415
+
+        rotation = None
+        if self.rotation is not None:
+            rotation = np.array(self.rotation, dtype=float)
+        elif self.axis is not None:
+            if np.linalg.norm(self.axis) == 0.0:
+                raise ValueError("axis must not be zero")
+            rotation = _frame_with_z(self.axis)
+        if self.shape == "box":
+            return Obstacle.box(self.name, self.size, self.position, rotation)
+        if self.shape == "sphere":
+            return Obstacle.sphere(self.name, self.radius, self.position)
+        if self.shape == "cylinder":
+            return Obstacle.cylinder(self.name, self.radius, self.length, self.position,
+                                     rotation)
+        if self.shape == "halfspace":
+            normal = (0.0, 0.0, 1.0) if rotation is None else rotation[:, 2]
+            return Obstacle.halfspace(self.name, self.position, normal)
+        vertices, faces = _read_mesh(self.file, base)
+        return Obstacle.from_mesh(self.name, vertices * self.scale, faces, self.position,
+                                  rotation, self.resolution)
+
+
+def _read_mesh(name: str | None, base: Path | None) -> tuple[np.ndarray, np.ndarray]:
+    import trimesh  # noqa: PLC0415
+
+    path = Path(name or "")
+    if not path.is_absolute() and base is not None:
+        path = base / path
+    if not path.is_file():
+        raise ValueError(f"file: no such mesh file {str(path)!r} (paths are relative to "
+                         "the scene file)")
+    try:
+        mesh = trimesh.load(path, force="mesh")
+    except Exception as err:  # trimesh raises many kinds on a bad file
+        raise ValueError(f"file: {str(path)!r} is not a mesh trimesh can read "
+                         f"(STL, OBJ, PLY, glTF): {err}") from None
+    if not isinstance(mesh, trimesh.Trimesh) or len(mesh.faces) == 0:
+        raise ValueError(f"file: {str(path)!r} holds no triangles")
+    return np.asarray(mesh.vertices, dtype=float), np.asarray(mesh.faces, dtype=np.int64)
+
+
+class PortModel(_Strict):
+    """[[port]]: where an end must go: a position and the axis the part leaves it by
+    (a condition at the port at the first end has that tangent; at the last end, the
+    opposite: it arrives)."""
+
+    name: str
+    position: Vec3 = Field(description="[m]")
+    axis: Vec3 = Field(description="the direction the part leaves the port along")
+    note: str = ""
+
+
+class ClipModel(_Strict):
+    """[[clip]]: a clip or clamp holding the part at s by position and axis (and the
+    section's d1 when normal is given: it then also stops twist)."""
+
+    name: str
+    s: float = Field(description="arc length [m]")
+    position: Vec3 = Field(description="[m]")
+    axis: Vec3 = Field(description="the part's direction through the clip")
+    normal: Vec3 | None = None
+    note: str = ""
+
+    def build(self) -> Condition:
+        return Condition(s=self.s, name=self.name, position=self.position,
+                         tangent=self.axis, normal=self.normal)
+
+
+class PathModel(_Strict):
+    """[path]: a manipulation: the condition ``grip`` is carried from where the file
+    puts it through ``waypoints`` (straight legs), its axis turned toward ``tangents``
+    when given, in ``steps`` equal steps of arc length."""
+
+    grip: str
+    waypoints: list[Vec3] = Field(min_length=1)
+    tangents: list[Vec3] | None = None
+    steps: int = Field(50, ge=1, le=100000)
+
+    @model_validator(mode="after")
+    def _same_length(self) -> PathModel:
+        if self.tangents is not None and len(self.tangents) != len(self.waypoints):
+            raise ValueError("give one tangent per waypoint, or none")
+        return self
+
+
 class SolverModel(_Strict):
     """[solver]: settings of the model (3D: how many elements)."""
 
@@ -187,25 +328,122 @@ class ProblemFile(_Strict):
     gravity: tuple[float, float] | Vec3 | None = None
     solver: SolverModel = Field(default_factory=SolverModel)
     condition: list[ConditionModel] = Field(default_factory=list)
+    obstacle: list[ObstacleModel] = Field(default_factory=list)
+    port: list[PortModel] = Field(default_factory=list)
+    clip: list[ClipModel] = Field(default_factory=list)
+    path: PathModel | None = None
+    margin: float = Field(0.0, ge=0, description="clearance wanted round obstacles [m]")
 
     @property
     def dimension(self) -> int:
         three = (self.gravity is not None and len(self.gravity) == 3) or any(
-            c.is_3d for c in self.condition)
+            c.is_3d for c in self.condition) or bool(self.obstacle or self.clip)
         return 3 if three else 2
 
-    def build(self) -> Problem:
+    def build(self, base: Path | None = None) -> Problem:
         part = self.part.build()
         dimension = self.dimension
+        ports = {p.name: p for p in self.port}
         conditions = []
         for i, c in enumerate(self.condition):
             try:
+                if c.port is not None:
+                    if c.port not in ports:
+                        raise ValueError(f"port: no [[port]] named {c.port!r}; known: "
+                                         f"{', '.join(sorted(ports)) or 'none'}")
+                    port = ports[c.port]
+                    # The part leaves a port along its axis: the first end's tangent is
+                    # the axis, the last end's (arriving) its opposite.
+                    axis = (port.axis if c.s < 0.5 * part.length
+                            else tuple(-a for a in port.axis))
+                    c = c.model_copy(update={"x": port.position[0], "y": port.position[1],
+                                             "z": port.position[2], "tangent": axis})
                 conditions.append(c.build(i, dimension))
             except ValueError as err:
                 if isinstance(err, PliantError):
                     raise
                 raise InputError(f"condition[{i}]", str(err)) from None
-        return Problem(part, tuple(conditions), self.gravity, self.name)
+        for i, clip in enumerate(self.clip):
+            try:
+                conditions.append(clip.build())
+            except ValueError as err:
+                raise InputError(f"clip[{i}]", str(err).removeprefix("Value error, ")) from None
+        obstacles = []
+        for i, o in enumerate(self.obstacle):
+            try:
+                obstacles.append(o.build(base))
+            except ValueError as err:
+                raise InputError(f"obstacle[{i}]", str(err)) from None
+        names = [o.name for o in obstacles]
+        if len(set(names)) != len(names):
+            raise InputError("obstacle", "two obstacles share a name; name each one apart")
+        if dimension == 2 and obstacles:
+            raise InputError("obstacle", "obstacles are 3D: give gravity as [gx, gy, gz]")
+        return Problem(part, tuple(conditions), self.gravity, self.name,
+                       obstacles=tuple(obstacles))
+
+    def manipulation(self, problem: Problem) -> list[Problem]:
+        """The problems along the [path]: its grip carried through the waypoints."""
+        if self.path is None:
+            return []
+        path = self.path
+        index = next((k for k, c in enumerate(problem.conditions) if c.name == path.grip),
+                     None)
+        if index is None:
+            raise InputError("path.grip", f"no condition named {path.grip!r}; name the "
+                             "[[condition]] the hand holds")
+        grip = problem.conditions[index]
+        if any(v is None for v in grip.position):
+            raise InputError("path.grip", f"{path.grip!r} must hold x, y and z to be "
+                             "carried along a path")
+        points = np.array([grip.position, *path.waypoints], dtype=float)
+        turn = path.tangents is not None and grip.tangent is not None
+        tangents = (np.array([grip.tangent, *path.tangents], dtype=float) if turn else None)
+        legs = np.linalg.norm(np.diff(points, axis=0), axis=1)
+        total = float(legs.sum())
+        if total == 0.0:
+            raise InputError("path.waypoints", "the path has no length: move the grip")
+        at = np.concatenate([[0.0], np.cumsum(legs)])
+        problems = []
+        for k in range(1, path.steps + 1):
+            u = total * k / path.steps
+            leg = min(int(np.searchsorted(at, u, side="right")) - 1, len(legs) - 1)
+            t = (u - at[leg]) / legs[leg] if legs[leg] > 0 else 1.0
+            where = points[leg] + t * (points[leg + 1] - points[leg])
+            changes: dict[str, Any] = {"position": tuple(float(x) for x in where)}
+            if tangents is not None:
+                a, b = tangents[leg] / np.linalg.norm(tangents[leg]), tangents[leg + 1]
+                b = b / np.linalg.norm(b)
+                direction = _slerp(a, b, t)
+                changes["tangent"] = tuple(float(x) for x in direction)
+                if grip.normal is not None:
+                    changes["normal"] = None  # the hand's roll follows the turn
+            conditions = list(problem.conditions)
+            conditions[index] = replace(grip, **changes)
+            problems.append(replace(problem, conditions=tuple(conditions)))
+        return problems
+
+
+def _slerp(a: np.ndarray, b: np.ndarray, t: float) -> np.ndarray:
+    angle = math.acos(max(-1.0, min(1.0, float(a @ b))))
+    if angle < 1e-9:
+        return a
+    if math.pi - angle < 1e-9:
+        raise InputError("path.tangents", "a tangent turns right round between two "
+                         "waypoints; add a waypoint between them")
+    return (math.sin((1 - t) * angle) * a + math.sin(t * angle) * b) / math.sin(angle)
+
+
+@dataclass(frozen=True)
+class Scene:
+    """A whole file as built: the problem (with its obstacles), the solver settings,
+    the manipulation along its [path] (empty without one), and the clearance margin."""
+
+    problem: Problem
+    solver: SolverModel
+    path: list[Problem] = field(default_factory=list)
+    margin: float = 0.0
+    ports: dict[str, PortModel] = field(default_factory=dict)
 
 
 def _where(loc: tuple[Any, ...]) -> str:
@@ -222,6 +460,13 @@ def parse_problem(text: str, source: str = "<string>") -> Problem:
 
 def parse_problem_file(text: str, source: str = "<string>") -> tuple[Problem, SolverModel]:
     """Parse TOML text into a ``Problem`` and its ``[solver]`` settings."""
+    scene = parse_scene(text, source)
+    return scene.problem, scene.solver
+
+
+def parse_scene(text: str, source: str = "<string>", base: Path | None = None) -> Scene:
+    """Parse TOML text into a ``Scene``; mesh files are looked up relative to ``base``
+    (the file's folder)."""
     try:
         data = tomllib.loads(text)
     except tomllib.TOMLDecodeError as err:
@@ -233,12 +478,15 @@ def parse_problem_file(text: str, source: str = "<string>") -> tuple[Problem, So
         where = _where(tuple(first["loc"]))
         message = first["msg"]
         if first["type"] == "extra_forbidden":
-            message = ("unknown key; a condition takes s, x, y, angle, Fx, Fy, moment, Ft, "
-                       "Fn, name, note (SI units)")
+            message = ("unknown key; see the README's file format (a condition takes s, "
+                       "x, y, z, angle, tangent, normal, Fx, Fy, Fz, moment, Ft, Fn, port, "
+                       "name, note; SI units)")
         more = f" (and {len(err.errors()) - 1} more)" if len(err.errors()) > 1 else ""
         raise FileFormatError(f"{source}: {where}: {message}{more}") from None
     try:
-        return model.build(), model.solver
+        problem = model.build(base)
+        return Scene(problem, model.solver, model.manipulation(problem), model.margin,
+                     {p.name: p for p in model.port})
     except PliantError as err:
         raise FileFormatError(f"{source}: {err}") from None
 
@@ -250,6 +498,12 @@ def load_problem(path: str | Path) -> Problem:
 
 def load_problem_file(path: str | Path) -> tuple[Problem, SolverModel]:
     """Read a problem file (TOML, SI units) and its ``[solver]`` settings."""
+    scene = load_scene(path)
+    return scene.problem, scene.solver
+
+
+def load_scene(path: str | Path) -> Scene:
+    """Read a problem or scene file (TOML, SI units): obstacles, ports, clips, path."""
     path = Path(path)
     try:
         text = path.read_text(encoding="utf-8")
@@ -257,7 +511,7 @@ def load_problem_file(path: str | Path) -> tuple[Problem, SolverModel]:
         raise FileFormatError(f"{path}: no such file; check the path") from None
     except OSError as err:
         raise FileFormatError(f"{path}: cannot be read: {err.strerror}") from None
-    return parse_problem_file(text, str(path))
+    return parse_scene(text, str(path), path.parent)
 
 
 def dump_problem(problem: Problem, description: str = "") -> str:

@@ -1,8 +1,10 @@
 """Scenes: the obstacles around the part, their distance fields, and what the part
 touches."""
 
-from pliant.scene.distance import DistanceField as DistanceField
-from pliant.scene.distance import Obstacle as Obstacle
-from pliant.scene.interference import Interference as Interference
+from pliant.scene.distance import DistanceField, Obstacle
+from pliant.scene.interference import Interference
 from pliant.scene.interference import of_curve as interference_of_curve
 from pliant.scene.interference import of_equilibrium as interference
+
+__all__ = ["DistanceField", "Interference", "Obstacle", "interference",
+           "interference_of_curve"]

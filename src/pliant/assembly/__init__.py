@@ -1,0 +1,6 @@
+"""Assembly and disassembly operations: a grip carried along a path through a scene,
+step by step, with what the hand feels and what the part touches."""
+
+from pliant.assembly.path import PathRun as PathRun
+from pliant.assembly.path import StepRecord as StepRecord
+from pliant.assembly.path import follow_path as follow_path

@@ -1,0 +1,154 @@
+"""Follow a manipulation: solve each step of a grip's path with the accurate 3D model
+(warm-started from the step before), and record at each step what a fitter or a robot
+would be asked about: the force and moment at the grip, the smallest clearance to the
+scene and to what, the contacts, the tightest bend.
+
+A step that cannot be solved ends the run with the reason and keeps every step solved so
+far (``PathRun.stopped``): the path is not feasible as given beyond that point (the part
+would snap, or the grip asks for something it cannot reach).
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from pliant.core.problem import Problem
+from pliant.errors import PliantError
+from pliant.scene.interference import Interference, of_equilibrium
+
+
+@dataclass(frozen=True)
+class StepRecord:
+    """One step of a path. progress in [0, 1] (0: the start pose); grip position [m],
+    force [N] and moment [N m] the grip applies to the part (global frame); clearance
+    [m] the smallest to any obstacle (negative: penetration) and which; contacts the
+    number of touching points and their total force [N]; bend radius [m] the
+    smallest along the part and where (s [m]); stable whether the part would stay there
+    (None: not decided, under non-conservative loads); snap whether the step before's
+    shape could not be followed here (a fold: the part jumps to another shape, which is
+    what this step holds); seconds the solve's wall time."""
+
+    progress: float
+    grip_position: tuple[float, float, float]
+    force: tuple[float, float, float]
+    moment: tuple[float, float, float]
+    clearance: float
+    nearest: str
+    contacts: int
+    contact_force: float
+    bend_radius: float
+    bend_at: float
+    stable: bool | None
+    snap: bool
+    seconds: float
+
+    @property
+    def force_norm(self) -> float:
+        return float(np.linalg.norm(self.force))
+
+    @property
+    def moment_norm(self) -> float:
+        return float(np.linalg.norm(self.moment))
+
+    def to_dict(self) -> dict[str, Any]:
+        out = dict(self.__dict__)
+        for key in ("grip_position", "force", "moment"):
+            out[key] = list(out[key])
+        return out
+
+
+@dataclass
+class PathRun:
+    """The steps solved, the last equilibrium, its interference report, and why the
+    run stopped early (None when it reached the path's end)."""
+
+    grip: str
+    margin: float
+    steps: list[StepRecord] = field(default_factory=list)
+    final: Any = None
+    interference: Interference | None = None
+    stopped: str | None = None
+    planned: int = 0
+
+    @property
+    def complete(self) -> bool:
+        return self.stopped is None
+
+    @property
+    def snaps(self) -> list[int]:
+        """The steps where the part jumped to another shape."""
+        return [k for k, r in enumerate(self.steps) if r.snap]
+
+    @property
+    def unstable(self) -> list[int]:
+        """The steps whose shape a real part would not keep."""
+        return [k for k, r in enumerate(self.steps) if r.stable is False]
+
+    def peak(self, what: str) -> tuple[float, int]:
+        """The largest |force| or |moment| (what = "force" or "moment") and its step."""
+        values = [getattr(r, f"{what}_norm") for r in self.steps]
+        k = int(np.argmax(values))
+        return values[k], k
+
+    def to_dict(self) -> dict[str, Any]:
+        return {"grip": self.grip, "margin": self.margin, "planned": self.planned,
+                "complete": self.complete, "stopped": self.stopped,
+                "steps": [r.to_dict() for r in self.steps],
+                "interference": None if self.interference is None
+                else self.interference.to_dict()}
+
+
+def follow_path(start: Problem, path: list[Problem], grip: str, *, margin: float = 0.0,
+                elements: int = 100,
+                on_step: Callable[[int, StepRecord], None] | None = None) -> PathRun:
+    """Solve ``start`` then each problem of ``path`` in turn (warm), recording each."""
+    from pliant.models import rod3d  # noqa: PLC0415 (numba kernels: on demand)
+
+    solver = rod3d.RodSolver(elements=elements)
+    run = PathRun(grip=grip, margin=margin, planned=len(path))
+    eq = None
+    for k, problem in enumerate([start, *path]):
+        begin = time.perf_counter()
+        try:
+            eq = rod3d.solve(problem, warm_start=eq, solver=solver)
+        except PliantError as err:
+            run.stopped = (f"step {k} of {len(path)} (progress {k / max(len(path), 1):.0%}) "
+                           f"could not be solved: {err}")
+            break
+        record = _record(eq, grip, k / max(len(path), 1), margin,
+                         time.perf_counter() - begin)
+        run.steps.append(record)
+        run.final = eq
+        if on_step is not None:
+            on_step(k, record)
+    if run.final is not None:
+        run.interference = of_equilibrium(run.final, margin=margin)
+    return run
+
+
+def _record(eq: Any, grip: str, progress: float, margin: float,
+            seconds: float) -> StepRecord:
+    load = eq.loads[grip]
+    report = of_equilibrium(eq, margin=margin, subdivide=4)
+    nearest = report.smallest
+    contacts = eq.contacts
+    radius, at = eq.min_bend_radius()
+    station = next(c for c in eq.problem.conditions if c.name == grip)
+    position = eq.position[int(np.argmin(np.abs(eq.s - station.s)))]
+    return StepRecord(
+        progress=progress, grip_position=tuple(float(x) for x in position),
+        force=tuple(float(x) for x in load.force), moment=tuple(float(x) for x in load.moment),
+        clearance=float(nearest.clearance) if nearest else float("inf"),
+        nearest=nearest.obstacle if nearest else "",
+        contacts=len(contacts),
+        contact_force=float(np.linalg.norm(contacts.force, axis=1).sum()),
+        bend_radius=float(radius), bend_at=float(at), stable=eq.stable,
+        snap=any(n.startswith(_NOT_FOLLOWED) for n in eq.notes), seconds=seconds)
+
+
+_NOT_FOLLOWED = "the warm start could not be followed"
