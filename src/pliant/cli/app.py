@@ -40,15 +40,28 @@ def solve(
     = None,
 ) -> None:
     """Solve a problem file (2D or 3D): shape, internal forces, reactions."""
-    from pliant.cli.report import print_json, print_summary, timed_solve  # noqa: PLC0415
-    from pliant.io.problem_file import load_problem_file  # noqa: PLC0415
+    from pliant.cli.report import (  # noqa: PLC0415
+        print_interference,
+        print_json,
+        print_summary,
+        timed_solve,
+    )
+    from pliant.io.problem_file import load_scene  # noqa: PLC0415
 
-    problem, settings = load_problem_file(file)
-    eq, seconds = timed_solve(problem, elements or settings.elements)
+    scene = load_scene(file)
+    problem = scene.problem
+    eq, seconds = timed_solve(problem, elements or scene.solver.elements)
+    report = None
+    if problem.obstacles:
+        from pliant.scene import interference  # noqa: PLC0415
+
+        report = interference(eq, margin=scene.margin)
     if json:
-        print_json(eq, seconds)
+        print_json(eq, seconds, report)
     else:
         print_summary(eq, seconds)
+        if report is not None:
+            print_interference(report)
     if plot is not None:
         from pliant.cli.plot import plot_equilibrium  # noqa: PLC0415
 

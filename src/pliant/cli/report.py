@@ -103,6 +103,10 @@ def _summary_3d(eq: Any, seconds: float, console: Console) -> None:
         verdict = "[red]below[/red]" if radius < allowed else "above"
         line += f" ({verdict} the part's minimum {allowed:g} m)"
     console.print(line)
+    for name, force in eq.contacts.by_obstacle().items():
+        points = sum(1 for o in eq.contacts.obstacle if o == name)
+        console.print(f"contact: {name} pushes on the part with {_vec(force)} N "
+                      f"({points} points)")
     stable, eigen = eq.stability
     if stable is None:
         console.print("stability: not decided by a static test (follower loads or dead "
@@ -127,9 +131,11 @@ def _finite(value: Any) -> Any:
     return value
 
 
-def print_json(eq: Any, seconds: float) -> None:
+def print_json(eq: Any, seconds: float, interference: Any = None) -> None:
     data = eq.to_dict()
     data["solve_seconds"] = seconds
+    if interference is not None:
+        data["interference"] = interference.to_dict()
     print(json.dumps(_finite(data), indent=1, allow_nan=False))
 
 
