@@ -5,6 +5,7 @@ band after a grip move, the tube display."""
 from __future__ import annotations
 
 import dataclasses
+from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -13,6 +14,7 @@ import pliant as pl
 from pliant.errors import InputError
 from pliant.models.realtime import RealtimeModel, kernels
 from pliant.models.realtime.bspline import basis, greville, knots
+from pliant.scene import Obstacle
 
 HOSE = pl.Part(length=1.0, bending_stiffness=0.05, mass_per_length=0.3, outer_diameter=0.02)
 
@@ -91,36 +93,54 @@ def test_force_density_chain_hangs_as_a_discrete_parabola():
     assert frame.FORCES_ARE_FICTIVE
 
 
-def test_length_keeping_jacobian_matches_finite_differences():
-    problem = CASES["3D hose, axis held"]
-    model = RealtimeModel(problem, control_points=12)
-    model.retune(pl.solve(problem))
-    rhs = model.targets(moved(problem, "hand", (0.02, -0.03, 0.01)))
+def _jacobian_check(model, rhs, gam):
     rng = np.random.default_rng(1)
     X = model.X + 0.01 * rng.standard_normal(model.X.shape)
     mu = 0.1 * rng.standard_normal(model.mu.shape)
     lam = model.lam + 0.1 * rng.standard_normal(model.lam.shape)
     alpha = model.alpha + 0.1 * rng.standard_normal(model.alpha.shape)
-    tail = (model.bar_i, model.bar_j, model.q, model.l0sq, model.p, model.g_start,
+    head = (model.bar_i, model.bar_j, model.q, model.l0sq, model.p, model.g_start,
             model.g_val, model.con_row, model.con_c, rhs, model.con_alpha, model.ix,
-            model.imu, model.icon, model.ialpha, model.n_unknowns, model.kl, model.ku, True)
-    R, ab = kernels.assemble(X, mu, lam, alpha, *tail, True)
+            model.imu, model.icon, model.ialpha, model.c_start, model.c_val, model.igam,
+            model.contact, model.field, model.n_unknowns, model.kl, model.ku, True)
+    R, ab = kernels.assemble(X, mu, lam, alpha, gam, *head, True)
     n, kl, ku = model.n_unknowns, model.kl, model.ku
     J = np.zeros((n, n))
     for j in range(n):
         for i in range(max(0, j - ku), min(n, j + kl + 1)):
             J[i, j] = ab[j, kl + ku + i - j]
     fd = np.zeros((n, n))
+    index = (model.ix, model.imu, model.icon, model.ialpha, model.igam)
     for j in range(n):
         du = np.zeros(n)
         du[j] = 1e-6
-        plus = kernels._apply(X, mu, lam, alpha, du, model.ix, model.imu, model.icon,
-                              model.ialpha, 1.0)
-        minus = kernels._apply(X, mu, lam, alpha, du, model.ix, model.imu, model.icon,
-                               model.ialpha, -1.0)
-        fd[:, j] = (kernels.assemble(*plus, *tail, False)[0]
-                    - kernels.assemble(*minus, *tail, False)[0]) / 2e-6
-    assert np.allclose(J, fd, atol=1e-7)  # and every nonzero lies in the band
+        plus = kernels._apply(X, mu, lam, alpha, gam, du, *index, 1.0)
+        minus = kernels._apply(X, mu, lam, alpha, gam, du, *index, -1.0)
+        fd[:, j] = (kernels.assemble(*plus, *head, False)[0]
+                    - kernels.assemble(*minus, *head, False)[0]) / 2e-6
+    assert np.allclose(J, fd, atol=1e-6)  # and every nonzero lies in the band
+    return R
+
+
+def test_length_keeping_jacobian_matches_finite_differences():
+    problem = CASES["3D hose, axis held"]
+    model = RealtimeModel(problem, control_points=12)
+    model.retune(pl.solve(problem))
+    rhs = model.targets(moved(problem, "hand", (0.02, -0.03, 0.01)))
+    _jacobian_check(model, rhs, model.gam)
+
+
+def test_contact_jacobian_matches_finite_differences():
+    """With obstacles across the part (a ball, a box's edge), touching and free curve
+    points alike: the contact rows and forces and the turning of the normals."""
+    problem = replace(CASES["3D hose, axis held"], obstacles=(
+        Obstacle.sphere("ball", 0.1, (0.4, 0.0, -0.1)),
+        Obstacle.box("box", (0.2, 0.2, 0.2), (0.75, 0.0, -0.2))))
+    model = RealtimeModel(problem, control_points=14, contact_samples=24)
+    rhs = model.targets(problem)
+    gam = np.random.default_rng(3).uniform(0.0, 2.0, model.gam.shape)
+    R = _jacobian_check(model, rhs, gam)
+    assert model.c_start.shape[0] == 24 and np.abs(R[model.igam]).max() > 0.0
 
 
 @pytest.mark.parametrize("name", list(CASES))
@@ -166,3 +186,42 @@ def test_frame_mesh_and_bad_input():
     with pytest.raises(InputError, match="no condition"):
         model.frame(pl.Problem(HOSE, (pl.clamp(0.0, position=(0.0, 0.0, 0.0)),
                                       pl.pin(1.0, position=(0.7, 0.3, 0.1), name="other"))))
+
+
+def test_frames_keep_the_curve_out_of_obstacles():
+    """A hose clamped at the origin, its end carried down past a drum under it: the
+    network (retuned once, at the start, above the drum) wraps the drum instead of
+    passing through it: every held curve point keeps out (to the Newton tolerance), the
+    dense curve cuts in by at most the chord's sag between held points, and without the
+    drum the same frames pass through it."""
+    drum = Obstacle.cylinder("drum", 0.08, 0.4, (0.5, 0.0, -0.15),
+                             [[1, 0, 0], [0, 0, -1], [0, 1, 0]])
+    hose = pl.Part(length=1.0, bending_stiffness=0.05, mass_per_length=0.3,
+                   outer_diameter=0.02)
+
+    def held(z: float, obstacles) -> pl.Problem:
+        return pl.Problem(hose, (pl.clamp(0.0, position=(0, 0, 0), tangent=(1, 0, 0),
+                                          normal=(0, 0, 1)),
+                                 pl.pin(1.0, position=(0.9, 0.0, z), name="hand")),
+                          gravity=(0, 0, -9.81), obstacles=obstacles)
+
+    radius, rho = 0.01, 0.08 + 0.01
+    field = pl.scene.DistanceField([drum])
+    for obstacles in ((drum,), ()):
+        model = RealtimeModel(held(0.2, obstacles), control_points=40)
+        model.retune(pl.solve(held(0.2, obstacles)))
+        deepest, touched = np.inf, 0
+        for z in np.linspace(0.2, -0.3, 26)[1:]:
+            frame = model.frame(held(z, obstacles))
+            deepest = min(deepest, field.query(frame.curve, band=1.0)[0].min() - radius)
+            if obstacles:
+                assert frame.converged
+                touched += frame.contact_s.size > 0
+                held_points = model.curve_at(model.c_u * model.length)
+                assert field.query(held_points, band=1.0)[0].min() - radius > -1e-8
+        if obstacles:
+            spacing = 1.1 * model.length / (model.c_u.shape[0] - 1)  # chord <= arc
+            assert deepest > -(rho - np.sqrt(rho * rho - spacing * spacing / 4))
+            assert touched == 25
+        else:
+            assert deepest < -0.02  # through the drum

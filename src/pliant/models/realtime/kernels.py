@@ -17,6 +17,13 @@ loads p close the balance: the bar forces on each node, its load and the grip fo
     R_grip(k)     = sum_a G[r_k, a] X[start_{r_k} + a, c_k] - g_k (or - alpha_r t_c) = 0
     R_alpha(r)    = - sum_{k of row r} lam_k t_{c_k} = 0
 
+Obstacles (3D): the curve's points C(u_m) = sum_a N_ma X_a at fixed parameters u_m keep
+a gap g_m = (D(C L) - r) / L >= 0 (D the scene's signed distance, r the tube's radius),
+each with a multiplier gam_m >= 0 pushing along the obstacle's normal n; the unilateral
+condition is min(gam_m, scale g_m) = 0 (a semismooth Newton, as in the accurate model):
+
+    R_node(i, c) += sum_m N_mi gam_m n_c        R_contact(m) = scale g_m or gam_m
+
 The equations are those of a constrained stationary point of
 E = 1/2 sum_b q_b |X_j - X_i|^2 - p . X (R is minus its gradient); for fixed mu they
 are linear in X: the force density method. Unknowns are numbered node by node (its
@@ -32,6 +39,7 @@ import numpy as np
 from numba import njit
 
 from pliant.models.banded import add, band_lu, band_lu_solve
+from pliant.scene.distance import hessian_point, query_point
 
 CONVERGED = 0
 NOT_CONVERGED = 1
@@ -39,11 +47,12 @@ SINGULAR = 2
 
 
 @njit(cache=True)
-def assemble(X, mu, lam, alpha, bar_i, bar_j, q, l0sq, p, g_start, g_val, con_row, con_c,
-             con_rhs, con_alpha, ix, imu, icon, ialpha, n_unknowns, kl, ku, keep, want_jac):
+def assemble(X, mu, lam, alpha, gam, bar_i, bar_j, q, l0sq, p, g_start, g_val, con_row,
+             con_c, con_rhs, con_alpha, ix, imu, icon, ialpha, c_start, c_val, igam, contact,
+             field, n_unknowns, kl, ku, keep, want_jac):
     """Residual (n_unknowns,) and, with want_jac, its banded Jacobian. keep: hold the
     first family's lengths; else mu stays as it is and the system is linear in X (the
-    plain force density method)."""
+    plain force density method). contact = (L, radius / L, band [m], scale)."""
     n, d = X.shape
     R = np.zeros(n_unknowns)
     ab = np.zeros((n_unknowns if want_jac else 0, 2 * kl + ku + 1))
@@ -100,7 +109,60 @@ def assemble(X, mu, lam, alpha, bar_i, bar_j, q, l0sq, p, g_start, g_val, con_ro
                 add(ab, kl, ku, icon[k], ialpha[a], -con_rhs[k])
                 add(ab, kl, ku, ialpha[a], icon[k], -con_rhs[k])
         R[icon[k]] = value
+    if c_start.shape[0]:
+        _contacts(X, gam, c_start, c_val, igam, ix, contact, field, R, ab, kl, ku, want_jac)
     return R, ab
+
+
+@njit(cache=True)
+def _contacts(X, gam, c_start, c_val, igam, ix, contact, field, R, ab, kl, ku, want_jac):
+    """Add the contact terms of the curve points (see the module docstring)."""
+    L, radius, band, scale = contact
+    width = c_val.shape[1]
+    p = np.empty(3)
+    for m in range(c_start.shape[0]):
+        s0 = c_start[m]
+        for c in range(3):
+            v = 0.0
+            for a in range(width):
+                v += c_val[m, a] * X[s0 + a, c]
+            p[c] = v * L
+        d, nx, ny, nz, o = query_point(p, band, *field)
+        n = (nx, ny, nz)
+        g = (d / L - radius)
+        lam = gam[m]
+        touching = lam > scale * g
+        R[igam[m]] = scale * g if touching else lam
+        for a in range(width):
+            w = c_val[m, a]
+            if w == 0.0:
+                continue
+            for c in range(3):
+                R[ix[s0 + a] + c] += w * lam * n[c]
+        if not want_jac:
+            continue
+        if touching:
+            for a in range(width):
+                w = c_val[m, a]
+                for c in range(3):
+                    add(ab, kl, ku, igam[m], ix[s0 + a] + c, scale * w * n[c])
+        else:
+            add(ab, kl, ku, igam[m], igam[m], 1.0)
+        for a in range(width):
+            w = c_val[m, a]
+            for c in range(3):
+                add(ab, kl, ku, ix[s0 + a] + c, igam[m], w * n[c])
+        if lam != 0.0 and o >= 0:
+            H = hessian_point(p, o, *field) * L  # d n / d (X in units of L)
+            for a in range(width):
+                for b in range(width):
+                    wab = lam * c_val[m, a] * c_val[m, b]
+                    if wab == 0.0:
+                        continue
+                    for c in range(3):
+                        for e in range(3):
+                            if H[c, e] != 0.0:
+                                add(ab, kl, ku, ix[s0 + a] + c, ix[s0 + b] + e, wab * H[c, e])
 
 
 @njit(cache=True)
@@ -114,12 +176,15 @@ def max_abs(v):
 
 
 @njit(cache=True)
-def _apply(X, mu, lam, alpha, du, ix, imu, icon, ialpha, step):
+def _apply(X, mu, lam, alpha, gam, du, ix, imu, icon, ialpha, igam, step):
     n, d = X.shape
     Xn = X.copy()
     mun = mu.copy()
     lamn = lam.copy()
     alphan = alpha.copy()
+    gamn = gam.copy()
+    for m in range(gam.shape[0]):
+        gamn[m] += step * du[igam[m]]
     for a in range(alpha.shape[0]):
         alphan[a] += step * du[ialpha[a]]
     for i in range(n):
@@ -129,36 +194,85 @@ def _apply(X, mu, lam, alpha, du, ix, imu, icon, ialpha, step):
         mun[b] += step * du[imu[b]]
     for k in range(lam.shape[0]):
         lamn[k] += step * du[icon[k]]
-    return Xn, mun, lamn, alphan
+    return Xn, mun, lamn, alphan, gamn
 
 
 @njit(cache=True)
-def newton(X, mu, lam, alpha, bar_i, bar_j, q, l0sq, p, g_start, g_val, con_row, con_c,
-           con_rhs, con_alpha, ix, imu, icon, ialpha, n_unknowns, kl, ku, keep, tol, max_iter):
-    """Newton with backtracking on the largest residual entry from (X, mu, lam, alpha).
-    Returns (X, mu, lam, alpha, residual, iterations, status)."""
-    R, ab = assemble(X, mu, lam, alpha, bar_i, bar_j, q, l0sq, p, g_start, g_val, con_row,
-                     con_c, con_rhs, con_alpha, ix, imu, icon, ialpha, n_unknowns, kl, ku,
-                     keep, True)
+def newton(X, mu, lam, alpha, gam, bar_i, bar_j, q, l0sq, p, g_start, g_val, con_row, con_c,
+           con_rhs, con_alpha, ix, imu, icon, ialpha, c_start, c_val, igam, contact, field,
+           n_unknowns, kl, ku, keep, tol, max_iter):
+    """Newton with backtracking on the largest residual entry from (X, mu, lam, alpha,
+    gam); a full step that changes which curve points touch is taken as the active-set
+    update. Returns (X, mu, lam, alpha, gam, residual, iterations, status)."""
+    R, ab = assemble(X, mu, lam, alpha, gam, bar_i, bar_j, q, l0sq, p, g_start, g_val,
+                     con_row, con_c, con_rhs, con_alpha, ix, imu, icon, ialpha, c_start,
+                     c_val, igam, contact, field, n_unknowns, kl, ku, keep, True)
     r = max_abs(R)
     it = 0
+    switches = 0
     while r > tol and it < max_iter:
         it += 1
         piv, ok = band_lu(ab, kl, ku)
         if not ok:
-            return X, mu, lam, alpha, r, it, SINGULAR
+            return X, mu, lam, alpha, gam, r, it, SINGULAR
         du = band_lu_solve(ab, piv, kl, ku, -R)
         step = 1.0
+        # No node moves more than a tenth of the part's length in one iteration: a
+        # near-singular system (contacts about to switch) cannot throw the network away.
+        move = 0.0
+        for i in range(X.shape[0]):
+            for c in range(X.shape[1]):
+                move = max(move, abs(du[ix[i] + c]))
+        if move > 0.1:
+            step = 0.1 / move
+        accepted = False
         for _ in range(12):
-            Xn, mun, lamn, alphan = _apply(X, mu, lam, alpha, du, ix, imu, icon, ialpha, step)
-            Rn, abn = assemble(Xn, mun, lamn, alphan, bar_i, bar_j, q, l0sq, p, g_start,
-                               g_val, con_row, con_c, con_rhs, con_alpha, ix, imu, icon,
-                               ialpha, n_unknowns, kl, ku, keep, True)
+            Xn, mun, lamn, alphan, gamn = _apply(X, mu, lam, alpha, gam, du, ix, imu, icon,
+                                                 ialpha, igam, step)
+            Rn, abn = assemble(Xn, mun, lamn, alphan, gamn, bar_i, bar_j, q, l0sq, p,
+                               g_start, g_val, con_row, con_c, con_rhs, con_alpha, ix, imu,
+                               icon, ialpha, c_start, c_val, igam, contact, field,
+                               n_unknowns, kl, ku, keep, True)
             rn = max_abs(Rn)
             if rn < r or rn <= tol:
+                accepted = True
+                break
+            if (_ == 0 and switches < 6 and math.isfinite(rn)
+                    and _switched(gam, gamn, Xn, X, c_start, c_val, contact, field)):
+                switches += 1
+                accepted = True
                 break
             step *= 0.5
-        else:
-            return X, mu, lam, alpha, r, it, NOT_CONVERGED
-        X, mu, lam, alpha, R, ab, r = Xn, mun, lamn, alphan, Rn, abn, rn
-    return X, mu, lam, alpha, r, it, CONVERGED if r <= tol else NOT_CONVERGED
+        if not accepted:
+            return X, mu, lam, alpha, gam, r, it, NOT_CONVERGED
+        X, mu, lam, alpha, gam, R, ab, r = Xn, mun, lamn, alphan, gamn, Rn, abn, rn
+    return X, mu, lam, alpha, gam, r, it, CONVERGED if r <= tol else NOT_CONVERGED
+
+
+@njit(cache=True)
+def _switched(gam, gamn, Xn, X, c_start, c_val, contact, field):
+    """Whether a step changes which curve points touch (lam > scale g)."""
+    if c_start.shape[0] == 0:
+        return False
+    before = _touching(X, gam, c_start, c_val, contact, field)
+    after = _touching(Xn, gamn, c_start, c_val, contact, field)
+    for m in range(before.shape[0]):
+        if before[m] != after[m]:
+            return True
+    return False
+
+
+@njit(cache=True)
+def _touching(X, gam, c_start, c_val, contact, field):
+    L, radius, band, scale = contact
+    out = np.zeros(c_start.shape[0], dtype=np.bool_)
+    p = np.empty(3)
+    for m in range(c_start.shape[0]):
+        for c in range(3):
+            v = 0.0
+            for a in range(c_val.shape[1]):
+                v += c_val[m, a] * X[c_start[m] + a, c]
+            p[c] = v * L
+        d = query_point(p, band, *field)[0]
+        out[m] = gam[m] > scale * (d / L - radius)
+    return out

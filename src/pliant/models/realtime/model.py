@@ -54,7 +54,9 @@ class RealtimeFrame:
     network's multipliers (fictive units: not newtons, not to be shown as real forces);
     length_error : the largest relative error of the control polygon's bar lengths
     (zero when the length-keeping converged); curve_length_error : the curve's length
-    against the part's, relative; converged, iterations : of that Newton.
+    against the part's, relative; converged, iterations : of that Newton; contact_s,
+    contact_points : where the curve touches an obstacle (the curve points held out of
+    the scene's obstacles, see ``contact_samples``).
     """
 
     curve: np.ndarray
@@ -67,6 +69,8 @@ class RealtimeFrame:
     curve_length_error: float
     converged: bool
     iterations: int
+    contact_s: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    contact_points: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)))
     FORCES_ARE_FICTIVE: bool = True
 
 
@@ -80,7 +84,10 @@ class RealtimeModel:
     (negative) force densities relative to the first's; samples, sides : the display
     curve's points and the tube's vertices per ring (64 x 16: about 2,000 triangles);
     keep_lengths : hold the control polygon's bar lengths (else the plain, linear force
-    density method with the force densities as they are).
+    density method with the force densities as they are); contact_samples : how many
+    points of the curve are held out of the problem's obstacles (default one per control
+    point: more would lock the spline against a curved obstacle; the tube may cut an
+    obstacle between two by their chord's sag).
     """
 
     problem: Problem
@@ -90,6 +97,7 @@ class RealtimeModel:
     samples: int = 64
     sides: int = 16
     keep_lengths: bool = True
+    contact_samples: int | None = None
     tolerance: float = 1e-10
     max_iterations: int = 8
     # derived in __post_init__
@@ -136,9 +144,12 @@ class RealtimeModel:
         alpha_of = {r: a for a, r in enumerate(tangent_rows)}
         self.con_alpha = np.array([alpha_of.get(r, -1) for r, _ in con], dtype=np.int64)
         # Numbering along the polygon: a node's coordinates, the multiplier of the bar
-        # that starts there, then the grips anchored there (the middle of their support)
-        # and the speeds of the tangents held there.
+        # that starts there, then the grips anchored there (the middle of their support),
+        # the speeds of the tangents held there and the contacts of the curve points.
         middle = np.minimum(g_start + width // 2, n - 1)
+        self._contact_rows()
+        c_middle = np.minimum(self.c_start + width // 2, n - 1)
+        igam = np.zeros(self.c_start.shape[0], dtype=np.int64)
         ix = np.zeros(n, dtype=np.int64)
         imu = np.zeros(n - 1, dtype=np.int64)
         icon = np.zeros(len(con), dtype=np.int64)
@@ -158,6 +169,9 @@ class RealtimeModel:
                 if middle[r] == i:
                     ialpha[a] = k
                     k += 1
+            for m in np.nonzero(c_middle == i)[0]:
+                igam[m] = k
+                k += 1
         self.ix, self.imu, self.icon, self.ialpha, self.n_unknowns = ix, imu, icon, ialpha, k
         band = 0
         for b in range(self.bar_i.shape[0]):
@@ -171,6 +185,11 @@ class RealtimeModel:
             band = max(band, abs(icon[c] - nodes[0]), abs(icon[c] - nodes[1]))
             if self.con_alpha[c] >= 0:
                 band = max(band, abs(icon[c] - ialpha[self.con_alpha[c]]))
+        for k in range(self.c_start.shape[0]):
+            lo = ix[self.c_start[k]]
+            hi = ix[self.c_start[k] + width - 1] + d - 1
+            band = max(band, abs(igam[k] - lo), abs(igam[k] - hi))
+        self.igam = igam
         self.kl = self.ku = int(band)
         # Display.
         self.u_curve = np.linspace(0.0, 1.0, self.samples)
@@ -183,10 +202,38 @@ class RealtimeModel:
         self.mu = np.zeros(n - 1)
         self.lam = np.zeros(len(con))
         self.alpha = np.ones(len(tangent_rows))
+        self.gam = np.zeros(self.c_start.shape[0])
         self.l0sq = np.sum(np.diff(self.X, axis=0) ** 2, axis=1)
         self.p = np.zeros((n, d))
         self.retuned_at: Problem | None = None
         self._prepare_fits()
+
+    def _contact_rows(self) -> None:
+        """The curve points held out of the obstacles (none without obstacles): their
+        parameters, basis rows (4 nonzeros from c_start) and the kernel's constants."""
+        from pliant.scene.distance import DistanceField  # noqa: PLC0415
+
+        obstacles = self.problem.obstacles
+        self.field = DistanceField(list(obstacles)).args
+        n = self.control_points
+        width = DEGREE + 1
+        m = 0
+        if obstacles:
+            m = self.contact_samples if self.contact_samples is not None else n
+        self.c_u = np.linspace(0.0, 1.0, m)
+        self.c_start = np.zeros(m, dtype=np.int64)
+        self.c_val = np.zeros((m, width))
+        if m:
+            rows = basis(self.c_u, n)
+            for k in range(m):
+                nz = np.nonzero(rows[k])[0]
+                start = int(min(nz.min(), n - width))
+                self.c_start[k] = start
+                self.c_val[k] = rows[k, start:start + width]
+        part = self.problem.part
+        radius = part.outer_diameter / 2.0 if part.outer_diameter else 0.0
+        self.contact = (self.length, radius / self.length,
+                        2.0 * radius + 0.05 * self.length, 1.0)
 
     # -- targets ---------------------------------------------------------------------------
     def targets(self, problem: Problem) -> np.ndarray:
@@ -277,14 +324,15 @@ class RealtimeModel:
     def frame(self, problem: Problem) -> RealtimeFrame:
         """Move the grips to the problem's targets and return the display frame."""
         rhs = self.targets(problem)
-        X, mu, lam, alpha, residual, iterations, status = kernels.newton(
-            self.X, self.mu, self.lam, self.alpha, self.bar_i, self.bar_j, self.q, self.l0sq,
-            self.p, self.g_start, self.g_val, self.con_row, self.con_c, rhs, self.con_alpha,
-            self.ix, self.imu, self.icon, self.ialpha, self.n_unknowns, self.kl, self.ku,
-            self.keep_lengths, self.tolerance, self.max_iterations)
+        X, mu, lam, alpha, gam, residual, iterations, status = kernels.newton(
+            self.X, self.mu, self.lam, self.alpha, self.gam, self.bar_i, self.bar_j, self.q,
+            self.l0sq, self.p, self.g_start, self.g_val, self.con_row, self.con_c, rhs,
+            self.con_alpha, self.ix, self.imu, self.icon, self.ialpha, self.c_start,
+            self.c_val, self.igam, self.contact, self.field, self.n_unknowns, self.kl,
+            self.ku, self.keep_lengths, self.tolerance, self.max_iterations)
         converged = status == kernels.CONVERGED
         if np.isfinite(X).all():
-            self.X, self.mu, self.lam, self.alpha = X, mu, lam, alpha
+            self.X, self.mu, self.lam, self.alpha, self.gam = X, mu, lam, alpha, gam
         lengths = np.sqrt(np.sum(np.diff(self.X, axis=0) ** 2, axis=1))
         length_error = float(np.abs(lengths / np.sqrt(self.l0sq) - 1.0).max())
         return self._display(converged, iterations, length_error)
@@ -310,11 +358,16 @@ class RealtimeModel:
             row = self.rows[self.con_row[k]]
             if row.kind == "position":
                 forces.setdefault(row.name, np.zeros(3))[self.con_c[k]] = self.lam[k]
+        on = self.gam > 1e-12
+        contact_s = self.c_u[on] * L
+        contact_points = (basis(self.c_u[on], self.control_points) @ P[:, :self.dim]
+                          if on.any() else np.zeros((0, 3)))
         return RealtimeFrame(curve=points, s_curve=self.u_curve * L, vertices=vertices,
                              faces=self.faces, control_points=P, fictive_grip_forces=forces,
                              length_error=length_error,
                              curve_length_error=float(curve_length_error),
-                             converged=converged, iterations=iterations)
+                             converged=converged, iterations=iterations,
+                             contact_s=contact_s, contact_points=contact_points)
 
     @property
     def radius(self) -> float:
