@@ -10,7 +10,7 @@ tree, pseudonormal signs) and its grid answer (far points), against trimesh's
 largest disagreement.
 (b) A warm step of the 3D rod at 100 elements with contacts active (a hose's end lowered
 onto a block), against the same steps without the block.
-(c) The bundled engine-bay scene: its 60-step manipulation end to end (every step a warm
+(c) The bundled engine-bay scene: its 100-step manipulation end to end (every step a warm
 accurate solve with contact, its interference and stability checks).
 (d) A real-time frame (50 control points, curve points held out of a drum) against the
 same frame without the drum.

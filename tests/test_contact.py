@@ -37,14 +37,6 @@ def penetration(eq) -> float:
     return float(max(0.0, (RADIUS - d).max()) / RADIUS)
 
 
-def sag(spacing: float, rho: float) -> float:
-    """The deepest a chord of length ``spacing`` between two points outside a circle of
-    radius rho dips into it (its sagitta), relative to the tube's radius: how far the
-    tube may go into an obstacle between two probes that keep out of it (rho: the
-    obstacle's radius of curvature there plus the tube's; the tube's alone at an edge)."""
-    return (rho - math.sqrt(rho * rho - spacing * spacing / 4.0)) / RADIUS + 1e-6
-
-
 @pytest.mark.parametrize("a", [1.0, 0.8])
 def test_propped_cantilever(a):
     """A cantilever under its weight (q L^3 / EI = 0.1, small deflection) resting on a
@@ -117,8 +109,8 @@ def test_drape_over_a_drum_touches_where_statics_says():
 def test_warm_steps_press_a_part_onto_a_block_and_lift_it_off():
     """A hand lowers the end of a hose onto a block and lifts it again: contact comes
     and goes along the trace, each step balanced, the force continuous and zero when
-    lifted. The hose bends over the block's edge: between probes 5 mm apart the tube
-    may cut the edge by the chord's sag round its own radius (3.2% of it)."""
+    lifted. The hose bends over the block's edge: its probes (2.5 mm apart) keep the
+    chord's sag round the edge, and so any penetration, under 1% of the radius."""
     block = Obstacle.box("block", (0.2, 0.2, 0.1), (0.7, 0.0, -0.12))
     hose = pl.Part(length=1.0, bending_stiffness=0.05, mass_per_length=0.3,
                    outer_diameter=2 * RADIUS)
@@ -131,7 +123,7 @@ def test_warm_steps_press_a_part_onto_a_block_and_lift_it_off():
     heights = np.concatenate([np.linspace(0.2, -0.15, 25), np.linspace(-0.15, 0.2, 25)[1:]])
     forces = []
     for eq in rod3d.trace([held(z) for z in heights]):
-        assert eq.residual < 1e-9 and penetration(eq) < sag(0.005, RADIUS)
+        assert eq.residual < 1e-9 and penetration(eq) < 0.01
         total = eq.contacts.by_obstacle().get("block", np.zeros(3))
         weight = 0.3 * 9.81
         vertical = total[2] + eq.loads["clamp"].force[2] + eq.loads["hand"].force[2]
@@ -158,8 +150,8 @@ def test_warm_steps_press_a_part_onto_a_block_and_lift_it_off():
        height=st.floats(-0.12, 0.12), weight=st.floats(0.0, 2.0))
 def test_random_grips_round_an_obstacle_never_penetrate(x, y, z, height, weight):
     """A hose clamped at the origin, its end held anywhere beyond a pole across its
-    path: a converged equilibrium that keeps out of the pole (up to the chord sag between
-    probes L / 120 apart round its side, or round its rim's edge), or a typed error."""
+    path: a converged equilibrium that keeps out of the pole (within 1% of the tube's
+    radius, round its side or its rim's edge), or a typed error."""
     pole = Obstacle.cylinder("pole", 0.04, 0.6, (0.35, 0.0, height), ACROSS_Y)
     hose = pl.Part(length=1.0, bending_stiffness=0.05, mass_per_length=weight / 9.81,
                    outer_diameter=2 * RADIUS)
@@ -171,5 +163,5 @@ def test_random_grips_round_an_obstacle_never_penetrate(x, y, z, height, weight)
     except PliantError:
         return
     assert eq.residual < 1e-9
-    assert penetration(eq) < sag(1.0 / 120, RADIUS)
+    assert penetration(eq) < 0.01
     assert np.all(eq.contacts.force @ np.array([0.0, 1.0, 0.0]) < 1e-9)  # normal to the pole

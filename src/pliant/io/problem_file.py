@@ -197,7 +197,7 @@ class ObstacleModel(_Strict):
     half-space's outward normal)."""
 
     name: str
-    shape: Literal["box", "sphere", "cylinder", "halfspace", "mesh"]
+    shape: Literal["box", "sphere", "cylinder", "halfspace", "plane", "mesh"]
     position: Vec3 = Field((0.0, 0.0, 0.0), description="centre, or a point of the "
                                                          "plane, or the mesh's origin [m]")
     rotation: tuple[Vec3, Vec3, Vec3] | None = None
@@ -214,7 +214,7 @@ class ObstacleModel(_Strict):
     @model_validator(mode="after")
     def _shape_fields(self) -> ObstacleModel:
         need = {"box": ("size",), "sphere": ("radius",), "cylinder": ("radius", "length"),
-                "halfspace": (), "mesh": ("file",)}[self.shape]
+                "halfspace": (), "plane": (), "mesh": ("file",)}[self.shape]
         missing = [k for k in need if getattr(self, k) is None]
         if missing:
             raise ValueError(f"a {self.shape} needs {', '.join(missing)}")
@@ -241,7 +241,7 @@ class ObstacleModel(_Strict):
         if self.shape == "cylinder":
             return Obstacle.cylinder(self.name, self.radius, self.length, self.position,
                                      rotation)
-        if self.shape == "halfspace":
+        if self.shape in ("halfspace", "plane"):
             normal = (0.0, 0.0, 1.0) if rotation is None else rotation[:, 2]
             return Obstacle.halfspace(self.name, self.position, normal)
         vertices, faces = _read_mesh(self.file, base)
@@ -266,6 +266,44 @@ def _read_mesh(name: str | None, base: Path | None) -> tuple[np.ndarray, np.ndar
     if not isinstance(mesh, trimesh.Trimesh) or len(mesh.faces) == 0:
         raise ValueError(f"file: {str(path)!r} holds no triangles")
     return np.asarray(mesh.vertices, dtype=float), np.asarray(mesh.faces, dtype=np.int64)
+
+
+class AssembledModel(_Strict):
+    """[[assembled]]: a flexible part already fitted, in its clamps: its own problem file
+    (3D, relative to this one) is solved once and its tube becomes an obstacle."""
+
+    name: str
+    file: str = Field(description="its problem file, relative to this file")
+    elements: int = Field(60, ge=4, le=2000)
+    note: str = ""
+
+    def build(self, base: Path | None) -> Any:
+        from pliant.core.tube import tube_mesh  # noqa: PLC0415
+        from pliant.models import rod3d  # noqa: PLC0415
+        from pliant.scene.distance import Obstacle  # noqa: PLC0415
+
+        path = Path(self.file)
+        if not path.is_absolute() and base is not None:
+            path = base / path
+        if not path.is_file():
+            raise ValueError(f"file: no such problem file {str(path)!r} (paths are "
+                             "relative to the scene file)")
+        try:
+            text = path.read_text(encoding="utf-8")
+            model = ProblemFile.model_validate(tomllib.loads(text))
+            problem = model.build(path.parent, nested=True)
+        except (tomllib.TOMLDecodeError, ValidationError, PliantError) as err:
+            raise ValueError(f"file: {str(path)!r}: {err}") from None
+        if problem.dimension != 3:
+            raise ValueError(f"file: {str(path)!r} is a 2D problem; an assembled part is 3D")
+        try:
+            eq = rod3d.solve(problem, solver=rod3d.RodSolver(elements=self.elements))
+        except PliantError as err:
+            raise ValueError(f"file: {str(path)!r} could not be solved: {err}") from None
+        part = problem.part
+        radius = 0.5 * part.outer_diameter if part.outer_diameter else 0.01 * part.length
+        vertices, faces = tube_mesh(eq.position, radius, eq.frames, sides=16, caps=True)
+        return Obstacle.from_mesh(self.name, vertices, faces)
 
 
 class PortModel(_Strict):
@@ -329,6 +367,7 @@ class ProblemFile(_Strict):
     solver: SolverModel = Field(default_factory=SolverModel)
     condition: list[ConditionModel] = Field(default_factory=list)
     obstacle: list[ObstacleModel] = Field(default_factory=list)
+    assembled: list[AssembledModel] = Field(default_factory=list)
     port: list[PortModel] = Field(default_factory=list)
     clip: list[ClipModel] = Field(default_factory=list)
     path: PathModel | None = None
@@ -337,10 +376,12 @@ class ProblemFile(_Strict):
     @property
     def dimension(self) -> int:
         three = (self.gravity is not None and len(self.gravity) == 3) or any(
-            c.is_3d for c in self.condition) or bool(self.obstacle or self.clip)
+            c.is_3d for c in self.condition) or bool(self.obstacle or self.clip or self.assembled)
         return 3 if three else 2
 
-    def build(self, base: Path | None = None) -> Problem:
+    def build(self, base: Path | None = None, nested: bool = False) -> Problem:
+        """The problem; ``nested`` (an assembled part's own file) skips its
+        [[assembled]] parts: one level only."""
         part = self.part.build()
         dimension = self.dimension
         ports = {p.name: p for p in self.port}
@@ -374,6 +415,11 @@ class ProblemFile(_Strict):
                 obstacles.append(o.build(base))
             except ValueError as err:
                 raise InputError(f"obstacle[{i}]", str(err)) from None
+        for i, a in enumerate([] if nested else self.assembled):
+            try:
+                obstacles.append(a.build(base))
+            except ValueError as err:
+                raise InputError(f"assembled[{i}]", str(err)) from None
         names = [o.name for o in obstacles]
         if len(set(names)) != len(names):
             raise InputError("obstacle", "two obstacles share a name; name each one apart")
