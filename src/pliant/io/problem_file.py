@@ -249,15 +249,22 @@ class ObstacleModel(_Strict):
                                   rotation, self.resolution)
 
 
-def _read_mesh(name: str | None, base: Path | None) -> tuple[np.ndarray, np.ndarray]:
-    import trimesh  # noqa: PLC0415
-
+def _referenced(name: str | None, base: Path | None, what: str) -> Path:
+    """A file a scene names, relative to the scene's folder; a missing one says which
+    path was looked at."""
     path = Path(name or "")
     if not path.is_absolute() and base is not None:
         path = base / path
     if not path.is_file():
-        raise ValueError(f"file: no such mesh file {str(path)!r} (paths are relative to "
-                         "the scene file)")
+        raise ValueError(f"file: no such {what} file {str(path)!r} (paths are relative "
+                         "to the scene file)")
+    return path
+
+
+def _read_mesh(name: str | None, base: Path | None) -> tuple[np.ndarray, np.ndarray]:
+    import trimesh  # noqa: PLC0415
+
+    path = _referenced(name, base, "mesh")
     try:
         mesh = trimesh.load(path, force="mesh")
     except Exception as err:  # trimesh raises many kinds on a bad file
@@ -282,12 +289,7 @@ class AssembledModel(_Strict):
         from pliant.models import rod3d  # noqa: PLC0415
         from pliant.scene.distance import Obstacle  # noqa: PLC0415
 
-        path = Path(self.file)
-        if not path.is_absolute() and base is not None:
-            path = base / path
-        if not path.is_file():
-            raise ValueError(f"file: no such problem file {str(path)!r} (paths are "
-                             "relative to the scene file)")
+        path = _referenced(self.file, base, "problem")
         try:
             text = path.read_text(encoding="utf-8")
             model = ProblemFile.model_validate(tomllib.loads(text))

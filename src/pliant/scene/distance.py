@@ -272,6 +272,15 @@ def _primitive(kind, x, y, z, param):
     return z, 0.0, 0.0, 1.0  # HALFSPACE: solid below the local plane z = 0
 
 
+@njit(cache=True, inline="always")
+def _local(p, R, t):
+    """p (world) in the frame of an obstacle placed by R (local to world) and t."""
+    ux, uy, uz = p[0] - t[0], p[1] - t[1], p[2] - t[2]
+    return (R[0, 0] * ux + R[1, 0] * uy + R[2, 0] * uz,
+            R[0, 1] * ux + R[1, 1] * uy + R[2, 1] * uz,
+            R[0, 2] * ux + R[1, 2] * uy + R[2, 2] * uz)
+
+
 @njit(cache=True)
 def _feature_hessian(dist, n, tangent, kind):
     """The signed distance's Hessian beyond a feature of the closest point: H = (I - n n^T
@@ -343,10 +352,7 @@ def hessian_point(p, o, kind, rot, trans, param, mesh_id, tri, pseudo, solid, tr
     at which its unit gradient (the contact normal) turns as p moves. Takes the same
     packed field as ``query_point`` (the grids unused: contact is decided exactly)."""
     R = rot[o]
-    ux, uy, uz = p[0] - trans[o, 0], p[1] - trans[o, 1], p[2] - trans[o, 2]
-    x = R[0, 0] * ux + R[1, 0] * uy + R[2, 0] * uz
-    y = R[0, 1] * ux + R[1, 1] * uy + R[2, 1] * uz
-    z = R[0, 2] * ux + R[1, 2] * uy + R[2, 2] * uz
+    x, y, z = _local(p, R, trans[o])
     if kind[o] == MESH:
         m = mesh_id[o]
         t0, t1 = tri_off[m], tri_off[m + 1]
@@ -442,10 +448,7 @@ def query_point(p, band, kind, rot, trans, param, mesh_id, tri, pseudo, solid, t
     best_o = -1
     for o in range(kind.shape[0]):
         R = rot[o]
-        ux, uy, uz = p[0] - trans[o, 0], p[1] - trans[o, 1], p[2] - trans[o, 2]
-        x = R[0, 0] * ux + R[1, 0] * uy + R[2, 0] * uz
-        y = R[0, 1] * ux + R[1, 1] * uy + R[2, 1] * uz
-        z = R[0, 2] * ux + R[1, 2] * uy + R[2, 2] * uz
+        x, y, z = _local(p, R, trans[o])
         if kind[o] == MESH:
             m = mesh_id[o]
             d, gx, gy, gz, outside = grid_sample(x, y, z, g_origin[m], g_size[m], g_dims[m],
