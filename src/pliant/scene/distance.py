@@ -437,63 +437,75 @@ def grid_sample(x, y, z, origin, size, dims, values, base):
 
 # -- the whole scene -----------------------------------------------------------------------
 @njit(cache=True)
+def _mesh_exact_at(x, y, z, m, tri, pseudo, solid, tri_off, order, node_lo, node_hi, left,
+                   right, start, count, node_off):
+    """The exact (distance, gradient) of packed mesh m at the local point."""
+    t0, t1 = tri_off[m], tri_off[m + 1]
+    n0, n1 = node_off[m], node_off[m + 1]
+    d, g = _mesh_exact(np.array([x, y, z]), tri[t0:t1], pseudo[t0:t1], solid[m],
+                       order[t0:t1], node_lo[n0:n1], node_hi[n0:n1], left[n0:n1],
+                       right[n0:n1], start[n0:n1], count[n0:n1])
+    return d, g[0], g[1], g[2]
+
+
+@njit(cache=True)
 def query_point(p, band, kind, rot, trans, param, mesh_id, tri, pseudo, solid, tri_off,
                 order, node_lo, node_hi, left, right, start, count, node_off, g_values,
                 g_off, g_origin, g_size, g_dims):
     """(signed distance, unit gradient x, y, z, obstacle) of the nearest obstacle to p
-    (world frame). A mesh answers from its grid where the grid shows its surface farther
-    than ``band`` beyond the grid's own error, else exactly."""
-    best = np.inf
-    bx = by = bz = 0.0
-    best_o = -1
-    for o in range(kind.shape[0]):
-        R = rot[o]
-        x, y, z = _local(p, R, trans[o])
-        if kind[o] == MESH:
-            m = mesh_id[o]
-            d, gx, gy, gz, outside = grid_sample(x, y, z, g_origin[m], g_size[m], g_dims[m],
-                                                 g_values, g_off[m])
-            # No surface lies nearer than this: the grid's bound, or outside the grid the
-            # distance to the mesh's box (its tree's root).
-            lower = d
-            if outside > 0.0:
-                n0 = node_off[m]
-                cx = max(node_lo[n0, 0] - x, 0.0, x - node_hi[n0, 0])
-                cy = max(node_lo[n0, 1] - y, 0.0, y - node_hi[n0, 1])
-                cz = max(node_lo[n0, 2] - z, 0.0, z - node_hi[n0, 2])
-                lower = max(d - outside, math.sqrt(cx * cx + cy * cy + cz * cz))
-                d += outside
-            if lower <= band + GRID_ERROR * g_size[m] and lower < best:
-                t0, t1 = tri_off[m], tri_off[m + 1]
-                n0, n1 = node_off[m], node_off[m + 1]
-                d, g = _mesh_exact(np.array([x, y, z]), tri[t0:t1], pseudo[t0:t1], solid[m],
-                                   order[t0:t1], node_lo[n0:n1], node_hi[n0:n1],
-                                   left[n0:n1], right[n0:n1], start[n0:n1], count[n0:n1])
-                gx, gy, gz = g[0], g[1], g[2]
-        else:
-            d, gx, gy, gz = _primitive(kind[o], x, y, z, param[o])
-        if d < best:
-            best = d
-            bx = R[0, 0] * gx + R[0, 1] * gy + R[0, 2] * gz
-            by = R[1, 0] * gx + R[1, 1] * gy + R[1, 2] * gz
-            bz = R[2, 0] * gx + R[2, 1] * gy + R[2, 2] * gz
-            best_o = o
-    return best, bx, by, bz, best_o
+    (world frame): ``query_points`` for one point."""
+    d, g, o = query_points(p.reshape(1, 3), band, kind, rot, trans, param, mesh_id, tri,
+                           pseudo, solid, tri_off, order, node_lo, node_hi, left, right,
+                           start, count, node_off, g_values, g_off, g_origin, g_size, g_dims)
+    return d[0], g[0, 0], g[0, 1], g[0, 2], o[0]
 
 
 @njit(cache=True)
 def query_points(points, band, kind, rot, trans, param, mesh_id, tri, pseudo, solid,
                  tri_off, order, node_lo, node_hi, left, right, start, count, node_off,
                  g_values, g_off, g_origin, g_size, g_dims):
+    """(signed distances (n,), unit gradients (n, 3), nearest obstacles (n,)) of points
+    (n, 3), world frame. A mesh answers from its grid where the grid shows its surface
+    farther than ``band`` beyond the grid's own error, else exactly. Obstacle by
+    obstacle over all points: a call per point carrying the scene's many arrays would
+    cost more than a primitive's distance."""
     n = points.shape[0]
-    d = np.empty(n)
-    g = np.empty((n, 3))
-    o = np.empty(n, dtype=np.int64)
-    for i in range(n):
-        d[i], g[i, 0], g[i, 1], g[i, 2], o[i] = query_point(
-            points[i], band, kind, rot, trans, param, mesh_id, tri, pseudo, solid, tri_off,
-            order, node_lo, node_hi, left, right, start, count, node_off, g_values, g_off,
-            g_origin, g_size, g_dims)
+    d = np.full(n, np.inf)
+    g = np.zeros((n, 3))
+    o = np.full(n, -1, dtype=np.int64)
+    for ob in range(kind.shape[0]):
+        R = rot[ob]
+        t = trans[ob]
+        prm = param[ob]
+        k = kind[ob]
+        for i in range(n):
+            x, y, z = _local(points[i], R, t)
+            if k == MESH:
+                m = mesh_id[ob]
+                di, gx, gy, gz, outside = grid_sample(x, y, z, g_origin[m], g_size[m],
+                                                      g_dims[m], g_values, g_off[m])
+                # No surface lies nearer than this: the grid's bound, or outside the grid
+                # the distance to the mesh's box (its tree's root).
+                lower = di
+                if outside > 0.0:
+                    n0 = node_off[m]
+                    cx = max(node_lo[n0, 0] - x, 0.0, x - node_hi[n0, 0])
+                    cy = max(node_lo[n0, 1] - y, 0.0, y - node_hi[n0, 1])
+                    cz = max(node_lo[n0, 2] - z, 0.0, z - node_hi[n0, 2])
+                    lower = max(di - outside, math.sqrt(cx * cx + cy * cy + cz * cz))
+                    di += outside
+                if lower <= band + GRID_ERROR * g_size[m] and lower < d[i]:
+                    di, gx, gy, gz = _mesh_exact_at(x, y, z, m, tri, pseudo, solid, tri_off,
+                                                    order, node_lo, node_hi, left, right,
+                                                    start, count, node_off)
+            else:
+                di, gx, gy, gz = _primitive(k, x, y, z, prm)
+            if di < d[i]:
+                d[i] = di
+                g[i, 0] = R[0, 0] * gx + R[0, 1] * gy + R[0, 2] * gz
+                g[i, 1] = R[1, 0] * gx + R[1, 1] * gy + R[1, 2] * gz
+                g[i, 2] = R[2, 0] * gx + R[2, 1] * gy + R[2, 2] * gz
+                o[i] = ob
     return d, g, o
 
 

@@ -39,7 +39,7 @@ import numpy as np
 from numba import njit
 
 from pliant.models.banded import add, band_lu, band_lu_solve
-from pliant.scene.distance import hessian_point, query_point
+from pliant.scene.distance import hessian_point, query_points
 
 CONVERGED = 0
 NOT_CONVERGED = 1
@@ -119,16 +119,15 @@ def _contacts(X, gam, c_start, c_val, igam, ix, contact, field, R, ab, kl, ku, w
     """Add the contact terms of the curve points (see the module docstring)."""
     L, radius, band, scale = contact
     width = c_val.shape[1]
+    points = _curve_points(X, c_start, c_val, L)
+    dist, normals, found = query_points(points, band, *field)
     p = np.empty(3)
     for m in range(c_start.shape[0]):
         s0 = c_start[m]
         for c in range(3):
-            v = 0.0
-            for a in range(width):
-                v += c_val[m, a] * X[s0 + a, c]
-            p[c] = v * L
-        d, nx, ny, nz, o = query_point(p, band, *field)
-        n = (nx, ny, nz)
+            p[c] = points[m, c]
+        d, o = dist[m], found[m]
+        n = (normals[m, 0], normals[m, 1], normals[m, 2])
         g = (d / L - radius)
         lam = gam[m]
         touching = lam > scale * g
@@ -266,13 +265,20 @@ def _switched(gam, gamn, Xn, X, c_start, c_val, contact, field):
 def _touching(X, gam, c_start, c_val, contact, field):
     L, radius, band, scale = contact
     out = np.zeros(c_start.shape[0], dtype=np.bool_)
-    p = np.empty(3)
+    dist = query_points(_curve_points(X, c_start, c_val, L), band, *field)[0]
+    for m in range(c_start.shape[0]):
+        out[m] = gam[m] > scale * (dist[m] / L - radius)
+    return out
+
+
+@njit(cache=True)
+def _curve_points(X, c_start, c_val, L):
+    """The curve's points [m] at the contact samples."""
+    points = np.zeros((c_start.shape[0], 3))
     for m in range(c_start.shape[0]):
         for c in range(3):
             v = 0.0
             for a in range(c_val.shape[1]):
                 v += c_val[m, a] * X[c_start[m] + a, c]
-            p[c] = v * L
-        d = query_point(p, band, *field)[0]
-        out[m] = gam[m] > scale * (d / L - radius)
-    return out
+            points[m, c] = v * L
+    return points

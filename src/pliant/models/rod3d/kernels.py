@@ -40,7 +40,7 @@ from numba import njit
 from pliant.models.banded import add as _add
 from pliant.models.banded import add_block as _add_block
 from pliant.models.banded import band_lu, band_lu_solve, band_solve  # noqa: F401
-from pliant.scene.distance import hessian_point, query_point
+from pliant.scene.distance import hessian_point, query_points
 
 # Orientation kinds of a station.
 FREE = 0
@@ -703,19 +703,25 @@ def contact_terms(X, gam, probe_elem, probe_a, iprobe, ix, L, radius, offset, ba
     """
     K = probe_elem.shape[0]
     gaps = np.empty(K)
-    normals = np.empty((K, 3))
     which = np.empty(K, dtype=np.int64)
     active = np.zeros(K, dtype=np.bool_)
+    points = np.empty((K, 3))
+    for k in range(K):
+        e = probe_elem[k]
+        a = probe_a[k]
+        for c in range(3):
+            points[k, c] = ((1.0 - a) * X[e, c] + a * X[e + 1, c]) * L
+    # One batched query: a call per probe would pay the scene's many arrays each time.
+    dist, normals, found = query_points(points, band, *field)
     p = np.empty(3)
     for k in range(K):
         e = probe_elem[k]
         a = probe_a[k]
         for c in range(3):
-            p[c] = ((1.0 - a) * X[e, c] + a * X[e + 1, c]) * L
-        d, nx, ny, nz, o = query_point(p, band, *field)
+            p[c] = points[k, c]
+        d, o = dist[k], found[k]
         g = (d - radius) / L + offset
         gaps[k] = g
-        normals[k, 0], normals[k, 1], normals[k, 2] = nx, ny, nz
         which[k] = o
         ip = iprobe[k]
         w0, w1 = 1.0 - a, a
@@ -729,9 +735,13 @@ def contact_terms(X, gam, probe_elem, probe_a, iprobe, ix, L, radius, offset, ba
         R[ip] = scale * g if touching else lam
         if not want_jac:
             continue
-        for c in range(3):
-            _add(ab, kl, ku, ix[e] + c, ip, -w0 * n[c])
-            _add(ab, kl, ku, ix[e + 1] + c, ip, -w1 * n[c])
+        if touching or lam != 0.0:
+            # (A free probe with no force has the row d gam = 0: its column would only
+            # ever multiply zero, so it is left out, which halves the work of the many
+            # probes far from everything.)
+            for c in range(3):
+                _add(ab, kl, ku, ix[e] + c, ip, -w0 * n[c])
+                _add(ab, kl, ku, ix[e + 1] + c, ip, -w1 * n[c])
         if touching:
             for c in range(3):
                 _add(ab, kl, ku, ip, ix[e] + c, scale * w0 * n[c])
@@ -750,3 +760,93 @@ def contact_terms(X, gam, probe_elem, probe_a, iprobe, ix, L, radius, offset, ba
                         _add(ab, kl, ku, ix[e + 1] + c, ix[e] + j, w1 * w0 * v)
                         _add(ab, kl, ku, ix[e + 1] + c, ix[e + 1] + j, w1 * w1 * v)
     return gaps, normals, which, active
+
+
+@njit(cache=True)
+def _contact_residual(X, Q, lam, nu, gam, h, elem_frame, joint_hh, joint_k0, K, fnode,
+                      st_node, st_frame, st_pos_mask, st_pos, st_kind, st_axis_b, st_quat,
+                      st_moment, st_ffollow, st_mfollow, gauge_frame, gauge_quat, ix, ith,
+                      ilam, inu, nu_off, igauge, n, kl, ku, probe_elem, probe_a, iprobe,
+                      contact, field):
+    """The KKT residual and Jacobian with the contact terms; (R, ab, energy, active)."""
+    R, ab, energy = assemble(X, Q, lam, nu, h, elem_frame, joint_hh, joint_k0, K, fnode,
+                             st_node, st_frame, st_pos_mask, st_pos, st_kind, st_axis_b,
+                             st_quat, st_moment, st_ffollow, st_mfollow, gauge_frame,
+                             gauge_quat, ix, ith, ilam, inu, nu_off, igauge, n, kl, ku, True)
+    L, radius, offset, band, scale = contact
+    active = contact_terms(X, gam, probe_elem, probe_a, iprobe, ix, L, radius, offset, band,
+                           scale, field, R, ab, kl, ku, True)[3]
+    return R, ab, energy, active
+
+
+@njit(cache=True)
+def newton_contact(X, Q, lam, nu, gam, h, elem_frame, joint_hh, joint_k0, K, fnode, st_node,
+                   st_frame, st_pos_mask, st_pos, st_kind, st_axis_b, st_quat, st_moment,
+                   st_ffollow, st_mfollow, gauge_frame, gauge_quat, ix, ith, ilam, inu,
+                   nu_off, nu_cnt, igauge, n, kl, ku, probe_elem, probe_a, iprobe, contact,
+                   field, tol, max_iter, contraction, strict, max_switches):
+    """The semismooth Newton of a problem with obstacles, in one kernel: the Jacobian
+    rebuilt every iteration (the active set may change); as a corrector (strict) a full
+    step must contract by ``contraction``, but while probes touch a shorter step that
+    lowers the residual is taken too (a probe on a seam of its obstacle would make full
+    steps cycle); a full step that changes which probes touch is taken up to
+    ``max_switches`` times. Returns (X, Q, lam, nu, gam, residual, iterations, status,
+    energy)."""
+    R, ab, energy, active = _contact_residual(
+        X, Q, lam, nu, gam, h, elem_frame, joint_hh, joint_k0, K, fnode, st_node, st_frame,
+        st_pos_mask, st_pos, st_kind, st_axis_b, st_quat, st_moment, st_ffollow, st_mfollow,
+        gauge_frame, gauge_quat, ix, ith, ilam, inu, nu_off, igauge, n, kl, ku, probe_elem,
+        probe_a, iprobe, contact, field)
+    r = max_abs(R)
+    if not math.isfinite(r):
+        return X, Q, lam, nu, gam, r, 0, NOT_FINITE, energy
+    it = 0
+    switches = 0
+    while r > tol:
+        if it >= max_iter:
+            return X, Q, lam, nu, gam, r, it, MAX_ITERATIONS, energy
+        it += 1
+        du, ok = band_solve(ab, kl, ku, -R)
+        if not ok:
+            return X, Q, lam, nu, gam, r, it, SINGULAR, energy
+        damped = not strict
+        for k in range(active.shape[0]):
+            if active[k]:
+                damped = True
+        step = 1.0
+        accepted = False
+        for _ in range(30 if damped else 1):
+            Xn, Qn, ln, nn = apply_step(X, Q, lam, nu, du, ix, ith, ilam, inu, nu_off, nu_cnt,
+                                        igauge, step)
+            gn = gam.copy()
+            for k in range(gam.shape[0]):
+                gn[k] += step * du[iprobe[k]]
+            Rn, abn, en, an = _contact_residual(
+                Xn, Qn, ln, nn, gn, h, elem_frame, joint_hh, joint_k0, K, fnode, st_node,
+                st_frame, st_pos_mask, st_pos, st_kind, st_axis_b, st_quat, st_moment,
+                st_ffollow, st_mfollow, gauge_frame, gauge_quat, ix, ith, ilam, inu, nu_off,
+                igauge, n, kl, ku, probe_elem, probe_a, iprobe, contact, field)
+            rn = max_abs(Rn)
+            finite = math.isfinite(rn)
+            if damped:
+                accepted = finite and rn <= (1.0 - 1e-4 * step) * r
+            else:
+                accepted = rn <= contraction * r or rn <= tol
+            if strict and step == 1.0 and rn > contraction * r and rn > tol:
+                accepted = False
+            if not accepted and step == 1.0 and switches < max_switches and finite:
+                changed = False
+                for k in range(an.shape[0]):
+                    if an[k] != active[k]:
+                        changed = True
+                if changed:
+                    switches += 1
+                    accepted = True
+            if accepted:
+                break
+            step *= 0.5
+        if not accepted:
+            return X, Q, lam, nu, gam, r, it, NOT_CONTRACTING, energy
+        X, Q, lam, nu, gam, R, ab, r, energy, active = (Xn, Qn, ln, nn, gn, Rn, abn, rn, en,
+                                                        an)
+    return X, Q, lam, nu, gam, r, it, CONVERGED, energy

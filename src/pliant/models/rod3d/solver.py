@@ -133,7 +133,14 @@ class _Run:
         opts = self.solver
         tol = opts.tolerance if tol is None else tol
         if self.rod.iprobe.shape[0]:
-            new, r, it, status, energy = self._newton_contact(state, loads, strict, tol)
+            rod = self.rod
+            X, Q, lam, nu, gam, r, it, status, energy = kernels.newton_contact(
+                *state[:5], *rod.args(loads), *self._static(), rod.probe_elem, rod.probe_a,
+                rod.iprobe,
+                (rod.length, rod.radius, loads.offset, 2.0 * rod.radius + 0.05 * rod.length,
+                 CONTACT_SCALE), rod.obstacles.args, tol, opts.max_iterations,
+                opts.contraction, strict, _SWITCHES)
+            new = (X, Q, lam, nu, gam)
         else:
             X, Q, lam, nu, r, it, status, energy = kernels.newton(
                 *state[:4], *self.rod.args(loads), *self._static(), tol,
