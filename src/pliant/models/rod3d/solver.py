@@ -119,7 +119,6 @@ class _Run:
     notes: list[str] = field(default_factory=list)
     deadline: float = 0.0
     stall: _Stalled | None = None  # why the last follow from a warm start stopped
-    active: np.ndarray | None = None  # the probes touching at the last residual
 
     def __post_init__(self) -> None:
         self.deadline = time.perf_counter() + self.solver.time_budget
@@ -151,55 +150,6 @@ class _Run:
             status = kernels.NOT_CONTRACTING
         return new, r, status, energy
 
-    def _newton_contact(self, state: State, loads: Loads, strict: bool, tol: float):
-        """The semismooth Newton of a problem with obstacles: the same acceptance as the
-        kernel's (contraction as a corrector, else backtracking), the Jacobian rebuilt
-        every iteration (the active set may change). Returns (state, residual,
-        iterations, status, energy)."""
-        opts = self.solver
-        R, ab, energy = self.residual(state, loads, want_jac=True)
-        r = float(np.abs(R).max())
-        if not np.isfinite(r):
-            return state, r, 0, kernels.NOT_FINITE, energy
-        active = self.active
-        it = 0
-        switches = 0  # full steps taken on a change of the active set alone
-        while r > tol:
-            if it >= opts.max_iterations:
-                return state, r, it, kernels.MAX_ITERATIONS, energy
-            it += 1
-            du, ok = kernels.band_solve(ab, self.rod.kl, self.rod.ku, -R)
-            if not ok:
-                return state, r, it, kernels.SINGULAR, energy
-            step = 1.0
-            # A probe pressing on a seam of its obstacle (where a face meets an edge's
-            # rounding) has a Jacobian that jumps there: full steps may cycle across it,
-            # so a corrector with contacts may also shorten its step.
-            damped = not strict or bool(np.any(active))
-            for _ in range(30 if damped else 1):
-                trial = self.step(state, du, step)
-                Rn, abn, en = self.residual(trial, loads, want_jac=True)
-                rn = float(np.abs(Rn).max())
-                accepted = (np.isfinite(rn) and rn <= (1.0 - 1e-4 * step) * r) if damped else (
-                    rn <= opts.contraction * r or rn <= tol)
-                if strict and step == 1.0 and rn > opts.contraction * r and rn > tol:
-                    accepted = False  # a corrector's full step must contract
-                if (not accepted and step == 1.0 and switches < _SWITCHES
-                        and np.isfinite(rn) and not np.array_equal(self.active, active)):
-                    # A full step that changes which probes touch is the semismooth
-                    # Newton's active-set update: the residual of the old set says
-                    # nothing of the new one, so it is taken (a bounded number of times).
-                    switches += 1
-                    accepted = True
-                if accepted:
-                    active = self.active
-                    break
-                step *= 0.5
-            else:
-                return state, r, it, kernels.NOT_CONTRACTING, energy
-            state, R, ab, r, energy = trial, Rn, abn, rn, en
-        return state, r, it, kernels.CONVERGED, energy
-
     def _axes_agree(self, Q: np.ndarray, loads: Loads) -> bool:
         """An axis grip's constraint (d3 normal to two vectors across the axis) also holds
         with d3 reversed: a Newton that jumped to that sheet has not met the grip."""
@@ -216,7 +166,7 @@ class _Run:
                                          rod.nu_off, rod.igauge, rod.n, rod.kl, rod.ku,
                                          want_jac)
         if rod.iprobe.shape[0]:
-            self.active = self.contacts(state, loads, R, ab, want_jac)[3]
+            self.contacts(state, loads, R, ab, want_jac)
         return R, ab, energy
 
     def contacts(self, state: State, loads: Loads, R: np.ndarray | None = None,
