@@ -165,3 +165,54 @@ def test_random_grips_round_an_obstacle_never_penetrate(x, y, z, height, weight)
     assert eq.residual < 1e-9
     assert penetration(eq) < 0.01
     assert np.all(eq.contacts.force @ np.array([0.0, 1.0, 0.0]) < 1e-9)  # normal to the pole
+
+
+def test_contact_jacobian_matches_finite_differences():
+    """The KKT Jacobian with contacts (forces on the nodes, the gap rows of touching
+    probes, the turning of the normals over a box's face, edge and corner and round a
+    cylinder) against central differences, at a shape dipped into both obstacles with
+    random forces on the probes near them."""
+    from pliant.models.rod3d import solver as rod_solver
+    from pliant.models.rod3d.lowering import lower
+
+    block = Obstacle.box("block", (0.2, 0.2, 0.1), (0.7, 0.02, -0.12))
+    drum = Obstacle.cylinder("drum", 0.05, 0.3, (0.4, 0.0, -0.08), ACROSS_Y)
+    hose = pl.Part(length=1.0, bending_stiffness=0.05, mass_per_length=0.3,
+                   outer_diameter=2 * RADIUS)
+    problem = pl.Problem(hose, (pl.clamp(0.0, position=(0.0, 0.0, 0.0)),
+                                pl.pin(1.0, position=(0.95, 0.0, -0.05), name="hand")),
+                         gravity=(0.0, 0.0, -9.81), obstacles=(block, drum))
+    rod = lower(problem, 12)
+    run = rod_solver._Run(rod, rod3d.RodSolver())
+    _, rest = rod.rest()
+    run.gauge_quat = rest[1][0].copy()
+    X = rest[0].copy()
+    X[:, 1] += 0.01 * np.sin(7.0 * np.linspace(0.0, 1.0, X.shape[0]))
+    X[:, 2] -= 0.07 * np.sin(np.pi * np.linspace(0.0, 1.0, X.shape[0]))
+    free = (X, rest[1], rest[2], rest[3], np.zeros(rod.iprobe.shape[0]))
+    gaps = run.contacts(free, rod.target)[0]
+    near = gaps < 0.05
+    assert near.sum() > 10
+    gam = np.where(near, np.random.default_rng(0).uniform(0.1, 1.0, gaps.shape), 0.0)
+    state = (X, rest[1], rest[2], rest[3], gam)
+    R, ab, _ = run.residual(state, rod.target, want_jac=True)
+    n, kl, ku = rod.n, rod.kl, rod.ku
+    J = np.zeros((n, n))
+    for j in range(n):
+        for i in range(max(0, j - ku), min(n, j + kl + 1)):
+            J[i, j] = ab[j, kl + ku + i - j]
+    fd = np.zeros((n, n))
+    for j in range(n):
+        du = np.zeros(n)
+        du[j] = 1e-7
+        plus = run.residual(run.step(state, du, 1.0), rod.target)[0]
+        minus = run.residual(run.step(state, du, -1.0), rod.target)[0]
+        fd[:, j] = (plus - minus) / 2e-7
+    touching = run.contacts(state, rod.target)[3]
+    assert touching.sum() > 5
+    # A free probe without force keeps only its row (d gam = 0): its column, which the
+    # kernel leaves out, would only ever multiply zero.
+    idle = rod.iprobe[(gam == 0.0) & ~touching]
+    fd[:, idle] = J[:, idle]
+    assert np.all(J[np.ix_(idle, idle)] == np.eye(idle.size))
+    assert np.abs(J - fd).max() < 1e-5 * max(1.0, np.abs(J).max())
