@@ -15,6 +15,7 @@ from scipy.optimize import brentq
 import pliant as pl
 from pliant.errors import PliantError
 from pliant.models import rod3d
+from pliant.models.banded import dense
 from pliant.scene import Obstacle
 
 RADIUS = 0.01
@@ -197,10 +198,7 @@ def test_contact_jacobian_matches_finite_differences():
     state = (X, rest[1], rest[2], rest[3], gam)
     R, ab, _ = run.residual(state, rod.target, want_jac=True)
     n, kl, ku = rod.n, rod.kl, rod.ku
-    J = np.zeros((n, n))
-    for j in range(n):
-        for i in range(max(0, j - ku), min(n, j + kl + 1)):
-            J[i, j] = ab[j, kl + ku + i - j]
+    J = dense(ab, kl, ku, n)
     fd = np.zeros((n, n))
     for j in range(n):
         du = np.zeros(n)

@@ -12,6 +12,7 @@ import pytest
 
 import pliant as pl
 from pliant.errors import InputError
+from pliant.models.banded import dense
 from pliant.models.realtime import RealtimeModel, kernels
 from pliant.models.realtime.bspline import basis, greville, knots
 from pliant.scene import Obstacle
@@ -104,11 +105,8 @@ def _jacobian_check(model, rhs, gam):
             model.imu, model.icon, model.ialpha, model.c_start, model.c_val, model.igam,
             model.contact, model.field, model.n_unknowns, model.kl, model.ku, True)
     R, ab = kernels.assemble(X, mu, lam, alpha, gam, *head, True)
-    n, kl, ku = model.n_unknowns, model.kl, model.ku
-    J = np.zeros((n, n))
-    for j in range(n):
-        for i in range(max(0, j - ku), min(n, j + kl + 1)):
-            J[i, j] = ab[j, kl + ku + i - j]
+    n = model.n_unknowns
+    J = dense(ab, model.kl, model.ku, n)
     fd = np.zeros((n, n))
     index = (model.ix, model.imu, model.icon, model.ialpha, model.igam)
     for j in range(n):

@@ -18,6 +18,7 @@ from pliant.errors import (
 )
 from pliant.io.problem_file import load_problem
 from pliant.models import rod3d
+from pliant.models.banded import dense
 from pliant.models.rod3d import kernels
 from pliant.models.rod3d.lowering import _slerp_vectors, lower
 from pliant.models.rod3d.solver import _Run, _Stalled
@@ -274,10 +275,7 @@ def test_jacobian_matches_finite_differences():
     state = run.step(state, 0.05 * rng.standard_normal(rod.n), 1.0)
     R, ab, _ = run.residual(state, rod.target, want_jac=True)
     n, kl, ku = rod.n, rod.kl, rod.ku
-    J = np.zeros((n, n))
-    for j in range(n):
-        for i in range(max(0, j - ku), min(n, j + kl + 1)):
-            J[i, j] = ab[j, kl + ku + i - j]
+    J = dense(ab, kl, ku, n)
     fd = np.empty_like(J)
     for j in range(n):
         du = np.zeros(n)

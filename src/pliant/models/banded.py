@@ -105,3 +105,12 @@ def band_solve(ab, kl, ku, rhs):
     if not ok:
         return rhs.copy(), False
     return band_lu_solve(ab, piv, kl, ku, rhs), True
+
+
+def dense(ab, kl: int, ku: int, n: int) -> np.ndarray:
+    """The n x n matrix stored in band form (for dense fallbacks and checks)."""
+    out = np.zeros((n, n))
+    for j in range(n):
+        for i in range(max(0, j - ku), min(n, j + kl + 1)):
+            out[i, j] = ab[j, kl + ku + i - j]
+    return out

@@ -45,6 +45,7 @@ from pliant.core.equilibrium import (
 )
 from pliant.core.problem import Problem
 from pliant.errors import ConvergenceError, IllPosedProblemError
+from pliant.models.banded import dense
 from pliant.models.rod3d import kernels
 from pliant.models.rod3d.kernels import AXIS, FULL
 from pliant.models.rod3d.lowering import Loads, Rod, axis_basis, lower, quat_matrix
@@ -821,10 +822,7 @@ def _stability_dense(run: _Run, state: State) -> tuple[bool, float]:
     rod = run.rod
     _, ab, _ = run.residual(state, rod.target, want_jac=True)
     n, kl, ku = rod.n, rod.kl, rod.ku
-    K = np.zeros((n, n))
-    for j in range(n):
-        for i in range(max(0, j - ku), min(n, j + kl + 1)):
-            K[i, j] = ab[j, kl + ku + i - j]
+    K = dense(ab, kl, ku, n)
     primal, weight = _metric(rod)
     H = K[np.ix_(primal, primal)]
     A = K[np.ix_(~primal, primal)]
