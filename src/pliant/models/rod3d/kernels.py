@@ -786,10 +786,12 @@ def newton_contact(X, Q, lam, nu, gam, h, elem_frame, joint_hh, joint_k0, K, fno
                    nu_off, nu_cnt, igauge, n, kl, ku, probe_elem, probe_a, iprobe, contact,
                    field, tol, max_iter, contraction, strict, max_switches):
     """The semismooth Newton of a problem with obstacles, in one kernel: the Jacobian
-    rebuilt every iteration (the active set may change); as a corrector (strict) a full
-    step must contract by ``contraction``, but while probes touch a shorter step that
-    lowers the residual is taken too (a probe on a seam of its obstacle would make full
-    steps cycle); a full step that changes which probes touch is taken up to
+    rebuilt every iteration (the active set may change). As a corrector (strict) with no
+    probe touching, a full step must contract by ``contraction``; while probes touch,
+    any step that lowers the residual is taken, backtracking from the full one (the
+    Jacobian jumps on the seams of an obstacle, a face meeting an edge's rounding, so
+    convergence there is not quadratic and a contraction test would only shorten the
+    continuation's steps); a full step that changes which probes touch is taken up to
     ``max_switches`` times. Returns (X, Q, lam, nu, gam, residual, iterations, status,
     energy)."""
     R, ab, energy, active = _contact_residual(
@@ -832,8 +834,6 @@ def newton_contact(X, Q, lam, nu, gam, h, elem_frame, joint_hh, joint_k0, K, fno
                 accepted = finite and rn <= (1.0 - 1e-4 * step) * r
             else:
                 accepted = rn <= contraction * r or rn <= tol
-            if strict and step == 1.0 and rn > contraction * r and rn > tol:
-                accepted = False
             if not accepted and step == 1.0 and switches < max_switches and finite:
                 changed = False
                 for k in range(an.shape[0]):
