@@ -788,7 +788,8 @@ def newton_contact(X, Q, lam, nu, gam, h, elem_frame, joint_hh, joint_k0, K, fno
     """The semismooth Newton of a problem with obstacles, in one kernel: the Jacobian
     rebuilt every iteration (the active set may change). As a corrector (strict) with no
     probe touching, a full step must contract by ``contraction``; while probes touch,
-    any step that lowers the residual is taken, backtracking from the full one (the
+    any step that lowers the residual is taken, backtracking from the full one down to
+    a tenth (below, it gives up: the continuation then shortens its step) (the
     Jacobian jumps on the seams of an obstacle, a face meeting an edge's rounding, so
     convergence there is not quadratic and a contraction test would only shorten the
     continuation's steps); a full step that changes which probes touch is taken up to
@@ -845,7 +846,9 @@ def newton_contact(X, Q, lam, nu, gam, h, elem_frame, joint_hh, joint_k0, K, fno
             if accepted:
                 break
             step *= 0.5
-        if not accepted:
+        if not accepted or (strict and step < 0.1):
+            # A corrector crawling in tiny steps is far from its basin: the
+            # continuation does better with a shorter step in the load.
             return X, Q, lam, nu, gam, r, it, NOT_CONTRACTING, energy
         X, Q, lam, nu, gam, R, ab, r, energy, active = (Xn, Qn, ln, nn, gn, Rn, abn, rn, en,
                                                         an)
