@@ -354,18 +354,14 @@ def hessian_point(p, o, kind, rot, trans, param, mesh_id, tri, pseudo, solid, tr
     R = rot[o]
     x, y, z = _local(p, R, trans[o])
     if kind[o] == MESH:
-        m = mesh_id[o]
-        t0, t1 = tri_off[m], tri_off[m + 1]
-        n0, n1 = node_off[m], node_off[m + 1]
-        d, g, t, region = _mesh_feature(np.array([x, y, z]), tri[t0:t1], pseudo[t0:t1],
-                                        solid[m], order[t0:t1], node_lo[n0:n1],
-                                        node_hi[n0:n1], left[n0:n1], right[n0:n1],
-                                        start[n0:n1], count[n0:n1])
+        d, g, t, region = _packed_mesh_feature(x, y, z, mesh_id[o], tri, pseudo, solid,
+                                               tri_off, order, node_lo, node_hi, left,
+                                               right, start, count, node_off)
         e = np.zeros(3)
         feature = 0
         if 1 <= region <= 3:
-            a = tri[t0 + t, region - 1]
-            b = tri[t0 + t, region % 3]
+            a = tri[t, region - 1]
+            b = tri[t, region % 3]
             e = (b - a) / max(np.sqrt(((b - a) ** 2).sum()), 1e-300)
             feature = 1
         elif region >= 4:
@@ -437,15 +433,16 @@ def grid_sample(x, y, z, origin, size, dims, values, base):
 
 # -- the whole scene -----------------------------------------------------------------------
 @njit(cache=True)
-def _mesh_exact_at(x, y, z, m, tri, pseudo, solid, tri_off, order, node_lo, node_hi, left,
-                   right, start, count, node_off):
-    """The exact (distance, gradient) of packed mesh m at the local point."""
+def _packed_mesh_feature(x, y, z, m, tri, pseudo, solid, tri_off, order, node_lo, node_hi,
+                         left, right, start, count, node_off):
+    """``_mesh_feature`` of packed mesh m at the local point (x, y, z): (signed
+    distance, unit gradient, the nearest triangle's index in ``tri``, its feature)."""
     t0, t1 = tri_off[m], tri_off[m + 1]
     n0, n1 = node_off[m], node_off[m + 1]
-    d, g = _mesh_exact(np.array([x, y, z]), tri[t0:t1], pseudo[t0:t1], solid[m],
-                       order[t0:t1], node_lo[n0:n1], node_hi[n0:n1], left[n0:n1],
-                       right[n0:n1], start[n0:n1], count[n0:n1])
-    return d, g[0], g[1], g[2]
+    d, g, t, region = _mesh_feature(np.array([x, y, z]), tri[t0:t1], pseudo[t0:t1],
+                                    solid[m], order[t0:t1], node_lo[n0:n1], node_hi[n0:n1],
+                                    left[n0:n1], right[n0:n1], start[n0:n1], count[n0:n1])
+    return d, g, t0 + t, region
 
 
 @njit(cache=True)
@@ -495,9 +492,10 @@ def query_points(points, band, kind, rot, trans, param, mesh_id, tri, pseudo, so
                     lower = max(di - outside, math.sqrt(cx * cx + cy * cy + cz * cz))
                     di += outside
                 if lower <= band + GRID_ERROR * g_size[m] and lower < d[i]:
-                    di, gx, gy, gz = _mesh_exact_at(x, y, z, m, tri, pseudo, solid, tri_off,
-                                                    order, node_lo, node_hi, left, right,
-                                                    start, count, node_off)
+                    di, gm, _, _ = _packed_mesh_feature(x, y, z, m, tri, pseudo, solid,
+                                                        tri_off, order, node_lo, node_hi,
+                                                        left, right, start, count, node_off)
+                    gx, gy, gz = gm[0], gm[1], gm[2]
             else:
                 di, gx, gy, gz = _primitive(k, x, y, z, prm)
             if di < d[i]:

@@ -121,11 +121,8 @@ def _contacts(X, gam, c_start, c_val, igam, ix, contact, field, R, ab, kl, ku, w
     width = c_val.shape[1]
     points = _curve_points(X, c_start, c_val, L)
     dist, normals, found = query_points(points, band, *field)
-    p = np.empty(3)
     for m in range(c_start.shape[0]):
         s0 = c_start[m]
-        for c in range(3):
-            p[c] = points[m, c]
         d, o = dist[m], found[m]
         n = (normals[m, 0], normals[m, 1], normals[m, 2])
         g = (d / L - radius)
@@ -152,7 +149,7 @@ def _contacts(X, gam, c_start, c_val, igam, ix, contact, field, R, ab, kl, ku, w
             for c in range(3):
                 add(ab, kl, ku, ix[s0 + a] + c, igam[m], w * n[c])
         if lam != 0.0 and o >= 0:
-            H = hessian_point(p, o, *field) * L  # d n / d (X in units of L)
+            H = hessian_point(points[m], o, *field) * L  # d n / d (X in units of L)
             for a in range(width):
                 for b in range(width):
                     wab = lam * c_val[m, a] * c_val[m, b]

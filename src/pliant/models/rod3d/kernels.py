@@ -713,12 +713,9 @@ def contact_terms(X, gam, probe_elem, probe_a, iprobe, ix, L, radius, offset, ba
             points[k, c] = ((1.0 - a) * X[e, c] + a * X[e + 1, c]) * L
     # One batched query: a call per probe would pay the scene's many arrays each time.
     dist, normals, found = query_points(points, band, *field)
-    p = np.empty(3)
     for k in range(K):
         e = probe_elem[k]
         a = probe_a[k]
-        for c in range(3):
-            p[c] = points[k, c]
         d, o = dist[k], found[k]
         g = (d - radius) / L + offset
         gaps[k] = g
@@ -750,7 +747,7 @@ def contact_terms(X, gam, probe_elem, probe_a, iprobe, ix, L, radius, offset, ba
             _add(ab, kl, ku, ip, ip, 1.0)
         if lam != 0.0:
             # d n / d p, the surface's curvature, exact on the piece p lies on; times L.
-            H = hessian_point(p, o, *field) * L
+            H = hessian_point(points[k], o, *field) * L
             for c in range(3):
                 for j in range(3):
                     v = -lam * H[c, j]
@@ -785,16 +782,18 @@ def newton_contact(X, Q, lam, nu, gam, h, elem_frame, joint_hh, joint_k0, K, fno
                    st_ffollow, st_mfollow, gauge_frame, gauge_quat, ix, ith, ilam, inu,
                    nu_off, nu_cnt, igauge, n, kl, ku, probe_elem, probe_a, iprobe, contact,
                    field, tol, max_iter, contraction, strict, max_switches):
-    """The semismooth Newton of a problem with obstacles, in one kernel: the Jacobian
-    rebuilt every iteration (the active set may change). As a corrector (strict) with no
-    probe touching, a full step must contract by ``contraction``; while probes touch,
-    any step that lowers the residual is taken, backtracking from the full one down to
-    a tenth (below, it gives up: the continuation then shortens its step) (the
-    Jacobian jumps on the seams of an obstacle, a face meeting an edge's rounding, so
-    convergence there is not quadratic and a contraction test would only shorten the
-    continuation's steps); a full step that changes which probes touch is taken up to
-    ``max_switches`` times. Returns (X, Q, lam, nu, gam, residual, iterations, status,
-    energy)."""
+    """The semismooth Newton of a problem with obstacles, in one kernel, its Jacobian
+    rebuilt every iteration (the active set may change). Acceptance:
+
+    - a corrector (strict) with no probe touching: the full step must contract by
+      ``contraction``;
+    - while probes touch, or not strict: any step that lowers the residual, backtracking
+      from the full one (the Jacobian jumps on an obstacle's seams, a face meeting an
+      edge's rounding, so convergence there is not quadratic); a corrector gives up
+      below a tenth of a step, and its continuation shortens the load step instead;
+    - a full step that changes which probes touch, up to ``max_switches`` times.
+
+    Returns (X, Q, lam, nu, gam, residual, iterations, status, energy)."""
     R, ab, energy, active = _contact_residual(
         X, Q, lam, nu, gam, h, elem_frame, joint_hh, joint_k0, K, fnode, st_node, st_frame,
         st_pos_mask, st_pos, st_kind, st_axis_b, st_quat, st_moment, st_ffollow, st_mfollow,

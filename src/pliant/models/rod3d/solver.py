@@ -136,10 +136,8 @@ class _Run:
             rod = self.rod
             X, Q, lam, nu, gam, r, it, status, energy = kernels.newton_contact(
                 *state[:5], *rod.args(loads), *self._static(), rod.probe_elem, rod.probe_a,
-                rod.iprobe,
-                (rod.length, rod.radius, loads.offset, 2.0 * rod.radius + 0.05 * rod.length,
-                 CONTACT_SCALE), rod.obstacles.args, tol, opts.max_iterations,
-                opts.contraction, strict, _SWITCHES)
+                rod.iprobe, self._contact_constants(loads), rod.obstacles.args, tol,
+                opts.max_iterations, opts.contraction, strict, _SWITCHES)
             new = (X, Q, lam, nu, gam)
         else:
             X, Q, lam, nu, r, it, status, energy = kernels.newton(
@@ -179,11 +177,16 @@ class _Run:
             R = np.zeros(rod.n)
         if ab is None:
             ab = np.zeros((0, 2 * rod.kl + rod.ku + 1))
-        band = 2.0 * rod.radius + 0.05 * rod.length
         return kernels.contact_terms(state[0], state[4], rod.probe_elem, rod.probe_a,
-                                     rod.iprobe, rod.ix, rod.length, rod.radius, loads.offset,
-                                     band, CONTACT_SCALE, rod.obstacles.args, R, ab, rod.kl,
-                                     rod.ku, want_jac)
+                                     rod.iprobe, rod.ix, *self._contact_constants(loads),
+                                     rod.obstacles.args, R, ab, rod.kl, rod.ku, want_jac)
+
+    def _contact_constants(self, loads: Loads) -> tuple[float, float, float, float, float]:
+        """(L, tube radius, gap offset, exact-distance band [m], scale) of the contact
+        terms: the band reaches two radii and 5% of L past the tube."""
+        rod = self.rod
+        return (rod.length, rod.radius, loads.offset, 2.0 * rod.radius + 0.05 * rod.length,
+                CONTACT_SCALE)
 
     def step(self, state: State, du: np.ndarray, scale: float) -> State:
         rod = self.rod
