@@ -94,13 +94,17 @@ def run(
 def _run_scene(file: Path, out: Path, elements: int | None) -> None:
     import json as _json  # noqa: PLC0415
 
-    import numpy as np  # noqa: PLC0415
     from rich.console import Console  # noqa: PLC0415
     from rich.progress import Progress  # noqa: PLC0415
 
     from pliant.assembly import follow_path  # noqa: PLC0415
     from pliant.cli.plot import plot_path  # noqa: PLC0415
-    from pliant.cli.report import _finite, print_interference, print_path  # noqa: PLC0415
+    from pliant.cli.report import (  # noqa: PLC0415
+        _finite,
+        print_contacts,
+        print_interference,
+        print_path,
+    )
     from pliant.io.atomic import atomic_write  # noqa: PLC0415
     from pliant.io.mesh_export import export_scene  # noqa: PLC0415
     from pliant.io.problem_file import load_scene  # noqa: PLC0415
@@ -115,7 +119,7 @@ def _run_scene(file: Path, out: Path, elements: int | None) -> None:
                   f"{len(problem.obstacles)} obstacles, {len(scene.path)} steps")
     with Progress(console=console, transient=True) as bar:
         task = bar.add_task("solving the path", total=len(scene.path) + 1)
-        result = follow_path(problem, scene.path, _grip_of(file),
+        result = follow_path(problem, scene.path, scene.grip,
                              margin=scene.margin,
                              elements=elements or scene.solver.elements,
                              on_step=lambda k, r: bar.advance(task))
@@ -124,9 +128,7 @@ def _run_scene(file: Path, out: Path, elements: int | None) -> None:
     print_path(result, problem.part, console)
     console.print("at the last step solved:")
     print_interference(result.interference, console)
-    for name, force in result.final.contacts.by_obstacle().items():
-        console.print(f"{name} pushes on the part with {np.linalg.norm(force):.3g} N "
-                      f"({', '.join(f'{f:.3g}' if abs(f) > 1e-9 else '0' for f in force)})")
+    print_contacts(result.final, console)
     stem = file.stem
     report = out / f"{stem}.json"
     atomic_write(report, lambda h: h.write(_json.dumps(_finite(result.to_dict()),
@@ -134,12 +136,6 @@ def _run_scene(file: Path, out: Path, elements: int | None) -> None:
     plot = plot_path(result, out / f"{stem}.png", problem.part.min_bend_radius)
     glb = export_scene(result.final, out / f"{stem}.glb")
     console.print(f"written: {report}, {plot}, {glb} (the last pose with the obstacles)")
-
-
-def _grip_of(file: Path) -> str:
-    import tomllib  # noqa: PLC0415
-
-    return tomllib.loads(file.read_text(encoding="utf-8"))["path"]["grip"]
 
 
 @app.command()

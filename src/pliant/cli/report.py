@@ -7,6 +7,7 @@ import math
 import time
 from typing import Any
 
+import numpy as np
 from rich.console import Console
 from rich.table import Table
 
@@ -103,10 +104,7 @@ def _summary_3d(eq: Any, seconds: float, console: Console) -> None:
         verdict = "[red]below[/red]" if radius < allowed else "above"
         line += f" ({verdict} the part's minimum {allowed:g} m)"
     console.print(line)
-    for name, force in eq.contacts.by_obstacle().items():
-        points = sum(1 for o in eq.contacts.obstacle if o == name)
-        console.print(f"contact: {name} pushes on the part with {_vec(force)} N "
-                      f"({points} points)")
+    print_contacts(eq, console)
     stable, eigen = eq.stability
     if stable is None:
         console.print("stability: not decided by a static test (follower loads or dead "
@@ -137,6 +135,14 @@ def print_json(eq: Any, seconds: float, interference: Any = None) -> None:
     if interference is not None:
         data["interference"] = interference.to_dict()
     print(json.dumps(_finite(data), indent=1, allow_nan=False))
+
+
+def print_contacts(eq: Any, console: Console) -> None:
+    """What each obstacle applies to a 3D equilibrium's part, and at how many points."""
+    for name, force in eq.contacts.by_obstacle().items():
+        points = sum(1 for o in eq.contacts.obstacle if o == name)
+        console.print(f"contact: {name} pushes on the part with {np.linalg.norm(force):.3g} "
+                      f"N, {_vec(force)} N ({points} points)")
 
 
 def print_interference(report: Any, console: Console | None = None) -> None:

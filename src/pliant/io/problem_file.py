@@ -485,13 +485,15 @@ def _slerp(a: np.ndarray, b: np.ndarray, t: float) -> np.ndarray:
 @dataclass(frozen=True)
 class Scene:
     """A whole file as built: the problem (with its obstacles), the solver settings,
-    the manipulation along its [path] (empty without one), and the clearance margin."""
+    the manipulation along its [path] (empty without one) and the condition it carries
+    (``grip``, None without a path), and the clearance margin."""
 
     problem: Problem
     solver: SolverModel
     path: list[Problem] = field(default_factory=list)
     margin: float = 0.0
     ports: dict[str, PortModel] = field(default_factory=dict)
+    grip: str | None = None
 
 
 def _where(loc: tuple[Any, ...]) -> str:
@@ -534,7 +536,8 @@ def parse_scene(text: str, source: str = "<string>", base: Path | None = None) -
     try:
         problem = model.build(base)
         return Scene(problem, model.solver, model.manipulation(problem), model.margin,
-                     {p.name: p for p in model.port})
+                     {p.name: p for p in model.port},
+                     model.path.grip if model.path is not None else None)
     except PliantError as err:
         raise FileFormatError(f"{source}: {err}") from None
 
