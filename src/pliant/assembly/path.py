@@ -17,6 +17,7 @@ from typing import Any
 
 import numpy as np
 
+from pliant.core.equilibrium import WARM_START_LOST
 from pliant.core.problem import Problem
 from pliant.errors import PliantError
 from pliant.scene.interference import Interference, of_equilibrium
@@ -148,7 +149,4 @@ def _record(eq: Any, grip: str, progress: float, margin: float,
         contacts=len(contacts),
         contact_force=float(np.linalg.norm(contacts.force, axis=1).sum()),
         bend_radius=float(radius), bend_at=float(at), stable=eq.stable,
-        snap=any(n.startswith(_NOT_FOLLOWED) for n in eq.notes), seconds=seconds)
-
-
-_NOT_FOLLOWED = "the warm start could not be followed"
+        snap=WARM_START_LOST in eq.notes, seconds=seconds)

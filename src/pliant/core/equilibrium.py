@@ -20,6 +20,11 @@ import numpy as np
 
 from pliant.core.problem import Problem
 
+# The note of an answer whose warm start could not be followed to its problem: the part
+# was solved afresh, so between the two it jumped (a fold, a snap). Callers test for it.
+WARM_START_LOST = ("the warm start could not be followed to this problem; solved from the "
+                   "rest state instead")
+
 
 @dataclass(frozen=True)
 class StationLoad:

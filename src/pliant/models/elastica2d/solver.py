@@ -31,7 +31,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from pliant.core.equilibrium import Equilibrium, Samples, StationLoad
+from pliant.core.equilibrium import WARM_START_LOST, Equilibrium, Samples, StationLoad
 from pliant.core.problem import Problem
 from pliant.errors import ConvergenceError
 from pliant.models.elastica2d import kernels
@@ -462,8 +462,7 @@ def _solve(problem: Problem, warm_start: Equilibrium | None, solver: ShootingSol
                 # What was said of the branch still holds along it.
                 run.notes[:0] = [n for n in warm_start.notes if n.startswith(_BRANCH_NOTE)]
             else:
-                run.notes.append("the warm start could not be followed to this problem; "
-                                 "solved from the rest state instead")
+                run.notes.append(WARM_START_LOST)
                 run.low = lower(problem)
         if point is None:
             point = run.polish(run.cold())

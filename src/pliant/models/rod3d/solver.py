@@ -38,6 +38,7 @@ import numpy as np
 
 from pliant.core.equilibrium import (
     NO_CONTACTS,
+    WARM_START_LOST,
     Contacts,
     Equilibrium3D,
     Samples3D,
@@ -635,8 +636,7 @@ def _solve(problem: Problem, warm_start: Equilibrium3D | None, solver: RodSolver
                 raise run.stall or _Stalled(0.0, math.inf, "the warm start could not be "
                                             "followed to this problem")
             else:
-                run.notes.append("the warm start could not be followed to this problem; "
-                                 "solved from the rest state instead")
+                run.notes.append(WARM_START_LOST)
         if state is None:
             state = run.cold()
     except _Stalled as stall:
