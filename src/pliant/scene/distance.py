@@ -373,32 +373,26 @@ def hessian_point(p, o, kind, rot, trans, param, mesh_id, tri, pseudo, solid, tr
 
 
 # -- grids ---------------------------------------------------------------------------------
+@njit(cache=True, inline="always")
+def _onto_grid(f, top):
+    """A grid coordinate clamped to [0, top], and how far (in cells) it lay beyond."""
+    if f < 0.0:
+        return 0.0, -f
+    if f > top:
+        return float(top), f - top
+    return f, 0.0
+
+
 @njit(cache=True)
 def grid_sample(x, y, z, origin, size, dims, values, base):
     """Trilinear interpolation of a grid of node values (stored from ``base``) at the
     local point (x, y, z): (value, gradient x, y, z, how far the point lies outside the
     grid); outside, the values are those at the nearest grid point."""
-    outside2 = 0.0
-    fx, fy, fz = (x - origin[0]) / size, (y - origin[1]) / size, (z - origin[2]) / size
     tx, ty, tz = dims[0] - 1, dims[1] - 1, dims[2] - 1
-    if fx < 0.0:
-        outside2 += (fx * size) ** 2
-        fx = 0.0
-    elif fx > tx:
-        outside2 += ((fx - tx) * size) ** 2
-        fx = float(tx)
-    if fy < 0.0:
-        outside2 += (fy * size) ** 2
-        fy = 0.0
-    elif fy > ty:
-        outside2 += ((fy - ty) * size) ** 2
-        fy = float(ty)
-    if fz < 0.0:
-        outside2 += (fz * size) ** 2
-        fz = 0.0
-    elif fz > tz:
-        outside2 += ((fz - tz) * size) ** 2
-        fz = float(tz)
+    fx, ox = _onto_grid((x - origin[0]) / size, tx)
+    fy, oy = _onto_grid((y - origin[1]) / size, ty)
+    fz, oz = _onto_grid((z - origin[2]) / size, tz)
+    outside2 = (ox * ox + oy * oy + oz * oz) * size * size
     i0 = min(int(fx), tx - 1)
     j0 = min(int(fy), ty - 1)
     k0 = min(int(fz), tz - 1)
