@@ -61,16 +61,21 @@ def print_summary(eq: Any, seconds: float, console: Console | None = None) -> No
     console.print(table)
     moment, at = eq.max_moment()
     console.print(f"max |M| = {_fmt(moment, 'N m')} at s = {at:.4g} m")
-    radius, at = eq.min_bend_radius()
-    line = f"smallest bend radius = {_fmt(radius, 'm')} at s = {at:.4g} m"
-    allowed = problem.part.min_bend_radius
-    if allowed is not None:
-        verdict = "[red]below[/red]" if radius < allowed else "above"
-        line += f" ({verdict} the part's minimum {allowed:g} m)"
-    console.print(line)
+    console.print(_bend_radius_line(eq))
     console.print(f"elastic energy = {_fmt(eq.energy, 'J')}")
     for note in eq.notes:
         console.print(f"note: {note}")
+
+
+def _bend_radius_line(eq: Any) -> str:
+    """The smallest bend radius, where, and against the part's minimum."""
+    radius, at = eq.min_bend_radius()
+    line = f"smallest bend radius = {_fmt(radius, 'm')} at s = {at:.4g} m"
+    allowed = eq.problem.part.min_bend_radius
+    if allowed is not None:
+        verdict = "[red]below[/red]" if radius < allowed else "above"
+        line += f" ({verdict} the part's minimum {allowed:g} m)"
+    return line
 
 
 def _vec(v) -> str:
@@ -97,13 +102,7 @@ def _summary_3d(eq: Any, seconds: float, console: Console) -> None:
     moment, at = eq.max_moment()
     console.print(f"max |M| = {_fmt(moment, 'N m')} at s = {at:.4g} m; max |torque| = "
                   f"{_fmt(float(abs(eq.torque).max()), 'N m')}")
-    radius, at = eq.min_bend_radius()
-    line = f"smallest bend radius = {_fmt(radius, 'm')} at s = {at:.4g} m"
-    allowed = problem.part.min_bend_radius
-    if allowed is not None:
-        verdict = "[red]below[/red]" if radius < allowed else "above"
-        line += f" ({verdict} the part's minimum {allowed:g} m)"
-    console.print(line)
+    console.print(_bend_radius_line(eq))
     print_contacts(eq, console)
     stable, eigen = eq.stability
     if stable is None:
