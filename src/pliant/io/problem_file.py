@@ -292,10 +292,9 @@ class AssembledModel(_Strict):
         path = _referenced(self.file, base, "problem")
         try:
             text = path.read_text(encoding="utf-8")
-            model = ProblemFile.model_validate(tomllib.loads(text))
-            problem = model.build(path.parent, nested=True)
-        except (tomllib.TOMLDecodeError, ValidationError, PliantError) as err:
-            raise ValueError(f"file: {str(path)!r}: {err}") from None
+            problem = parse_scene(text, str(path), path.parent, nested=True).problem
+        except (OSError, PliantError) as err:
+            raise ValueError(f"file: {err}") from None
         if problem.dimension != 3:
             raise ValueError(f"file: {str(path)!r} is a 2D problem; an assembled part is 3D")
         try:
@@ -514,9 +513,11 @@ def parse_problem_file(text: str, source: str = "<string>") -> tuple[Problem, So
     return scene.problem, scene.solver
 
 
-def parse_scene(text: str, source: str = "<string>", base: Path | None = None) -> Scene:
+def parse_scene(text: str, source: str = "<string>", base: Path | None = None,
+                nested: bool = False) -> Scene:
     """Parse TOML text into a ``Scene``; mesh files are looked up relative to ``base``
-    (the file's folder)."""
+    (the file's folder); ``nested`` (an assembled part's own file) skips its
+    [[assembled]] parts."""
     try:
         data = tomllib.loads(text)
     except tomllib.TOMLDecodeError as err:
@@ -534,7 +535,7 @@ def parse_scene(text: str, source: str = "<string>", base: Path | None = None) -
         more = f" (and {len(err.errors()) - 1} more)" if len(err.errors()) > 1 else ""
         raise FileFormatError(f"{source}: {where}: {message}{more}") from None
     try:
-        problem = model.build(base)
+        problem = model.build(base, nested)
         return Scene(problem, model.solver, model.manipulation(problem), model.margin,
                      {p.name: p for p in model.port},
                      model.path.grip if model.path is not None else None)
