@@ -495,4 +495,4 @@ def lower(problem: Problem, elements: int = 100) -> Rod:
                n=n, kl=width, ku=width, m=m, target=target, key=key, rest_k0=rest_k0,
                node_frame=node_frame, requested=elements, probe_elem=probe_elem,
                probe_a=probe_a, iprobe=iprobe, obstacles=obstacles,
-               radius=0.5 * (part.outer_diameter or 0.0))
+               radius=radius)
