@@ -151,6 +151,36 @@ def demo(
     _run_scene(scene, out, None)
 
 
+@app.command()
+def view(
+    scene: Annotated[Path | None, typer.Argument(help="a scene or problem file (TOML); "
+                                                     "default: the bundled engine bay")]
+    = None,
+    port: Annotated[int, typer.Option(help="the port to listen on (0: any free one)")] = 8765,
+    host: Annotated[str, typer.Option(help="the address to listen on; 127.0.0.1 keeps it to "
+                                           "this machine (0.0.0.0: every interface, only "
+                                           "when you mean it)")] = "127.0.0.1",
+    elements: Annotated[int | None, typer.Option(help="3D: about how many elements "
+                                                      "(default: the file's \\[solver])")]
+    = None,
+) -> None:
+    """The interactive environment in the browser: drag the part's grips (mouse or VR
+    controllers), see its shape, the force and moment each hand must apply, what it
+    touches and how close it passes. Each browser tab gets its own session."""
+    from pliant.viewer.server import Server  # noqa: PLC0415
+    from pliant.viewer.state import ViewerState  # noqa: PLC0415
+
+    scene = scene or EXAMPLES / "scenes" / "engine_bay.toml"
+    server = Server(scene, host=host, port=port, elements=elements)
+    typer.echo(f"checking {scene.name} and loading the solvers…")
+    ViewerState(server.scene, server.root, live=False, elements=elements).close()
+    if host not in ("127.0.0.1", "localhost", "::1"):
+        typer.echo(f"warning: listening on {host}: other machines can reach this server",
+                   err=True)
+    server.run(on_ready=lambda url: typer.echo(f"pliant view: open {url} in a browser "
+                                               "(Ctrl+C stops)"))
+
+
 def main() -> None:
     """Entry point: run the app, turning pliant's errors into one-line messages."""
     try:

@@ -485,7 +485,8 @@ def _slerp(a: np.ndarray, b: np.ndarray, t: float) -> np.ndarray:
 class Scene:
     """A whole file as built: the problem (with its obstacles), the solver settings,
     the manipulation along its [path] (empty without one) and the condition it carries
-    (``grip``, None without a path), and the clearance margin."""
+    (``grip``, None without a path), the clearance margin, and ``fixed``: the conditions
+    a user does not move (at ports, and clips)."""
 
     problem: Problem
     solver: SolverModel
@@ -493,6 +494,7 @@ class Scene:
     margin: float = 0.0
     ports: dict[str, PortModel] = field(default_factory=dict)
     grip: str | None = None
+    fixed: tuple[str, ...] = ()
 
 
 def _where(loc: tuple[Any, ...]) -> str:
@@ -538,7 +540,9 @@ def parse_scene(text: str, source: str = "<string>", base: Path | None = None,
         problem = model.build(base, nested)
         return Scene(problem, model.solver, model.manipulation(problem), model.margin,
                      {p.name: p for p in model.port},
-                     model.path.grip if model.path is not None else None)
+                     model.path.grip if model.path is not None else None,
+                     tuple(c.name or f"condition{i + 1}" for i, c in enumerate(model.condition)
+                           if c.port is not None) + tuple(c.name for c in model.clip))
     except PliantError as err:
         raise FileFormatError(f"{source}: {err}") from None
 

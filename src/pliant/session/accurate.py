@@ -29,9 +29,12 @@ class AccurateResult:
     index : the event whose pose it answers; problem : that pose; s (N,) [m] and
     position (N, 2 or 3) [m] along the part; loads : by condition name, the real force
     [N] and moment [N m] each applies to the part (reactions where prescribed);
-    residual, iterations, notes, stable, smallest_eigenvalue [N m] (3D, conservative
-    loads), solve_seconds; error : why there is no equilibrium (then the arrays are
-    empty and the session keeps the last good one).
+    curvature (N,) [1/m] and bending_moment (N,) [N m] (its magnitude; twist excluded)
+    along s; contacts : where obstacles push the part (3D; ``Contacts``);
+    min_bend_radius : (radius [m], s [m]); residual, iterations, notes, stable,
+    smallest_eigenvalue [N m] (3D, conservative loads), solve_seconds; error : why there
+    is no equilibrium (then the arrays are empty and the session keeps the last good
+    one).
     """
 
     index: int
@@ -46,6 +49,10 @@ class AccurateResult:
     smallest_eigenvalue: float | None = None
     solve_seconds: float = 0.0
     error: str | None = None
+    curvature: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    bending_moment: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    contacts: Any = None
+    min_bend_radius: tuple[float, float] = (math.inf, 0.0)
 
     @property
     def ok(self) -> bool:
@@ -94,7 +101,20 @@ class AccurateSolver:
                               residual=float(eq.residual), iterations=int(eq.iterations),
                               notes=tuple(eq.notes), stable=stable,
                               smallest_eigenvalue=smallest,
-                              solve_seconds=time.perf_counter() - start)
+                              solve_seconds=time.perf_counter() - start,
+                              curvature=np.abs(np.asarray(eq.curvature, float)),
+                              bending_moment=_bending_moment(eq),
+                              contacts=getattr(eq, "contacts", None),
+                              min_bend_radius=eq.min_bend_radius())
+
+
+def _bending_moment(eq) -> np.ndarray:
+    """|M| along s [N m], the twist left out in 3D (what bends the part)."""
+    if eq.problem.dimension == 2:
+        return np.abs(np.asarray(eq.bending_moment, float))
+    m = np.asarray(eq.internal_moment, float)
+    t = np.asarray(eq.tangent, float)
+    return np.linalg.norm(m - np.einsum("ij,ij->i", m, t)[:, None] * t, axis=1)
 
 
 class InlineExecutor:

@@ -128,6 +128,33 @@ class Session:
         self.events.append(stamped)
         return self._frame(start)
 
+    def replace(self, problem: Problem) -> Frame:
+        """Change what the conditions prescribe (a grip switched between holding by
+        position and pushing with a force, a force edited): the network is rebuilt for
+        the new grips, fitted to the last accurate shape, and an accurate solve of the
+        new problem is asked for. The part and the condition names must stay."""
+        if problem.dimension != self.problem.dimension or problem.part != self.problem.part:
+            raise InputError("problem", "a session keeps its part and dimension; start a new "
+                             "session for another part")
+        names = sorted(c.name for c in problem.conditions)
+        if names != sorted(c.name for c in self.problem.conditions):
+            raise InputError("problem", "a session keeps its conditions' names: "
+                             + ", ".join(repr(c.name) for c in self.problem.conditions))
+        start = time.perf_counter()
+        self.problem = problem
+        self.model = RealtimeModel(problem, control_points=self.control_points,
+                                   bending=self.bending)
+        if self.accurate is not None:
+            self.model.retune(dataclasses.replace(self.accurate, problem=problem))
+        self._requested = True
+        self.index += 1
+        return self._frame(start)
+
+    @property
+    def pending(self) -> bool:
+        """An accurate solve is running (its answer comes with a later frame)."""
+        return self._executor.busy
+
     def request_accurate(self) -> None:
         """Ask for an accurate solve at the next event (or ``poll``), drift or not."""
         self._requested = True

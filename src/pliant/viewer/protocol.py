@@ -1,0 +1,270 @@
+"""The browser environment's wire protocol, defined once (version ``VERSION``).
+
+Every message is one JSON object on the websocket with ``v`` (the protocol version) and
+``type``. The browser sends the ``Client*`` messages; the server answers with the
+``Server*`` ones. SI units throughout: positions in m, forces in N, moments in N m,
+curvature in 1/m. Sizes are bounded: a message longer than ``MAX_MESSAGE`` bytes, or not
+valid JSON, or not one of these messages, gets an ``error`` reply naming what is wrong,
+and the connection stays open (the websocket layer itself closes a connection whose
+message passes ``MAX_FRAME``, and the server goes on serving the others).
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from typing import Annotated, Any, Literal
+
+from pydantic import BaseModel, ConfigDict, Field, TypeAdapter, ValidationError
+
+VERSION = 1
+MAX_MESSAGE = 64 * 1024  # bytes: the largest client message parsed
+MAX_FRAME = 1024 * 1024  # bytes: the websocket layer closes a connection past this
+NAME = r"^[A-Za-z0-9][A-Za-z0-9 _.-]{0,63}$"  # a session file's name (in the scene folder)
+
+Finite = Annotated[float, Field(allow_inf_nan=False)]
+Vec3 = tuple[Finite, Finite, Finite]
+
+
+class _Message(BaseModel):
+    model_config = ConfigDict(extra="forbid", frozen=True)
+    v: Literal[1] = VERSION
+
+
+# -- browser -> server -----------------------------------------------------------------------
+class ClientHello(_Message):
+    """Ask for the scene (obstacles, part, grips) and the current frame."""
+
+    type: Literal["hello"]
+
+
+class ClientMove(_Message):
+    """Move a grip held by position: its point [m] and, for a 3D grip that holds the
+    part's direction, its unit tangent. ``seq`` is echoed in the frame that answers."""
+
+    type: Literal["move"]
+    grip: str = Field(max_length=64)
+    position: Vec3
+    tangent: Vec3 | None = None
+    seq: int = Field(default=0, ge=0)
+
+
+class ClientMode(_Message):
+    """Switch a grip between holding by position (``position``) and pushing with a force
+    (``force``: the force [N] and, in 3D, moment [N m] it applies to the part; both
+    default to what it applies now, so the shape does not jump)."""
+
+    type: Literal["mode"]
+    grip: str = Field(max_length=64)
+    mode: Literal["position", "force"]
+    force: Vec3 | None = None
+    moment: Vec3 | None = None
+
+
+class ClientSolve(_Message):
+    """Run an accurate solve at the current pose now."""
+
+    type: Literal["solve"]
+
+
+class ClientSave(_Message):
+    """Save the session (the scene's name and every grip's pose and mode) to ``name``
+    (a plain file name, ``.json`` added) in the scene's folder, written atomically."""
+
+    type: Literal["save"]
+    name: str = Field(pattern=NAME)
+
+
+class ClientLoad(_Message):
+    """Load a session saved in the scene's folder."""
+
+    type: Literal["load"]
+    name: str = Field(pattern=NAME)
+
+
+ClientMessage = Annotated[ClientHello | ClientMove | ClientMode | ClientSolve | ClientSave
+                          | ClientLoad, Field(discriminator="type")]
+_CLIENT = TypeAdapter(ClientMessage)
+
+
+# -- server -> browser -----------------------------------------------------------------------
+class Grip(BaseModel):
+    """A condition the user can act on: where it is, what it holds, how it is driven."""
+
+    name: str
+    s: float
+    position: list[float]
+    tangent: list[float] | None
+    mode: Literal["position", "force", "fixed"]
+    force: list[float] | None = None
+    moment: list[float] | None = None
+
+
+class Load(BaseModel):
+    """What a condition applies to the part: force [N], moment [N m] (3 components; a 2D
+    moment is its z), at the point ``position`` [m]."""
+
+    name: str
+    position: list[float]
+    force: list[float]
+    moment: list[float]
+    prescribed: list[bool]
+
+
+class Span(BaseModel):
+    obstacle: str
+    s_start: float
+    s_end: float
+    worst: float
+
+
+class Clearance(BaseModel):
+    obstacle: str
+    clearance: float
+    s: float
+    point: list[float]
+
+
+class Interference(BaseModel):
+    """Of a shape against the scene: the smallest clearance [m] per obstacle, spans that
+    penetrate (worst: depth [m], negative) and spans nearer than the margin."""
+
+    margin: float
+    clearances: list[Clearance]
+    penetrations: list[Span]
+    too_close: list[Span]
+
+
+class Contact(BaseModel):
+    s: float
+    point: list[float]
+    force: list[float]
+    obstacle: str
+
+
+class ObstacleMesh(BaseModel):
+    name: str
+    vertices: list[list[float]]
+    faces: list[list[int]]
+
+
+class ServerFrame(_Message):
+    """The real-time model's frame (answers a move at once): the curve [m] at s [m],
+    its curvature [1/m], the points held out of obstacles, the interference of the tube,
+    and the drift from the last accurate shape (relative to L)."""
+
+    type: Literal["frame"] = "frame"
+    seq: int
+    index: int
+    s: list[float]
+    curve: list[list[float]]
+    curvature: list[float]
+    contacts: list[list[float]]
+    interference: Interference
+    converged: bool
+    drift: float
+    pending: bool
+    seconds: float
+
+
+class ServerAccurate(_Message):
+    """An accurate equilibrium (real forces): the shape, curvature and bending moment
+    along s, what each condition applies (``loads``; for a grip held by position this is
+    the force and moment the hand must give), contacts, interference, the tightest bend,
+    the warnings a user must see and the solver's notes (how it got there). ``error`` when there is none (the last good one
+    stays shown)."""
+
+    type: Literal["accurate"] = "accurate"
+    index: int
+    ok: bool
+    error: str | None = None
+    s: list[float] = []
+    position: list[list[float]] = []
+    curvature: list[float] = []
+    bending_moment: list[float] = []
+    loads: list[Load] = []
+    contacts: list[Contact] = []
+    interference: Interference | None = None
+    min_bend_radius: float | None = None
+    min_bend_radius_s: float | None = None
+    allowed_bend_radius: float | None = None
+    stable: bool | None = None
+    residual: float | None = None
+    iterations: int = 0
+    solve_seconds: float = 0.0
+    warnings: list[str] = []
+    notes: list[str] = []
+
+
+class ServerScene(_Message):
+    """The scene: its name, the part (length, radius [m]), the obstacles as triangle
+    meshes [m], the grips, the dimension (2D scenes lie in z = 0)."""
+
+    type: Literal["scene"] = "scene"
+    name: str
+    file: str
+    dimension: int
+    part: dict[str, Any]
+    obstacles: list[ObstacleMesh]
+    grips: list[Grip]
+    margin: float
+
+
+class ServerSaved(_Message):
+    type: Literal["saved"] = "saved"
+    name: str
+
+
+class ServerError(_Message):
+    """What was wrong with the last message (or the solve it asked for); the session goes
+    on."""
+
+    type: Literal["error"] = "error"
+    message: str
+    field: str | None = None
+
+
+class ProtocolError(Exception):
+    """A message the server cannot take: ``field`` names where, the text says why."""
+
+    def __init__(self, message: str, field: str | None = None) -> None:
+        super().__init__(message)
+        self.field = field
+
+
+def parse(raw: str | bytes) -> ClientHello | ClientMove | ClientMode | ClientSolve \
+        | ClientSave | ClientLoad:
+    """A client message from its wire text, or ``ProtocolError`` saying what is wrong."""
+    size = len(raw.encode() if isinstance(raw, str) else raw)
+    if size > MAX_MESSAGE:
+        raise ProtocolError(f"message of {size} bytes; the limit is {MAX_MESSAGE}", "message")
+    try:
+        data = json.loads(raw)
+    except (ValueError, UnicodeDecodeError) as err:
+        raise ProtocolError(f"not JSON: {err}", "message") from None
+    if not isinstance(data, dict):
+        raise ProtocolError("a message is a JSON object with 'v' and 'type'", "message")
+    if data.get("v") != VERSION:
+        raise ProtocolError(f"protocol version {data.get('v')!r}; this server speaks "
+                            f"{VERSION}", "v")
+    try:
+        return _CLIENT.validate_python(data)
+    except ValidationError as err:
+        first = err.errors()[0]
+        where = ".".join(str(p) for p in first["loc"]) or "message"
+        raise ProtocolError(f"{where}: {first['msg']}", where) from None
+
+
+def dump(message: _Message) -> str:
+    """The wire text of a server message (non-finite numbers as null: JSON has none)."""
+    return json.dumps(_finite(message.model_dump()), separators=(",", ":"))
+
+
+def _finite(value):
+    if isinstance(value, float):
+        return value if math.isfinite(value) else None
+    if isinstance(value, dict):
+        return {k: _finite(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [_finite(v) for v in value]
+    return value

@@ -1,0 +1,225 @@
+"""``pliant view``'s server: the page and its libraries over HTTP, one coupled session per
+websocket connection (each browser tab its own), on loopback unless told otherwise.
+
+Files served: the page (``static/``, part of the package) and three.js and the WebXR
+emulator from the npm packages the set-up installed (``web/node_modules``); every other
+path is refused. The scene, its meshes and saved sessions are read from the scene's folder
+only (``state.inside``). A cross-site page cannot drive a session: the websocket's Origin
+must be the server's own address.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import logging
+import mimetypes
+import os
+import threading
+from pathlib import Path
+from urllib.parse import unquote, urlsplit
+
+from pliant.errors import InputError, PliantError
+from pliant.viewer import protocol as P
+from pliant.viewer.protocol import ProtocolError
+
+STATIC = Path(__file__).with_name("static")
+VENDOR = {"three": "three", "iwer": "iwer"}  # URL prefix under /vendor/ -> npm package
+log = logging.getLogger("pliant.viewer")
+
+
+def node_modules() -> Path:
+    """Where the set-up installed the page's npm packages (``PLIANT_WEB_MODULES`` to
+    override; by default the repository's ``web/node_modules``)."""
+    env = os.environ.get("PLIANT_WEB_MODULES")
+    path = Path(env) if env else Path(__file__).resolve().parents[3] / "web" / "node_modules"
+    if not (path / "three" / "build" / "three.module.js").is_file():
+        raise PliantError(f"three.js is not installed in {path}: run `npm ci --prefix web` "
+                          "in the repository (the README's first command does)")
+    return path
+
+
+class Server:
+    """Serves ``scene`` (a file inside ``root``, its folder by default) on ``host:port``
+    (port 0: any free one). ``live``: accurate solves in worker processes (else inline,
+    deterministic); ``elements``: the 3D resolution (default: the scene's)."""
+
+    def __init__(self, scene: Path, *, host: str = "127.0.0.1", port: int = 8765,
+                 root: Path | None = None, live: bool = True,
+                 elements: int | None = None) -> None:
+        scene = Path(scene).resolve()
+        if not scene.is_file():
+            raise InputError("scene", f"{scene} is not a file; give a scene file (TOML)")
+        self.root = (root or scene.parent).resolve()
+        self.scene = scene.relative_to(self.root)
+        self.host, self.port = host, port
+        self.live, self.elements = live, elements
+        self.modules = node_modules()
+        self.connections = 0
+        self._server = None
+        self._loop: asyncio.AbstractEventLoop | None = None
+        self._thread: threading.Thread | None = None
+
+    @property
+    def url(self) -> str:
+        host = f"[{self.host}]" if ":" in self.host else self.host
+        return f"http://{host}:{self.port}/"
+
+    # -- HTTP ------------------------------------------------------------------------------
+    def _file(self, path: str) -> Path | None:
+        """The file a GET path names, or None (not ours, or outside its folder)."""
+        path = unquote(urlsplit(path).path)
+        if path in ("/", "/index.html"):
+            return STATIC / "index.html"
+        parts = path.lstrip("/").split("/", 2)
+        if len(parts) == 2 and parts[0] == "static":
+            base, rest = STATIC, parts[1]
+        elif len(parts) == 3 and parts[0] == "vendor" and parts[1] in VENDOR:
+            base, rest = self.modules / VENDOR[parts[1]], parts[2]
+        else:
+            return None
+        base = base.resolve()
+        target = (base / rest).resolve()
+        if not target.is_relative_to(base) or not target.is_file():
+            return None
+        return target
+
+    def _process_request(self, connection, request):
+        from websockets.datastructures import Headers  # noqa: PLC0415
+        from websockets.http11 import Response  # noqa: PLC0415
+
+        if urlsplit(request.path).path == "/ws":
+            origin = request.headers.get("Origin")
+            if origin is not None and urlsplit(origin).netloc != request.headers.get("Host"):
+                return connection.respond(403, "cross-origin websocket refused\n")
+            return None
+        target = self._file(request.path)
+        if target is None:
+            return connection.respond(404, "not found\n")
+        body = target.read_bytes()
+        kind = mimetypes.guess_type(target.name)[0] or "application/octet-stream"
+        if target.suffix == ".js":
+            kind = "text/javascript"
+        headers = Headers([("Content-Type", kind), ("Content-Length", str(len(body))),
+                           ("Cache-Control", "no-cache"),
+                           ("X-Content-Type-Options", "nosniff")])
+        return Response(200, "OK", headers, body)
+
+    # -- websocket -------------------------------------------------------------------------
+    async def _handle(self, ws) -> None:
+        from websockets.exceptions import ConnectionClosed  # noqa: PLC0415
+
+        from pliant.viewer.state import ViewerState  # noqa: PLC0415
+
+        self.connections += 1
+        try:
+            state = await asyncio.to_thread(ViewerState, self.scene, self.root,
+                                            live=self.live, elements=self.elements)
+        except PliantError as err:
+            await ws.send(P.dump(P.ServerError(message=f"the scene cannot be opened: {err}")))
+            await ws.close()
+            return
+        lock = asyncio.Lock()
+
+        async def pump() -> None:  # accurate results, as they arrive
+            while True:
+                await asyncio.sleep(0.03)
+                async with lock:
+                    messages = state.take_accurate() if state.session.pending else []
+                for message in messages:
+                    await ws.send(P.dump(message))
+
+        task = asyncio.create_task(pump())
+        try:
+            async for raw in ws:
+                async with lock:
+                    replies = await self._reply(state, raw)
+                for reply in replies:
+                    await ws.send(reply)
+        except ConnectionClosed:
+            pass
+        finally:
+            task.cancel()
+            await asyncio.to_thread(state.close)
+
+    async def _reply(self, state, raw) -> list[str]:
+        try:
+            message = P.parse(raw)
+            if isinstance(message, P.ClientMove):  # at display rate: a millisecond or two
+                replies = state.handle(message)
+            else:
+                replies = await asyncio.to_thread(state.handle, message)
+            return [P.dump(r) for r in replies]
+        except ProtocolError as err:
+            return [P.dump(P.ServerError(message=str(err), field=err.field))]
+        except PliantError as err:
+            return [P.dump(P.ServerError(message=str(err),
+                                         field=getattr(err, "field", None)))]
+        except Exception as err:  # noqa: BLE001 (one bad message must not end the server)
+            log.exception("internal error on a message")
+            return [P.dump(P.ServerError(message=f"internal error: {err!r}"))]
+
+    # -- running ---------------------------------------------------------------------------
+    async def _start(self) -> None:
+        from websockets.asyncio.server import serve  # noqa: PLC0415
+
+        self._server = await serve(self._handle, self.host, self.port,
+                                   process_request=self._process_request,
+                                   max_size=P.MAX_FRAME, max_queue=64)
+        self.port = self._server.sockets[0].getsockname()[1]
+
+    def run(self, on_ready=None) -> None:
+        """Serve until interrupted (Ctrl+C); ``on_ready(url)`` once listening."""
+        async def main() -> None:
+            await self._start()
+            if on_ready is not None:
+                on_ready(self.url)
+            await self._server.serve_forever()
+
+        try:
+            asyncio.run(main())
+        except OSError as err:
+            raise PliantError(f"cannot listen on {self.host}:{self.port}: {err.strerror}; "
+                              "choose another --port") from None
+
+    def start(self) -> Server:
+        """Serve from a background thread (tests, notebooks); returns once listening."""
+        ready = threading.Event()
+        failure: list[BaseException] = []
+
+        def main() -> None:
+            self._loop = asyncio.new_event_loop()
+            try:
+                self._loop.run_until_complete(self._start())
+            except BaseException as err:  # noqa: BLE001 (handed to the caller)
+                failure.append(err)
+                ready.set()
+                return
+            ready.set()
+            self._loop.run_forever()
+
+        self._thread = threading.Thread(target=main, daemon=True, name="pliant-view")
+        self._thread.start()
+        ready.wait()
+        if failure:
+            raise failure[0]
+        return self
+
+    def stop(self) -> None:
+        """Close every connection (and its sessions' workers) and stop serving."""
+        if self._loop is None or self._server is None:
+            return
+
+        async def shut() -> None:
+            self._server.close()
+            await self._server.wait_closed()
+
+        asyncio.run_coroutine_threadsafe(shut(), self._loop).result(timeout=30)
+        self._loop.call_soon_threadsafe(self._loop.stop)
+        if self._thread is not None:
+            self._thread.join(timeout=10)
+
+    def __enter__(self) -> Server:
+        return self.start()
+
+    def __exit__(self, *exc) -> None:
+        self.stop()

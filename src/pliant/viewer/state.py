@@ -1,0 +1,419 @@
+"""One browser tab's session: a scene, its grips and a coupled ``Session``, turned into the
+protocol's messages. The server gives each connection its own ``ViewerState``; nothing
+here knows about sockets, so it is tested directly.
+
+Files: the scene, the meshes it names and the saved sessions are all read from the scene's
+folder (``root``) and nowhere else; a name that resolves outside it is refused.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from pathlib import Path
+
+import numpy as np
+from pydantic import BaseModel, ConfigDict, ValidationError
+
+from pliant.core.conditions import Condition
+from pliant.errors import PliantError
+from pliant.viewer import protocol as P
+from pliant.viewer.protocol import ProtocolError
+
+
+class SessionFile(BaseModel):
+    """A saved session: the scene file (by name, in the same folder) and every grip."""
+
+    model_config = ConfigDict(extra="forbid")
+    v: int = P.VERSION
+    scene: str
+    grips: list[P.Grip]
+
+
+def inside(root: Path, name: str, what: str) -> Path:
+    """``root / name`` resolved, or a ``ProtocolError`` when it leaves ``root``."""
+    path = (root / name).resolve()
+    if not path.is_relative_to(root):
+        raise ProtocolError(f"{what} {name!r} is outside the scene's folder {root}; the "
+                            "server reads and writes only there", what)
+    return path
+
+
+class ViewerState:
+    """The scene at ``scene_path`` (inside ``root``) in one coupled session.
+
+    live : the accurate model runs in a worker process (the server); inline otherwise
+    (tests: deterministic). ``elements`` overrides the scene's resolution.
+    """
+
+    def __init__(self, scene_path: Path, root: Path, *, live: bool = True,
+                 elements: int | None = None) -> None:
+        self.root = root.resolve()
+        self.live = live
+        self.elements = elements
+        self.session = None
+        self._open(inside(self.root, str(scene_path), "scene"))
+
+    # -- opening a scene -------------------------------------------------------------------
+    def _open(self, path: Path) -> None:
+        from pliant.io.problem_file import load_scene  # noqa: PLC0415
+        from pliant.session import Session  # noqa: PLC0415
+
+        scene = load_scene(path)
+        problem = scene.problem
+        session = Session(problem, live=self.live,
+                          elements=self.elements or scene.solver.elements)
+        if self.session is not None:
+            self.session.close()
+        self.session, self.scene, self.path = session, scene, path
+        self.original = {c.name: c for c in problem.conditions}
+        self.modes = {c.name: _mode(c, scene.fixed) for c in problem.conditions}
+        self.radius = (0.5 * problem.part.outer_diameter if problem.part.outer_diameter
+                       else 0.01 * problem.part.length)
+        self._published = len(session.solves)
+        self._meshes: list[P.ObstacleMesh] | None = None
+
+    def close(self) -> None:
+        if self.session is not None:
+            self.session.close()
+
+    @property
+    def dimension(self) -> int:
+        return self.session.problem.dimension
+
+    # -- messages in -----------------------------------------------------------------------
+    def handle(self, message) -> list[P._Message]:
+        """The replies to one parsed client message (``ProtocolError`` or ``PliantError``
+        when it cannot be done: the caller replies with an error and goes on)."""
+        if isinstance(message, P.ClientHello):
+            return [self.scene_message(), self.accurate_message(), self.poll_frame(0)]
+        if isinstance(message, P.ClientMove):
+            return [self.move(message)]
+        if isinstance(message, P.ClientMode):
+            return [self.switch(message), self.scene_message()]
+        if isinstance(message, P.ClientSolve):
+            self.session.request_accurate()
+            return [self.poll_frame(0)]
+        if isinstance(message, P.ClientSave):
+            return [self.save(message.name)]
+        if isinstance(message, P.ClientLoad):
+            self.load(message.name)
+            return [self.scene_message(), self.accurate_message(), self.poll_frame(0)]
+        raise ProtocolError(f"unknown message {type(message).__name__}", "type")
+
+    def move(self, message: P.ClientMove) -> P.ServerFrame:
+        from pliant.session import GripEvent  # noqa: PLC0415
+
+        mode = self.modes.get(message.grip)
+        if mode is None:
+            raise ProtocolError(f"no grip is named {message.grip!r}; the grips are "
+                                + ", ".join(repr(n) for n, m in self.modes.items()
+                                            if m != "fixed"), "grip")
+        if mode != "position":
+            raise ProtocolError(f"{message.grip!r} is {'fixed' if mode == 'fixed' else 'pushed by a force'}"
+                                "; only a grip held by position is moved", "grip")
+        cond = self._condition(message.grip)
+        if self.dimension == 2:
+            angle = None
+            if cond.angle is not None and message.tangent is not None:
+                angle = math.atan2(message.tangent[1], message.tangent[0])
+            event = GripEvent(message.grip, position=tuple(message.position[:2]), angle=angle)
+        else:
+            tangent = message.tangent if cond.tangent is not None else None
+            if tangent is not None and not np.linalg.norm(tangent) > 1e-9:
+                raise ProtocolError("the tangent must be a non-zero direction", "tangent")
+            event = GripEvent(message.grip, position=tuple(message.position),
+                              tangent=tangent)
+        return self._frame_message(self.session.apply(event), message.seq)
+
+    def switch(self, message: P.ClientMode) -> P.ServerFrame:
+        """Hold a grip by position or push with a force (see ``ClientMode``)."""
+        name = message.grip
+        if self.modes.get(name) in (None, "fixed"):
+            raise ProtocolError(f"{name!r} is not a grip the user drives", "grip")
+        cond = self._condition(name)
+        d = self.dimension
+        last = self.session.accurate
+        if message.mode == "force":
+            load = last.loads.get(name) if last is not None else None
+            force = (message.force if message.force is not None
+                     else (tuple(load.force[:d]) if load is not None else (0.0,) * d))
+            moment = None
+            if d == 3:
+                if message.moment is not None:
+                    moment = tuple(message.moment)
+                elif load is not None:
+                    moment = tuple(float(m) for m in np.atleast_1d(load.moment)[:3])
+            else:
+                if message.moment is not None:
+                    moment = float(message.moment[2])
+                elif load is not None and cond.angle is not None:
+                    moment = float(np.atleast_1d(load.moment)[0])
+            new = Condition(s=cond.s, name=name, force=tuple(force[:d]), moment=moment)
+        else:
+            if last is None or not last.ok:
+                raise PliantError("no accurate shape to take the grip's pose from; solve first")
+            point, tangent = _at(last.s, last.position, cond.s)
+            orig = self.original[name]
+            if d == 2:
+                held = orig.angle is not None
+                new = Condition(s=cond.s, name=name, position=tuple(point[:2]),
+                                angle=math.atan2(tangent[1], tangent[0]) if held else None)
+            else:
+                new = Condition(s=cond.s, name=name, position=tuple(point),
+                                tangent=tuple(tangent) if orig.tangent is not None else None)
+        problem = self.session.problem.with_conditions(
+            new if c.name == name else c for c in self.session.problem.conditions)
+        frame = self.session.replace(problem)
+        self.modes[name] = message.mode
+        return self._frame_message(frame, 0)
+
+    def poll_frame(self, seq: int) -> P.ServerFrame:
+        return self._frame_message(self.session.poll(), seq)
+
+    def take_accurate(self) -> list[P._Message]:
+        """The accurate results published since the last call, each with a fresh frame
+        (the network was retuned to it); empty when none arrived."""
+        frame = self.session.poll() if self.session.pending else None
+        out: list[P._Message] = []
+        while self._published < len(self.session.solves):
+            result = self.session.solves[self._published]
+            self._published += 1
+            out.append(self._accurate(result))
+        if out and frame is not None:
+            out.append(self._frame_message(frame, 0))
+        return out
+
+    # -- sessions on disk ------------------------------------------------------------------
+    def save(self, name: str) -> P.ServerSaved:
+        from pliant.io.atomic import atomic_write  # noqa: PLC0415
+
+        path = inside(self.root, f"{name}.json", "name")
+        record = SessionFile(scene=str(self.path.relative_to(self.root)), grips=self.grips())
+        text = json.dumps(P._finite(record.model_dump()), indent=1).encode()
+        atomic_write(path, lambda h: h.write(text), "the session")
+        return P.ServerSaved(name=path.name)
+
+    def load(self, name: str) -> None:
+        path = inside(self.root, f"{name}.json", "name")
+        if not path.is_file():
+            raise ProtocolError(f"no saved session {path.name} in {self.root}", "name")
+        try:
+            record = SessionFile.model_validate_json(path.read_bytes())
+        except (ValidationError, OSError) as err:
+            raise ProtocolError(f"{path.name} is not a pliant session: "
+                                f"{str(err).splitlines()[0]}", "name") from None
+        scene = inside(self.root, record.scene, "scene")
+        if scene != self.path:
+            if not scene.is_file():
+                raise ProtocolError(f"the session's scene {record.scene} is not in {self.root}",
+                                    "scene")
+            self._open(scene)
+        conditions = {c.name: c for c in self.session.problem.conditions}
+        for grip in record.grips:
+            if grip.name not in conditions or self.modes.get(grip.name) == "fixed":
+                raise ProtocolError(f"{path.name}: {grip.name!r} is not a grip of this scene",
+                                    "grips")
+            conditions[grip.name] = _condition_from(grip, conditions[grip.name],
+                                                    self.original[grip.name], self.dimension)
+            self.modes[grip.name] = grip.mode
+        problem = self.session.problem.with_conditions(
+            conditions[c.name] for c in self.session.problem.conditions)
+        self.session.replace(problem)
+        if not self.live:
+            self.take_accurate()
+
+    # -- messages out ----------------------------------------------------------------------
+    def grips(self) -> list[P.Grip]:
+        out = []
+        last = self.session.accurate
+        for cond in self.session.problem.conditions:
+            mode = self.modes[cond.name]
+            d = self.dimension
+            if all(v is not None for v in cond.position):
+                position = _pad(cond.position)
+            elif last is not None and last.ok:
+                position = _pad(_at(last.s, last.position, cond.s)[0])
+            else:
+                position = [0.0, 0.0, 0.0]
+            tangent = None
+            if d == 3 and cond.tangent is not None:
+                tangent = list(cond.tangent)
+            elif d == 2 and cond.angle is not None:
+                tangent = [math.cos(cond.angle), math.sin(cond.angle), 0.0]
+            force = moment = None
+            if mode == "force":
+                force = _pad(tuple(v or 0.0 for v in cond.force))
+                m = cond.moment
+                moment = ([0.0, 0.0, float(m or 0.0)] if d == 2 or not isinstance(m, tuple)
+                          else [float(x) for x in m])
+            out.append(P.Grip(name=cond.name, s=cond.s, position=position, tangent=tangent,
+                              mode=mode, force=force, moment=moment))
+        return out
+
+    def scene_message(self) -> P.ServerScene:
+        problem = self.session.problem
+        part = problem.part
+        if self._meshes is None:
+            from pliant.io.mesh_export import obstacle_mesh  # noqa: PLC0415
+
+            self._meshes = []
+            for obstacle in problem.obstacles:
+                mesh = obstacle_mesh(obstacle)
+                self._meshes.append(P.ObstacleMesh(
+                    name=obstacle.name,
+                    vertices=np.round(mesh.vertices, 6).tolist(),
+                    faces=mesh.faces.tolist()))
+        return P.ServerScene(
+            name=problem.name or self.path.stem, file=str(self.path.relative_to(self.root)),
+            dimension=problem.dimension,
+            part={"name": part.name, "length": part.length, "radius": self.radius,
+                  "min_bend_radius": part.min_bend_radius},
+            obstacles=self._meshes, grips=self.grips(), margin=self.scene.margin)
+
+    def accurate_message(self) -> P.ServerAccurate:
+        if self.session.accurate is None:
+            return P.ServerAccurate(index=0, ok=False, error="no accurate solve yet")
+        return self._accurate(self.session.accurate)
+
+    def _accurate(self, result) -> P.ServerAccurate:
+        if not result.ok:
+            return P.ServerAccurate(index=result.index, ok=False, error=result.error,
+                                    solve_seconds=result.solve_seconds)
+        position = _pad3(result.position)
+        loads = []
+        for name, load in result.loads.items():
+            cond = self._condition(name)
+            point = _at(result.s, result.position, cond.s)[0] if cond is not None else None
+            moment = np.atleast_1d(np.asarray(load.moment, float))
+            loads.append(P.Load(name=name, position=_pad(point if point is not None
+                                                         else (0.0, 0.0, 0.0)),
+                                force=_pad(load.force),
+                                moment=([0.0, 0.0, float(moment[0])] if moment.size == 1
+                                        else moment[:3].tolist()),
+                                prescribed=list(load.prescribed)))
+        contacts = []
+        if result.contacts is not None:
+            c = result.contacts
+            contacts = [P.Contact(s=float(c.s[k]), point=c.point[k].tolist(),
+                                  force=c.force[k].tolist(), obstacle=c.obstacle[k])
+                        for k in range(len(c))]
+        interference = self._interference(result.s, position)
+        radius, s_radius = result.min_bend_radius
+        allowed = self.session.problem.part.min_bend_radius
+        warnings = []
+        if allowed and radius < allowed:
+            warnings.append(f"bend radius {radius * 1e3:.1f} mm at s = {s_radius:.3f} m is "
+                            f"below the part's minimum {allowed * 1e3:.1f} mm")
+        if result.stable is False:
+            warnings.append("unstable shape: the part would snap to another one "
+                            f"(smallest stiffness eigenvalue {result.smallest_eigenvalue:.3g})")
+        warnings += _interference_warnings(interference)
+        return P.ServerAccurate(
+            index=result.index, ok=True, s=result.s.tolist(), position=position.tolist(),
+            curvature=result.curvature.tolist(), bending_moment=result.bending_moment.tolist(),
+            loads=loads, contacts=contacts, interference=interference,
+            min_bend_radius=radius, min_bend_radius_s=s_radius, allowed_bend_radius=allowed,
+            stable=result.stable, residual=result.residual, iterations=result.iterations,
+            solve_seconds=result.solve_seconds, warnings=warnings, notes=list(result.notes))
+
+    def _frame_message(self, frame, seq: int) -> P.ServerFrame:
+        rt = frame.realtime
+        curve = np.asarray(rt.curve, float)
+        s = np.asarray(rt.s_curve, float)
+        return P.ServerFrame(
+            seq=seq, index=frame.index, s=s.tolist(), curve=np.round(curve, 7).tolist(),
+            curvature=_curvature(s, curve).tolist(),
+            contacts=_pad3(np.asarray(rt.contact_points, float)).tolist(),
+            interference=self._interference(s, curve), converged=bool(rt.converged),
+            drift=float(frame.drift.distance_to_accurate), pending=bool(frame.pending),
+            seconds=float(frame.seconds))
+
+    def _interference(self, s: np.ndarray, points: np.ndarray) -> P.Interference:
+        obstacles = self.session.problem.obstacles
+        if not obstacles:
+            return P.Interference(margin=self.scene.margin, clearances=[], penetrations=[],
+                                  too_close=[])
+        from pliant.scene.interference import of_curve  # noqa: PLC0415
+
+        report = of_curve(s, points, self.radius, obstacles, margin=self.scene.margin,
+                          tolerance=0.01 * self.radius, subdivide=2)
+        return P.Interference(
+            margin=report.margin,
+            clearances=[P.Clearance(obstacle=c.obstacle, clearance=c.clearance, s=c.s,
+                                    point=list(c.point)) for c in report.clearances],
+            penetrations=[_span(x) for x in report.penetrations],
+            too_close=[_span(x) for x in report.too_close])
+
+    def _condition(self, name: str) -> Condition | None:
+        return next((c for c in self.session.problem.conditions if c.name == name), None)
+
+
+# -- helpers ---------------------------------------------------------------------------------
+def _mode(cond: Condition, fixed: tuple[str, ...]) -> str:
+    if cond.name in fixed or cond.normal is not None:
+        return "fixed"
+    if all(v is not None for v in cond.position):
+        return "position"
+    if any(v is not None for v in cond.force) or cond.moment is not None:
+        return "force"
+    return "fixed"
+
+
+def _condition_from(grip: P.Grip, current: Condition, original: Condition,
+                    d: int) -> Condition:
+    if grip.mode == "force":
+        force = tuple((grip.force or [0.0, 0.0, 0.0])[:d])
+        m = grip.moment or [0.0, 0.0, 0.0]
+        return Condition(s=current.s, name=current.name, force=force,
+                         moment=float(m[2]) if d == 2 else tuple(m))
+    if d == 2:
+        angle = (math.atan2(grip.tangent[1], grip.tangent[0])
+                 if grip.tangent is not None and original.angle is not None else None)
+        return Condition(s=current.s, name=current.name, position=tuple(grip.position[:2]),
+                         angle=angle)
+    return Condition(s=current.s, name=current.name, position=tuple(grip.position),
+                     tangent=tuple(grip.tangent) if grip.tangent is not None
+                     and original.tangent is not None else None)
+
+
+def _pad(v) -> list[float]:
+    v = [float(x) for x in v]
+    return (v + [0.0, 0.0, 0.0])[:3]
+
+
+def _pad3(a: np.ndarray) -> np.ndarray:
+    a = np.asarray(a, float).reshape(-1, a.shape[-1] if a.ndim > 1 else 3)
+    if a.shape[1] == 3:
+        return a
+    return np.column_stack([a, np.zeros((a.shape[0], 3 - a.shape[1]))])
+
+
+def _at(s: np.ndarray, position: np.ndarray, at: float) -> tuple[np.ndarray, np.ndarray]:
+    """The point and unit tangent of a sampled shape at arc length ``at``."""
+    s = np.asarray(s, float)
+    keep = np.concatenate([[True], np.diff(s) > 0.0])
+    s, x = s[keep], np.asarray(position, float)[keep]
+    point = np.array([np.interp(at, s, x[:, c]) for c in range(x.shape[1])])
+    k = int(np.clip(np.searchsorted(s, at) - 1, 0, len(s) - 2))
+    tangent = x[k + 1] - x[k]
+    return point, tangent / max(np.linalg.norm(tangent), 1e-300)
+
+
+def _curvature(s: np.ndarray, curve: np.ndarray) -> np.ndarray:
+    """|r' x r''| / |r'|^3 of a sampled curve [1/m] (second-order differences in s)."""
+    d1 = np.gradient(curve, s, axis=0)
+    d2 = np.gradient(d1, s, axis=0)
+    speed = np.maximum(np.linalg.norm(d1, axis=1), 1e-300)
+    return np.linalg.norm(np.cross(d1, d2), axis=1) / speed ** 3
+
+
+def _span(span) -> P.Span:
+    return P.Span(obstacle=span.obstacle, s_start=span.s_start, s_end=span.s_end,
+                  worst=span.worst)
+
+
+def _interference_warnings(report: P.Interference) -> list[str]:
+    return [f"penetrates {p.obstacle} by {-p.worst * 1e3:.1f} mm over s = "
+            f"{p.s_start:.3f} to {p.s_end:.3f} m" for p in report.penetrations]
+

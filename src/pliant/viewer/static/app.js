@@ -1,0 +1,495 @@
+// pliant's browser environment: the scene, the part as a tube, grips dragged with the mouse
+// (TransformControls) or VR controllers (WebXR), the real-time frame at display rate and
+// accurate results as they arrive. Scene units are metres, z up; the protocol is
+// pliant/viewer/protocol.py (version 1).
+import * as THREE from 'three';
+import { OrbitControls } from 'three/addons/controls/OrbitControls.js';
+import { TransformControls } from 'three/addons/controls/TransformControls.js';
+import { CSS2DRenderer, CSS2DObject } from 'three/addons/renderers/CSS2DRenderer.js';
+import { VRButton } from 'three/addons/webxr/VRButton.js';
+
+const V = 1;
+const params = new URLSearchParams(location.search);
+const $ = (id) => document.getElementById(id);
+
+// A WebXR emulator (iwer) where the page is asked to (?xr=emulate): tests, and desktops
+// without a headset.
+let xrDevice = null;
+if (params.get('xr') === 'emulate') {
+  const { XRDevice, metaQuest3 } = await import('iwer');
+  xrDevice = new XRDevice(metaQuest3);
+  xrDevice.installRuntime();
+}
+
+// -- three.js set-up --------------------------------------------------------------------------
+const container = $('view');
+const renderer = new THREE.WebGLRenderer({ antialias: true, preserveDrawingBuffer: true });
+renderer.setPixelRatio(window.devicePixelRatio);
+renderer.xr.enabled = true;
+container.appendChild(renderer.domElement);
+const labels = new CSS2DRenderer();
+labels.domElement.style.position = 'absolute';
+labels.domElement.style.top = '0';
+labels.domElement.style.pointerEvents = 'none';
+container.appendChild(labels.domElement);
+
+const scene = new THREE.Scene();
+scene.background = new THREE.Color(0xe9edf1);
+scene.add(new THREE.HemisphereLight(0xffffff, 0x667788, 2.0));
+const sun = new THREE.DirectionalLight(0xffffff, 1.5);
+sun.position.set(2, 4, 3);
+scene.add(sun);
+// The scene's frame is z up; three.js's is y up: one group turns it.
+const world = new THREE.Group();
+world.rotation.x = -Math.PI / 2;
+scene.add(world);
+
+const camera = new THREE.PerspectiveCamera(45, 1, 0.01, 100);
+const orbit = new OrbitControls(camera, renderer.domElement);
+orbit.enableDamping = false;
+const gizmo = new TransformControls(camera, renderer.domElement);
+gizmo.setSize(0.8);
+scene.add(gizmo.getHelper());
+gizmo.addEventListener('dragging-changed', (e) => { orbit.enabled = !e.value; });
+
+function resize() {
+  const w = container.clientWidth, h = container.clientHeight;
+  renderer.setSize(w, h);
+  labels.setSize(w, h);
+  camera.aspect = w / h;
+  camera.updateProjectionMatrix();
+}
+window.addEventListener('resize', resize);
+
+// -- state --------------------------------------------------------------------------------------
+const state = {
+  scene: null, frame: null, accurate: null, grips: new Map(), frames: 0, accurates: 0,
+  errors: [], seq: 0, inFlight: false, queued: null, saved: null, sentAt: new Map(),
+  latency: [],
+};
+const obstacleGroup = new THREE.Group(); world.add(obstacleGroup);
+const gripGroup = new THREE.Group(); world.add(gripGroup);
+const arrowGroup = new THREE.Group(); world.add(arrowGroup);
+const contactGroup = new THREE.Group(); world.add(contactGroup);
+let tube = null, ghost = null;
+const tubeMaterial = new THREE.MeshStandardMaterial({ vertexColors: true, roughness: 0.5 });
+
+// -- the websocket ------------------------------------------------------------------------------
+const ws = new WebSocket(`ws://${location.host}/ws`);
+const send = (msg) => ws.send(JSON.stringify({ v: V, ...msg }));
+ws.onopen = () => { $('status').textContent = 'opening the scene…'; send({ type: 'hello' }); };
+ws.onclose = () => { $('status').textContent = 'disconnected from the server'; };
+ws.onmessage = (event) => {
+  const msg = JSON.parse(event.data);
+  if (msg.type === 'scene') onScene(msg);
+  else if (msg.type === 'frame') onFrame(msg);
+  else if (msg.type === 'accurate') onAccurate(msg);
+  else if (msg.type === 'saved') { state.saved = msg.name; note(`saved ${msg.name}`); }
+  else if (msg.type === 'error') {
+    state.errors.push(msg);
+    note(`error${msg.field ? ` (${msg.field})` : ''}: ${msg.message}`, true);
+    state.inFlight = false;
+  }
+};
+function note(text, bad = false) {
+  const el = $('message');
+  el.textContent = text;
+  el.style.color = bad ? '#b00' : '';
+}
+
+// -- the scene ----------------------------------------------------------------------------------
+function onScene(msg) {
+  const first = state.scene === null || state.scene.file !== msg.file;
+  state.scene = msg;
+  $('scene-name').textContent = msg.name;
+  if (first) {
+    obstacleGroup.clear();
+    const material = new THREE.MeshStandardMaterial({
+      color: 0x9aa3ad, roughness: 0.8, metalness: 0.1, transparent: true, opacity: 0.85,
+    });
+    for (const ob of msg.obstacles) {
+      const geometry = new THREE.BufferGeometry();
+      geometry.setAttribute('position', new THREE.Float32BufferAttribute(ob.vertices.flat(), 3));
+      geometry.setIndex(ob.faces.flat());
+      geometry.computeVertexNormals();
+      const mesh = new THREE.Mesh(geometry, material.clone());
+      mesh.name = ob.name;
+      obstacleGroup.add(mesh);
+    }
+    frameCamera();
+  }
+  buildGrips(msg.grips);
+}
+
+function frameCamera() {
+  const box = new THREE.Box3();
+  for (const g of state.scene.grips) box.expandByPoint(new THREE.Vector3(...g.position));
+  obstacleGroup.updateMatrixWorld(true);
+  box.expandByObject(obstacleGroup);
+  if (box.isEmpty()) box.expandByPoint(new THREE.Vector3(state.scene.part.length, 0, 0));
+  const centre = box.getCenter(new THREE.Vector3());
+  const size = box.getSize(new THREE.Vector3()).length() || 1;
+  const target = world.localToWorld(centre.clone());
+  orbit.target.copy(target);
+  camera.position.copy(target).add(new THREE.Vector3(0.9, 0.6, 1.1).multiplyScalar(size));
+  camera.near = size / 200; camera.far = size * 50;
+  camera.updateProjectionMatrix();
+  orbit.update();
+}
+
+const Z = new THREE.Vector3(0, 0, 1);
+function buildGrips(grips) {
+  gizmo.detach();
+  gripGroup.clear();
+  state.grips.clear();
+  const r = state.scene.part.radius;
+  const panel = $('grips');
+  panel.innerHTML = '';
+  for (const g of grips) {
+    const movable = g.mode === 'position';
+    const handle = new THREE.Mesh(
+      movable ? new THREE.SphereGeometry(Math.max(3 * r, 0.006), 20, 12)
+              : new THREE.BoxGeometry(4 * r, 4 * r, 4 * r),
+      new THREE.MeshStandardMaterial({ color: movable ? 0x2d6cdf : (g.mode === 'force' ? 0xc62828 : 0x555555) }));
+    handle.position.set(...g.position);
+    if (g.tangent) handle.quaternion.setFromUnitVectors(Z, new THREE.Vector3(...g.tangent).normalize());
+    handle.userData = { grip: g, movable, holdsTangent: !!g.tangent };
+    handle.name = g.name;
+    gripGroup.add(handle);
+    state.grips.set(g.name, handle);
+    if (g.mode !== 'fixed') panel.appendChild(gripPanel(g));
+  }
+  const first = [...state.grips.values()].find((h) => h.userData.movable);
+  if (first) gizmo.attach(first);
+}
+
+function gripPanel(g) {
+  const div = document.createElement('div');
+  div.className = 'grip';
+  div.id = `grip-${slug(g.name)}`;
+  div.innerHTML = `<div class="row"><span class="name">${esc(g.name)}</span>
+    <select class="mode" aria-label="how ${esc(g.name)} is driven">
+      <option value="position"${g.mode === 'position' ? ' selected' : ''}>held by position</option>
+      <option value="force"${g.mode === 'force' ? ' selected' : ''}>pushed by a force</option>
+    </select></div>
+    <div class="numbers pose"></div>
+    <div class="numbers force-value" data-newton=""></div>
+    <div class="numbers moment-value" data-newton-metre=""></div>`;
+  if (g.mode === 'force') {
+    const f = g.force || [0, 0, 0];
+    const row = document.createElement('div');
+    row.className = 'row';
+    row.innerHTML = 'F [N] ' + [0, 1, 2].map((i) =>
+      `<input class="f" data-i="${i}" type="number" step="0.1" value="${f[i].toFixed(3)}">`).join('') +
+      '<button class="apply">Apply</button>';
+    div.appendChild(row);
+    row.querySelector('.apply').onclick = () => {
+      const force = [...row.querySelectorAll('input.f')].map((el) => Number(el.value));
+      send({ type: 'mode', grip: g.name, mode: 'force', force, moment: g.moment });
+    };
+  }
+  div.querySelector('.mode').onchange = (e) => send({ type: 'mode', grip: g.name, mode: e.target.value });
+  div.querySelector('.pose').textContent = `at (${g.position.map((x) => x.toFixed(3)).join(', ')}) m`;
+  return div;
+}
+
+// -- dragging -----------------------------------------------------------------------------------
+gizmo.addEventListener('objectChange', () => moved(gizmo.object));
+function moved(handle) {
+  const g = handle.userData.grip;
+  const tangent = handle.userData.holdsTangent ? Z.clone().applyQuaternion(handle.quaternion).toArray() : null;
+  const pose = { grip: g.name, position: handle.position.toArray(), tangent };
+  g.position = pose.position;
+  const el = document.querySelector(`#grip-${slug(g.name)} .pose`);
+  if (el) el.textContent = `at (${pose.position.map((x) => x.toFixed(3)).join(', ')}) m`;
+  state.queued = pose;
+  flush();
+}
+function flush() {  // one move in flight: the server always works on the latest pose
+  if (state.inFlight || !state.queued || ws.readyState !== 1) return;
+  const pose = state.queued;
+  state.queued = null;
+  state.inFlight = true;
+  state.seq += 1;
+  state.sentAt.set(state.seq, performance.now());
+  send({ type: 'move', seq: state.seq, ...pose });
+}
+$('translate').onclick = () => setGizmoMode('translate');
+$('rotate').onclick = () => setGizmoMode('rotate');
+function setGizmoMode(mode) {
+  gizmo.setMode(mode);
+  $('translate').classList.toggle('on', mode === 'translate');
+  $('rotate').classList.toggle('on', mode === 'rotate');
+}
+window.addEventListener('keydown', (e) => {
+  if (e.target.tagName === 'INPUT') return;
+  if (e.key === 't') setGizmoMode('translate');
+  if (e.key === 'r') setGizmoMode('rotate');
+});
+renderer.domElement.addEventListener('dblclick', (e) => {  // pick which grip the gizmo holds
+  const hit = pick(e);
+  if (hit && hit.userData.movable) gizmo.attach(hit);
+});
+function pick(e) {
+  const rect = renderer.domElement.getBoundingClientRect();
+  const ndc = new THREE.Vector2(((e.clientX - rect.left) / rect.width) * 2 - 1,
+    -((e.clientY - rect.top) / rect.height) * 2 + 1);
+  const ray = new THREE.Raycaster();
+  ray.setFromCamera(ndc, camera);
+  return ray.intersectObjects(gripGroup.children, false)[0]?.object ?? null;
+}
+$('solve').onclick = () => send({ type: 'solve' });
+$('save').onclick = () => send({ type: 'save', name: $('session-name').value });
+$('load').onclick = () => send({ type: 'load', name: $('session-name').value });
+$('colour').onchange = () => { if (state.frame) drawTube(state.frame); };
+
+// -- frames (real-time) -------------------------------------------------------------------------
+function onFrame(msg) {
+  state.frame = msg;
+  state.frames += 1;
+  if (msg.seq && msg.seq === state.seq) {
+    state.inFlight = false;
+    const t0 = state.sentAt.get(msg.seq);
+    if (t0 !== undefined) { state.latency.push(performance.now() - t0); state.sentAt.delete(msg.seq); }
+    flush();
+  }
+  drawTube(msg);
+  const contacts = msg.contacts.map((p) => ({ point: p }));
+  drawContacts(contacts.concat(state.accurate?.ok ? state.accurate.contacts : []));
+  showClearance(msg.interference);
+  showWarnings();
+  $('status').textContent = `real-time frame ${msg.index}: ${(msg.seconds * 1e3).toFixed(1)} ms` +
+    `${msg.converged ? '' : ' (not converged)'}; drift ${(msg.drift * 100).toFixed(1)} % L` +
+    `${msg.pending ? '; accurate solve running…' : ''}`;
+}
+
+function drawTube(frame) {
+  const points = frame.curve.map((p) => new THREE.Vector3(...p));
+  const path = new THREE.CatmullRomCurve3(points, false, 'centripetal');
+  const segments = Math.max(2 * points.length, 32), radial = 12;
+  const geometry = new THREE.TubeGeometry(path, segments, state.scene.part.radius, radial, false);
+  const values = colourValues(frame, segments);
+  const colours = new Float32Array(geometry.attributes.position.count * 3);
+  const c = new THREE.Color();
+  for (let i = 0; i <= segments; i++) {
+    colourOf(values.kind, values.v[i], values.max, c);
+    for (let j = 0; j <= radial; j++) c.toArray(colours, 3 * (i * (radial + 1) + j));
+  }
+  geometry.setAttribute('color', new THREE.BufferAttribute(colours, 3));
+  if (tube) { tube.geometry.dispose(); tube.geometry = geometry; }
+  else { tube = new THREE.Mesh(geometry, tubeMaterial); tube.name = 'tube'; world.add(tube); }
+  $('legend').textContent = values.legend;
+}
+
+function colourValues(frame, segments) {
+  const kind = $('colour').value;
+  const L = frame.s[frame.s.length - 1];
+  const at = (s, xs, ys) => interp(s, xs, ys);
+  const v = [];
+  let max = 0;
+  for (let i = 0; i <= segments; i++) {
+    const s = (i / segments) * L;
+    let value;
+    if (kind === 'moment' && state.accurate?.ok) value = at(s, state.accurate.s, state.accurate.bending_moment);
+    else if (kind === 'clearance') value = clearanceAt(frame.interference, s);
+    else value = at(s, frame.s, frame.curvature);
+    v.push(value);
+    if (kind !== 'clearance') max = Math.max(max, value);
+  }
+  const legend = kind === 'clearance' ? 'red: penetrates · amber: nearer than the margin · green: clear'
+    : kind === 'moment' && state.accurate?.ok ? `blue 0 → red ${max.toFixed(3)} N m (accurate)`
+    : `blue 0 → red ${max.toFixed(1)} 1/m (curvature)`;
+  return { kind: kind === 'moment' && !state.accurate?.ok ? 'curvature' : kind, v, max, legend };
+}
+function clearanceAt(report, s) {
+  for (const span of report.penetrations) if (s >= span.s_start && s <= span.s_end) return 2;
+  for (const span of report.too_close) if (s >= span.s_start && s <= span.s_end) return 1;
+  return 0;
+}
+function colourOf(kind, value, max, c) {
+  if (kind === 'clearance') return c.set(value === 2 ? 0xd32f2f : value === 1 ? 0xf9a825 : 0x43a047);
+  const t = max > 0 ? Math.min(value / max, 1) : 0;
+  return c.setHSL(0.66 * (1 - t), 0.85, 0.5);
+}
+
+function drawContacts(contacts) {
+  contactGroup.clear();
+  const r = state.scene.part.radius;
+  for (const ct of contacts) {
+    const dot = new THREE.Mesh(new THREE.SphereGeometry(1.3 * r, 10, 8),
+      new THREE.MeshBasicMaterial({ color: 0xe65100 }));
+    dot.position.set(...ct.point);
+    contactGroup.add(dot);
+  }
+}
+
+// -- accurate results ----------------------------------------------------------------------------
+function onAccurate(msg) {
+  state.accurates += 1;
+  if (!msg.ok) {
+    note(`accurate solve failed: ${msg.error} (the last good shape stays)`, true);
+    state.failed = msg;
+    showWarnings();
+    return;
+  }
+  state.accurate = msg;
+  state.failed = null;
+  drawGhost(msg);
+  drawLoads(msg);
+  if (state.frame) drawTube(state.frame);
+  const lines = [`accurate solve (event ${msg.index}): ${(msg.solve_seconds * 1e3).toFixed(0)} ms, ` +
+    `${msg.iterations} iterations, residual ${msg.residual?.toExponential(1)}`];
+  if (msg.min_bend_radius !== null) lines.push(`tightest bend ${(msg.min_bend_radius * 1e3).toFixed(1)} mm at s = ${msg.min_bend_radius_s.toFixed(3)} m` +
+    (msg.allowed_bend_radius ? ` (minimum ${(msg.allowed_bend_radius * 1e3).toFixed(0)} mm)` : ''));
+  lines.push(msg.stable === false ? 'unstable' : msg.stable ? 'stable' : '');
+  $('shape').innerHTML = lines.filter(Boolean).map((l) => `<div>${esc(l)}</div>`).join('');
+  showWarnings();
+}
+
+function drawGhost(msg) {
+  if (ghost) { ghost.geometry.dispose(); world.remove(ghost); }
+  const geometry = new THREE.BufferGeometry().setFromPoints(msg.position.map((p) => new THREE.Vector3(...p)));
+  ghost = new THREE.Line(geometry, new THREE.LineBasicMaterial({ color: 0x222222 }));
+  ghost.name = 'accurate';
+  world.add(ghost);
+}
+
+function drawLoads(msg) {
+  for (const child of [...arrowGroup.children]) child.traverse((o) => { if (o.isCSS2DObject) o.element.remove(); });
+  arrowGroup.clear();
+  const L = state.scene.part.length;
+  for (const load of msg.loads) {
+    const handle = state.grips.get(load.name);
+    if (!handle || handle.userData.grip.mode === 'fixed') continue;
+    const F = new THREE.Vector3(...load.force), M = new THREE.Vector3(...load.moment);
+    const at = new THREE.Vector3(...load.position);
+    const f = F.length(), m = M.length();
+    if (f > 0) arrow(at, F, 0.12 * L * (1 + Math.log10(1 + f)), 0xc62828, `F = ${f.toFixed(2)} N`, 'force');
+    if (m > 0) arrow(at, M, 0.08 * L * (1 + Math.log10(1 + 100 * m)), 0x6a1b9a, `M = ${m.toFixed(3)} N m`, 'moment');
+    const box = document.querySelector(`#grip-${slug(load.name)}`);
+    if (box) {
+      const fe = box.querySelector('.force-value'), me = box.querySelector('.moment-value');
+      fe.dataset.newton = f; me.dataset.newtonMetre = m;
+      fe.textContent = `hand force ${f.toFixed(3)} N (${load.force.map((x) => x.toFixed(2)).join(', ')})`;
+      me.textContent = `hand moment ${m.toFixed(4)} N m (${load.moment.map((x) => x.toFixed(3)).join(', ')})`;
+    }
+  }
+}
+function arrow(at, dir, length, colour, text, kind) {
+  const helper = new THREE.ArrowHelper(dir.clone().normalize(), at, length, colour, 0.2 * length, 0.08 * length);
+  const div = document.createElement('div');
+  div.className = `label ${kind}`;
+  div.textContent = text;
+  const label = new CSS2DObject(div);
+  label.position.copy(dir.clone().normalize().multiplyScalar(length));
+  helper.add(label);
+  arrowGroup.add(helper);
+}
+
+function showClearance(report) {
+  const rows = report.clearances.map((c) => {
+    const cls = c.clearance < -0.01 * state.scene.part.radius ? 'bad' : c.clearance < report.margin ? 'near' : '';
+    return `<tr class="${cls}"><td>${esc(c.obstacle)}</td><td class="num">${(c.clearance * 1e3).toFixed(1)} mm</td>` +
+      `<td class="num">s ${c.s.toFixed(3)}</td></tr>`;
+  });
+  $('clearance').innerHTML = rows.length ? `<table>${rows.join('')}</table>` : '<span class="muted">no obstacles</span>';
+}
+
+function showWarnings() {
+  const out = [];
+  const frame = state.frame, acc = state.accurate;
+  if (state.failed) out.push(`no accurate equilibrium at this pose: ${state.failed.error}`);
+  if (acc?.ok) out.push(...acc.warnings);
+  if (frame) {
+    const allowed = state.scene.part.min_bend_radius;
+    const kappa = Math.max(...frame.curvature);
+    if (allowed && kappa > 0 && 1 / kappa < allowed) out.push(`real-time shape bends to ${(1e3 / kappa).toFixed(1)} mm, below the minimum ${(allowed * 1e3).toFixed(0)} mm`);
+    for (const p of frame.interference.penetrations) out.push(`real-time shape enters ${p.obstacle} at s = ${p.s_start.toFixed(3)}–${p.s_end.toFixed(3)} m`);
+  }
+  $('notes').innerHTML = (acc?.ok ? acc.notes : []).map((n) => `<li>${esc(n)}</li>`).join('');
+  $('warnings').innerHTML = out.length ? out.map((w) => `<li>${esc(w)}</li>`).join('') : '<li class="muted">none</li>';
+}
+
+// -- VR: controllers grab a grip (trigger), move it, let go ------------------------------------
+document.body.appendChild(VRButton.createButton(renderer));
+const hands = [0, 1].map((i) => {
+  const controller = renderer.xr.getController(i);
+  controller.userData.index = i;
+  controller.add(new THREE.Line(new THREE.BufferGeometry().setFromPoints([new THREE.Vector3(), new THREE.Vector3(0, 0, -0.1)])));
+  scene.add(controller);
+  controller.addEventListener('selectstart', () => grab(controller));
+  controller.addEventListener('selectend', () => { controller.userData.held = null; });
+  return controller;
+});
+function grab(controller) {
+  const here = controller.getWorldPosition(new THREE.Vector3());
+  let best = null, bestD = 0.15;  // m: how near a hand must be to take a grip
+  for (const handle of state.grips.values()) {
+    if (!handle.userData.movable) continue;
+    const d = handle.getWorldPosition(new THREE.Vector3()).distanceTo(here);
+    if (d < bestD) { best = handle; bestD = d; }
+  }
+  if (!best) return;
+  // Keep the grip's pose relative to the controller while held.
+  controller.updateMatrixWorld(true);
+  best.updateMatrixWorld(true);
+  controller.userData.held = best;
+  controller.userData.offset = controller.matrixWorld.clone().invert().multiply(best.matrixWorld);
+}
+function followHands() {
+  for (const controller of hands) {
+    const handle = controller.userData.held;
+    if (!handle) continue;
+    controller.updateMatrixWorld(true);
+    const target = controller.matrixWorld.clone().multiply(controller.userData.offset);
+    const local = world.matrixWorld.clone().invert().multiply(target);
+    const p = new THREE.Vector3(), q = new THREE.Quaternion(), s = new THREE.Vector3();
+    local.decompose(p, q, s);
+    if (p.distanceTo(handle.position) < 1e-5 && q.angleTo(handle.quaternion) < 1e-5) continue;
+    handle.position.copy(p);
+    handle.quaternion.copy(q);
+    moved(handle);
+  }
+}
+renderer.xr.addEventListener('sessionstart', () => {
+  // Bring the scene in front of the user at table height.
+  const box = new THREE.Box3().expandByObject(world);
+  const c = box.getCenter(new THREE.Vector3());
+  world.position.add(new THREE.Vector3(-c.x, 1.0 - c.y, -0.6 - c.z));
+  state.xr = true;
+});
+renderer.xr.addEventListener('sessionend', () => { world.position.set(0, 0, 0); state.xr = false; });
+
+// -- the loop -----------------------------------------------------------------------------------
+renderer.setAnimationLoop(() => {
+  followHands();
+  renderer.render(scene, camera);
+  labels.render(scene, camera);
+  state.rendered = (state.rendered || 0) + 1;
+});
+resize();
+
+// -- helpers ------------------------------------------------------------------------------------
+function interp(x, xs, ys) {
+  if (!xs.length) return 0;
+  if (x <= xs[0]) return ys[0];
+  let lo = 0, hi = xs.length - 1;
+  if (x >= xs[hi]) return ys[hi];
+  while (hi - lo > 1) { const mid = (lo + hi) >> 1; if (xs[mid] <= x) lo = mid; else hi = mid; }
+  const t = (x - xs[lo]) / (xs[hi] - xs[lo] || 1);
+  return ys[lo] + t * (ys[hi] - ys[lo]);
+}
+function slug(name) { return name.replace(/[^A-Za-z0-9_-]/g, '_'); }
+function esc(text) { return String(text).replace(/[&<>"]/g, (c) => ({ '&': '&amp;', '<': '&lt;', '>': '&gt;', '"': '&quot;' }[c])); }
+
+// For tests and scripts: the page's state and where a grip is on the screen.
+window.pliant = {
+  state, xrDevice, world, camera, hands,
+  gripScreen(name) {
+    const handle = state.grips.get(name);
+    const p = handle.getWorldPosition(new THREE.Vector3()).project(camera);
+    const rect = renderer.domElement.getBoundingClientRect();
+    return { x: rect.left + (p.x + 1) / 2 * rect.width, y: rect.top + (1 - p.y) / 2 * rect.height };
+  },
+  worldOf(point) { return world.localToWorld(new THREE.Vector3(...point)).toArray(); },
+};
