@@ -85,6 +85,7 @@ class ClientLoad(_Message):
 ClientMessage = Annotated[ClientHello | ClientMove | ClientMode | ClientSolve | ClientSave
                           | ClientLoad, Field(discriminator="type")]
 _CLIENT = TypeAdapter(ClientMessage)
+TYPES = ("hello", "move", "mode", "solve", "save", "load")
 
 
 # -- server -> browser -----------------------------------------------------------------------
@@ -171,8 +172,8 @@ class ServerAccurate(_Message):
     """An accurate equilibrium (real forces): the shape, curvature and bending moment
     along s, what each condition applies (``loads``; for a grip held by position this is
     the force and moment the hand must give), contacts, interference, the tightest bend,
-    the warnings a user must see and the solver's notes (how it got there). ``error`` when there is none (the last good one
-    stays shown)."""
+    the warnings a user must see and the solver's notes (how it got there). ``error``
+    when there is none (the last good one stays shown)."""
 
     type: Literal["accurate"] = "accurate"
     index: int
@@ -251,8 +252,11 @@ def parse(raw: str | bytes) -> ClientHello | ClientMove | ClientMode | ClientSol
         return _CLIENT.validate_python(data)
     except ValidationError as err:
         first = err.errors()[0]
-        where = ".".join(str(p) for p in first["loc"]) or "message"
-        raise ProtocolError(f"{where}: {first['msg']}", where) from None
+        if first["type"] in ("union_tag_invalid", "union_tag_not_found"):
+            raise ProtocolError(f"type: {data.get('type')!r} is not a message; the types "
+                                f"are {', '.join(TYPES)}", "type") from None
+        where = ".".join(str(p) for p in first["loc"][1:]) or "message"  # [0]: the type
+        raise ProtocolError(f"{data['type']}.{where}: {first['msg']}", where) from None
 
 
 def dump(message: _Message) -> str:

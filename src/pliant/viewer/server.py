@@ -196,6 +196,9 @@ class Server:
                 return
             ready.set()
             self._loop.run_forever()
+            self._loop.run_until_complete(self._loop.shutdown_asyncgens())
+            self._loop.run_until_complete(self._loop.shutdown_default_executor())
+            self._loop.close()
 
         self._thread = threading.Thread(target=main, daemon=True, name="pliant-view")
         self._thread.start()

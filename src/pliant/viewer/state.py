@@ -110,8 +110,9 @@ class ViewerState:
                                 + ", ".join(repr(n) for n, m in self.modes.items()
                                             if m != "fixed"), "grip")
         if mode != "position":
-            raise ProtocolError(f"{message.grip!r} is {'fixed' if mode == 'fixed' else 'pushed by a force'}"
-                                "; only a grip held by position is moved", "grip")
+            how = "fixed" if mode == "fixed" else "pushed by a force"
+            raise ProtocolError(f"{message.grip!r} is {how}; only a grip held by position "
+                                "is moved", "grip")
         cond = self._condition(message.grip)
         if self.dimension == 2:
             angle = None
@@ -211,6 +212,8 @@ class ViewerState:
             self._open(scene)
         conditions = {c.name: c for c in self.session.problem.conditions}
         for grip in record.grips:
+            if grip.mode == "fixed" and self.modes.get(grip.name) == "fixed":
+                continue  # clamps and ports stay as the scene has them
             if grip.name not in conditions or self.modes.get(grip.name) == "fixed":
                 raise ProtocolError(f"{path.name}: {grip.name!r} is not a grip of this scene",
                                     "grips")

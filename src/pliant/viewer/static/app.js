@@ -18,7 +18,7 @@ let xrDevice = null;
 if (params.get('xr') === 'emulate') {
   const { XRDevice, metaQuest3 } = await import('iwer');
   xrDevice = new XRDevice(metaQuest3);
-  xrDevice.installRuntime();
+  xrDevice.installRuntime({ forceInstall: true });  // over the browser's own (headless) one
 }
 
 // -- three.js set-up --------------------------------------------------------------------------
@@ -210,6 +210,7 @@ function flush() {  // one move in flight: the server always works on the latest
   const pose = state.queued;
   state.queued = null;
   state.inFlight = true;
+  state.lastPose = pose;
   state.seq += 1;
   state.sentAt.set(state.seq, performance.now());
   send({ type: 'move', seq: state.seq, ...pose });

@@ -1,0 +1,156 @@
+"""End to end in a real browser: Debian's chromium, headless, driven by Playwright (no
+browser download), against ``pliant view``'s server on the bundled default scene, with
+the accurate model in its worker process as a user runs it."""
+
+from __future__ import annotations
+
+import io
+import shutil
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from pliant.core.conditions import Condition
+from pliant.io.problem_file import load_scene
+
+CHROMIUM = shutil.which("chromium") or "/usr/bin/chromium"
+pytestmark = pytest.mark.skipif(not Path(CHROMIUM).exists(),
+                                reason="Debian's chromium is not installed (the README's "
+                                       "test command installs it)")
+SCENE = Path(__file__).resolve().parents[1] / "examples" / "scenes" / "engine_bay.toml"
+# Headless, software WebGL, and none of the background connections a closed network refuses.
+ARGS = ["--no-sandbox", "--disable-gpu", "--use-angle=swiftshader",
+        "--enable-unsafe-swiftshader", "--disable-background-networking",
+        "--disable-component-update", "--disable-sync", "--no-first-run", "--disable-quic"]
+LOADED = ("window.pliant && window.pliant.state.accurate && window.pliant.state.frames > 0"
+          " && window.pliant.state.rendered > 2")
+
+
+@pytest.fixture(scope="module")
+def server():
+    from pliant.viewer.server import Server
+
+    with Server(SCENE, port=0, live=True) as running:
+        yield running
+
+
+@pytest.fixture(scope="module")
+def browser():
+    from playwright.sync_api import sync_playwright
+
+    with sync_playwright() as p:
+        chromium = p.chromium.launch(executable_path=CHROMIUM, args=ARGS, headless=True)
+        yield chromium
+        chromium.close()
+
+
+@pytest.fixture
+def page(browser, server):
+    page = browser.new_page(viewport={"width": 1100, "height": 720})
+    errors: list[str] = []
+    page.on("pageerror", lambda e: errors.append(str(e)))
+    yield page, server, errors
+    page.close()
+    assert not errors, errors
+
+
+def image(png: bytes) -> np.ndarray:
+    from matplotlib.image import imread
+
+    return imread(io.BytesIO(png), format="png")[..., :3]
+
+
+def test_the_page_renders_the_scene_and_the_tube(page):
+    page, server, _ = page
+    page.goto(server.url)
+    page.wait_for_function(LOADED, timeout=120_000)
+    view = page.locator("#view canvas").first
+    shown = image(view.screenshot())
+    # Not blank: the obstacles and the part cover much of the view in many shades.
+    background = np.array([0xE9, 0xED, 0xF1]) / 255.0
+    drawn = np.abs(shown - background).sum(axis=2) > 0.05
+    assert drawn.mean() > 0.1
+    assert len(np.unique((shown * 255).astype(int).reshape(-1, 3), axis=0)) > 200
+    # The tube is there: hiding it changes the picture where it lies.
+    page.evaluate("window.pliant.world.getObjectByName('tube').visible = false")
+    page.wait_for_function("(n => window.pliant.state.rendered > n + 2)",
+                           arg=page.evaluate("window.pliant.state.rendered"))
+    hidden = image(view.screenshot())
+    changed = np.abs(shown - hidden).sum(axis=2) > 0.1
+    assert changed.sum() > 500
+    assert "oil line" in page.inner_text("#scene-name")
+    clearances = page.inner_text("#clearance")
+    for name in ("engine block", "exhaust manifold", "oil cooler", "coolant hose"):
+        assert name in clearances
+
+
+def test_dragging_a_grip_moves_the_tube_and_shows_the_apis_force(page):
+    page, server, _ = page
+    page.goto(server.url)
+    page.wait_for_function(LOADED, timeout=120_000)
+    start = np.array(page.evaluate("window.pliant.state.frame.curve.at(-1)"))
+    xy = page.evaluate("window.pliant.gripScreen('hand')")
+    page.mouse.move(xy["x"], xy["y"])
+    page.mouse.down()
+    for k in range(1, 13):
+        page.mouse.move(xy["x"] + 5 * k, xy["y"] - 3 * k)
+        page.wait_for_timeout(25)
+    page.mouse.up()
+    page.wait_for_function("!window.pliant.state.inFlight && !window.pliant.state.queued")
+    pose = page.evaluate("window.pliant.state.lastPose")
+    end = np.array(page.evaluate("window.pliant.state.frame.curve.at(-1)"))
+    assert np.linalg.norm(end - start) > 0.01  # the tube followed the hand
+    np.testing.assert_allclose(end, pose["position"], atol=1e-6)
+    # An accurate solve at this pose: the panel shows the force the Python API gives.
+    page.click("#solve")
+    page.wait_for_function("(() => { const s = window.pliant.state; return s.accurate && "
+                           "s.frame && s.accurate.index === s.frame.index && "
+                           "!s.frame.pending; })()", timeout=120_000)
+    shown = float(page.get_attribute("#grip-hand .force-value", "data-newton"))
+    assert f"{shown:.3f} N" in page.inner_text("#grip-hand .force-value")
+    scene = load_scene(SCENE)
+    from pliant.session.accurate import AccurateSolver
+
+    solver = AccurateSolver(elements=scene.solver.elements)
+    solver.solve(0, scene.problem)
+    moved = scene.problem.with_conditions(
+        Condition(s=c.s, name=c.name, position=tuple(pose["position"]),
+                  tangent=tuple(pose["tangent"])) if c.name == "hand" else c
+        for c in scene.problem.conditions)
+    api = solver.solve(1, moved)
+    assert api.ok
+    assert shown == pytest.approx(float(np.linalg.norm(api.loads["hand"].force)), rel=1e-6)
+    start_force = np.linalg.norm(solver.solve(2, scene.problem).loads["hand"].force)
+    assert abs(shown - start_force) > 1e-3  # it changed with the pose
+
+
+def test_a_vr_controller_grabs_the_grip_and_moves_it(page):
+    """WebXR through the iwer emulator (npm): the trigger near the grip takes it, and
+    the part follows the controller."""
+    page, server, _ = page
+    page.goto(server.url + "?xr=emulate")
+    page.wait_for_function(LOADED, timeout=120_000)
+    assert page.inner_text("#VRButton") == "ENTER VR"
+    page.click("#VRButton")
+    page.wait_for_function("window.pliant.state.xr === true", timeout=30_000)
+    grip = page.evaluate("window.pliant.state.scene.grips.find(g => g.name === 'hand')"
+                         ".position")
+    at = page.evaluate("p => window.pliant.worldOf(p)", grip)
+    right = "window.pliant.xrDevice.controllers.right"
+    page.evaluate(f"p => {right}.position.set(p[0], p[1], p[2])", at)
+    page.wait_for_timeout(200)
+    page.evaluate(f"{right}.updateButtonValue('trigger', 1)")
+    page.wait_for_function("window.pliant.hands.some(h => h.userData.held)")
+    for k in range(1, 11):  # 5 cm along XR's x (the scene's x), 4 cm up (the scene's z)
+        page.evaluate(f"p => {right}.position.set(p[0] + {0.005 * k}, p[1] + {0.004 * k},"
+                      " p[2])", at)
+        page.wait_for_timeout(60)
+    page.evaluate(f"{right}.updateButtonValue('trigger', 0)")
+    page.wait_for_function("!window.pliant.hands.some(h => h.userData.held) && "
+                           "!window.pliant.state.inFlight && !window.pliant.state.queued")
+    pose = page.evaluate("window.pliant.state.lastPose")
+    np.testing.assert_allclose(pose["position"], np.array(grip) + [0.05, 0.0, 0.04],
+                               atol=1e-5)
+    end = page.evaluate("window.pliant.state.frame.curve.at(-1)")
+    np.testing.assert_allclose(end, pose["position"], atol=1e-6)

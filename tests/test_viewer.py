@@ -1,0 +1,389 @@
+"""The browser environment's server side: the protocol, one tab's session state, and the
+server (files it serves or refuses, bad messages, two users at once). The page itself is
+tested in a real browser in test_browser.py."""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+from pathlib import Path
+
+import numpy as np
+import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+
+from pliant.core.conditions import Condition
+from pliant.errors import PliantError
+from pliant.io.problem_file import load_scene
+from pliant.session.accurate import AccurateSolver
+from pliant.viewer import protocol as P
+from pliant.viewer.protocol import ProtocolError
+from pliant.viewer.state import ViewerState
+
+SCENE = """
+name = "hose by a drum"
+gravity = [0.0, 0.0, -9.81]
+margin = 0.02
+
+[part]
+name = "rubber hose 20/12"
+length = 1.0
+outer_diameter = 0.020
+inner_diameter = 0.012
+bending_stiffness = 0.05
+torsional_stiffness = 0.035
+mass_per_length = 0.30
+min_bend_radius = 0.08
+
+[solver]
+elements = 30
+
+[[condition]]
+name = "connector"
+s = 0.0
+x = 0.0
+y = 0.0
+z = 0.0
+tangent = [1.0, 0.0, 0.0]
+normal = [0.0, 0.0, 1.0]
+
+[[condition]]
+name = "hand"
+s = 1.0
+x = 0.55
+y = 0.35
+z = 0.15
+tangent = [0.0, 1.0, 0.0]
+
+[[obstacle]]
+name = "drum"
+shape = "sphere"
+radius = 0.05
+position = [0.3, -0.3, 0.0]
+"""
+
+
+@pytest.fixture
+def folder(tmp_path: Path) -> Path:
+    (tmp_path / "hose.toml").write_text(SCENE)
+    return tmp_path
+
+
+@pytest.fixture
+def state(folder: Path):
+    viewer = ViewerState(Path("hose.toml"), folder, live=False)
+    yield viewer
+    viewer.close()
+
+
+def msg(**fields) -> object:
+    return P.parse(json.dumps({"v": 1, **fields}))
+
+
+def by_type(replies, kind):
+    return [r for r in replies if r.type == kind]
+
+
+def hand_load(accurate: P.ServerAccurate) -> P.Load:
+    return next(load for load in accurate.loads if load.name == "hand")
+
+
+def solve_at(folder: Path, position, tangent) -> object:
+    """The Python API's answer for the hand at a pose (warm-started from the start pose,
+    as the session is)."""
+    problem = load_scene(folder / "hose.toml").problem
+    solver = AccurateSolver(elements=30)
+    solver.solve(0, problem)
+    moved = problem.with_conditions(
+        Condition(s=c.s, name=c.name, position=tuple(position), tangent=tuple(tangent))
+        if c.name == "hand" else c for c in problem.conditions)
+    return solver.solve(1, moved)
+
+
+# -- the protocol ----------------------------------------------------------------------------
+def test_parse_names_what_is_wrong():
+    assert isinstance(msg(type="hello"), P.ClientHello)
+    move = msg(type="move", grip="hand", position=[0.1, 0.2, 0.3], seq=4)
+    assert move.position == (0.1, 0.2, 0.3) and move.seq == 4
+    cases = [
+        ("{", "message"),                                                    # not JSON
+        ("[1, 2]", "message"),                                               # not an object
+        ('{"v": 2, "type": "hello"}', "v"),                                  # other version
+        ('{"v": 1, "type": "jump"}', "type"),                                # unknown type
+        ('{"v": 1, "type": "move", "grip": "hand", "position": [1, 2]}', "position"),
+        ('{"v": 1, "type": "move", "grip": "hand", "position": [1, 2, NaN]}', "position"),
+        ('{"v": 1, "type": "save", "name": "../escape"}', "name"),
+        ('{"v": 1, "type": "hello", "extra": 1}', "extra"),
+    ]
+    for raw, field in cases:
+        with pytest.raises(ProtocolError) as err:
+            P.parse(raw)
+        assert field in (err.value.field or ""), (raw, err.value.field, str(err.value))
+    big = json.dumps({"v": 1, "type": "hello", "pad": "x" * P.MAX_MESSAGE})
+    with pytest.raises(ProtocolError, match="limit"):
+        P.parse(big)
+
+
+JSONS = st.recursive(st.none() | st.booleans() | st.floats() | st.integers()
+                     | st.text(max_size=20),
+                     lambda inner: st.lists(inner, max_size=5)
+                     | st.dictionaries(st.text(max_size=10), inner, max_size=5), max_leaves=20)
+KEYS = st.sampled_from(["v", "type", "grip", "position", "tangent", "seq", "mode", "force",
+                        "moment", "name"])
+FIELDS = st.dictionaries(KEYS, JSONS | st.sampled_from(
+    [1, "hello", "move", "mode", "solve", "save", "load", "hand", "force", "position"])
+    | st.lists(st.floats(-2, 2), min_size=3, max_size=3), max_size=7)
+
+
+@settings(max_examples=300, deadline=None)
+@given(raw=st.text(max_size=200) | st.binary(max_size=200) | JSONS.map(json.dumps)
+       | FIELDS.map(json.dumps))
+def test_parse_takes_or_refuses_anything(raw):
+    """Random text, bytes and JSON: a message or a ProtocolError, nothing else."""
+    try:
+        message = P.parse(raw)
+    except ProtocolError as err:
+        assert str(err)
+    else:
+        assert message.v == P.VERSION
+
+
+# -- one tab's session -----------------------------------------------------------------------
+def test_hello_gives_the_scene_and_the_api_forces(state, folder):
+    replies = state.handle(msg(type="hello"))
+    scene = by_type(replies, "scene")[0]
+    assert [(g.name, g.mode) for g in scene.grips] == [("connector", "fixed"),
+                                                       ("hand", "position")]
+    assert [o.name for o in scene.obstacles] == ["drum"]
+    vertices = np.array(scene.obstacles[0].vertices)
+    assert np.allclose(np.linalg.norm(vertices - [0.3, -0.3, 0.0], axis=1), 0.05, atol=1e-6)
+    accurate = by_type(replies, "accurate")[0]
+    api = AccurateSolver(elements=30).solve(0, load_scene(folder / "hose.toml").problem)
+    np.testing.assert_allclose(hand_load(accurate).force, api.loads["hand"].force, rtol=1e-12)
+    np.testing.assert_allclose(hand_load(accurate).moment, api.loads["hand"].moment,
+                               rtol=1e-12, atol=1e-15)
+    # The clearance to the drum, against its closed form along the shape.
+    position = np.array(accurate.position)
+    gap = np.linalg.norm(position - [0.3, -0.3, 0.0], axis=1) - 0.05 - 0.01
+    drum = next(c for c in accurate.interference.clearances if c.obstacle == "drum")
+    assert drum.clearance == pytest.approx(gap.min(), abs=2e-3)
+    assert json.loads(P.dump(accurate))["type"] == "accurate"
+
+
+def test_a_move_returns_the_frame_and_the_accurate_forces_follow(state, folder):
+    state.handle(msg(type="hello"))
+    target, tangent = [0.6, 0.3, 0.2], [0.0, 0.8, 0.6]
+    frame = state.handle(msg(type="move", grip="hand", position=target, tangent=tangent,
+                             seq=7))[0]
+    assert frame.type == "frame" and frame.seq == 7
+    # The network holds the grip exactly: the curve's end is the target.
+    np.testing.assert_allclose(frame.curve[-1], target, atol=1e-9)
+    assert len(frame.curvature) == len(frame.s) == len(frame.curve)
+    replies = state.handle(msg(type="solve"))
+    replies += state.take_accurate()
+    accurate = by_type(replies, "accurate")[-1]
+    assert accurate.ok and accurate.index == frame.index
+    api = solve_at(state.root, target, np.array(tangent) / np.linalg.norm(tangent))
+    np.testing.assert_allclose(hand_load(accurate).force, api.loads["hand"].force,
+                               rtol=1e-7, atol=1e-9)
+    np.testing.assert_allclose(accurate.position[-1], target, atol=1e-9)
+
+
+def test_a_grip_switched_to_force_keeps_its_shape_and_back(state):
+    state.handle(msg(type="hello"))
+    held = state.accurate_message()
+    replies = state.handle(msg(type="mode", grip="hand", mode="force"))
+    replies += state.take_accurate()
+    pushed = by_type(replies, "accurate")[-1]
+    assert pushed.ok, pushed.error
+    grip = next(g for g in by_type(replies, "scene")[-1].grips if g.name == "hand")
+    assert grip.mode == "force"
+    np.testing.assert_allclose(grip.force, hand_load(held).force, rtol=1e-12)
+    # Pushing with the force the hand gave holds the same shape.
+    np.testing.assert_allclose(pushed.position, held.position, atol=1e-6)
+    assert not any(hand_load(pushed).prescribed[:3])
+    # A pushed grip is not dragged.
+    with pytest.raises(ProtocolError, match="force"):
+        state.handle(msg(type="move", grip="hand", position=[0.5, 0.3, 0.1]))
+    # A larger upward push lifts the end.
+    force = list(np.array(grip.force) + [0.0, 0.0, 0.5])
+    replies = state.handle(msg(type="mode", grip="hand", mode="force", force=force,
+                               moment=grip.moment))
+    replies += state.take_accurate()
+    lifted = by_type(replies, "accurate")[-1]
+    assert lifted.ok and lifted.position[-1][2] > held.position[-1][2] + 1e-3
+    # Back to holding by position: the hand holds the end where it now is.
+    replies = state.handle(msg(type="mode", grip="hand", mode="position"))
+    grip = next(g for g in by_type(replies, "scene")[-1].grips if g.name == "hand")
+    assert grip.mode == "position"
+    np.testing.assert_allclose(grip.position, lifted.position[-1], atol=1e-9)
+
+
+def test_sessions_are_saved_atomically_and_loaded_back(state, folder):
+    state.handle(msg(type="hello"))
+    target = [0.5, 0.4, 0.25]
+    state.handle(msg(type="move", grip="hand", position=target, tangent=[0, 1, 0]))
+    saved = state.handle(msg(type="save", name="trial 1"))[0]
+    assert saved.type == "saved" and saved.name == "trial 1.json"
+    record = json.loads((folder / "trial 1.json").read_text())
+    assert record["scene"] == "hose.toml"
+    assert sorted(os.listdir(folder)) == ["hose.toml", "trial 1.json"]  # no temporaries
+    state.handle(msg(type="move", grip="hand", position=[0.6, 0.2, 0.1], tangent=[0, 1, 0]))
+    replies = state.handle(msg(type="load", name="trial 1"))
+    grip = next(g for g in by_type(replies, "scene")[0].grips if g.name == "hand")
+    np.testing.assert_allclose(grip.position, target)
+    np.testing.assert_allclose(by_type(replies, "frame")[0].curve[-1], target, atol=1e-9)
+    with pytest.raises(ProtocolError, match="no saved session"):
+        state.handle(msg(type="load", name="missing"))
+    (folder / "broken.json").write_text("{not json")
+    with pytest.raises(ProtocolError, match="not a pliant session"):
+        state.handle(msg(type="load", name="broken"))
+
+
+def test_no_file_outside_the_scene_folder(state, folder, tmp_path_factory):
+    outside = tmp_path_factory.mktemp("elsewhere")
+    (outside / "secret.json").write_text(json.dumps(
+        {"v": 1, "scene": "hose.toml", "grips": []}))
+    (folder / "link.json").symlink_to(outside / "secret.json")
+    with pytest.raises(ProtocolError, match="outside the scene's folder"):
+        state.handle(msg(type="load", name="link"))
+    (folder / "escape.json").write_text(json.dumps(
+        {"v": 1, "scene": "../elsewhere/x.toml", "grips": []}))
+    with pytest.raises(ProtocolError, match="outside the scene's folder"):
+        state.handle(msg(type="load", name="escape"))
+    with pytest.raises(ProtocolError, match="outside"):
+        ViewerState(Path("../hose.toml"), folder / "sub" if (folder / "sub").mkdir() is None
+                    else folder, live=False)
+
+
+def test_wrong_grips_get_typed_errors(state):
+    state.handle(msg(type="hello"))
+    with pytest.raises(ProtocolError, match="no grip is named 'foot'"):
+        state.handle(msg(type="move", grip="foot", position=[0, 0, 0]))
+    with pytest.raises(ProtocolError, match="fixed"):
+        state.handle(msg(type="move", grip="connector", position=[0, 0, 0]))
+    with pytest.raises(ProtocolError, match="not a grip"):
+        state.handle(msg(type="mode", grip="connector", mode="force"))
+    with pytest.raises(ProtocolError, match="non-zero"):
+        state.handle(msg(type="move", grip="hand", position=[0.5, 0.3, 0.1],
+                         tangent=[0, 0, 0]))
+
+
+@settings(max_examples=25, deadline=None,
+          suppress_health_check=[HealthCheck.function_scoped_fixture])
+@given(events=st.lists(st.tuples(
+    st.sampled_from(["hand", "connector", "nobody"]),
+    st.lists(st.floats(-1.5, 1.5), min_size=3, max_size=3),
+    st.lists(st.floats(-1, 1), min_size=3, max_size=3)), min_size=1, max_size=4))
+def test_random_moves_give_frames_or_typed_errors(state, events):
+    """Any pose, reachable or not: a frame (and a good or failed accurate answer), or a
+    typed error; the session goes on."""
+    for grip, position, tangent in events:
+        try:
+            replies = state.handle(msg(type="move", grip=grip, position=position,
+                                       tangent=tangent))
+            replies += state.handle(msg(type="solve")) + state.take_accurate()
+        except (ProtocolError, PliantError) as err:
+            assert str(err)
+            continue
+        frame = by_type(replies, "frame")[0]
+        assert all(math.isfinite(x) for p in frame.curve for x in p)
+        for accurate in by_type(replies, "accurate"):
+            assert accurate.ok or accurate.error
+    assert state.handle(msg(type="hello"))[0].type == "scene"
+
+
+# -- the server ------------------------------------------------------------------------------
+@pytest.fixture
+def server(folder):
+    from pliant.viewer.server import Server
+
+    with Server(folder / "hose.toml", port=0, live=False) as running:
+        yield running
+
+
+def connect(server, **options):
+    from websockets.sync.client import connect as ws_connect
+
+    return ws_connect(f"ws://127.0.0.1:{server.port}/ws", open_timeout=60, **options)
+
+
+def receive(ws, kind: str, timeout: float = 60.0) -> dict:
+    while True:
+        message = json.loads(ws.recv(timeout=timeout))
+        if message["type"] == kind:
+            return message
+
+
+def get(server, path: str) -> tuple[int, bytes]:
+    import http.client
+
+    conn = http.client.HTTPConnection("127.0.0.1", server.port, timeout=30)
+    try:
+        conn.request("GET", path)
+        response = conn.getresponse()
+        return response.status, response.read()
+    finally:
+        conn.close()
+
+
+def test_the_server_listens_on_loopback_and_serves_only_its_files(server):
+    assert server.host == "127.0.0.1"
+    assert server._server.sockets[0].getsockname()[0] == "127.0.0.1"
+    status, body = get(server, "/")
+    assert status == 200 and b"importmap" in body
+    status, body = get(server, "/vendor/three/build/three.module.js")
+    assert status == 200 and b"WebGLRenderer" in body
+    for path in ("/../pyproject.toml", "/static/../../server.py", "/static/%2e%2e/server.py",
+                 "/vendor/three/../../package.json", "/vendor/three/%2e%2e/%2e%2e/package.json",
+                 "/hose.toml", "/etc/passwd", "/vendor/other/x.js"):
+        status, _ = get(server, path)
+        assert status == 404, path
+
+
+def test_bad_messages_get_errors_and_the_server_goes_on(server):
+    with connect(server) as ws:
+        for raw in ("not json", b"\x00\xff\xfe", json.dumps({"v": 1, "type": "move"}),
+                    json.dumps({"v": 1, "type": "hello", "pad": "x" * (P.MAX_MESSAGE + 1)}),
+                    json.dumps({"v": 1, "type": "move", "grip": "hand",
+                                "position": [1e308, 0, 0]})):
+            ws.send(raw)
+            error = receive(ws, "error")
+            assert error["message"]
+        ws.send(json.dumps({"v": 1, "type": "hello"}))
+        assert receive(ws, "scene")["name"] == "hose by a drum"
+    # A message past the websocket limit closes that connection only.
+    from websockets.exceptions import ConnectionClosed
+
+    with connect(server, max_size=None) as ws:
+        ws.send("x" * (P.MAX_FRAME + 10))
+        with pytest.raises(ConnectionClosed):
+            ws.recv(timeout=30)
+    with connect(server) as ws:
+        ws.send(json.dumps({"v": 1, "type": "hello"}))
+        assert receive(ws, "scene")["grips"][1]["name"] == "hand"
+
+
+def test_a_cross_site_page_cannot_open_a_session(server):
+    from websockets.exceptions import InvalidStatus
+
+    with pytest.raises(InvalidStatus) as err:
+        connect(server, origin="http://evil.example")
+    assert err.value.response.status_code == 403
+
+
+def test_two_users_get_their_own_sessions(server):
+    with connect(server) as a, connect(server) as b:
+        for ws in (a, b):
+            ws.send(json.dumps({"v": 1, "type": "hello"}))
+            receive(ws, "frame")
+        a.send(json.dumps({"v": 1, "type": "move", "grip": "hand", "seq": 1,
+                           "position": [0.6, 0.3, 0.2], "tangent": [0, 1, 0]}))
+        moved = receive(a, "frame")
+        b.send(json.dumps({"v": 1, "type": "solve"}))
+        other = receive(b, "frame")
+        np.testing.assert_allclose(moved["curve"][-1], [0.6, 0.3, 0.2], atol=1e-9)
+        np.testing.assert_allclose(other["curve"][-1], [0.55, 0.35, 0.15], atol=1e-9)
+        assert server.connections == 2
