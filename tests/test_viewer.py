@@ -387,3 +387,45 @@ def test_two_users_get_their_own_sessions(server):
         np.testing.assert_allclose(moved["curve"][-1], [0.6, 0.3, 0.2], atol=1e-9)
         np.testing.assert_allclose(other["curve"][-1], [0.55, 0.35, 0.15], atol=1e-9)
         assert server.connections == 2
+
+
+def test_pliant_view_prints_its_address_and_stops_on_ctrl_c(folder):
+    import signal
+    import subprocess
+    import sys
+    import urllib.request
+
+    process = subprocess.Popen(
+        [sys.executable, "-c", "from pliant.cli.app import main; main()", "view",
+         str(folder / "hose.toml"), "--port", "0"],
+        stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+    try:
+        lines = []
+        for line in process.stdout:
+            lines.append(line)
+            if "open http://" in line:
+                break
+        url = lines[-1].split("open ", 1)[1].split(" ", 1)[0]
+        assert url.startswith("http://127.0.0.1:")
+        with urllib.request.urlopen(url, timeout=30) as response:
+            assert b"importmap" in response.read()
+        process.send_signal(signal.SIGINT)
+        assert process.wait(timeout=30) == 130
+    finally:
+        process.kill()
+        process.wait()
+        process.stdout.close()
+
+
+@settings(max_examples=60, deadline=None,
+          suppress_health_check=[HealthCheck.function_scoped_fixture])
+@given(raws=st.lists(st.text(max_size=300) | st.binary(max_size=300) | FIELDS.map(json.dumps),
+                     min_size=1, max_size=5))
+def test_random_messages_never_crash_the_server(server, raws):
+    """Random and malformed messages over a real connection: each gets a reply or is
+    taken as a message, and the connection still answers a hello afterwards."""
+    with connect(server) as ws:
+        for raw in raws:
+            ws.send(raw)
+        ws.send(json.dumps({"v": 1, "type": "hello"}))
+        assert receive(ws, "scene")["name"] == "hose by a drum"

@@ -72,6 +72,7 @@ const gripGroup = new THREE.Group(); world.add(gripGroup);
 const arrowGroup = new THREE.Group(); world.add(arrowGroup);
 const contactGroup = new THREE.Group(); world.add(contactGroup);
 let tube = null, ghost = null;
+const OBSTACLE = 0x9aa3ad, TOO_CLOSE = 0xf9a825, INSIDE = 0xd32f2f;  // obstacle tints
 const tubeMaterial = new THREE.MeshStandardMaterial({ vertexColors: true, roughness: 0.5 });
 
 // -- the websocket ------------------------------------------------------------------------------
@@ -105,7 +106,7 @@ function onScene(msg) {
   if (first) {
     obstacleGroup.clear();
     const material = new THREE.MeshStandardMaterial({
-      color: 0x9aa3ad, roughness: 0.8, metalness: 0.1, transparent: true, opacity: 0.85,
+      color: OBSTACLE, roughness: 0.8, metalness: 0.1, transparent: true, opacity: 0.85,
     });
     for (const ob of msg.obstacles) {
       const geometry = new THREE.BufferGeometry();
@@ -388,6 +389,12 @@ function arrow(at, dir, length, colour, text, kind) {
 }
 
 function showClearance(report) {
+  // Interference on the obstacles themselves, whatever the tube's colour map shows.
+  const entered = new Set(report.penetrations.map((p) => p.obstacle));
+  const near = new Set(report.too_close.map((p) => p.obstacle));
+  for (const mesh of obstacleGroup.children) {
+    mesh.material.color.set(entered.has(mesh.name) ? INSIDE : near.has(mesh.name) ? TOO_CLOSE : OBSTACLE);
+  }
   const rows = report.clearances.map((c) => {
     const cls = c.clearance < -0.01 * state.scene.part.radius ? 'bad' : c.clearance < report.margin ? 'near' : '';
     return `<tr class="${cls}"><td>${esc(c.obstacle)}</td><td class="num">${(c.clearance * 1e3).toFixed(1)} mm</td>` +
