@@ -368,12 +368,19 @@ function drawLoads(msg) {
     const f = F.length(), m = M.length();
     if (f > 0) arrow(at, F, 0.12 * L * (1 + Math.log10(1 + f)), 0xc62828, `F = ${f.toFixed(2)} N`, 'force');
     if (m > 0) arrow(at, M, 0.08 * L * (1 + Math.log10(1 + 100 * m)), 0x6a1b9a, `M = ${m.toFixed(3)} N m`, 'moment');
+    const pushed = handle.userData.grip.mode === 'force';
+    if (pushed) {  // a pushed grip goes where the push takes the part
+      handle.position.copy(at);
+      handle.userData.grip.position = load.position;
+    }
     const box = document.querySelector(`#grip-${slug(load.name)}`);
     if (box) {
       const fe = box.querySelector('.force-value'), me = box.querySelector('.moment-value');
       fe.dataset.newton = f; me.dataset.newtonMetre = m;
-      fe.textContent = `hand force ${f.toFixed(3)} N (${load.force.map((x) => x.toFixed(2)).join(', ')})`;
-      me.textContent = `hand moment ${m.toFixed(4)} N m (${load.moment.map((x) => x.toFixed(3)).join(', ')})`;
+      const what = pushed ? 'applied' : 'hand';
+      fe.textContent = `${what} force ${f.toFixed(3)} N (${load.force.map((x) => x.toFixed(2)).join(', ')})`;
+      me.textContent = `${what} moment ${m.toFixed(4)} N m (${load.moment.map((x) => x.toFixed(3)).join(', ')})`;
+      box.querySelector('.pose').textContent = `at (${load.position.map((x) => x.toFixed(3)).join(', ')}) m`;
     }
   }
 }
