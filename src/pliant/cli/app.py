@@ -100,12 +100,12 @@ def _run_scene(file: Path, out: Path, elements: int | None) -> None:
     from pliant.assembly import follow_path  # noqa: PLC0415
     from pliant.cli.plot import plot_path  # noqa: PLC0415
     from pliant.cli.report import (  # noqa: PLC0415
-        _finite,
         print_contacts,
         print_interference,
         print_path,
     )
     from pliant.io.atomic import atomic_write  # noqa: PLC0415
+    from pliant.io.jsontext import finite  # noqa: PLC0415
     from pliant.io.mesh_export import export_scene  # noqa: PLC0415
     from pliant.io.problem_file import load_scene  # noqa: PLC0415
 
@@ -131,7 +131,7 @@ def _run_scene(file: Path, out: Path, elements: int | None) -> None:
     print_contacts(result.final, console)
     stem = file.stem
     report = out / f"{stem}.json"
-    atomic_write(report, lambda h: h.write(_json.dumps(_finite(result.to_dict()),
+    atomic_write(report, lambda h: h.write(_json.dumps(finite(result.to_dict()),
                                                        indent=1).encode()), "the report")
     plot = plot_path(result, out / f"{stem}.png", problem.part.min_bend_radius)
     glb = export_scene(result.final, out / f"{stem}.glb")

@@ -12,6 +12,7 @@ from rich.console import Console
 from rich.table import Table
 
 from pliant.core.problem import Problem
+from pliant.io.jsontext import finite
 
 
 def timed_solve(problem: Problem, elements: int = 100) -> tuple[Any, float]:
@@ -117,23 +118,12 @@ def _summary_3d(eq: Any, seconds: float, console: Console) -> None:
         console.print(f"note: {note}")
 
 
-def _finite(value: Any) -> Any:
-    """JSON has no infinity: write null instead."""
-    if isinstance(value, float) and not math.isfinite(value):
-        return None
-    if isinstance(value, list):
-        return [_finite(v) for v in value]
-    if isinstance(value, dict):
-        return {k: _finite(v) for k, v in value.items()}
-    return value
-
-
 def print_json(eq: Any, seconds: float, interference: Any = None) -> None:
     data = eq.to_dict()
     data["solve_seconds"] = seconds
     if interference is not None:
         data["interference"] = interference.to_dict()
-    print(json.dumps(_finite(data), indent=1, allow_nan=False))
+    print(json.dumps(finite(data), indent=1, allow_nan=False))
 
 
 def print_contacts(eq: Any, console: Console) -> None:

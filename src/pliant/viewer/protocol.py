@@ -12,10 +12,11 @@ message passes ``MAX_FRAME``, and the server goes on serving the others).
 from __future__ import annotations
 
 import json
-import math
 from typing import Annotated, Any, Literal
 
 from pydantic import BaseModel, ConfigDict, Field, TypeAdapter, ValidationError
+
+from pliant.io.jsontext import finite
 
 VERSION = 1
 MAX_MESSAGE = 64 * 1024  # bytes: the largest client message parsed
@@ -261,14 +262,4 @@ def parse(raw: str | bytes) -> ClientHello | ClientMove | ClientMode | ClientSol
 
 def dump(message: _Message) -> str:
     """The wire text of a server message (non-finite numbers as null: JSON has none)."""
-    return json.dumps(_finite(message.model_dump()), separators=(",", ":"))
-
-
-def _finite(value):
-    if isinstance(value, float):
-        return value if math.isfinite(value) else None
-    if isinstance(value, dict):
-        return {k: _finite(v) for k, v in value.items()}
-    if isinstance(value, (list, tuple)):
-        return [_finite(v) for v in value]
-    return value
+    return json.dumps(finite(message.model_dump()), separators=(",", ":"))

@@ -17,6 +17,7 @@ from pydantic import BaseModel, ConfigDict, ValidationError
 
 from pliant.core.conditions import Condition
 from pliant.errors import PliantError
+from pliant.io.jsontext import finite
 from pliant.viewer import protocol as P
 from pliant.viewer.protocol import ProtocolError
 
@@ -191,7 +192,7 @@ class ViewerState:
 
         path = inside(self.root, f"{name}.json", "name")
         record = SessionFile(scene=str(self.path.relative_to(self.root)), grips=self.grips())
-        text = json.dumps(P._finite(record.model_dump()), indent=1).encode()
+        text = json.dumps(finite(record.model_dump()), indent=1).encode()
         atomic_write(path, lambda h: h.write(text), "the session")
         return P.ServerSaved(name=path.name)
 
@@ -386,10 +387,9 @@ def _pad(v) -> list[float]:
 
 
 def _pad3(a: np.ndarray) -> np.ndarray:
-    a = np.asarray(a, float).reshape(-1, a.shape[-1] if a.ndim > 1 else 3)
-    if a.shape[1] == 3:
-        return a
-    return np.column_stack([a, np.zeros((a.shape[0], 3 - a.shape[1]))])
+    """Points (n, 2 or 3) as (n, 3): a 2D scene lies in z = 0."""
+    a = np.asarray(a, float)
+    return a if a.shape[1] == 3 else np.column_stack([a, np.zeros((a.shape[0], 3 - a.shape[1]))])
 
 
 def _at(s: np.ndarray, position: np.ndarray, at: float) -> tuple[np.ndarray, np.ndarray]:
