@@ -124,7 +124,7 @@ class Server:
             while True:
                 await asyncio.sleep(0.03)
                 async with lock:
-                    messages = state.take_accurate() if state.session.pending else []
+                    messages = state.take_accurate()
                 for message in messages:
                     await ws.send(P.dump(message))
 

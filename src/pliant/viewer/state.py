@@ -85,22 +85,25 @@ class ViewerState:
     # -- messages in -----------------------------------------------------------------------
     def handle(self, message) -> list[P._Message]:
         """The replies to one parsed client message (``ProtocolError`` or ``PliantError``
-        when it cannot be done: the caller replies with an error and goes on)."""
+        when it cannot be done: the caller replies with an error and goes on), with any
+        accurate result the session published meanwhile."""
         if isinstance(message, P.ClientHello):
-            return [self.scene_message(), self.accurate_message(), self.poll_frame(0)]
-        if isinstance(message, P.ClientMove):
-            return [self.move(message)]
-        if isinstance(message, P.ClientMode):
-            return [self.switch(message), self.scene_message()]
-        if isinstance(message, P.ClientSolve):
+            replies = [self.scene_message(), self.accurate_message(), self.poll_frame(0)]
+        elif isinstance(message, P.ClientMove):
+            replies = [self.move(message)]
+        elif isinstance(message, P.ClientMode):
+            replies = [self.switch(message), self.scene_message()]
+        elif isinstance(message, P.ClientSolve):
             self.session.request_accurate()
-            return [self.poll_frame(0)]
-        if isinstance(message, P.ClientSave):
-            return [self.save(message.name)]
-        if isinstance(message, P.ClientLoad):
+            replies = [self.poll_frame(0)]
+        elif isinstance(message, P.ClientSave):
+            replies = [self.save(message.name)]
+        elif isinstance(message, P.ClientLoad):
             self.load(message.name)
-            return [self.scene_message(), self.accurate_message(), self.poll_frame(0)]
-        raise ProtocolError(f"unknown message {type(message).__name__}", "type")
+            replies = [self.scene_message(), self.accurate_message(), self.poll_frame(0)]
+        else:
+            raise ProtocolError(f"unknown message {type(message).__name__}", "type")
+        return replies + self._published_since()
 
     def move(self, message: P.ClientMove) -> P.ServerFrame:
         from pliant.session import GripEvent  # noqa: PLC0415
@@ -174,16 +177,20 @@ class ViewerState:
         return self._frame_message(self.session.poll(), seq)
 
     def take_accurate(self) -> list[P._Message]:
-        """The accurate results published since the last call, each with a fresh frame
-        (the network was retuned to it); empty when none arrived."""
+        """What arrived from the accurate model since the last call: its results, then a
+        frame of the network retuned to them; empty when nothing arrived."""
         frame = self.session.poll() if self.session.pending else None
-        out: list[P._Message] = []
-        while self._published < len(self.session.solves):
-            result = self.session.solves[self._published]
-            self._published += 1
-            out.append(self._accurate(result))
+        out = self._published_since()
         if out and frame is not None:
             out.append(self._frame_message(frame, 0))
+        return out
+
+    def _published_since(self) -> list[P._Message]:
+        """The session's results not yet sent (a frame may have taken them in)."""
+        out: list[P._Message] = []
+        while self._published < len(self.session.solves):
+            out.append(self._accurate(self.session.solves[self._published]))
+            self._published += 1
         return out
 
     # -- sessions on disk ------------------------------------------------------------------
@@ -224,8 +231,6 @@ class ViewerState:
         problem = self.session.problem.with_conditions(
             conditions[c.name] for c in self.session.problem.conditions)
         self.session.replace(problem)
-        if not self.live:
-            self.take_accurate()
 
     # -- messages out ----------------------------------------------------------------------
     def grips(self) -> list[P.Grip]:
