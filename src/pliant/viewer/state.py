@@ -399,9 +399,9 @@ def _pad3(a: np.ndarray) -> np.ndarray:
 
 def _at(s: np.ndarray, position: np.ndarray, at: float) -> tuple[np.ndarray, np.ndarray]:
     """The point and unit tangent of a sampled shape at arc length ``at``."""
-    s = np.asarray(s, float)
-    keep = np.concatenate([[True], np.diff(s) > 0.0])
-    s, x = s[keep], np.asarray(position, float)[keep]
+    from pliant.session.session import _distinct  # noqa: PLC0415 (one sample per s)
+
+    s, x = _distinct(np.asarray(s, float), np.asarray(position, float))
     point = np.array([np.interp(at, s, x[:, c]) for c in range(x.shape[1])])
     k = int(np.clip(np.searchsorted(s, at) - 1, 0, len(s) - 2))
     tangent = x[k + 1] - x[k]
