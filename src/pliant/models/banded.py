@@ -107,6 +107,69 @@ def band_solve(ab, kl, ku, rhs):
     return band_lu_solve(ab, piv, kl, ku, rhs), True
 
 
+@njit(cache=True)
+def band_solve_reduced(ab, kl, ku, rhs, drop):
+    """Solve A x = rhs where each row i with drop[i] is the identity's (x_i = rhs_i is
+    known): those unknowns go to the right-hand side and only the others are factorised,
+    in a band renumbered without them and as narrow as their entries allow. The contact
+    probes far from everything are such rows: leaving them out halves the factorisation.
+    ``ab`` is left as it was. Returns (x, ok)."""
+    n = ab.shape[0]
+    kv = kl + ku
+    x = np.zeros(n)
+    b = rhs.copy()
+    new = np.empty(n, dtype=np.int64)
+    m = 0
+    for i in range(n):
+        if drop[i]:
+            new[i] = -1
+        else:
+            new[i] = m
+            m += 1
+    for j in range(n):  # the known unknowns' columns to the right-hand side
+        if drop[j]:
+            xj = rhs[j]
+            x[j] = xj
+            if xj != 0.0:
+                for i in range(max(0, j - ku), min(n, j + kl + 1)):
+                    if i != j:
+                        b[i] -= ab[j, kv + i - j] * xj
+    if m == 0:
+        return x, True
+    lo = 0
+    up = 0
+    for j in range(n):
+        if drop[j]:
+            continue
+        for i in range(max(0, j - ku), min(n, j + kl + 1)):
+            if not drop[i] and ab[j, kv + i - j] != 0.0:
+                d = new[i] - new[j]
+                if d > lo:
+                    lo = d
+                elif -d > up:
+                    up = -d
+    c = np.zeros((m, 2 * lo + up + 1))
+    bc = np.empty(m)
+    for j in range(n):
+        if drop[j]:
+            continue
+        jn = new[j]
+        bc[jn] = b[j]
+        for i in range(max(0, j - ku), min(n, j + kl + 1)):
+            if not drop[i]:
+                v = ab[j, kv + i - j]
+                if v != 0.0:
+                    c[jn, lo + up + new[i] - jn] = v
+    piv, ok = band_lu(c, lo, up)
+    if not ok:
+        return x, False
+    y = band_lu_solve(c, piv, lo, up, bc)
+    for i in range(n):
+        if not drop[i]:
+            x[i] = y[new[i]]
+    return x, True
+
+
 def dense(ab, kl: int, ku: int, n: int) -> np.ndarray:
     """The n x n matrix stored in band form (for dense fallbacks and checks)."""
     out = np.zeros((n, n))

@@ -39,7 +39,7 @@ from numba import njit
 
 from pliant.models.banded import add as _add
 from pliant.models.banded import add_block as _add_block
-from pliant.models.banded import band_lu, band_lu_solve, band_solve  # noqa: F401
+from pliant.models.banded import band_lu, band_lu_solve, band_solve, band_solve_reduced  # noqa: F401
 from pliant.scene.distance import hessian_point, query_points
 
 # Orientation kinds of a station.
@@ -808,7 +808,11 @@ def newton_contact(X, Q, lam, nu, gam, h, elem_frame, joint_hh, joint_k0, K, fno
         if it >= max_iter:
             return X, Q, lam, nu, gam, r, it, MAX_ITERATIONS, energy
         it += 1
-        du, ok = band_solve(ab, kl, ku, -R)
+        # The free probes' rows are the identity's: they leave the factorisation.
+        drop = np.zeros(n, dtype=np.bool_)
+        for k in range(iprobe.shape[0]):
+            drop[iprobe[k]] = not active[k]
+        du, ok = band_solve_reduced(ab, kl, ku, -R, drop)
         if not ok:
             return X, Q, lam, nu, gam, r, it, SINGULAR, energy
         damped = not strict
