@@ -101,8 +101,10 @@ def warm_steps() -> None:
         on = [t for t, c in zip(times, touching) if c] or times
         figures[label] = statistics.median(on)
         print(f"    {label}: {statistics.median(on) * 1e3:.2f} ms per step (median over "
-              f"the {len(on)} steps touching; {statistics.median(iterations):.0f} Newton "
-              f"iterations; at most {max(touching)} contact points)")
+              f"the {len(on)} steps touching; 90th percentile "
+              f"{np.percentile(on, 90) * 1e3:.2f} ms, slowest {max(on) * 1e3:.1f} ms; "
+              f"{statistics.median(iterations):.0f} Newton iterations; at most "
+              f"{max(touching)} contact points)")
     print(f"    contact costs {figures['with the block'] / figures['no obstacles']:.1f}x a "
           "free step")
 
