@@ -214,3 +214,110 @@ def test_contact_jacobian_matches_finite_differences():
     fd[:, idle] = J[:, idle]
     assert np.all(J[np.ix_(idle, idle)] == np.eye(idle.size))
     assert np.abs(J - fd).max() < 1e-5 * max(1.0, np.abs(J).max())
+
+
+# -- friction --------------------------------------------------------------------------
+def _tip_on_a_floor(mu: float, x: float) -> pl.Problem:
+    """The heavy cantilever (q L^3 / EI = 10) whose tip rests on a floor 0.5 m down, with
+    Coulomb friction mu there, its clamp moved along x by ``x``."""
+    floor = Obstacle.halfspace("floor", (0.0, 0.0, -0.5 - RADIUS), (0.0, 0.0, 1.0))
+    return pl.Problem(part(10.0), (pl.clamp(0.0, position=(x, 0.0, 0.0)),),
+                      gravity=(0.0, 0.0, -9.81), obstacles=(floor.with_friction(mu),))
+
+
+def _pushed_tip_2d(force) -> np.ndarray:
+    """The tip (x, z) of the 2D model of the same cantilever, its tip pushed by ``force``
+    (horizontal, vertical) [N] instead of resting on the floor."""
+    planar = pl.solve(pl.Problem(pl.Part(length=1.0, bending_stiffness=1.0,
+                                         mass_per_length=10.0 / 9.81),
+                                 (pl.clamp(0.0), pl.push(1.0, force=tuple(force), name="tip")),
+                                 gravity=(0.0, -9.81)))
+    return planar.position[-1]
+
+
+def test_friction_slides_on_the_cone_and_sticks_inside_it():
+    """Coulomb friction at a tip on a floor (mu = 0.3), the clamp dragged along x in
+    1 cm steps: the tip slides with it, the floor's force on the cone's rim (friction
+    = mu N, against the motion), and the 2D model pushed at the tip by that force puts
+    the tip where it is. Moved back 0.2 mm, the tip sticks: it stays to 1e-9 m, the
+    friction falls inside the cone, and again the 2D model pushed by it agrees. With
+    mu = 0 the answer is the frictionless one."""
+    mu = 0.3
+    eq = rod3d.solve(_tip_on_a_floor(mu, 0.0))
+    frictionless = rod3d.solve(_tip_on_a_floor(0.0, 0.0))
+    assert np.abs(eq.position - frictionless.position).max() < 1e-12
+    assert not np.any(eq.contacts.friction)  # a cold solve has no history: no friction
+    for x in (0.01, 0.02, 0.03):
+        before = eq.position[-1].copy()
+        eq = rod3d.solve(_tip_on_a_floor(mu, x), warm_start=eq)
+        (normal, friction), moved = eq.contacts.force[0, [2, 0]], eq.position[-1] - before
+        assert len(eq.contacts) == 1 and moved[0] > 5e-3
+        assert friction == pytest.approx(-mu * normal, rel=1e-9)  # on the rim, backwards
+        assert eq.contacts.friction[0, 1] == pytest.approx(0.0, abs=1e-12)
+        assert eq.position[-1, 2] == pytest.approx(-0.5, abs=1e-9)
+    tip = _pushed_tip_2d((friction, normal))
+    assert tip == pytest.approx([eq.position[-1, 0] - 0.03, -0.5], abs=1e-4)
+    # Weight, clamp and floor balance.
+    total = eq.contacts.force.sum(axis=0) + eq.loads["clamp"].force
+    assert total == pytest.approx([0.0, 0.0, 10.0], abs=1e-9)
+    stuck = eq.position[-1].copy()
+    eq = rod3d.solve(_tip_on_a_floor(mu, 0.0298), warm_start=eq)
+    assert np.abs(eq.position[-1] - stuck).max() < 1e-9
+    (normal, friction) = eq.contacts.force[0, [2, 0]]
+    assert abs(friction) < mu * normal * (1.0 - 1e-3)
+    tip = _pushed_tip_2d((friction, normal))
+    assert tip == pytest.approx([stuck[0] - 0.0298, -0.5], abs=1e-4)
+    assert eq.stable is None  # with friction, stability is not the energy's minimum
+
+
+def test_contact_jacobian_with_friction_matches_finite_differences():
+    """The Jacobian of Coulomb's law (stuck, sliding and free probes) and of the
+    tangential forces on the nodes against central differences."""
+    from pliant.models.rod3d import solver as rod_solver
+    from pliant.models.rod3d.lowering import lower
+
+    drum = Obstacle.cylinder("drum", 0.05, 0.3, (0.4, 0.0, -0.08), ACROSS_Y).with_friction(0.4)
+    hose = pl.Part(length=1.0, bending_stiffness=0.05, mass_per_length=0.3,
+                   outer_diameter=2 * RADIUS)
+    problem = pl.Problem(hose, (pl.clamp(0.0, position=(0.0, 0.0, 0.0)),
+                                pl.pin(1.0, position=(0.95, 0.0, -0.05), name="hand")),
+                         gravity=(0.0, 0.0, -9.81), obstacles=(drum,))
+    rod = lower(problem, 12)
+    assert rod.friction
+    run = rod_solver._Run(rod, rod3d.RodSolver())
+    _, rest = rod.rest()
+    run.gauge_quat = rest[1][0].copy()
+    X = rest[0].copy()
+    X[:, 2] -= 0.07 * np.sin(np.pi * np.linspace(0.0, 1.0, X.shape[0]))
+    start = (X, rest[1], rest[2], rest[3], np.zeros(rod.islot.shape[0]))
+    run.hold(start)
+    X = X.copy()
+    X[:, 0] += 0.003 * np.cos(5.0 * np.linspace(0.0, 1.0, X.shape[0]))  # some slip
+    gaps = run.contacts(start, rod.target)[0]
+    near = gaps < 0.05
+    rng = np.random.default_rng(1)
+    gam = np.zeros((rod.iprobe.shape[0], 3))
+    gam[near, 0] = rng.uniform(0.1, 1.0, near.sum())
+    gam[near, 1:] = rng.normal(scale=0.3, size=(near.sum(), 2))  # some in, some out
+    state = (X, rest[1], rest[2], rest[3], gam.ravel())
+    R, ab, _ = run.residual(state, rod.target, want_jac=True)
+    n = rod.n
+    J = dense(ab, rod.kl, rod.ku, n)
+    fd = np.zeros((n, n))
+    for j in range(n):
+        du = np.zeros(n)
+        du[j] = 1e-7
+        plus = run.residual(run.step(state, du, 1.0), rod.target)[0]
+        minus = run.residual(run.step(state, du, -1.0), rod.target)[0]
+        fd[:, j] = (plus - minus) / 2e-7
+    idle = rod.iprobe[(gam[:, 0] == 0.0) & ~run.contacts(state, rod.target)[3]]
+    fd[:, idle] = J[:, idle]
+    # Both regimes are present among the probes with a normal force.
+    p = run.friction[1]
+    slip = np.einsum("kic,kc->ki", run.friction[2],
+                     (1 - rod.probe_a[:, None]) * X[rod.probe_elem]
+                     + rod.probe_a[:, None] * X[rod.probe_elem + 1] - p)
+    z = np.linalg.norm(gam[:, 1:] - rod_solver.CONTACT_SCALE * slip, axis=1)
+    on = gam[:, 0] > 0
+    assert np.any(z[on] < 0.4 * gam[on, 0]) and np.any(z[on] > 0.4 * gam[on, 0])
+    assert np.abs(J - fd).max() < 1e-5 * max(1.0, np.abs(J).max())

@@ -142,6 +142,7 @@ position = [0.4, 0.0, 0.6]
     (('port = "outlet"', 'port = "exit"'), "condition[1]: port: no [[port]] named 'exit'"),
     (("[[0.0, -1.0, 0.0]", "[[0.0, -2.0, 0.0]"), "obstacle[3]: a rotation must be"),
     (('port = "inlet"', 'port = "inlet"\nx = 0.1'), "takes its position and axis"),
+    (('name = "floor"', 'name = "floor"\nfriction = -0.2'), "obstacle[0].friction"),
 ])
 def test_scene_errors_name_the_field(change, where):
     assert change[0] in SMALL
@@ -300,3 +301,11 @@ def test_an_assembled_flexible_part_becomes_an_obstacle_round_its_solved_shape(t
     shutil.copy(EXAMPLES / "scenes" / "manifold.stl", tmp_path)
     with pytest.raises(FileFormatError, match=r"assembled\[0\]: file: no such problem file"):
         load_scene(tmp_path / "bay.toml")
+
+
+def test_an_obstacle_takes_its_friction():
+    """friction = mu on an [[obstacle]] reaches the problem's obstacle; none means 0."""
+    scene = parse_scene(SMALL.replace('name = "floor"', 'name = "floor"\nfriction = 0.35', 1),
+                        "small.toml")
+    mu = {o.name: o.friction for o in scene.problem.obstacles}
+    assert mu["floor"] == 0.35 and all(v == 0.0 for k, v in mu.items() if k != "floor")

@@ -202,15 +202,20 @@ class Contacts:
     """The contact forces on a part, one row per touching point.
 
     s (k,) [m] where along the part; point (k, 3) [m] the point of the neutral line;
-    force (k, 3) [N] what the obstacle applies to the part (normal to its surface:
-    frictionless); obstacle (k,) the obstacle's name. A distributed contact shows as
-    several neighbouring rows.
+    force (k, 3) [N] what the obstacle applies to the part, friction included; obstacle
+    (k,) the obstacle's name; friction (k, 3) [N] the part of force along the surface
+    (zero without friction). A distributed contact shows as several neighbouring rows.
     """
 
     s: np.ndarray
     point: np.ndarray
     force: np.ndarray
     obstacle: tuple[str, ...]
+    friction: np.ndarray | None = None
+
+    def __post_init__(self) -> None:
+        if self.friction is None:
+            object.__setattr__(self, "friction", np.zeros_like(self.force))
 
     def __len__(self) -> int:
         return int(self.s.shape[0])
@@ -224,7 +229,8 @@ class Contacts:
 
     def to_dict(self) -> dict[str, Any]:
         return {"s": self.s.tolist(), "point": self.point.tolist(),
-                "force": self.force.tolist(), "obstacle": list(self.obstacle)}
+                "force": self.force.tolist(), "friction": self.friction.tolist(),
+                "obstacle": list(self.obstacle)}
 
 
 NO_CONTACTS = Contacts(np.zeros(0), np.zeros((0, 3)), np.zeros((0, 3)), ())

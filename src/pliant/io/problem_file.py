@@ -209,6 +209,8 @@ class ObstacleModel(_Strict):
                                                "this file")
     scale: float = Field(1.0, gt=0, description="mesh: its units in m (0.001 for mm)")
     resolution: int = Field(64, ge=8, le=512, description="mesh: distance grid cells")
+    friction: float = Field(0.0, ge=0, le=5, description="Coulomb's coefficient between "
+                                                          "the obstacle and the part")
     note: str = ""
 
     @model_validator(mode="after")
@@ -225,6 +227,9 @@ class ObstacleModel(_Strict):
         return self
 
     def build(self, base: Path | None) -> Any:
+        return self._shape(base).with_friction(self.friction)
+
+    def _shape(self, base: Path | None) -> Any:
         from pliant.scene.distance import Obstacle, _frame_with_z  # noqa: PLC0415
 
         rotation = None

@@ -108,6 +108,26 @@ def band_solve(ab, kl, ku, rhs):
 
 
 @njit(cache=True)
+def identity_rows(ab, kl, ku, first, width):
+    """(n,) True where a row among first[k] .. first[k] + width - 1 is the identity's:
+    1 on the diagonal and nothing else (a free contact probe's, whose force is 0)."""
+    n = ab.shape[0]
+    kv = kl + ku
+    out = np.zeros(n, dtype=np.bool_)
+    for k in range(first.shape[0]):
+        for i in range(first[k], first[k] + width):
+            if ab[i, kv] != 1.0:
+                continue
+            plain = True
+            for j in range(max(0, i - kl), min(n, i + ku + 1)):
+                if j != i and ab[j, kv + i - j] != 0.0:
+                    plain = False
+                    break
+            out[i] = plain
+    return out
+
+
+@njit(cache=True)
 def band_solve_reduced(ab, kl, ku, rhs, drop):
     """Solve A x = rhs where each row i with drop[i] is the identity's (x_i = rhs_i is
     known): those unknowns go to the right-hand side and only the others are factorised,

@@ -22,7 +22,7 @@ from __future__ import annotations
 import hashlib
 import math
 import os
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
@@ -669,6 +669,13 @@ class Obstacle:
     translation: np.ndarray
     param: np.ndarray
     mesh: MeshData | None = None
+    friction: float = 0.0  # Coulomb's coefficient between it and the part
+
+    def with_friction(self, mu: float) -> Obstacle:
+        """This obstacle with Coulomb friction ``mu`` (>= 0) against the part."""
+        if not (math.isfinite(mu) and mu >= 0.0):
+            raise ValueError(f"friction: {mu!r} must be a finite number >= 0")
+        return replace(self, friction=float(mu))
 
     @staticmethod
     def sphere(name: str, radius: float, center) -> Obstacle:
@@ -724,6 +731,7 @@ class DistanceField:
     def __init__(self, obstacles: list[Obstacle]) -> None:
         self.obstacles = list(obstacles)
         m = len(self.obstacles)
+        self.friction = np.array([o.friction for o in self.obstacles], dtype=float)
         meshes = [o.mesh for o in self.obstacles if o.mesh is not None]
         mesh_id = np.full(m, -1, dtype=np.int64)
         k = 0

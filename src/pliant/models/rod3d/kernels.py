@@ -39,7 +39,13 @@ from numba import njit
 
 from pliant.models.banded import add as _add
 from pliant.models.banded import add_block as _add_block
-from pliant.models.banded import band_lu, band_lu_solve, band_solve, band_solve_reduced  # noqa: F401
+from pliant.models.banded import (  # noqa: F401
+    band_lu,
+    band_lu_solve,
+    band_solve,
+    band_solve_reduced,
+    identity_rows,
+)
 from pliant.scene.distance import hessian_point, query_points
 
 # Orientation kinds of a station.
@@ -689,8 +695,8 @@ def rest_shape(h, elem_frame, joint_hh, joint_k0):
 # -- contact -------------------------------------------------------------------------------
 @njit(cache=True)
 def contact_terms(X, gam, probe_elem, probe_a, iprobe, ix, L, radius, offset, band, scale,
-                  field, R, ab, kl, ku, want_jac):
-    """Add the frictionless contacts to a KKT residual (and its Jacobian), in place.
+                  field, R, ab, kl, ku, want_jac, slot, fric):
+    """Add the contacts to a KKT residual (and its Jacobian), in place.
 
     Each probe p = (1 - a) x_e + a x_e+1 has the gap g = (D(p L) - radius) / L + offset
     (D the scene's signed distance) and the multiplier gam >= 0, the normal force it takes
@@ -699,9 +705,17 @@ def contact_terms(X, gam, probe_elem, probe_a, iprobe, ix, L, radius, offset, ba
     semismooth Newton: a probe with gam <= scale g is free (its row: gam = 0), else it
     touches (its row: g = 0); switching is the active-set update. The curvature of the
     surface (d n / d p) enters the force's Jacobian, from the obstacle's exact Hessian.
+
+    With friction (slot 3) each probe also has a tangential force t = (t1, t2) in the
+    basis (tau1, tau2) of its tangent plane at the step's start, fric = (mu per obstacle,
+    the probes' points at the step's start (K, 3, by L), the bases (K, 2, 3)). Its slip
+    is s_i = tau_i . (p / L - p0), and Coulomb's law is Alart and Curnier's
+    t = proj onto the disc of radius mu gam of (t - scale s): it sticks (s = 0) inside
+    the disc and slides (t = mu gam opposite the slip) on its rim.
     Returns (gaps (K,), normals (K, 3), obstacles (K,), active (K,) bool).
     """
     K = probe_elem.shape[0]
+    mu_of, ref, basis = fric
     gaps = np.empty(K)
     which = np.empty(K, dtype=np.int64)
     active = np.zeros(K, dtype=np.bool_)
@@ -723,13 +737,17 @@ def contact_terms(X, gam, probe_elem, probe_a, iprobe, ix, L, radius, offset, ba
         ip = iprobe[k]
         w0, w1 = 1.0 - a, a
         n = normals[k]
-        lam = gam[k]
+        lam = gam[k * slot]
         for c in range(3):
             R[ix[e] + c] -= w0 * lam * n[c]
             R[ix[e + 1] + c] -= w1 * lam * n[c]
         touching = lam > scale * g
         active[k] = touching
         R[ip] = scale * g if touching else lam
+        if slot == 3:
+            _friction_terms(X, gam, k, e, w0, w1, ip, ix, points[k] / L, lam,
+                            mu_of[o] if o >= 0 else 0.0, ref[k], basis[k], scale, R, ab,
+                            kl, ku, want_jac)
         if not want_jac:
             continue
         if touching or lam != 0.0:
@@ -760,11 +778,87 @@ def contact_terms(X, gam, probe_elem, probe_a, iprobe, ix, L, radius, offset, ba
 
 
 @njit(cache=True)
+def _friction_terms(X, gam, k, e, w0, w1, ip, ix, p, lam, mu, p0, tau, scale, R, ab, kl, ku,
+                    want_jac):
+    """A probe's Coulomb friction (see ``contact_terms``): its tangential force on the
+    nodes and its two rows of Alart and Curnier's law, with their semismooth Jacobian."""
+    t1 = gam[3 * k + 1]
+    t2 = gam[3 * k + 2]
+    for c in range(3):
+        f = t1 * tau[0, c] + t2 * tau[1, c]
+        R[ix[e] + c] -= w0 * f
+        R[ix[e + 1] + c] -= w1 * f
+    s1 = 0.0
+    s2 = 0.0
+    for c in range(3):
+        s1 += tau[0, c] * (p[c] - p0[c])
+        s2 += tau[1, c] * (p[c] - p0[c])
+    rho = mu * lam if lam > 0.0 else 0.0
+    z1 = t1 - scale * s1
+    z2 = t2 - scale * s2
+    zn = math.sqrt(z1 * z1 + z2 * z2)
+    i1 = ip + 1
+    i2 = ip + 2
+    if rho <= 0.0:  # free, or no friction: t = 0
+        R[i1] = t1
+        R[i2] = t2
+        kind = 0
+    elif zn <= rho:  # sticks: no slip
+        R[i1] = scale * s1
+        R[i2] = scale * s2
+        kind = 1
+    else:  # slides: t on the disc's rim, against the trial force
+        u1 = z1 / zn
+        u2 = z2 / zn
+        R[i1] = t1 - rho * u1
+        R[i2] = t2 - rho * u2
+        kind = 2
+    if not want_jac:
+        return
+    for c in range(3):
+        for i in range(2):
+            _add(ab, kl, ku, ix[e] + c, ip + 1 + i, -w0 * tau[i, c])
+            _add(ab, kl, ku, ix[e + 1] + c, ip + 1 + i, -w1 * tau[i, c])
+    if kind == 0:
+        _add(ab, kl, ku, i1, i1, 1.0)
+        _add(ab, kl, ku, i2, i2, 1.0)
+        return
+    # dF/ds (2 x 2), dF/dt (2 x 2) and dF/dgam (2,): stick F = scale s; slide
+    # F = t - rho z / |z| with z = t - scale s, D = rho (I - u u^T) / |z|.
+    if kind == 1:
+        ds00, ds01, ds10, ds11 = scale, 0.0, 0.0, scale
+        dt00, dt01, dt10, dt11 = 0.0, 0.0, 0.0, 0.0
+        dg0, dg1 = 0.0, 0.0
+    else:
+        q = rho / zn
+        d00 = q * (1.0 - u1 * u1)
+        d01 = -q * u1 * u2
+        d11 = q * (1.0 - u2 * u2)
+        ds00, ds01, ds10, ds11 = scale * d00, scale * d01, scale * d01, scale * d11
+        dt00, dt01, dt10, dt11 = 1.0 - d00, -d01, -d01, 1.0 - d11
+        dg0, dg1 = -mu * u1, -mu * u2
+    for c in range(3):  # ds_i / dx = tau_i w
+        v1 = ds00 * tau[0, c] + ds01 * tau[1, c]
+        v2 = ds10 * tau[0, c] + ds11 * tau[1, c]
+        _add(ab, kl, ku, i1, ix[e] + c, w0 * v1)
+        _add(ab, kl, ku, i1, ix[e + 1] + c, w1 * v1)
+        _add(ab, kl, ku, i2, ix[e] + c, w0 * v2)
+        _add(ab, kl, ku, i2, ix[e + 1] + c, w1 * v2)
+    if kind == 2:
+        _add(ab, kl, ku, i1, i1, dt00)
+        _add(ab, kl, ku, i1, i2, dt01)
+        _add(ab, kl, ku, i2, i1, dt10)
+        _add(ab, kl, ku, i2, i2, dt11)
+        _add(ab, kl, ku, i1, ip, dg0)
+        _add(ab, kl, ku, i2, ip, dg1)
+
+
+@njit(cache=True)
 def _contact_residual(X, Q, lam, nu, gam, h, elem_frame, joint_hh, joint_k0, K, fnode,
                       st_node, st_frame, st_pos_mask, st_pos, st_kind, st_axis_b, st_quat,
                       st_moment, st_ffollow, st_mfollow, gauge_frame, gauge_quat, ix, ith,
                       ilam, inu, nu_off, igauge, n, kl, ku, probe_elem, probe_a, iprobe,
-                      contact, field):
+                      contact, field, slot, fric):
     """The KKT residual and Jacobian with the contact terms; (R, ab, energy, active)."""
     R, ab, energy = assemble(X, Q, lam, nu, h, elem_frame, joint_hh, joint_k0, K, fnode,
                              st_node, st_frame, st_pos_mask, st_pos, st_kind, st_axis_b,
@@ -772,7 +866,7 @@ def _contact_residual(X, Q, lam, nu, gam, h, elem_frame, joint_hh, joint_k0, K, 
                              gauge_quat, ix, ith, ilam, inu, nu_off, igauge, n, kl, ku, True)
     L, radius, offset, band, scale = contact
     active = contact_terms(X, gam, probe_elem, probe_a, iprobe, ix, L, radius, offset, band,
-                           scale, field, R, ab, kl, ku, True)[3]
+                           scale, field, R, ab, kl, ku, True, slot, fric)[3]
     return R, ab, energy, active
 
 
@@ -781,7 +875,7 @@ def newton_contact(X, Q, lam, nu, gam, h, elem_frame, joint_hh, joint_k0, K, fno
                    st_frame, st_pos_mask, st_pos, st_kind, st_axis_b, st_quat, st_moment,
                    st_ffollow, st_mfollow, gauge_frame, gauge_quat, ix, ith, ilam, inu,
                    nu_off, nu_cnt, igauge, n, kl, ku, probe_elem, probe_a, iprobe, contact,
-                   field, tol, max_iter, contraction, strict, max_switches):
+                   field, slot, fric, tol, max_iter, contraction, strict, max_switches):
     """The semismooth Newton of a problem with obstacles, in one kernel, its Jacobian
     rebuilt every iteration (the active set may change). Acceptance:
 
@@ -798,7 +892,8 @@ def newton_contact(X, Q, lam, nu, gam, h, elem_frame, joint_hh, joint_k0, K, fno
         X, Q, lam, nu, gam, h, elem_frame, joint_hh, joint_k0, K, fnode, st_node, st_frame,
         st_pos_mask, st_pos, st_kind, st_axis_b, st_quat, st_moment, st_ffollow, st_mfollow,
         gauge_frame, gauge_quat, ix, ith, ilam, inu, nu_off, igauge, n, kl, ku, probe_elem,
-        probe_a, iprobe, contact, field)
+        probe_a, iprobe, contact, field, slot,
+        fric)
     r = max_abs(R)
     if not math.isfinite(r):
         return X, Q, lam, nu, gam, r, 0, NOT_FINITE, energy
@@ -809,10 +904,7 @@ def newton_contact(X, Q, lam, nu, gam, h, elem_frame, joint_hh, joint_k0, K, fno
             return X, Q, lam, nu, gam, r, it, MAX_ITERATIONS, energy
         it += 1
         # The free probes' rows are the identity's: they leave the factorisation.
-        drop = np.zeros(n, dtype=np.bool_)
-        for k in range(iprobe.shape[0]):
-            drop[iprobe[k]] = not active[k]
-        du, ok = band_solve_reduced(ab, kl, ku, -R, drop)
+        du, ok = band_solve_reduced(ab, kl, ku, -R, identity_rows(ab, kl, ku, iprobe, slot))
         if not ok:
             return X, Q, lam, nu, gam, r, it, SINGULAR, energy
         damped = not strict
@@ -825,13 +917,15 @@ def newton_contact(X, Q, lam, nu, gam, h, elem_frame, joint_hh, joint_k0, K, fno
             Xn, Qn, ln, nn = apply_step(X, Q, lam, nu, du, ix, ith, ilam, inu, nu_off, nu_cnt,
                                         igauge, step)
             gn = gam.copy()
-            for k in range(gam.shape[0]):
-                gn[k] += step * du[iprobe[k]]
+            for k in range(iprobe.shape[0]):
+                for j in range(slot):
+                    gn[k * slot + j] += step * du[iprobe[k] + j]
             Rn, abn, en, an = _contact_residual(
                 Xn, Qn, ln, nn, gn, h, elem_frame, joint_hh, joint_k0, K, fnode, st_node,
                 st_frame, st_pos_mask, st_pos, st_kind, st_axis_b, st_quat, st_moment,
                 st_ffollow, st_mfollow, gauge_frame, gauge_quat, ix, ith, ilam, inu, nu_off,
-                igauge, n, kl, ku, probe_elem, probe_a, iprobe, contact, field)
+                igauge, n, kl, ku, probe_elem, probe_a, iprobe, contact, field, slot,
+        fric)
             rn = max_abs(Rn)
             finite = math.isfinite(rn)
             if damped:

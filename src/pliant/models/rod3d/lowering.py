@@ -183,6 +183,8 @@ class Rod:
     probe_elem: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=np.int64))
     probe_a: np.ndarray = field(default_factory=lambda: np.zeros(0))
     iprobe: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=np.int64))
+    # Unknowns per probe: its normal force, and with friction two tangential ones after it.
+    slot: int = 1
     obstacles: object = None  # a pliant.scene.DistanceField, or None
     radius: float = 0.0  # the part's outer radius [m]
 
@@ -208,6 +210,16 @@ class Rod:
                 quat[k] = -quat[k]
         return replace(self, problem=problem, stations=problem.stations,
                        target=Loads(*targets, joint_k0=self.target.joint_k0))
+
+    @property
+    def islot(self) -> np.ndarray:
+        """Every probe's unknowns in order: normal (and tangential) forces, probe by
+        probe; the state's last array holds their values."""
+        return (self.iprobe[:, None] + np.arange(self.slot)).ravel()
+
+    @property
+    def friction(self) -> bool:
+        return self.slot == 3
 
     @property
     def force_scale(self) -> float:
@@ -309,7 +321,7 @@ class Rod:
         loads = Loads(np.zeros_like(self.target.fnode), st_pos, st_tangent, st_quat, zeros,
                       zeros, zeros, k0, turn, offset)
         state = (X, Q, np.zeros((self.elements, 3)), np.zeros(self.m),
-                 np.zeros(self.probe_elem.shape[0]))
+                 np.zeros(self.probe_elem.shape[0] * self.slot))
         return loads, state
 
 
@@ -430,13 +442,14 @@ def lower(problem: Problem, elements: int = 100) -> Rod:
     held = np.zeros(N + 1, dtype=bool)
     held[st_node[st_pos_mask.all(axis=1)]] = True
     node_probe = contact & ~held
+    slot = 3 if contact and any(o.friction > 0.0 for o in problem.obstacles) else 1
     radius = 0.5 * (part.outer_diameter or 0.0)
     longest = float(np.diff(s_node).max()) * L
     per = int(min(8, max(2, math.ceil(longest / (0.28 * radius))))) if radius > 0 else 2
     inner = np.zeros(N + 1, dtype=np.int64)
     inner[:N] = (per - 1) if contact else 0
     probes_at = node_probe.astype(np.int64) + inner
-    node_cnt = node_cnt + probes_at
+    node_cnt = node_cnt + probes_at * slot
     start = np.concatenate([[0], np.cumsum(node_cnt)[:-1]]).astype(np.int64)
     ix = start.copy()
     inu = (start[st_node] + 3).astype(np.int64)
@@ -470,23 +483,23 @@ def lower(problem: Problem, elements: int = 100) -> Rod:
     if contact:
         from pliant.scene.distance import DistanceField  # noqa: PLC0415
 
-        first = start + node_cnt - probes_at
+        first = start + node_cnt - probes_at * slot
         nodes = np.nonzero(node_probe)[0]
         mids = np.repeat(np.arange(N), per - 1)
         j = np.tile(np.arange(1, per), N)
         probe_elem = np.concatenate([np.minimum(nodes, N - 1), mids])
         probe_a = np.concatenate([np.where(nodes < N, 0.0, 1.0), j / per])
-        iprobe = np.concatenate([first[nodes], first[mids] + node_probe[mids] + j - 1]).astype(
-            np.int64)
+        iprobe = np.concatenate([first[nodes],
+                                 first[mids] + (node_probe[mids] + j - 1) * slot]).astype(np.int64)
         order = np.argsort(iprobe)
         probe_elem, probe_a, iprobe = probe_elem[order], probe_a[order], iprobe[order]
         for k in range(iprobe.shape[0]):
             e = probe_elem[k]
-            width = max(width, abs(iprobe[k] - ix[e]), abs(ix[e + 1] + 2 - iprobe[k]))
+            width = max(width, abs(iprobe[k] + slot - 1 - ix[e]), abs(ix[e + 1] + 2 - iprobe[k]))
         obstacles = DistanceField(list(problem.obstacles))
     target = Loads(*targets, joint_k0=rest_k0.copy())
     key = (L, EI1, tuple(K), s_node.tobytes(), st_pos_mask.tobytes(), st_kind.tobytes(),
-           rest_k0.tobytes(), iprobe.shape[0])
+           rest_k0.tobytes(), iprobe.shape[0], slot)
     return Rod(problem=problem, length=L, stiffness=EI1, s_node=s_node, h=h,
                frame_s=frame_s_arr, elem_frame=elem_frame, joint_hh=joint_hh, K=K,
                stations=stations, st_node=st_node, st_frame=st_frame,
@@ -494,5 +507,5 @@ def lower(problem: Problem, elements: int = 100) -> Rod:
                ith=ith, ilam=ilam, inu=inu, nu_off=nu_off, nu_cnt=nu_cnt, igauge=igauge,
                n=n, kl=width, ku=width, m=m, target=target, key=key, rest_k0=rest_k0,
                node_frame=node_frame, requested=elements, probe_elem=probe_elem,
-               probe_a=probe_a, iprobe=iprobe, obstacles=obstacles,
+               probe_a=probe_a, iprobe=iprobe, slot=slot, obstacles=obstacles,
                radius=radius)

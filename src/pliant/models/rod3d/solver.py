@@ -109,6 +109,7 @@ class _WarmState:
     rod: Rod
     state: State
     gauge_quat: np.ndarray
+    friction: tuple = ()  # the friction reference it was found with (see _Run.hold)
 
 
 @dataclass
@@ -121,9 +122,39 @@ class _Run:
     notes: list[str] = field(default_factory=list)
     deadline: float = 0.0
     stall: _Stalled | None = None  # why the last follow from a warm start stopped
+    # Friction's reference (see kernels.contact_terms): none yet, so no friction.
+    friction: tuple = ()
 
     def __post_init__(self) -> None:
         self.deadline = time.perf_counter() + self.solver.time_budget
+        K = self.rod.probe_elem.shape[0]
+        self.friction = (np.zeros(max(len(self.rod.problem.obstacles), 1)), np.zeros((K, 3)),
+                         np.zeros((K, 2, 3)))
+
+    def hold(self, state: State, previous: tuple = ()) -> State:
+        """Friction from here on is measured from ``state`` (the step's start): each probe's
+        slip from its point there, in the tangent plane of the obstacle nearest it then.
+        A cold solve has no such start, and no friction. Returns the state with its
+        tangential forces, found in the ``previous`` reference's bases, in the new ones."""
+        rod = self.rod
+        if not rod.friction:
+            return state
+        a = rod.probe_a[:, None]
+        X = state[0]
+        points = (1.0 - a) * X[rod.probe_elem] + a * X[rod.probe_elem + 1]
+        _, normals, _ = rod.obstacles.query(points * rod.length, band=math.inf)
+        t1 = np.eye(3)[np.argmin(np.abs(normals), axis=1)]
+        t1 -= np.einsum("kc,kc->k", t1, normals)[:, None] * normals
+        t1 /= np.linalg.norm(t1, axis=1)[:, None]
+        basis = np.stack([t1, np.cross(normals, t1)], axis=1)
+        self.friction = (rod.obstacles.friction, points, basis)
+        gam = state[4].reshape(-1, 3).copy()
+        if previous:
+            force = np.einsum("ki,kic->kc", gam[:, 1:], previous[2])
+            gam[:, 1:] = np.einsum("kic,kc->ki", basis, force)
+        else:
+            gam[:, 1:] = 0.0
+        return (*state[:4], gam.ravel())
 
     def _static(self) -> tuple:
         rod = self.rod
@@ -137,8 +168,8 @@ class _Run:
             rod = self.rod
             X, Q, lam, nu, gam, r, it, status, energy = kernels.newton_contact(
                 *state[:5], *rod.args(loads), *self._static(), rod.probe_elem, rod.probe_a,
-                rod.iprobe, self._contact_constants(loads), rod.obstacles.args, tol,
-                opts.max_iterations, opts.contraction, strict, _SWITCHES)
+                rod.iprobe, self._contact_constants(loads), rod.obstacles.args, rod.slot,
+                self.friction, tol, opts.max_iterations, opts.contraction, strict, _SWITCHES)
             new = (X, Q, lam, nu, gam)
         else:
             X, Q, lam, nu, r, it, status, energy = kernels.newton(
@@ -180,7 +211,8 @@ class _Run:
             ab = np.zeros((0, 2 * rod.kl + rod.ku + 1))
         return kernels.contact_terms(state[0], state[4], rod.probe_elem, rod.probe_a,
                                      rod.iprobe, rod.ix, *self._contact_constants(loads),
-                                     rod.obstacles.args, R, ab, rod.kl, rod.ku, want_jac)
+                                     rod.obstacles.args, R, ab, rod.kl, rod.ku, want_jac,
+                                     rod.slot, self.friction)
 
     def solve_linear(self, ab: np.ndarray, rhs: np.ndarray) -> tuple[np.ndarray, bool]:
         """Solve J du = rhs, J's band in ``ab`` (which may be overwritten). A free probe's
@@ -189,8 +221,7 @@ class _Run:
         rod = self.rod
         if not rod.iprobe.shape[0]:
             return kernels.band_solve(ab, rod.kl, rod.ku, rhs)
-        drop = np.zeros(rod.n, dtype=bool)
-        drop[rod.iprobe] = ab[rod.iprobe, rod.kl + rod.ku] == 1.0
+        drop = kernels.identity_rows(ab, rod.kl, rod.ku, rod.iprobe, rod.slot)
         return kernels.band_solve_reduced(ab, rod.kl, rod.ku, rhs, drop)
 
     def _contact_constants(self, loads: Loads) -> tuple[float, float, float, float, float]:
@@ -204,13 +235,13 @@ class _Run:
         rod = self.rod
         X, Q, lam, nu = kernels.apply_step(*state[:4], du, rod.ix, rod.ith, rod.ilam, rod.inu,
                                            rod.nu_off, rod.nu_cnt, rod.igauge, scale)
-        return X, Q, lam, nu, state[4] + scale * du[rod.iprobe]
+        return X, Q, lam, nu, state[4] + scale * du[rod.islot]
 
     def difference(self, a: State, b: State) -> np.ndarray:
         rod = self.rod
         du = kernels.difference(*a[:4], *b[:4], rod.ix, rod.ith, rod.ilam, rod.inu,
                                 rod.nu_off, rod.nu_cnt, rod.igauge, rod.n)
-        du[rod.iprobe] = b[4] - a[4]
+        du[rod.islot] = b[4] - a[4]
         return du
 
     def follow(self, start: Loads, end: Loads, state: State) -> State:
@@ -276,7 +307,7 @@ class _Run:
         rod = self.rod
         sizes = kernels.unknown_sizes(state[0], state[2], state[3], rod.ix, rod.ilam, rod.inu,
                                       rod.nu_off, rod.nu_cnt, rod.n)
-        sizes[rod.iprobe] = np.maximum(1.0, np.abs(state[4]))
+        sizes[rod.islot] = np.maximum(1.0, np.abs(state[4]))
         return sizes
 
     # -- routes ---------------------------------------------------------------------------
@@ -350,7 +381,7 @@ class _Run:
                 continue
             # An unstable branch is not where a real part settles: try the other sides
             # for a stable one (for conservative loads, where stability is defined).
-            if _conservative(rod) and not _stability(self, found)[0]:
+            if _conservative(self) and not _stability(self, found)[0]:
                 if unstable is None:
                     unstable = (found, bow_side, self.gauge_quat)
                 continue
@@ -526,18 +557,19 @@ class _Run:
         if old.rod.key != self.rod.key:
             return self.transfer(warm, old)
         self.gauge_quat = old.gauge_quat
+        start = self.hold(old.state, old.friction)
         # With obstacles, predictor and corrector at once: Newton from the old state makes
         # the predictor's step, but judged by the residual's largest entry (a probe's gap
         # among them) it is often refused and crawls in halved steps, where a corrector
         # from it converges in two or three iterations, in half the time. Without them
         # Newton from the old state converges as fast on one factorisation.
         if not self.rod.iprobe.shape[0]:
-            state, r, status, _ = self.newton(old.state, self.rod.target, strict=True)
+            state, r, status, _ = self.newton(start, self.rod.target, strict=True)
             if status == kernels.CONVERGED:
                 self.steps += 1
                 return state
         try:
-            return self.follow(old.rod.target, self.rod.target, old.state)
+            return self.follow(old.rod.target, self.rod.target, start)
         except _Stalled as stall:
             self.stall = stall
             return None
@@ -564,10 +596,11 @@ class _Run:
                         nu[v] = -loads[owner].force[c] / rod.force_scale
                     v += 1
         self.gauge_quat = old.gauge_quat if rod.gauge_frame >= 0 else self.gauge_quat
-        gam = old.state[4] if old.state[4].shape == rod.iprobe.shape else np.zeros(
-            rod.iprobe.shape[0])
-        state, _, status, _ = self.newton((X.copy(), Q.copy(), lam.copy(), nu, gam.copy()),
-                                          rod.target, strict=False)
+        gam = old.state[4] if old.state[4].shape == rod.islot.shape else np.zeros(
+            rod.islot.shape[0])
+        start = self.hold((X.copy(), Q.copy(), lam.copy(), nu, gam.copy()),
+                          old.friction if gam is old.state[4] else ())
+        state, _, status, _ = self.newton(start, rod.target, strict=False)
         if status == kernels.CONVERGED:
             self.steps += 1
             return state
@@ -676,8 +709,8 @@ def _build(run: _Run, state: State) -> Equilibrium3D:
     return Equilibrium3D(
         problem=rod.problem, residual=float(np.abs(R).max()), iterations=run.iterations,
         steps=run.steps, sampler=_Sampler(run, state), notes=tuple(run.notes),
-        state=_WarmState(rod, state, run.gauge_quat),
-        stability_check=(lambda: _stability(run, state)) if _conservative(rod) else None)
+        state=_WarmState(rod, state, run.gauge_quat, run.friction),
+        stability_check=(lambda: _stability(run, state)) if _conservative(run, state) else None)
 
 
 @dataclass(frozen=True, eq=False)
@@ -709,14 +742,20 @@ def _contacts(run: _Run, state: State) -> Contacts:
     if not gam.shape[0]:
         return NO_CONTACTS
     _, normals, which, _ = run.contacts(state, rod.target)
+    normal = gam[::rod.slot]
     # Forces at rounding level (a probe just touching) are not contacts.
-    on = np.nonzero(gam > 1e-10 * max(1.0, float(gam.max())))[0]
+    on = np.nonzero(normal > 1e-10 * max(1.0, float(normal.max())))[0]
     e, a = rod.probe_elem[on], rod.probe_a[on]
     X = state[0]
     points = ((1.0 - a)[:, None] * X[e] + a[:, None] * X[e + 1]) * rod.length
     names = tuple(rod.obstacles.obstacles[o].name for o in which[on])
+    friction = np.zeros((on.shape[0], 3))
+    if rod.friction:
+        t = gam.reshape(-1, 3)[on, 1:]
+        friction = np.einsum("ki,kic->kc", t, run.friction[2][on]) * rod.force_scale
     return Contacts(s=(rod.s_node[e] + a * rod.h[e]) * rod.length, point=points,
-                    force=gam[on, None] * normals[on] * rod.force_scale, obstacle=names)
+                    force=normal[on, None] * normals[on] * rod.force_scale + friction,
+                    obstacle=names, friction=friction)
 
 
 def _station_loads(run: _Run, state: State) -> dict[str, StationLoad]:
@@ -759,8 +798,12 @@ def _station_loads(run: _Run, state: State) -> dict[str, StationLoad]:
     return out
 
 
-def _conservative(rod: Rod) -> bool:
-    t = rod.target
+def _conservative(run: _Run, state: State | None = None) -> bool:
+    """Loads with a potential (no follower, no applied moment) and, at ``state``, no
+    friction force: only then is stability the energy's minimum."""
+    t = run.rod.target
+    if state is not None and run.rod.friction and np.any(state[4].reshape(-1, 3)[:, 1:]):
+        return False
     return not (np.any(t.st_moment) or np.any(t.st_ffollow) or np.any(t.st_mfollow))
 
 
