@@ -168,6 +168,21 @@ def test_random_grips_round_an_obstacle_never_penetrate(x, y, z, height, weight)
     assert np.all(eq.contacts.force @ np.array([0.0, 1.0, 0.0]) < 1e-9)  # normal to the pole
 
 
+def _jacobians(run, state) -> tuple[np.ndarray, np.ndarray]:
+    """The KKT Jacobian at ``state`` as the kernels build it, and by central differences."""
+    rod = run.rod
+    _, ab, _ = run.residual(state, rod.target, want_jac=True)
+    n = rod.n
+    fd = np.zeros((n, n))
+    for j in range(n):
+        du = np.zeros(n)
+        du[j] = 1e-7
+        plus = run.residual(run.step(state, du, 1.0), rod.target)[0]
+        minus = run.residual(run.step(state, du, -1.0), rod.target)[0]
+        fd[:, j] = (plus - minus) / 2e-7
+    return dense(ab, rod.kl, rod.ku, n), fd
+
+
 def test_contact_jacobian_matches_finite_differences():
     """The KKT Jacobian with contacts (forces on the nodes, the gap rows of touching
     probes, the turning of the normals over a box's face, edge and corner and round a
@@ -196,16 +211,7 @@ def test_contact_jacobian_matches_finite_differences():
     assert near.sum() > 10
     gam = np.where(near, np.random.default_rng(0).uniform(0.1, 1.0, gaps.shape), 0.0)
     state = (X, rest[1], rest[2], rest[3], gam)
-    R, ab, _ = run.residual(state, rod.target, want_jac=True)
-    n, kl, ku = rod.n, rod.kl, rod.ku
-    J = dense(ab, kl, ku, n)
-    fd = np.zeros((n, n))
-    for j in range(n):
-        du = np.zeros(n)
-        du[j] = 1e-7
-        plus = run.residual(run.step(state, du, 1.0), rod.target)[0]
-        minus = run.residual(run.step(state, du, -1.0), rod.target)[0]
-        fd[:, j] = (plus - minus) / 2e-7
+    J, fd = _jacobians(run, state)
     touching = run.contacts(state, rod.target)[3]
     assert touching.sum() > 5
     # A free probe without force keeps only its row (d gam = 0): its column, which the
@@ -300,16 +306,7 @@ def test_contact_jacobian_with_friction_matches_finite_differences():
     gam[near, 0] = rng.uniform(0.1, 1.0, near.sum())
     gam[near, 1:] = rng.normal(scale=0.3, size=(near.sum(), 2))  # some in, some out
     state = (X, rest[1], rest[2], rest[3], gam.ravel())
-    R, ab, _ = run.residual(state, rod.target, want_jac=True)
-    n = rod.n
-    J = dense(ab, rod.kl, rod.ku, n)
-    fd = np.zeros((n, n))
-    for j in range(n):
-        du = np.zeros(n)
-        du[j] = 1e-7
-        plus = run.residual(run.step(state, du, 1.0), rod.target)[0]
-        minus = run.residual(run.step(state, du, -1.0), rod.target)[0]
-        fd[:, j] = (plus - minus) / 2e-7
+    J, fd = _jacobians(run, state)
     idle = rod.iprobe[(gam[:, 0] == 0.0) & ~run.contacts(state, rod.target)[3]]
     fd[:, idle] = J[:, idle]
     # Both regimes are present among the probes with a normal force.
