@@ -310,10 +310,7 @@ def test_contact_jacobian_with_friction_matches_finite_differences():
     idle = rod.iprobe[(gam[:, 0] == 0.0) & ~run.contacts(state, rod.target)[3]]
     fd[:, idle] = J[:, idle]
     # Both regimes are present among the probes with a normal force.
-    p = run.friction[1]
-    slip = np.einsum("kic,kc->ki", run.friction[2],
-                     (1 - rod.probe_a[:, None]) * X[rod.probe_elem]
-                     + rod.probe_a[:, None] * X[rod.probe_elem + 1] - p)
+    slip = np.einsum("kic,kc->ki", run.friction[2], rod.probe_points(X) - run.friction[1])
     z = np.linalg.norm(gam[:, 1:] - rod_solver.CONTACT_SCALE * slip, axis=1)
     on = gam[:, 0] > 0
     assert np.any(z[on] < 0.4 * gam[on, 0]) and np.any(z[on] > 0.4 * gam[on, 0])

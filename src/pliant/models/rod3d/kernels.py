@@ -745,7 +745,7 @@ def contact_terms(X, gam, probe_elem, probe_a, iprobe, ix, L, radius, offset, ba
         active[k] = touching
         R[ip] = scale * g if touching else lam
         if slot == 3:
-            _friction_terms(X, gam, k, e, w0, w1, ip, ix, points[k] / L, lam,
+            _friction_terms(gam, k, e, w0, w1, ip, ix, points[k] / L, lam,
                             mu_of[o] if o >= 0 else 0.0, ref[k], basis[k], scale, R, ab,
                             kl, ku, want_jac)
         if not want_jac:
@@ -778,7 +778,7 @@ def contact_terms(X, gam, probe_elem, probe_a, iprobe, ix, L, radius, offset, ba
 
 
 @njit(cache=True)
-def _friction_terms(X, gam, k, e, w0, w1, ip, ix, p, lam, mu, p0, tau, scale, R, ab, kl, ku,
+def _friction_terms(gam, k, e, w0, w1, ip, ix, p, lam, mu, p0, tau, scale, R, ab, kl, ku,
                     want_jac):
     """A probe's Coulomb friction (see ``contact_terms``): its tangential force on the
     nodes and its two rows of Alart and Curnier's law, with their semismooth Jacobian."""

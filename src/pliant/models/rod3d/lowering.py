@@ -70,12 +70,13 @@ def rotation_between(a: np.ndarray, b: np.ndarray) -> np.ndarray:
 
 
 def axis_basis(tangent) -> np.ndarray:
-    """Two unit vectors completing the tangent to an orthonormal basis, (2, 3)."""
+    """Two unit vectors completing a unit vector to a right-handed orthonormal basis:
+    (2, 3) for one (3,), (K, 2, 3) for K of them (K, 3)."""
     t = np.asarray(tangent, float)
-    helper = np.array([1.0, 0.0, 0.0]) if abs(t[0]) < 0.9 else np.array([0.0, 1.0, 0.0])
+    helper = np.where(np.abs(t[..., :1]) < 0.9, [1.0, 0.0, 0.0], [0.0, 1.0, 0.0])
     b1 = np.cross(t, helper)
-    b1 /= np.linalg.norm(b1)
-    return np.vstack([b1, np.cross(t, b1)])
+    b1 /= np.linalg.norm(b1, axis=-1, keepdims=True)
+    return np.stack([b1, np.cross(t, b1)], axis=-2)
 
 
 @dataclass(frozen=True, eq=False)
@@ -217,6 +218,11 @@ class Rod:
         probe; the state's last array holds their values."""
         return (self.iprobe[:, None] + np.arange(self.slot)).ravel()
 
+    def probe_points(self, X: np.ndarray) -> np.ndarray:
+        """The probes' points (K, 3) on the nodes X, in X's units."""
+        a = self.probe_a[:, None]
+        return (1.0 - a) * X[self.probe_elem] + a * X[self.probe_elem + 1]
+
     @property
     def friction(self) -> bool:
         return self.slot == 3
@@ -312,9 +318,7 @@ class Rod:
         # every gap widened enough to clear it (the obstacles grow back along the way).
         offset = 0.0
         if self.obstacles is not None:
-            a = self.probe_a[:, None]
-            points = ((1.0 - a) * X[self.probe_elem] + a * X[self.probe_elem + 1])
-            d, _, _ = self.obstacles.query(points, band=2.0 * self.radius)
+            d, _, _ = self.obstacles.query(self.probe_points(X), band=2.0 * self.radius)
             deepest = float(np.min((d - self.radius) / self.length))
             if deepest < 0.0:
                 offset = -deepest + 0.01

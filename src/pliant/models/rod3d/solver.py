@@ -139,14 +139,9 @@ class _Run:
         rod = self.rod
         if not rod.friction:
             return state
-        a = rod.probe_a[:, None]
-        X = state[0]
-        points = (1.0 - a) * X[rod.probe_elem] + a * X[rod.probe_elem + 1]
+        points = rod.probe_points(state[0])
         _, normals, _ = rod.obstacles.query(points * rod.length, band=math.inf)
-        t1 = np.eye(3)[np.argmin(np.abs(normals), axis=1)]
-        t1 -= np.einsum("kc,kc->k", t1, normals)[:, None] * normals
-        t1 /= np.linalg.norm(t1, axis=1)[:, None]
-        basis = np.stack([t1, np.cross(normals, t1)], axis=1)
+        basis = axis_basis(normals)
         self.friction = (rod.obstacles.friction, points, basis)
         gam = state[4].reshape(-1, 3).copy()
         if previous:
@@ -216,8 +211,8 @@ class _Run:
 
     def solve_linear(self, ab: np.ndarray, rhs: np.ndarray) -> tuple[np.ndarray, bool]:
         """Solve J du = rhs, J's band in ``ab`` (which may be overwritten). A free probe's
-        row is the identity's (its diagonal 1, a touching one's 0): such rows leave the
-        factorisation, which then costs what the part's own unknowns cost."""
+        rows are the identity's (its forces are 0): they leave the factorisation, which
+        then costs what the part's own unknowns and the touching probes cost."""
         rod = self.rod
         if not rod.iprobe.shape[0]:
             return kernels.band_solve(ab, rod.kl, rod.ku, rhs)
@@ -746,8 +741,7 @@ def _contacts(run: _Run, state: State) -> Contacts:
     # Forces at rounding level (a probe just touching) are not contacts.
     on = np.nonzero(normal > 1e-10 * max(1.0, float(normal.max())))[0]
     e, a = rod.probe_elem[on], rod.probe_a[on]
-    X = state[0]
-    points = ((1.0 - a)[:, None] * X[e] + a[:, None] * X[e + 1]) * rod.length
+    points = rod.probe_points(state[0])[on] * rod.length
     names = tuple(rod.obstacles.obstacles[o].name for o in which[on])
     friction = np.zeros((on.shape[0], 3))
     if rod.friction:
