@@ -227,9 +227,14 @@ def test_demo_follows_the_bundled_scene_and_writes_its_report(tmp_path):
     out = _cli("demo", "--out", str(tmp_path / "demo"))
     assert out.returncode == 0, out.stderr
     assert "followed to its end" in out.stdout and "exhaust manifold" in out.stdout
-    report = json.loads((tmp_path / "demo" / "engine_bay.json").read_text())
+    assert "FITS with one hand" in out.stdout
+    evaluation = json.loads((tmp_path / "demo" / "engine_bay.json").read_text())
+    report = evaluation["path"]
     assert report["complete"] and len(report["steps"]) == 101
     assert report["interference"]["penetrations"] == []
+    assert evaluation["verdict"]["passes"] and evaluation["verdict"]["operator"] == "one hand"
+    assert (tmp_path / "demo" / "engine_bay.html").stat().st_size > 100000
+    assert len((tmp_path / "demo" / "engine_bay.csv").read_text().splitlines()) == 102
     assert (tmp_path / "demo" / "engine_bay.png").stat().st_size > 20000
     glb = trimesh.load(tmp_path / "demo" / "engine_bay.glb")
     assert {"exhaust manifold", "engine block"} <= set(glb.geometry)

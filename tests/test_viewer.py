@@ -456,3 +456,30 @@ def test_a_live_result_taken_in_by_a_move_still_reaches_the_page(folder):
         assert far.index not in [a.index for a in again]  # sent once
     finally:
         state.close()
+
+
+def test_the_page_gets_the_poses_verdict_by_the_same_rules_as_pliant_evaluate(state, folder):
+    from pliant.assembly.evaluate import evaluate_pose
+
+    replies = state.handle(msg(type="hello"))
+    accurate = by_type(replies, "accurate")[0]
+    verdict = accurate.verdict
+    assert verdict is not None and verdict.passes
+    # The same pose judged through the Python API gives the same words.
+    scene = load_scene(folder / "hose.toml")
+    api = AccurateSolver(elements=30).solve(0, scene.problem)
+    clearances = {c.obstacle: c.clearance for c in accurate.interference.clearances}
+    ev = evaluate_pose(scene, api, clearances, grips=("hand",))
+    assert verdict.headline == ev.verdict.headline
+    assert [i.text for i in verdict.items] == [c.sentence() for c in ev.items]
+    # A hose whose datasheet asks for more than the shape's bend is judged red, live.
+    (folder / "stiff.toml").write_text(SCENE.replace("min_bend_radius = 0.08",
+                                                     "min_bend_radius = 0.5"))
+    strict = ViewerState(Path("stiff.toml"), folder, live=False)
+    try:
+        red = by_type(strict.handle(msg(type="hello")), "accurate")[0]
+    finally:
+        strict.close()
+    assert red.min_bend_radius < 0.5 and not red.verdict.passes
+    assert red.verdict.headline.startswith("DOES NOT FIT: smallest bend radius")
+    assert red.verdict.items[0].zone == "red"

@@ -32,7 +32,8 @@ class StepRecord:
     smallest along the part and where (s [m]); stable whether the part would stay there
     (None: not decided, under non-conservative loads); snap whether the step before's
     shape could not be followed here (a fold: the part jumps to another shape, which is
-    what this step holds); seconds the solve's wall time."""
+    what this step holds); seconds the solve's wall time; clearances the smallest
+    clearance [m] to each obstacle, by name."""
 
     progress: float
     grip_position: tuple[float, float, float]
@@ -47,6 +48,7 @@ class StepRecord:
     stable: bool | None
     snap: bool
     seconds: float
+    clearances: tuple[tuple[str, float], ...] = ()
 
     @property
     def force_norm(self) -> float:
@@ -60,13 +62,15 @@ class StepRecord:
         out = dict(self.__dict__)
         for key in ("grip_position", "force", "moment"):
             out[key] = list(out[key])
+        out["clearances"] = dict(self.clearances)
         return out
 
 
 @dataclass
 class PathRun:
-    """The steps solved, the last equilibrium, its interference report, and why the
-    run stopped early (None when it reached the path's end)."""
+    """The steps solved (their records, and their equilibria in ``equilibria``), the
+    last equilibrium, its interference report, and why the run stopped early (None when
+    it reached the path's end)."""
 
     grip: str
     margin: float
@@ -75,6 +79,8 @@ class PathRun:
     interference: Interference | None = None
     stopped: str | None = None
     planned: int = 0
+    equilibria: list[Any] = field(default_factory=list, repr=False)
+    problems: list[Problem] = field(default_factory=list, repr=False)
 
     @property
     def complete(self) -> bool:
@@ -124,6 +130,8 @@ def follow_path(start: Problem, path: list[Problem], grip: str, *, margin: float
         record = _record(eq, grip, k / max(len(path), 1), margin,
                          time.perf_counter() - begin)
         run.steps.append(record)
+        run.equilibria.append(eq)
+        run.problems.append(problem)
         run.final = eq
         if on_step is not None:
             on_step(k, record)
@@ -149,4 +157,5 @@ def _record(eq: Any, grip: str, progress: float, margin: float,
         contacts=len(contacts),
         contact_force=float(np.linalg.norm(contacts.force, axis=1).sum()),
         bend_radius=float(radius), bend_at=float(at), stable=eq.stable,
-        snap=WARM_START_LOST in eq.notes, seconds=seconds)
+        snap=WARM_START_LOST in eq.notes, seconds=seconds,
+        clearances=tuple((c.obstacle, float(c.clearance)) for c in report.clearances))

@@ -139,16 +139,114 @@ def _run_scene(file: Path, out: Path, elements: int | None) -> None:
 
 
 @app.command()
+def evaluate(
+    file: Annotated[Path, typer.Argument(help="a scene file (TOML, SI units): its [path], "
+                                              "or its single pose")],
+    report: Annotated[Path | None, typer.Option(help="write the self-contained HTML "
+                                                     "report here")] = None,
+    json: Annotated[Path | None, typer.Option("--json", help="write the evaluation as JSON "
+                                                             "(schema_version 1)")] = None,
+    csv: Annotated[Path | None, typer.Option("--csv", help="write a row per step as CSV")]
+    = None,
+    rules: Annotated[Path | None, typer.Option(help="a rules table replacing the bundled "
+                                                    "one (see pliant/data/rules.toml)")]
+    = None,
+    operator: Annotated[str | None, typer.Option(help="judge only this operator: 'one hand', "
+                                                      "'two hands', 'tool', 'robot' "
+                                                      "(default: the scene's, or try them "
+                                                      "cheapest first)")] = None,
+    elements: Annotated[int | None, typer.Option(help="about how many elements "
+                                                      "(default: the file's \\[solver])")]
+    = None,
+    schema: Annotated[bool, typer.Option("--schema", help="print the JSON schema of the "
+                                                          "evaluation and exit")] = False,
+) -> None:
+    """Judge an A/D operation: forces per grip against hand capacities, bend radius, kink,
+    twist, stability, clearance and contact, each with its threshold and source; the
+    operator it needs (one hand, two hands, a tool or robot). Exit status 0 when it
+    passes, 1 when it does not."""
+    if schema:
+        import json as _json  # noqa: PLC0415
+
+        from pliant.io.evaluation_file import schema as evaluation_schema  # noqa: PLC0415
+
+        typer.echo(_json.dumps(evaluation_schema(), indent=1))
+        return
+    passes = _evaluate_scene(file, report, json, csv, rules, operator, elements)
+    raise typer.Exit(0 if passes else 1)
+
+
+def _evaluate_scene(file: Path, report: Path | None, json_out: Path | None,
+                    csv_out: Path | None, rules_file: Path | None, operator: str | None,
+                    elements: int | None, pictures: Path | None = None) -> bool:
+    """Evaluate a scene, print the verdict and write what was asked; ``pictures`` also
+    writes the path's plot (PNG) and the last pose with the obstacles (GLB) with that
+    stem. True when the operation passes."""
+    from dataclasses import replace  # noqa: PLC0415
+
+    from rich.console import Console  # noqa: PLC0415
+    from rich.progress import Progress  # noqa: PLC0415
+
+    from pliant.assembly.evaluate import evaluate as evaluate_scene  # noqa: PLC0415
+    from pliant.cli.evaluation_report import print_evaluation, write_html  # noqa: PLC0415
+    from pliant.io.evaluation_file import write_csv, write_json  # noqa: PLC0415
+    from pliant.io.problem_file import load_scene  # noqa: PLC0415
+    from pliant.io.rules_file import load_rules  # noqa: PLC0415
+
+    if elements is not None and not 4 <= elements <= 100000:
+        raise PliantError(f"--elements: must be from 4 to 100000, got {elements}")
+    scene = load_scene(file)
+    if operator is not None:
+        from pliant.core.rules import EvaluationSettings  # noqa: PLC0415
+
+        settings = EvaluationSettings(**{**scene.evaluation.__dict__, "operator": operator})
+        scene = replace(scene, evaluation=settings)
+    rules = load_rules(rules_file if rules_file is not None else scene.evaluation.rules)
+    problem = scene.problem
+    console = Console()
+    console.print(f"[bold]{problem.name or file.stem}[/bold]: {problem.part.name}, "
+                  f"{len(problem.obstacles)} obstacles, {len(scene.path)} steps")
+    with Progress(console=console, transient=True) as bar:
+        task = bar.add_task("solving the path", total=len(scene.path) + 1)
+        ev = evaluate_scene(scene, rules=rules, elements=elements,
+                            on_step=lambda k, r: bar.advance(task))
+    from pliant.cli.report import print_path  # noqa: PLC0415
+
+    print_path(ev.run, problem.part, console)
+    print_evaluation(ev, console)
+    written = []
+    if json_out is not None:
+        written.append(write_json(ev, json_out))
+    if csv_out is not None:
+        written.append(write_csv(ev, csv_out))
+    if report is not None:
+        written.append(write_html(ev, report))
+    if pictures is not None:
+        from pliant.cli.plot import plot_path  # noqa: PLC0415
+        from pliant.io.mesh_export import export_scene  # noqa: PLC0415
+
+        written.append(plot_path(ev.run, pictures.with_suffix(".png"),
+                                 problem.part.min_bend_radius))
+        written.append(export_scene(ev.run.final, pictures.with_suffix(".glb")))
+    if written:
+        console.print("written: " + ", ".join(str(w) for w in written))
+    return ev.verdict.passes
+
+
+@app.command()
 def demo(
     out: Annotated[Path, typer.Option(help="folder for the report, plot and scene")] = Path(
         "pliant-demo"),
 ) -> None:
-    """The main job on the bundled default scene: an oil line carried round an engine
-    bay's exhaust manifold onto its port (examples/scenes/engine_bay.toml)."""
+    """The main job on the bundled default scene: the evaluation of an oil line carried
+    round an engine bay's exhaust manifold onto its port (examples/scenes/engine_bay.toml),
+    with its HTML report, JSON and CSV."""
     scene = EXAMPLES / "scenes" / "engine_bay.toml"
     if not scene.is_file():
         raise PliantError(f"the bundled scene is missing: {scene}")
-    _run_scene(scene, out, None)
+    stem = scene.stem
+    _evaluate_scene(scene, out / f"{stem}.html", out / f"{stem}.json", out / f"{stem}.csv",
+                    None, None, None, pictures=out / stem)
 
 
 @app.command()

@@ -68,7 +68,11 @@ class Part:
         linearly; the curvature of the unloaded neutral line (pre-formed hoses). In 3D it is
         the curvature about the first section axis d1 (the 2D plane's normal).
     rest_curvature_2, rest_twist : the same, about d2 and about the tangent d3 (3D)
-    min_bend_radius : float [m] or None, the smallest radius the part tolerates
+    min_bend_radius : float [m] or None, the smallest radius the part tolerates (as its
+        datasheet quotes it: to the inside of the bend for hoses, see ``kind``)
+    kind : str or None, what the part is for the A/D evaluation's damage rules ("coolant
+        hose", "thin-walled tube", "wire", ...: the rules table's kinds)
+    poisson_ratio : float or None, of the wall's material (the kink rule of thin tubes)
 
     The material frame (d1, d2, d3) is right-handed with d3 the tangent; a 2D problem is
     the 3D one in the plane z = 0 with d1 = +z, so that bending there is about d1.
@@ -86,6 +90,8 @@ class Part:
     bending_stiffness_2: float | None = None
     rest_curvature_2: float | tuple[tuple[float, float], ...] = 0.0
     rest_twist: float | tuple[tuple[float, float], ...] = 0.0
+    kind: str | None = None
+    poisson_ratio: float | None = None
     rest_knots: tuple[tuple[float, float], ...] = field(init=False, repr=False)
     rest_knots_2: tuple[tuple[float, float], ...] = field(init=False, repr=False)
     twist_knots: tuple[tuple[float, float], ...] = field(init=False, repr=False)
@@ -114,6 +120,13 @@ class Part:
         if self.bending_stiffness_2 is not None:
             set_(self, "bending_stiffness_2",
                  _positive("bending_stiffness_2", self.bending_stiffness_2, "N m^2"))
+        if self.kind is not None and not (isinstance(self.kind, str) and self.kind.strip()):
+            raise InputError("kind", f"must be the name of a part kind, got {self.kind!r}")
+        if self.poisson_ratio is not None:
+            nu = float(self.poisson_ratio)
+            if not -1.0 < nu <= 0.5:
+                raise InputError("poisson_ratio", f"must lie in (-1, 0.5], got {nu!r}")
+            set_(self, "poisson_ratio", nu)
         set_(self, "rest_knots", self._knots(self.rest_curvature, "rest_curvature"))
         set_(self, "rest_knots_2", self._knots(self.rest_curvature_2, "rest_curvature_2"))
         set_(self, "twist_knots", self._knots(self.rest_twist, "rest_twist"))
@@ -157,6 +170,7 @@ class Part:
         second_moment = math.pi * (outer**4 - inner**4) / 64.0
         area = math.pi * (outer**2 - inner**2) / 4.0
         assert material.shear_modulus is not None
+        kwargs.setdefault("poisson_ratio", material.poisson_ratio)
         return cls(length=length,
                    bending_stiffness=material.youngs_modulus * second_moment,
                    torsional_stiffness=material.shear_modulus * 2.0 * second_moment,

@@ -13,6 +13,12 @@ from typing import BinaryIO
 from pliant.errors import OutputError
 
 
+def _umask() -> int:
+    mask = os.umask(0o022)
+    os.umask(mask)
+    return mask
+
+
 def atomic_write(path: str | Path, write: Callable[[BinaryIO], None], what: str) -> Path:
     """Call ``write`` with a binary file and move it to ``path`` when it succeeds;
     ``what`` names the result in errors ("the plot", "the mesh")."""
@@ -25,6 +31,8 @@ def atomic_write(path: str | Path, write: Callable[[BinaryIO], None], what: str)
     try:
         with os.fdopen(fd, "wb") as handle:
             write(handle)
+        # mkstemp makes the file 0600; a result is for colleagues too: the usual mode.
+        os.chmod(tmp, 0o666 & ~_umask())
         os.replace(tmp, path)
     except OSError as err:
         raise OutputError(f"cannot write {what} {path}: {err.strerror or err}") from None

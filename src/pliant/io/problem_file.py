@@ -27,6 +27,7 @@ from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_valida
 from pliant.core.conditions import Condition
 from pliant.core.part import Material, Part
 from pliant.core.problem import Problem
+from pliant.core.rules import EvaluationSettings
 from pliant.errors import FileFormatError, InputError, PliantError
 
 
@@ -62,7 +63,12 @@ class PartModel(_Strict):
         0.0, description="[1/m] about d2 (3D)")
     rest_twist: float | list[tuple[float, float]] = Field(0.0, description="[1/m] (3D)")
     bending_stiffness_2: float | None = Field(None, gt=0, description="EI about d2 (3D)")
-    min_bend_radius: float | None = Field(None, gt=0, description="[m]")
+    min_bend_radius: float | None = Field(None, gt=0, description="[m], as the datasheet "
+                                          "quotes it (inside of the bend for hoses)")
+    kind: str | None = Field(None, min_length=1, description="the evaluation's part kind "
+                             "(coolant hose, thin-walled tube, wire, ...)")
+    poisson_ratio: float | None = Field(None, gt=-1, le=0.5, description="of the wall "
+                                        "(default: the material's)")
 
     @model_validator(mode="after")
     def _stiffness_given(self) -> PartModel:
@@ -82,7 +88,9 @@ class PartModel(_Strict):
                   "rest_curvature_2": knots(self.rest_curvature_2),
                   "rest_twist": knots(self.rest_twist),
                   "bending_stiffness_2": self.bending_stiffness_2,
-                  "min_bend_radius": self.min_bend_radius}
+                  "min_bend_radius": self.min_bend_radius, "kind": self.kind}
+        if self.poisson_ratio is not None:
+            common["poisson_ratio"] = self.poisson_ratio
         if self.material is not None:
             assert self.outer_diameter is not None
             if isinstance(self.material, str):
@@ -99,14 +107,7 @@ class PartModel(_Strict):
                 value = getattr(self, key)
                 if value is not None:
                     overrides[key] = value
-            if overrides:
-                fields = {k: getattr(part, k) for k in (
-                    "length", "bending_stiffness", "mass_per_length", "torsional_stiffness",
-                    "outer_diameter", "inner_diameter", "rest_curvature", "min_bend_radius",
-                    "name", "rest_curvature_2", "rest_twist", "bending_stiffness_2")}
-                fields.update(overrides)
-                part = Part(**fields)
-            return part
+            return replace(part, **overrides) if overrides else part
         assert self.bending_stiffness is not None
         return Part(length=self.length, bending_stiffness=self.bending_stiffness,
                     torsional_stiffness=self.torsional_stiffness,
@@ -356,6 +357,42 @@ class PathModel(_Strict):
         return self
 
 
+class RatingModel(_Strict):
+    force: float = Field(gt=0, description="rated force [N]")
+    moment: float | None = Field(None, gt=0, description="rated moment [N m]")
+
+
+class EvaluationModel(_Strict):
+    """[evaluation]: how the operation is judged (see ``EvaluationSettings``)."""
+
+    operator: Literal["auto", "one hand", "two hands", "tool", "robot"] = "auto"
+    hold: Literal["power grip", "pinch"] = "power grip"
+    grips: list[str] = Field(default_factory=list)
+    repetitive: bool = False
+    multipliers: tuple[float, float, float] = (1.0, 1.0, 1.0)
+    rating: RatingModel | None = None
+    port: str | None = None
+    connector_force: float = Field(0.0, ge=0, description="[N]")
+    max_twist_rate: float | None = Field(None, gt=0, description="[deg/m]")
+    max_contact_force: float | None = Field(None, gt=0, description="[N]")
+    rules: str | None = Field(None, description="a rules file, relative to this file")
+
+    def build(self, base: Path | None) -> EvaluationSettings:
+        rules = None
+        if self.rules is not None:
+            try:
+                rules = str(_referenced(self.rules, base, "rules"))
+            except ValueError as err:
+                raise InputError("evaluation.rules", str(err).removeprefix("file: ")) from None
+        return EvaluationSettings(
+            operator=self.operator, hold=self.hold, grips=tuple(self.grips),
+            repetitive=self.repetitive, multipliers=self.multipliers,
+            rating_force=self.rating.force if self.rating else None,
+            rating_moment=self.rating.moment if self.rating else None, port=self.port,
+            connector_force=self.connector_force, max_twist_rate=self.max_twist_rate,
+            max_contact_force=self.max_contact_force, rules=rules)
+
+
 class SolverModel(_Strict):
     """[solver]: settings of the model (3D: how many elements)."""
 
@@ -378,6 +415,7 @@ class ProblemFile(_Strict):
     clip: list[ClipModel] = Field(default_factory=list)
     path: PathModel | None = None
     margin: float = Field(0.0, ge=0, description="clearance wanted round obstacles [m]")
+    evaluation: EvaluationModel = Field(default_factory=EvaluationModel)
 
     @property
     def dimension(self) -> int:
@@ -500,6 +538,7 @@ class Scene:
     ports: dict[str, PortModel] = field(default_factory=dict)
     grip: str | None = None
     fixed: tuple[str, ...] = ()
+    evaluation: EvaluationSettings = field(default_factory=EvaluationSettings)
 
 
 def _where(loc: tuple[Any, ...]) -> str:
@@ -547,7 +586,8 @@ def parse_scene(text: str, source: str = "<string>", base: Path | None = None,
                      {p.name: p for p in model.port},
                      model.path.grip if model.path is not None else None,
                      tuple(c.name or f"condition{i + 1}" for i, c in enumerate(model.condition)
-                           if c.port is not None) + tuple(c.name for c in model.clip))
+                           if c.port is not None) + tuple(c.name for c in model.clip),
+                     model.evaluation.build(base))
     except PliantError as err:
         raise FileFormatError(f"{source}: {err}") from None
 
@@ -586,10 +626,13 @@ def dump_problem(problem: Problem, description: str = "") -> str:
     lines += ["", "[part]", f"name = {_toml(part.name)}", f"length = {_num(part.length)}",
               f"bending_stiffness = {_num(part.bending_stiffness)}",
               f"mass_per_length = {_num(part.mass_per_length)}"]
-    for key in ("torsional_stiffness", "bending_stiffness_2", "min_bend_radius"):
+    for key in ("torsional_stiffness", "bending_stiffness_2", "min_bend_radius",
+                "poisson_ratio"):
         value = getattr(part, key)
         if value is not None:
             lines.append(f"{key} = {_num(value)}")
+    if part.kind is not None:
+        lines.append(f"kind = {_toml(part.kind)}")
     if part.outer_diameter is not None:
         lines.append(f"outer_diameter = {_num(part.outer_diameter)}")
         lines.append(f"inner_diameter = {_num(part.inner_diameter)}")

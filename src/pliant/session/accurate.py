@@ -31,7 +31,8 @@ class AccurateResult:
     [N] and moment [N m] each applies to the part (reactions where prescribed);
     curvature (N,) [1/m] and bending_moment (N,) [N m] (its magnitude; twist excluded)
     along s; contacts : where obstacles push the part (3D; ``Contacts``);
-    min_bend_radius : (radius [m], s [m]); residual, iterations, notes, stable,
+    min_bend_radius : (radius [m], s [m]); tangent (N, 3) and torque (N,) [N m], the
+    unit tangent and the twisting moment along s (3D); residual, iterations, notes, stable,
     smallest_eigenvalue [N m] (3D, conservative loads), solve_seconds; error : why there
     is no equilibrium (then the arrays are empty and the session keeps the last good
     one).
@@ -53,6 +54,8 @@ class AccurateResult:
     bending_moment: np.ndarray = field(default_factory=lambda: np.zeros(0))
     contacts: Any = None
     min_bend_radius: tuple[float, float] = (math.inf, 0.0)
+    tangent: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)))
+    torque: np.ndarray = field(default_factory=lambda: np.zeros(0))
 
     @property
     def ok(self) -> bool:
@@ -105,7 +108,9 @@ class AccurateSolver:
                               curvature=np.abs(np.asarray(eq.curvature, float)),
                               bending_moment=_bending_moment(eq),
                               contacts=getattr(eq, "contacts", None),
-                              min_bend_radius=eq.min_bend_radius())
+                              min_bend_radius=eq.min_bend_radius(),
+                              **({"tangent": np.array(eq.tangent), "torque": np.array(eq.torque)}
+                                 if problem.dimension == 3 else {}))
 
 
 def _bending_moment(eq) -> np.ndarray:

@@ -169,12 +169,33 @@ class ServerFrame(_Message):
     seconds: float
 
 
+class VerdictItem(BaseModel):
+    """A red, yellow or unchecked item of the evaluation: its zone, the sentence that
+    says what, how much, against what and where, and the rule's source."""
+
+    zone: Literal["green", "yellow", "red", "unchecked", "info"]
+    text: str
+    source: str
+
+
+class Verdict(BaseModel):
+    """The A/D evaluation of the pose (``pliant.assembly.evaluate_pose``, the same rules
+    as ``pliant evaluate``): whether it passes, in plain words, the operator it needs and
+    the items to act on."""
+
+    passes: bool
+    headline: str
+    operator: str | None
+    zone: Literal["green", "yellow", "red", "unchecked", "info"]
+    items: list[VerdictItem] = []
+
+
 class ServerAccurate(_Message):
     """An accurate equilibrium (real forces): the shape, curvature and bending moment
     along s, what each condition applies (``loads``; for a grip held by position this is
     the force and moment the hand must give), contacts, interference, the tightest bend,
-    the warnings a user must see and the solver's notes (how it got there). ``error``
-    when there is none (the last good one stays shown)."""
+    the warnings a user must see, the solver's notes (how it got there) and the pose's
+    A/D ``verdict``. ``error`` when there is none (the last good one stays shown)."""
 
     type: Literal["accurate"] = "accurate"
     index: int
@@ -196,6 +217,7 @@ class ServerAccurate(_Message):
     solve_seconds: float = 0.0
     warnings: list[str] = []
     notes: list[str] = []
+    verdict: Verdict | None = None
 
 
 class ServerScene(_Message):

@@ -318,13 +318,37 @@ class ViewerState:
             warnings.append("unstable shape: the part would snap to another one "
                             f"(smallest stiffness eigenvalue {result.smallest_eigenvalue:.3g})")
         warnings += _interference_warnings(interference)
+        verdict = self._verdict(result, interference)
         return P.ServerAccurate(
             index=result.index, ok=True, s=result.s.tolist(), position=position.tolist(),
             curvature=result.curvature.tolist(), bending_moment=result.bending_moment.tolist(),
             loads=loads, contacts=contacts, interference=interference,
             min_bend_radius=radius, min_bend_radius_s=s_radius, allowed_bend_radius=allowed,
             stable=result.stable, residual=result.residual, iterations=result.iterations,
-            solve_seconds=result.solve_seconds, warnings=warnings, notes=list(result.notes))
+            solve_seconds=result.solve_seconds, warnings=warnings, notes=list(result.notes),
+            verdict=verdict)
+
+    def _verdict(self, result, interference: P.Interference) -> P.Verdict | None:
+        """The pose's evaluation by the same rules as ``pliant evaluate`` (3D scenes);
+        None where it cannot be judged (2D, no grip)."""
+        if self.dimension != 3:
+            return None
+        from pliant.assembly.evaluate import evaluate_pose  # noqa: PLC0415
+
+        clearances = {c.obstacle: c.clearance for c in interference.clearances}
+        held = tuple(name for name, mode in self.modes.items() if mode != "fixed")
+        try:
+            ev = evaluate_pose(self.scene, result, clearances, grips=held or None)
+        except PliantError:
+            return None
+        chosen = ev.chosen
+        zone = max([c.zone for c in ev.checks] + ([chosen.zone] if chosen else []),
+                   key=lambda z: z.rank)
+        return P.Verdict(passes=ev.verdict.passes, headline=ev.verdict.headline,
+                         operator=ev.verdict.operator, zone=zone.value,
+                         items=[P.VerdictItem(zone=c.zone.value, text=c.sentence(),
+                                              source=f"{c.source} ({c.provenance})")
+                                for c in ev.items])
 
     def _frame_message(self, frame, seq: int) -> P.ServerFrame:
         rt = frame.realtime

@@ -571,15 +571,17 @@ class _Run:
 
     def transfer(self, warm: Equilibrium3D, old: _WarmState) -> State | None:
         """Start from an equilibrium of a problem with other conditions on the same mesh
-        (a grip switched to force control): positions, frames and internal forces carry
-        over, a station's position multipliers come from its old reaction, and a damped
-        Newton finds the nearby equilibrium."""
+        (a grip switched to force control, a second hand added at a node): positions,
+        frames and internal forces carry over, a station's position multipliers come from
+        its old reaction, and a damped Newton finds the nearby equilibrium."""
         rod = self.rod
         if (old.rod.s_node.shape != rod.s_node.shape or not np.allclose(old.rod.s_node,
-                                                                         rod.s_node)
-                or old.rod.frame_s.shape != rod.frame_s.shape):
+                                                                         rod.s_node)):
             return None
         X, Q, lam = old.state[:3]
+        if old.rod.frame_s.shape != rod.frame_s.shape or not np.allclose(old.rod.frame_s,
+                                                                          rod.frame_s):
+            Q = _frames_at(old.rod.frame_s, Q, rod.frame_s)
         nu = np.zeros(rod.m)
         loads = warm.loads
         for k, st in enumerate(rod.stations):
@@ -600,6 +602,23 @@ class _Run:
             self.steps += 1
             return state
         return None
+
+
+def _frames_at(old_s: np.ndarray, Q: np.ndarray, new_s: np.ndarray) -> np.ndarray:
+    """Frame quaternions (F', 4) at the arc lengths ``new_s`` from frames ``Q`` (F, 4) at
+    ``old_s`` on the same nodes: a frame that sits where an old one did keeps it; a frame
+    a station adds at a node, between two element frames, takes their normalised mean
+    (their rotation differs by one joint's bend, so the mean is within it)."""
+    out = np.empty((new_s.shape[0], 4))
+    for j, s in enumerate(new_s):
+        i = int(np.searchsorted(old_s, s))
+        if i < old_s.shape[0] and abs(old_s[i] - s) < 1e-12:
+            out[j] = Q[i]
+            continue
+        a, b = Q[max(i - 1, 0)], Q[min(i, old_s.shape[0] - 1)]
+        q = a + (b if np.dot(a, b) >= 0.0 else -b)
+        out[j] = q / np.linalg.norm(q)
+    return out
 
 
 def _load_size(start: Loads, end: Loads) -> tuple[float, float]:

@@ -345,7 +345,24 @@ function onAccurate(msg) {
     (msg.allowed_bend_radius ? ` (minimum ${(msg.allowed_bend_radius * 1e3).toFixed(0)} mm)` : ''));
   lines.push(msg.stable === false ? 'unstable' : msg.stable ? 'stable' : '');
   $('shape').innerHTML = lines.filter(Boolean).map((l) => `<div>${esc(l)}</div>`).join('');
+  showVerdict(msg.verdict);
   showWarnings();
+}
+
+// The pose's A/D verdict, judged on the server by the same rules as `pliant evaluate`:
+// the page only shows it.
+function showVerdict(verdict) {
+  const box = $('verdict');
+  if (!verdict) {
+    box.className = 'verdict muted';
+    box.textContent = 'no verdict for this scene';
+    $('verdict-items').innerHTML = '';
+    return;
+  }
+  box.className = `verdict ${verdict.passes ? 'pass' : 'fail'} ${verdict.zone}`;
+  box.textContent = verdict.headline;
+  $('verdict-items').innerHTML = verdict.items.map((i) => `<li><span class="zone ${i.zone}">${esc(i.zone)}</span>` +
+    `${esc(i.text)}<div class="source">${esc(i.source)}</div></li>`).join('');
 }
 
 function drawGhost(msg) {

@@ -1,0 +1,819 @@
+"""The A/D evaluation: a verdict with its reasons, per operator.
+
+``evaluate(scene)`` follows the scene's path (or solves its single pose) with the
+accurate 3D model and judges every step by the rules of ``pliant/data/rules.toml``
+(``../shared/EVALUATION.md`` gathers their sources): per grip, the wrench split into
+axial push or pull, lateral load, twist and bending against the capacity of the grip
+type; the bend radius against the part's minimum (inside or centreline by its kind, a
+labelled fallback when none is given) and near its fittings; the kink of thin-walled
+tubes (Brazier); the twist between fittings; stability and snaps; the clearance to each
+obstacle with the scene's margin; the force each obstacle presses with; and the push that
+seats the part in its port at the last step.
+
+Each check keeps its value, thresholds, zone (green / yellow / red, or unchecked where a
+value is missing), the step and grip where it is worst, and the rule's source and
+provenance. Operators are tried, not guessed: one hand; then two hands, side by side or
+with the second hand placed along the part where it lowers the worst demand most
+(``pliant.assembly.operators``, solved with the accurate model); then a tool or a robot,
+with the rating it needs. The verdict names the cheapest operator that passes.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from pliant.assembly.checks import (
+    Wrench,
+    Zone,
+    brazier_flattening,
+    brazier_kink_curvature,
+    centreline_min_radius,
+    split_wrench,
+    tight_near,
+    tube_section,
+    twist_angle,
+    zone_of,
+)
+from pliant.assembly.path import PathRun, StepRecord, follow_path
+from pliant.core.equilibrium import WARM_START_LOST
+from pliant.core.rules import Capacity, EvaluationSettings, PartKind, Rules
+from pliant.errors import InputError
+
+SCHEMA_VERSION = 1
+PENETRATION = 1e-6  # m: a clearance below minus this is inside the obstacle
+
+
+@dataclass(frozen=True)
+class Check:
+    """One rule applied along the operation, reported at its worst.
+
+    family : "ergonomics", "damage", "interference", "stability" or "solve"
+    value [unit] : the worst value over the steps; worse : "above" (a demand) or
+        "below" (a radius, a clearance); yellow_at, red_at : where the zones start
+    step, grip, s [m] : where it is worst (None where it does not apply)
+    yellow_steps, red_steps : every step in that zone
+    """
+
+    rule: str
+    title: str
+    family: str
+    value: float
+    unit: str
+    zone: Zone
+    worse: str
+    yellow_at: float | None
+    red_at: float | None
+    source: str
+    provenance: str
+    step: int | None = None
+    grip: str | None = None
+    s: float | None = None
+    note: str = ""
+    yellow_steps: tuple[int, ...] = ()
+    red_steps: tuple[int, ...] = ()
+
+    @property
+    def ratio(self) -> float:
+        """How far into its limits: value / red_at for demands, red_at / value for
+        radii and clearances (1 at the red limit; 0 where no limit applies)."""
+        if self.red_at is None or self.zone in (Zone.INFO, Zone.UNCHECKED):
+            return 0.0
+        if self.worse == "above":
+            return self.value / self.red_at if self.red_at > 0 else math.inf
+        if self.value <= 0.0:
+            return math.inf
+        return self.red_at / self.value
+
+    def sentence(self) -> str:
+        """The item in plain words: what, how much, against what, where, by which rule."""
+        where = []
+        if self.step is not None:
+            where.append(f"step {self.step}")
+        if self.grip and f"at {self.grip}" not in self.title:
+            where.append(f"at {self.grip}")
+        if self.s is not None:
+            where.append(f"s = {self.s:.3g} m")
+        limit = self.red_at if self.zone == Zone.RED else self.yellow_at
+        against = ""
+        if limit is not None and self.zone in (Zone.RED, Zone.YELLOW):
+            word = "above" if self.worse == "above" else "below"
+            against = f" ({word} {_fmt(limit, self.unit)})"
+        text = f"{self.title}: {_fmt(self.value, self.unit)}{against}"
+        if where:
+            text += ", " + ", ".join(where)
+        if len(self.red_steps) + len(self.yellow_steps) > 1:
+            text += f"; {_ranges(self.red_steps)} red" if self.red_steps else ""
+            text += f"; {_ranges(self.yellow_steps)} yellow" if self.yellow_steps else ""
+        if self.note:
+            text += f". {self.note}"
+        return text
+
+    def to_dict(self) -> dict[str, Any]:
+        return {"rule": self.rule, "title": self.title, "family": self.family,
+                "value": self.value, "unit": self.unit, "zone": self.zone.value,
+                "worse": self.worse, "yellow_at": self.yellow_at, "red_at": self.red_at,
+                "step": self.step, "grip": self.grip, "s": self.s, "note": self.note,
+                "source": self.source, "provenance": self.provenance,
+                "yellow_steps": list(self.yellow_steps), "red_steps": list(self.red_steps)}
+
+
+def _fmt(value: float, unit: str) -> str:
+    if math.isinf(value):
+        return "none" if value > 0 else "-inf"
+    if unit == "m":
+        return "0 mm (touching)" if abs(value) < PENETRATION else f"{value * 1e3:.3g} mm"
+    return f"{value:.3g} {unit}".rstrip()
+
+
+def _ranges(steps: tuple[int, ...]) -> str:
+    """'steps 3-7, 12' for (3, 4, 5, 6, 7, 12)."""
+    parts: list[str] = []
+    start = prev = None
+    for k in steps:
+        if prev is not None and k == prev + 1:
+            prev = k
+            continue
+        if start is not None:
+            parts.append(f"{start}" if start == prev else f"{start}-{prev}")
+        start = prev = k
+    if start is not None:
+        parts.append(f"{start}" if start == prev else f"{start}-{prev}")
+    return ("step " if len(steps) == 1 else "steps ") + ", ".join(parts)
+
+
+def series_check(rule: str, title: str, family: str, values: list[float], unit: str,
+                 worse: str, yellow_at: float | None, red_at: float | None, source: str,
+                 provenance: str, *, grip: str | None = None,
+                 where: list[float | None] | None = None, unscored_below: float = 0.0,
+                 note: str = "", steps: list[int] | None = None) -> Check:
+    """A rule applied at each step's value, reported at the worst step (the highest
+    zone, then the worst value)."""
+    steps = list(range(len(values))) if steps is None else steps
+    zones = [zone_of(v, yellow_at, red_at, worse, unscored_below) for v in values]
+    if not values:
+        return Check(rule, title, family, math.nan, unit, Zone.UNCHECKED, worse, yellow_at,
+                     red_at, source, provenance, note=note or "no step to judge")
+    sign = 1.0 if worse == "above" else -1.0
+    k = max(range(len(values)), key=lambda i: (zones[i].rank, sign * values[i]))
+    return Check(rule, title, family, float(values[k]), unit, zones[k], worse, yellow_at,
+                 red_at, source, provenance, step=steps[k], grip=grip,
+                 s=None if where is None else where[k], note=note,
+                 yellow_steps=tuple(steps[i] for i, z in enumerate(zones) if z == Zone.YELLOW),
+                 red_steps=tuple(steps[i] for i, z in enumerate(zones) if z == Zone.RED))
+
+
+def worst_zone(checks: list[Check]) -> Zone:
+    return max((c.zone for c in checks), key=lambda z: z.rank, default=Zone.GREEN)
+
+
+# -- grips --------------------------------------------------------------------------------
+@dataclass(frozen=True)
+class GripStep:
+    """A grip at one step: its wrench split at the part's tangent there, and the
+    force and moment themselves (global frame)."""
+
+    wrench: Wrench
+    force: tuple[float, float, float]
+    moment: tuple[float, float, float]
+    tangent: tuple[float, float, float]
+    s: float
+
+
+def grip_step(eq: Any, name: str, extra_push: float = 0.0,
+              push_axis: np.ndarray | None = None) -> GripStep:
+    """The grip ``name`` at equilibrium ``eq``. ``extra_push`` [N] along ``push_axis`` is
+    added to the force the grip applies (a connector's own mating force)."""
+    load = eq.loads[name]
+    node = int(np.argmin(np.abs(eq.s - load.s)))
+    tangent = eq.tangent[node]
+    outward = 1.0 if load.s > 0.5 * eq.problem.part.length else -1.0
+    force = np.array(load.force, float)
+    if extra_push and push_axis is not None:
+        force = force + extra_push * push_axis
+    moment = np.array(load.moment, float)
+    return GripStep(split_wrench(force, moment, tangent, outward),
+                    tuple(float(x) for x in force), tuple(float(x) for x in moment),
+                    tuple(float(x) for x in tangent), float(load.s))
+
+
+def hand_rows(rules: Rules, settings: EvaluationSettings, hold: str,
+              axial_row: str = "palm push") -> list[Capacity]:
+    """The capacity rows a hand is judged by, scaled by EN 1005-3's multipliers and,
+    for repetitive work, with the lower yellow onsets."""
+    ids = (["pinch", "wrist twist", "hand bending"] if hold == "pinch"
+           else [axial_row, "power grip", "wrist twist", "hand bending"])
+    out = []
+    for i in ids:
+        row = rules.capacities[i].scaled(settings.capacity_factor)
+        if settings.repetitive and row.repetitive_yellow is not None:
+            row = Capacity(row.id, row.title + " (repetitive work)", row.demand, row.unit,
+                           min(row.green, row.repetitive_yellow), row.yellow, row.capacity,
+                           0.0, row.repetitive_yellow, row.sourced)
+        out.append(row)
+    return out
+
+
+def hand_checks(name: str, steps: list[GripStep], rows: list[Capacity], friction: float,
+                *, share: float = 1.0, note: str = "",
+                indices: list[int] | None = None) -> list[Check]:
+    """One check per capacity row for a hand at grip ``name``; ``share`` is the part of
+    each demand this hand carries (two hands side by side)."""
+    out = []
+    for row in rows:
+        values = [share * g.wrench.demand(row.demand, friction) for g in steps]
+        title = f"{row.title} at {name}"
+        if row.demand == "axial" and steps:
+            k = int(np.argmax([abs(g.wrench.axial) for g in steps]))
+            title += " (push)" if steps[k].wrench.axial < 0 else " (pull)"
+        out.append(series_check(
+            f"grip: {row.id}", title, "ergonomics", values, row.unit, "above", row.green,
+            row.yellow, row.sourced.source, row.sourced.provenance, grip=name,
+            where=[g.s for g in steps], unscored_below=row.unscored_below, note=note,
+            steps=indices))
+    return out
+
+
+def tool_checks(name: str, steps: list[GripStep], rules: Rules, rating_force: float,
+                rating_moment: float | None, indices: list[int] | None = None) -> list[Check]:
+    """A tool or robot at grip ``name`` against its rating."""
+    source, provenance = rules.tool.source, rules.tool.provenance
+    out = [series_check("tool: force", f"force on the tool at {name} (rated "
+                        f"{rating_force:.4g} N)", "ergonomics",
+                        [g.wrench.force for g in steps], "N", "above",
+                        rules.tool_green * rating_force, rules.tool_yellow * rating_force,
+                        source, provenance, grip=name, where=[g.s for g in steps],
+                        steps=indices)]
+    if rating_moment is not None:
+        out.append(series_check("tool: moment", f"moment on the tool at {name} (rated "
+                                f"{rating_moment:.4g} N m)", "ergonomics",
+                                [g.wrench.moment for g in steps], "N m", "above",
+                                rules.tool_green * rating_moment,
+                                rules.tool_yellow * rating_moment, source, provenance,
+                                grip=name, where=[g.s for g in steps], steps=indices))
+    return out
+
+
+# -- the result ---------------------------------------------------------------------------
+@dataclass
+class OperatorResult:
+    """One way of doing the operation, judged: its checks, worst zone, and what it
+    needs (the second hand's place, the tool's rating)."""
+
+    operator: str
+    checks: list[Check]
+    summary: str
+    second_hand_s: float | None = None
+    second_hand_forces: dict[int, tuple[float, float, float]] = field(default_factory=dict)
+    rating: tuple[float, float] | None = None
+    solves: int = 0
+
+    @property
+    def zone(self) -> Zone:
+        return worst_zone(self.checks)
+
+    @property
+    def passes(self) -> bool:
+        return self.zone != Zone.RED
+
+    def to_dict(self) -> dict[str, Any]:
+        return {"operator": self.operator, "zone": self.zone.value, "passes": self.passes,
+                "summary": self.summary, "second_hand_s": self.second_hand_s,
+                "second_hand_forces": {str(k): list(v)
+                                       for k, v in self.second_hand_forces.items()},
+                "rating": None if self.rating is None else {"force": self.rating[0],
+                                                            "moment": self.rating[1]},
+                "solves": self.solves, "checks": [c.to_dict() for c in self.checks]}
+
+
+@dataclass
+class Verdict:
+    """passes: the operation can be done (assemblable, by an operator that is not red);
+    operator: the cheapest that passes (None: none); headline in plain words; reasons:
+    each red and yellow item."""
+
+    passes: bool
+    assemblable: bool
+    operator: str | None
+    headline: str
+    reasons: list[str]
+
+    def to_dict(self) -> dict[str, Any]:
+        return dict(self.__dict__)
+
+
+@dataclass
+class Evaluation:
+    """The evaluation of one operation: the checks on the part and the scene, each
+    operator tried, the verdict, and a row per step (``table``)."""
+
+    name: str
+    part: str
+    grips: tuple[str, ...]
+    run: PathRun
+    checks: list[Check]
+    operators: list[OperatorResult]
+    verdict: Verdict
+    table: list[dict[str, Any]]
+    rules_origin: str
+    settings: EvaluationSettings
+
+    @property
+    def items(self) -> list[Check]:
+        """The red and yellow checks (and the unchecked), worst first; the operators'
+        of the one chosen (or of one hand when none passes)."""
+        chosen = self.chosen
+        pool = self.checks + (chosen.checks if chosen else [])
+        shown = [c for c in pool if c.zone in (Zone.RED, Zone.YELLOW, Zone.UNCHECKED)]
+        return sorted(shown, key=lambda c: (-c.zone.rank, -c.ratio))
+
+    @property
+    def chosen(self) -> OperatorResult | None:
+        for op in self.operators:
+            if op.operator == self.verdict.operator:
+                return op
+        return self.operators[0] if self.operators else None
+
+    def worst_step(self) -> int:
+        """The step of the worst red or yellow item (the last step when all is green)."""
+        for c in self.items:
+            if c.step is not None and c.zone in (Zone.RED, Zone.YELLOW):
+                return c.step
+        return len(self.run.steps) - 1
+
+    def to_dict(self) -> dict[str, Any]:
+        return {
+            "schema_version": SCHEMA_VERSION,
+            "name": self.name, "part": self.part, "grips": list(self.grips),
+            "verdict": self.verdict.to_dict(),
+            "steps_planned": self.run.planned, "steps_solved": len(self.run.steps),
+            "stopped": self.run.stopped,
+            "checks": [c.to_dict() for c in self.checks],
+            "operators": [o.to_dict() for o in self.operators],
+            "table": self.table,
+            "path": self.run.to_dict(),
+            "rules": self.rules_origin,
+            "settings": dict(self.settings.__dict__),
+            "units": {"length": "m", "force": "N", "moment": "N m", "angle": "deg",
+                      "twist_rate": "deg/m", "flattening": "1"},
+        }
+
+
+# -- the evaluation -----------------------------------------------------------------------
+def evaluate(scene: Any, *, rules: Rules | None = None, run: PathRun | None = None,
+             elements: int | None = None, search: bool = True,
+             on_step: Callable[[int, Any], None] | None = None) -> Evaluation:
+    """Judge a scene's operation (``pliant.io.problem_file.Scene``): its [path] if it has
+    one, else its single pose. ``rules`` default to the scene's ``[evaluation] rules``
+    or the bundled table; ``run`` reuses a path already followed; ``search`` places a
+    second hand with the accurate model where one hand is red (else two hands are only
+    tried side by side)."""
+    rules, grips, port = _prepare(scene, rules)
+    if run is None:
+        run = follow_path(scene.problem, scene.path, scene.grip or grips[0],
+                          margin=scene.margin, elements=elements or scene.solver.elements,
+                          on_step=on_step)
+    if not run.steps:
+        raise InputError("scene", f"the start pose could not be solved: {run.stopped}")
+    return _judge(scene, run, rules, grips, port, elements if search else None, search)
+
+
+def evaluate_pose(scene: Any, pose: Any, clearances: dict[str, float], *,
+                  rules: Rules | None = None,
+                  grips: tuple[str, ...] | None = None) -> Evaluation:
+    """Judge one pose already solved (the browser environment's accurate result, or an
+    ``Equilibrium3D``) as a single pose of ``scene``: the same rules as ``evaluate``,
+    without the second-hand search (it would take tens of solves). ``clearances``: the
+    smallest clearance [m] to each obstacle, by name; ``grips`` the conditions a hand
+    holds (default: as ``evaluate`` finds them)."""
+    from dataclasses import replace  # noqa: PLC0415
+
+    scene = replace(scene, path=[], problem=pose.problem)
+    if grips is not None and not scene.evaluation.grips:
+        scene = replace(scene, evaluation=replace(scene.evaluation, grips=tuple(grips)))
+    rules, grips, port = _prepare(scene, rules)
+    radius, at = pose.min_bend_radius if isinstance(pose.min_bend_radius, tuple) else (
+        pose.min_bend_radius())
+    nearest = min(clearances.items(), key=lambda kv: kv[1], default=("", math.inf))
+    grip = pose.loads[grips[0]]
+    record = StepRecord(
+        progress=0.0, grip_position=(0.0, 0.0, 0.0), force=tuple(map(float, grip.force)),
+        moment=tuple(map(float, grip.moment)), clearance=float(nearest[1]),
+        nearest=nearest[0], contacts=0 if pose.contacts is None else len(pose.contacts),
+        contact_force=0.0, bend_radius=float(radius), bend_at=float(at),
+        stable=pose.stable, snap=WARM_START_LOST in pose.notes, seconds=0.0,
+        clearances=tuple(clearances.items()))
+    run = PathRun(grip=grips[0], margin=scene.margin, steps=[record], final=pose,
+                  equilibria=[pose], problems=[pose.problem])
+    return _judge(scene, run, rules, grips, port, None, False)
+
+
+def _prepare(scene: Any, rules: Rules | None) -> tuple[Rules, tuple[str, ...], Any]:
+    """The rules, the grips and the goal port, each checked before anything is solved."""
+    from pliant.io.rules_file import load_rules  # noqa: PLC0415 (pydantic: on demand)
+
+    settings: EvaluationSettings = scene.evaluation
+    rules = rules or load_rules(settings.rules)
+    if scene.problem.dimension != 3:
+        raise InputError("problem", "the A/D evaluation judges 3D scenes; give the "
+                         "conditions and gravity three components")
+    rules.kind(scene.problem.part.kind)
+    grips = _grips(scene, settings)
+    return rules, grips, _goal_port(scene, settings, grips)
+
+
+def _judge(scene: Any, run: PathRun, rules: Rules, grips: tuple[str, ...], port: Any,
+           elements: int | None, search: bool) -> Evaluation:
+    settings: EvaluationSettings = scene.evaluation
+    problem = scene.problem
+    part = problem.part
+    kind = rules.kind(part.kind)
+    eqs = run.equilibria
+    last = len(eqs) - 1
+    push_axis = None if port is None else -np.asarray(port.axis, float) / np.linalg.norm(
+        port.axis)
+    grip_steps = {g: [grip_step(eq, g, settings.connector_force if k == last and g == grips[0]
+                                else 0.0, push_axis) for k, eq in enumerate(eqs)]
+                  for g in grips}
+    checks = _part_checks(scene, run, rules, kind, settings, port, grips, grip_steps)
+    operators = _operators(scene, run, rules, settings, grips, grip_steps, elements, search)
+    verdict = _verdict(run, checks, operators, settings)
+    table = _table(run, grips, grip_steps, part, kind)
+    return Evaluation(problem.name or "operation", part.name, grips, run, checks, operators,
+                      verdict, table, rules.origin, settings)
+
+
+def _grips(scene: Any, settings: EvaluationSettings) -> tuple[str, ...]:
+    names = [c.name for c in scene.problem.conditions]
+    if settings.grips:
+        for g in settings.grips:
+            if g not in names:
+                raise InputError("evaluation.grips", f"no condition named {g!r}; known: "
+                                 f"{', '.join(names)}")
+        return tuple(settings.grips)
+    if scene.grip:
+        return (scene.grip,)
+    held = tuple(c.name for c in scene.problem.conditions
+                 if c.name not in scene.fixed and not c.loads_only)
+    if not held:
+        raise InputError("evaluation.grips", "no condition is held by a hand; name the "
+                         "grips in [evaluation] grips = [...]")
+    return held
+
+
+def _goal_port(scene: Any, settings: EvaluationSettings, grips: tuple[str, ...]) -> Any:
+    if settings.port is not None:
+        if settings.port not in scene.ports:
+            raise InputError("evaluation.port", f"no [[port]] named {settings.port!r}; "
+                             f"known: {', '.join(scene.ports) or 'none'}")
+        return scene.ports[settings.port]
+    if not scene.path:
+        return None
+    end = scene.path[-1].condition(scene.grip)
+    for port in scene.ports.values():
+        if np.linalg.norm(np.subtract(end.position, port.position)) < 1e-3:
+            return port
+    return None
+
+
+def _part_checks(scene: Any, run: PathRun, rules: Rules, kind: PartKind | None,
+                 settings: EvaluationSettings, port: Any, grips: tuple[str, ...],
+                 grip_steps: dict[str, list[GripStep]]) -> list[Check]:
+    eqs = run.equilibria
+    part = scene.problem.part
+    checks: list[Check] = []
+    # The path itself.
+    solved = len(run.steps) - 1
+    if run.stopped:
+        checks.append(Check("path solved", "steps solved", "solve", float(solved), "",
+                            Zone.RED, "below", None, float(run.planned), "the accurate model",
+                            "computed", step=solved + 1, note=run.stopped))
+    residual = max(eq.residual for eq in eqs)
+    checks.append(Check("residual", "largest relative residual of the steps", "solve",
+                        residual, "", Zone.INFO, "above", None, None,
+                        "the accurate model's Newton", "computed"))
+    checks += _bend_checks(run, part, kind, rules, scene, grips, port)
+    checks += _kink_checks(run, part, kind, rules)
+    checks += _twist_checks(run, part, kind, rules, settings, scene, grips)
+    checks.append(_stability_check(run))
+    checks += _interference_checks(run, scene)
+    checks += _contact_checks(run, settings)
+    if port is not None:
+        g = grip_steps[grips[0]][-1]
+        axis = -np.asarray(port.axis, float) / np.linalg.norm(port.axis)
+        push = float(np.dot(g.force, axis))
+        note = ("the hand pushes the part onto the port" if push > 0 else
+                "the part goes onto the port by itself; the hand holds it back")
+        if settings.connector_force:
+            note += f" (with the connector's own {settings.connector_force:g} N)"
+        checks.append(Check("insertion", f"push along {port.name}'s axis at the last step",
+                            "ergonomics", push, "N", Zone.INFO, "above", None, None,
+                            "the accurate model; judged by the grip rows", "computed",
+                            step=len(eqs) - 1, grip=grips[0], s=g.s, note=note))
+    return checks
+
+
+def _bend_limit(part: Any, kind: PartKind | None) -> tuple[float | None, str, str, str]:
+    """(the centreline minimum [m] or None, how it was found, its source, provenance)."""
+    od = part.outer_diameter
+    if part.min_bend_radius is not None:
+        if kind is None:
+            return (part.min_bend_radius, "the part's minimum, taken at the centreline "
+                    "(no kind given)", "the part's datasheet", "user")
+        try:
+            limit = centreline_min_radius(part.min_bend_radius, od, kind.bend_radius_to)
+        except ValueError:
+            return None, "give the part's outer_diameter", kind.sourced.source, "user"
+        how = (f"datasheet {part.min_bend_radius * 1e3:.3g} mm to the inside + OD/2"
+               if kind.bend_radius_to == "inside" else "datasheet minimum, centreline")
+        return limit, how, kind.sourced.source, "user"
+    if kind is not None and kind.fallback_od is not None and od is not None:
+        limit = centreline_min_radius(kind.fallback_od * od, od, kind.bend_radius_to)
+        return (limit, f"fallback {kind.fallback_od:g} x OD ({kind.bend_radius_to})",
+                kind.fallback_source, "fallback")
+    why = ("give min_bend_radius (the datasheet value; this kind has no public fallback)"
+           if kind is not None else "give min_bend_radius, or the part's kind for a fallback")
+    return None, why, "", ""
+
+
+def _bend_checks(run: PathRun, part: Any, kind: PartKind | None, rules: Rules, scene: Any,
+                 grips: tuple[str, ...], port: Any) -> list[Check]:
+    limit, how, source, provenance = _bend_limit(part, kind)
+    radii = [r.bend_radius for r in run.steps]
+    where = [r.bend_at for r in run.steps]
+    if limit is None:
+        k = int(np.argmin(radii))
+        return [Check("bend radius", "smallest bend radius (centreline)", "damage",
+                      radii[k], "m", Zone.UNCHECKED, "below", None, None, source or
+                      "no limit known", provenance or "none", step=k, s=where[k], note=how)]
+    out = [series_check("bend radius", "smallest bend radius (centreline)", "damage", radii,
+                        "m", "below", rules.bend_margin * limit, limit, source, provenance,
+                        where=where, note=f"limit {limit * 1e3:.3g} mm: {how}; yellow "
+                        f"within {rules.bend_margin:g} x ({rules.bend_margin_sourced.source})")]
+    # A straight stretch after each fitting (ports and clips; at the last step, the port
+    # the grip is seated in).
+    fixed = [c for c in scene.problem.conditions if c.name in scene.fixed]
+    values, at, steps = [], [], []
+    straight = rules.fitting_straight * limit
+    for k, eq in enumerate(run.equilibria):
+        stations = [c.s for c in fixed]
+        if port is not None and k == len(run.equilibria) - 1:
+            stations.append(eq.loads[grips[0]].s)
+        if not stations:
+            continue
+        curvature = eq.curvature
+        best = min((tight_near(eq.s, curvature, s_f, straight) for s_f in stations),
+                   key=lambda x: x[0])
+        values.append(best[0])
+        at.append(best[1])
+        steps.append(k)
+    if values:
+        out.append(series_check(
+            "bend near a fitting", f"smallest bend radius within {straight * 1e3:.3g} mm of a "
+            "fitting", "damage", values, "m", "below", rules.fitting_tight * limit, None,
+            rules.fitting.source, rules.fitting.provenance, where=at, steps=steps,
+            note=f"yellow below {rules.fitting_tight:g} x the minimum"))
+    return out
+
+
+def _kink_checks(run: PathRun, part: Any, kind: PartKind | None, rules: Rules) -> list[Check]:
+    if kind is None or not kind.thin_walled:
+        return []
+    source = rules.kink.source
+    if part.outer_diameter is None or part.inner_diameter <= 0.0:
+        return [Check("kink", "flattening of the section (Brazier)", "damage", math.nan, "",
+                      Zone.UNCHECKED, "above", rules.kink_yellow, rules.kink_red, source,
+                      "derived", note="give outer_diameter and inner_diameter")]
+    a, t = tube_section(part.outer_diameter, part.inner_diameter)
+    if a / t < rules.kink_min_ratio:
+        return [Check("kink", "flattening of the section (Brazier)", "damage", a / t, "",
+                      Zone.INFO, "above", None, None, source, "derived",
+                      note=f"not applicable: a/t = {a / t:.3g} < {rules.kink_min_ratio:g}, a "
+                      "thick wall; the bend-radius rule stands in")]
+    nu = part.poisson_ratio
+    note = ""
+    if nu is None:
+        nu, note = 0.0, "nu not given: 0 assumed (the larger flattening)"
+    zeta = [float(brazier_flattening(1.0 / r.bend_radius if r.bend_radius > 0 else math.inf,
+                                     a, t, nu)) for r in run.steps]
+    kink = brazier_kink_curvature(a, t, nu)
+    note = (note + "; " if note else "") + (f"Brazier kinks at R = {1e3 / kink:.3g} mm "
+                                            "(zeta = 2/9)")
+    return [series_check("kink", "flattening of the section (Brazier)", "damage", zeta, "",
+                         "above", rules.kink_yellow, rules.kink_red, source, "derived",
+                         where=[r.bend_at for r in run.steps], note=note)]
+
+
+def _twist_checks(run: PathRun, part: Any, kind: PartKind | None, rules: Rules,
+                  settings: EvaluationSettings, scene: Any,
+                  grips: tuple[str, ...]) -> list[Check]:
+    gj = part.stiffnesses[2]
+    eqs = run.equilibria
+    held = sorted({c.s for c in scene.problem.conditions if not c.loads_only})
+    if len(held) < 2:
+        return []
+    angles = [math.degrees(twist_angle(eq.s, eq.torque, gj, held[0], held[-1]))
+              for eq in eqs]
+    rates = [math.degrees(float(np.abs(eq.torque).max()) / gj) for eq in eqs]
+    out = []
+    if kind is not None and kind.hose:
+        last = len(eqs) - 1
+        fittings = sorted({c.s for c in scene.problem.conditions if c.name in scene.fixed}
+                          | ({eqs[-1].loads[grips[0]].s} if scene.path else set(held)))
+        spans = list(zip(fittings, fittings[1:]))
+        if spans:
+            twist = max((math.degrees(twist_angle(eqs[-1].s, eqs[-1].torque, gj, a, b))
+                         for a, b in spans), key=abs)
+            out.append(series_check("twist", "twist between the fittings, installed",
+                                    "damage", [abs(twist)], "deg", "above",
+                                    rules.twist_yellow, rules.twist_red, rules.twist.source,
+                                    rules.twist.provenance, steps=[last]))
+        out.append(series_check("twist along the path", "twist between the held ends",
+                                "damage", [abs(a) for a in angles], "deg", "above", None, None,
+                                rules.twist.source, "computed",
+                                note="while handled; judged only installed"))
+        return out
+    limit = settings.max_twist_rate
+    return [series_check("twist rate", "largest twist rate", "damage", rates, "deg/m",
+                         "above", None if limit is None else 0.8 * limit, limit,
+                         "the user's torsion rating" if limit else "no torsion rating given",
+                         "user" if limit else "computed",
+                         note="" if limit else "give [evaluation] max_twist_rate to judge it")]
+
+
+def _stability_check(run: PathRun) -> Check:
+    bad = [k for k, r in enumerate(run.steps) if r.stable is False or r.snap]
+    undecided = [k for k, r in enumerate(run.steps) if r.stable is None]
+    source = "the accurate model's constrained Hessian; a snap: a shape that cannot be followed"
+    if bad:
+        snaps = [k for k in bad if run.steps[k].snap]
+        note = (f"snaps at {_ranges(tuple(snaps))}; " if snaps else "") + (
+            "a real part would jump there")
+        return Check("stability", "unstable or snapping steps", "stability", float(len(bad)),
+                     "", Zone.RED, "above", None, 0.0, source, "computed", step=bad[0],
+                     note=note, red_steps=tuple(bad))
+    if undecided:
+        return Check("stability", "steps whose stability is not decided", "stability",
+                     float(len(undecided)), "", Zone.UNCHECKED, "above", None, None, source,
+                     "computed", step=undecided[0], note="follower loads or friction: a "
+                     "static test does not decide")
+    return Check("stability", "unstable or snapping steps", "stability", 0.0, "", Zone.GREEN,
+                 "above", None, 0.0, source, "computed")
+
+
+def _interference_checks(run: PathRun, scene: Any) -> list[Check]:
+    out = []
+    names = [o.name for o in scene.problem.obstacles]
+    source = "the scene's margin" if scene.margin else "no margin given"
+    for name in names:
+        values = [dict(r.clearances).get(name, math.inf) for r in run.steps]
+        out.append(series_check(
+            f"clearance: {name}", f"clearance to {name}", "interference", values, "m",
+            "below", scene.margin if scene.margin > 0 else None, -PENETRATION, source,
+            "user" if scene.margin else "computed",
+            note=f"margin {scene.margin * 1e3:g} mm; red inside the obstacle"))
+    return out
+
+
+def _contact_checks(run: PathRun, settings: EvaluationSettings) -> list[Check]:
+    per: dict[str, list[float]] = {}
+    for k, eq in enumerate(run.equilibria):
+        if eq.contacts is None:
+            continue
+        for name, f in eq.contacts.by_obstacle().items():
+            per.setdefault(name, [0.0] * len(run.equilibria))[k] = float(np.linalg.norm(f))
+    limit = settings.max_contact_force
+    return [series_check(f"contact: {name}", f"force {name} presses on the part with",
+                         "interference", values, "N", "above",
+                         None if limit is None else 0.8 * limit, limit,
+                         "the scene's max_contact_force" if limit else "no limit given",
+                         "user" if limit else "computed") for name, values in per.items()]
+
+
+# -- operators ----------------------------------------------------------------------------
+def _operators(scene: Any, run: PathRun, rules: Rules, settings: EvaluationSettings,
+               grips: tuple[str, ...], grip_steps: dict[str, list[GripStep]],
+               elements: int | None, search: bool) -> list[OperatorResult]:
+    friction = rules.hand_friction
+    wanted = settings.operator
+    out: list[OperatorResult] = []
+    rows = hand_rows(rules, settings, settings.hold)
+    if wanted in ("auto", "one hand"):
+        checks = [c for g in grips for c in hand_checks(g, grip_steps[g], rows, friction)]
+        out.append(OperatorResult("one hand", checks, "one hand" if len(grips) == 1 else
+                                  "one hand at each of " + ", ".join(grips)))
+    if wanted == "two hands" or (wanted == "auto" and out[0].zone == Zone.RED):
+        out += _two_hands(scene, run, rules, settings, grips, grip_steps, elements, search)
+    if wanted in ("tool", "robot"):
+        checks = [c for g in grips for c in tool_checks(
+            g, grip_steps[g], rules, settings.rating_force, settings.rating_moment)]
+        out.append(OperatorResult(wanted, checks, f"a {wanted} rated for "
+                                  f"{settings.rating_force:g} N"))
+    elif wanted == "auto" and all(o.zone == Zone.RED for o in out):
+        out.append(_tool_needed(rules, settings, grips, grip_steps))
+    return out
+
+
+def _two_hands(scene: Any, run: PathRun, rules: Rules, settings: EvaluationSettings,
+               grips: tuple[str, ...], grip_steps: dict[str, list[GripStep]],
+               elements: int | None, search: bool) -> list[OperatorResult]:
+    from pliant.assembly.operators import place_second_hand  # noqa: PLC0415
+
+    friction = rules.hand_friction
+    side_rows = hand_rows(rules, settings, settings.hold, axial_row="two-hand push")
+    checks = []
+    note = "the two hands share the load evenly (an assumption)"
+    for g in grips:
+        for row in side_rows:
+            share = 1.0 if row.id == "two-hand push" else 0.5
+            checks += hand_checks(g, grip_steps[g], [row], friction, share=share,
+                                  note=note if share < 1 else "")
+    out = [OperatorResult("two hands side by side", checks,
+                          "two hands side by side at " + ", ".join(grips))]
+    if len(grips) == 1 and search:
+        placed = place_second_hand(scene, run, rules, settings, grips[0], grip_steps[grips[0]],
+                                   elements or scene.solver.elements)
+        if placed is not None:
+            out.append(placed)
+    return out
+
+
+def _tool_needed(rules: Rules, settings: EvaluationSettings, grips: tuple[str, ...],
+                 grip_steps: dict[str, list[GripStep]]) -> OperatorResult:
+    peak_f = max(g.wrench.force for name in grips for g in grip_steps[name])
+    peak_m = max(g.wrench.moment for name in grips for g in grip_steps[name])
+    force = settings.rating_force or peak_f / rules.tool_green
+    moment = settings.rating_moment or peak_m / rules.tool_green
+    checks = [c for g in grips for c in tool_checks(g, grip_steps[g], rules, force, moment)]
+    given = settings.rating_force is not None
+    summary = (f"a tool or robot rated {force:.3g} N, {moment:.3g} N m" if given else
+               f"a tool or robot rated for at least {force:.3g} N and {moment:.3g} N m")
+    return OperatorResult("tool or robot", checks, summary, rating=(force, moment))
+
+
+# -- the verdict --------------------------------------------------------------------------
+def _verdict(run: PathRun, checks: list[Check], operators: list[OperatorResult],
+             settings: EvaluationSettings) -> Verdict:
+    red = [c for c in checks if c.zone == Zone.RED]
+    assemblable = not red and run.complete
+    chosen = next((o for o in operators if o.passes), None)
+    reasons = [f"[{c.zone.value}] {c.sentence()}"
+               for c in sorted(checks, key=lambda c: (-c.zone.rank, -c.ratio))
+               if c.zone in (Zone.RED, Zone.YELLOW)]
+    ops = chosen or (operators[0] if operators else None)
+    if ops is not None:
+        reasons += [f"[{c.zone.value}] {c.sentence()}"
+                    for c in sorted(ops.checks, key=lambda c: (-c.zone.rank, -c.ratio))
+                    if c.zone in (Zone.RED, Zone.YELLOW)]
+    if not assemblable:
+        first = red[0] if red else None
+        headline = ("DOES NOT FIT: " + first.sentence().split(". ")[0]) if first else (
+            "DOES NOT FIT: the path could not be followed")
+    elif chosen is None:
+        headline = ("FITS, BUT NO OPERATOR TRIED CAN DO IT: "
+                    + ", ".join(f"{o.operator} is red" for o in operators))
+    else:
+        headline = f"FITS with {chosen.summary}"
+        tried = [o.operator for o in operators if not o.passes]
+        if tried:
+            headline += f"; {' and '.join(tried)}: red"
+        if chosen.zone == Zone.YELLOW or any(c.zone == Zone.YELLOW for c in checks):
+            headline += "; with reservations (yellow items below)"
+    return Verdict(passes=assemblable and chosen is not None, assemblable=assemblable,
+                   operator=None if chosen is None else chosen.operator, headline=headline,
+                   reasons=reasons)
+
+
+def _table(run: PathRun, grips: tuple[str, ...], grip_steps: dict[str, list[GripStep]],
+           part: Any, kind: PartKind | None) -> list[dict[str, Any]]:
+    gj = part.stiffnesses[2]
+    thin = (kind is not None and kind.thin_walled and part.outer_diameter is not None
+            and part.inner_diameter > 0)
+    rows = []
+    for k, (r, eq) in enumerate(zip(run.steps, run.equilibria)):
+        row: dict[str, Any] = {"step": k, "progress": r.progress}
+        for g in grips:
+            gs = grip_steps[g][k]
+            w = gs.wrench
+            row.update({f"{g} Fx": gs.force[0], f"{g} Fy": gs.force[1], f"{g} Fz": gs.force[2],
+                        f"{g} Mx": gs.moment[0], f"{g} My": gs.moment[1],
+                        f"{g} Mz": gs.moment[2], f"{g} axial": w.axial,
+                        f"{g} lateral": w.lateral, f"{g} twist": w.twist,
+                        f"{g} bending": w.bending})
+        row.update({"bend radius": r.bend_radius, "bend at": r.bend_at,
+                    "clearance": r.clearance, "nearest": r.nearest,
+                    "contact force": r.contact_force,
+                    "twist rate": math.degrees(float(np.abs(eq.torque).max()) / gj),
+                    "stable": r.stable, "snap": r.snap})
+        if thin:
+            a, t = tube_section(part.outer_diameter, part.inner_diameter)
+            row["flattening"] = float(brazier_flattening(1.0 / r.bend_radius, a, t,
+                                                         part.poisson_ratio or 0.0))
+        for name, c in r.clearances:
+            row[f"clearance {name}"] = c
+        rows.append(row)
+    return rows

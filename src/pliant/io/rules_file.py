@@ -1,0 +1,228 @@
+"""Read an evaluation rules table (TOML, SI units) into ``pliant.core.rules.Rules``.
+
+The bundled table is ``pliant/data/rules.toml``; a user's own file replaces it whole.
+Every number must be positive and every row must name its unit, source and provenance,
+so that a verdict can always say which rule it applied and where the rule comes from.
+"""
+
+from __future__ import annotations
+
+import tomllib
+from functools import cache
+from importlib import resources
+from pathlib import Path
+from typing import Literal
+
+from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
+
+from pliant.core.rules import Capacity, PartKind, Rules, Sourced
+from pliant.errors import FileFormatError
+
+UNITS = {"axial": "N", "lateral": "N", "grip": "N", "force": "N", "twist": "N m",
+         "bending": "N m"}
+
+
+class _Strict(BaseModel):
+    model_config = ConfigDict(extra="forbid", frozen=True)
+
+
+class _SourcedModel(_Strict):
+    source: str = Field(min_length=1)
+    provenance: str = Field(min_length=1)
+
+
+class ZonesModel(_SourcedModel):
+    green: float = Field(gt=0, lt=1)
+    yellow: float = Field(gt=0, le=1)
+
+    @model_validator(mode="after")
+    def _ordered(self) -> ZonesModel:
+        if not self.green < self.yellow:
+            raise ValueError("green must be below yellow")
+        return self
+
+
+class HandModel(_Strict):
+    friction: float = Field(gt=0, le=5)
+    friction_source: str = Field(min_length=1)
+    friction_provenance: str = Field(min_length=1)
+
+
+class CapacityModel(_SourcedModel):
+    id: str = Field(min_length=1)
+    title: str = Field(min_length=1)
+    demand: Literal["axial", "lateral", "grip", "force", "twist", "bending"]
+    unit: Literal["N", "N m"]
+    capacity: float | None = Field(None, gt=0)
+    green: float | None = Field(None, gt=0)
+    yellow: float | None = Field(None, gt=0)
+    unscored_below: float = Field(0.0, ge=0)
+    repetitive_yellow: float | None = Field(None, gt=0)
+
+    @model_validator(mode="after")
+    def _limits(self) -> CapacityModel:
+        if self.unit != UNITS[self.demand]:
+            raise ValueError(f"a {self.demand} demand is in {UNITS[self.demand]}, "
+                             f"not {self.unit}")
+        if self.capacity is None and (self.green is None or self.yellow is None):
+            raise ValueError("give the capacity, or both green and yellow limits")
+        if self.green is not None and self.yellow is not None and self.green >= self.yellow:
+            raise ValueError("green must be below yellow")
+        return self
+
+    def build(self, zones: ZonesModel) -> Capacity:
+        green = self.green if self.green is not None else zones.green * self.capacity
+        yellow = self.yellow if self.yellow is not None else zones.yellow * self.capacity
+        return Capacity(self.id.lower(), self.title, self.demand, self.unit, green, yellow,
+                        self.capacity, self.unscored_below, self.repetitive_yellow,
+                        Sourced(self.source, self.provenance))
+
+
+class ToolModel(_SourcedModel):
+    green: float = Field(gt=0, lt=1)
+    yellow: float = Field(gt=0, le=1)
+
+
+class KindModel(_Strict):
+    id: str = Field(min_length=1)
+    bend_radius_to: Literal["inside", "centreline"]
+    fallback_od: float | None = Field(None, gt=0)
+    fallback_source: str = ""
+    thin_walled: bool
+    hose: bool
+    source: str = Field(min_length=1)
+
+    @model_validator(mode="after")
+    def _fallback_sourced(self) -> KindModel:
+        if self.fallback_od is not None and not self.fallback_source:
+            raise ValueError("a fallback_od needs its fallback_source")
+        return self
+
+    def build(self) -> PartKind:
+        return PartKind(self.id.lower(), self.bend_radius_to, self.fallback_od,
+                        self.fallback_source, self.thin_walled, self.hose,
+                        Sourced(self.source, "fallback" if self.fallback_od else "standard"))
+
+
+class BendModel(_Strict):
+    margin: float = Field(ge=1)
+    margin_source: str = Field(min_length=1)
+    fitting_straight: float = Field(gt=0)
+    fitting_tight: float = Field(gt=1)
+    fitting_source: str = Field(min_length=1)
+
+
+class KinkModel(_Strict):
+    yellow: float = Field(gt=0, lt=1)
+    red: float = Field(gt=0, lt=1)
+    min_ratio: float = Field(gt=0)
+    source: str = Field(min_length=1)
+
+
+class TwistModel(_Strict):
+    yellow: float = Field(gt=0, description="degrees")
+    red: float = Field(gt=0, description="degrees")
+    source: str = Field(min_length=1)
+
+
+class RulesFile(_Strict):
+    schema_: int = Field(alias="schema", ge=1, le=1)
+    zones: ZonesModel
+    hand: HandModel
+    capacity: list[CapacityModel] = Field(min_length=1)
+    tool: ToolModel
+    kind: list[KindModel] = Field(min_length=1)
+    bend: BendModel
+    kink: KinkModel
+    twist: TwistModel
+
+    @model_validator(mode="after")
+    def _consistent(self) -> RulesFile:
+        ids = [c.id.lower() for c in self.capacity]
+        for row in ("palm push", "power grip", "wrist twist", "hand bending", "pinch",
+                    "two-hand push"):
+            if row not in ids:
+                raise ValueError(f"capacity: no row with id {row!r} (every grip check "
+                                 "needs one)")
+        if len(set(ids)) != len(ids):
+            raise ValueError("capacity: two rows share an id")
+        kinds = [k.id.lower() for k in self.kind]
+        if len(set(kinds)) != len(kinds):
+            raise ValueError("kind: two kinds share an id")
+        for lo, hi, name in ((self.tool.green, self.tool.yellow, "tool"),
+                             (self.kink.yellow, self.kink.red, "kink"),
+                             (self.twist.yellow, self.twist.red, "twist")):
+            if lo >= hi:
+                raise ValueError(f"{name}: the yellow (or green) limit must be below the "
+                                 "next one")
+        return self
+
+    def build(self, origin: str) -> Rules:
+        z = self.zones
+        return Rules(
+            zones_green=z.green, zones_yellow=z.yellow, zones=Sourced(z.source, z.provenance),
+            hand_friction=self.hand.friction,
+            hand=Sourced(self.hand.friction_source, self.hand.friction_provenance),
+            capacities={c.id.lower(): c.build(z) for c in self.capacity},
+            tool_green=self.tool.green, tool_yellow=self.tool.yellow,
+            tool=Sourced(self.tool.source, self.tool.provenance),
+            kinds={k.id.lower(): k.build() for k in self.kind},
+            bend_margin=self.bend.margin,
+            bend_margin_sourced=Sourced(self.bend.margin_source, "engineering choice"),
+            fitting_straight=self.bend.fitting_straight, fitting_tight=self.bend.fitting_tight,
+            fitting=Sourced(self.bend.fitting_source, "vendor rule"),
+            kink_yellow=self.kink.yellow, kink_red=self.kink.red,
+            kink_min_ratio=self.kink.min_ratio, kink=Sourced(self.kink.source, "derived"),
+            twist_yellow=self.twist.yellow, twist_red=self.twist.red,
+            twist=Sourced(self.twist.source, "standard"), origin=origin)
+
+
+def _where(loc: tuple) -> str:
+    out = ""
+    for item in loc:
+        out += f"[{item}]" if isinstance(item, int) else (f".{item}" if out else str(item))
+    return out or "(top level)"
+
+
+def parse_rules(text: str, source: str = "<string>") -> Rules:
+    """Rules from TOML text; errors name the source and the field."""
+    try:
+        data = tomllib.loads(text)
+    except tomllib.TOMLDecodeError as err:
+        raise FileFormatError(f"{source}: not valid TOML: {err}") from None
+    try:
+        model = RulesFile.model_validate(data)
+    except ValidationError as err:
+        first = err.errors()[0]
+        where = _where(tuple(first["loc"]))
+        if where.startswith("capacity[") and "id" not in where:
+            rows = data.get("capacity", [])
+            index = first["loc"][1] if len(first["loc"]) > 1 else None
+            if isinstance(index, int) and index < len(rows) and isinstance(rows[index], dict):
+                where += f" (row {rows[index].get('id', '?')!r})"
+        message = first["msg"].removeprefix("Value error, ")
+        if first["type"] == "missing":
+            message = "missing: every row names its value, unit, source and provenance"
+        raise FileFormatError(f"{source}: {where}: {message}") from None
+    return model.build(source)
+
+
+@cache
+def bundled_rules() -> Rules:
+    """The bundled table, ``pliant/data/rules.toml``."""
+    text = resources.files("pliant.data").joinpath("rules.toml").read_text("utf-8")
+    return parse_rules(text, "bundled rules")
+
+
+def load_rules(path: str | Path | None = None) -> Rules:
+    """A rules file (TOML), or the bundled table when ``path`` is None."""
+    if path is None:
+        return bundled_rules()
+    path = Path(path)
+    try:
+        text = path.read_text(encoding="utf-8")
+    except FileNotFoundError:
+        raise FileFormatError(f"{path}: no such rules file; check the path") from None
+    except (OSError, UnicodeDecodeError) as err:
+        raise FileFormatError(f"{path}: cannot be read as UTF-8 TOML: {err}") from None
+    return parse_rules(text, str(path))

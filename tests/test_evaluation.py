@@ -1,0 +1,437 @@
+"""The A/D evaluation: each rule at its zone boundaries against hand-worked values,
+Brazier's kink against its energy derivation, inside against centreline radii, the
+second hand against a closed-form twin, a scene built to fail one rule, the JSON against
+its schema, the report in Chromium, the CLI's exit status, and bad rules and kinds."""
+
+from __future__ import annotations
+
+import json
+import math
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+from scipy.optimize import minimize_scalar
+
+from pliant.assembly.checks import (
+    Zone,
+    brazier_flattening,
+    brazier_kink_curvature,
+    centreline_min_radius,
+    split_wrench,
+    twist_angle,
+    zone_of,
+)
+from pliant.assembly.evaluate import evaluate, hand_rows
+from pliant.core.rules import EvaluationSettings
+from pliant.errors import FileFormatError, InputError
+from pliant.io.evaluation_file import EvaluationReport, evaluation_json, write_csv
+from pliant.io.problem_file import parse_scene
+from pliant.io.rules_file import bundled_rules, parse_rules
+
+RULES_TEXT = (Path(__file__).resolve().parents[1] / "src" / "pliant" / "data"
+              / "rules.toml").read_text()
+G = 9.81
+
+
+# -- rules at their boundaries ------------------------------------------------------------
+@pytest.mark.parametrize(("row", "green", "yellow"), [
+    ("palm push", 100.0, 140.0),       # 0.5 and 0.7 of the 200 N MVF
+    ("two-hand push", 166.5, 233.1),   # of 333 N = 200 N / 0.6
+    ("power grip", 80.5, 112.7),       # of the 161 N P15
+    ("wrist twist", 1.07, 1.498),      # of the 2.14 N m P15
+    ("pinch", 30.0, 100.0),            # EAWS: the row's own limits
+])
+def test_each_capacity_row_changes_zone_at_its_hand_worked_limits(row, green, yellow):
+    c = bundled_rules().capacities[row]
+    assert c.green == pytest.approx(green) and c.yellow == pytest.approx(yellow)
+    eps = 1e-9 * yellow
+    for value, zone in ((green - eps, Zone.GREEN), (green + eps, Zone.YELLOW),
+                        (yellow - eps, Zone.YELLOW), (yellow + eps, Zone.RED)):
+        assert zone_of(value, c.green, c.yellow, "above", c.unscored_below) == zone
+
+
+def test_p15_capacities_are_mean_minus_1036_sd_of_their_sources():
+    rules = bundled_rules()
+    assert rules.capacities["power grip"].capacity == pytest.approx(231 - 1.036 * 67.7, abs=0.5)
+    assert rules.capacities["wrist twist"].capacity == pytest.approx(3.36 - 1.036 * 1.18,
+                                                                   abs=0.01)
+    assert rules.capacities["two-hand push"].capacity == pytest.approx(200 / 0.6, abs=0.5)
+
+
+def test_unscored_forces_are_green_and_repetitive_work_lowers_the_yellow_onset():
+    rules = bundled_rules()
+    grip = next(r for r in hand_rows(rules, EvaluationSettings(), "power grip")
+                if r.id == "power grip")
+    assert zone_of(39.0, 0.01, 0.02, "above", unscored_below=40.0) == Zone.GREEN
+    repetitive = next(r for r in hand_rows(rules, EvaluationSettings(repetitive=True),
+                                           "power grip") if r.id == "power grip")
+    assert grip.green == pytest.approx(80.5) and repetitive.green == pytest.approx(44.5)
+    assert zone_of(50.0, repetitive.green, repetitive.yellow, "above",
+                   repetitive.unscored_below) == Zone.YELLOW
+    scaled = next(r for r in hand_rows(rules, EvaluationSettings(multipliers=(0.5, 0.8, 1.0)),
+                                       "power grip") if r.id == "power grip")
+    assert scaled.yellow == pytest.approx(0.4 * 112.7)
+
+
+def test_lower_is_worse_rules_zone_below_their_limits():
+    assert zone_of(0.25, 0.24, 0.2, "below") == Zone.GREEN
+    assert zone_of(0.23, 0.24, 0.2, "below") == Zone.YELLOW
+    assert zone_of(0.19, 0.24, 0.2, "below") == Zone.RED
+    assert zone_of(math.inf, 0.24, 0.2, "below") == Zone.GREEN
+
+
+def test_a_wrench_splits_into_push_lateral_twist_and_bending():
+    # The last end (outward tangent +x) pushed back along -x and lifted.
+    w = split_wrench(np.array([-3.0, 0.0, 4.0]), np.array([0.5, 2.0, 0.0]),
+                     np.array([1.0, 0.0, 0.0]), outward=1.0)
+    assert (w.axial, w.lateral, w.twist, w.bending) == pytest.approx((-3.0, 4.0, 0.5, 2.0))
+    assert w.force == pytest.approx(5.0) and w.moment == pytest.approx(math.hypot(0.5, 2.0))
+    # Squeeze against slip: 3 N / (2 x 0.5) = 3 N, below the 4 N lateral load.
+    assert w.grip_force(0.5) == pytest.approx(4.0)
+    assert w.grip_force(0.25) == pytest.approx(6.0)
+    # At the first end the tangent points into the part: the same force pulls.
+    assert split_wrench(np.array([-3.0, 0, 0]), np.zeros(3), np.array([1.0, 0, 0]),
+                        outward=-1.0).axial == pytest.approx(3.0)
+
+
+# -- damage -------------------------------------------------------------------------------
+def _brazier_energy(kappa: float, zeta: float, a: float, t: float, nu: float) -> float:
+    """Per length, E = 1: the axial strain energy of the ovalised section to first order
+    in zeta (Brazier) plus the hoop bending energy of the wall (Calladine, ch. 15)."""
+    stretching = 0.5 * math.pi * t * a**3 * kappa**2 * (1.0 - 1.5 * zeta)
+    hoop = 9.0 * math.pi * (t**3 / (12.0 * (1.0 - nu**2))) * zeta**2 / (2.0 * a)
+    return stretching + hoop
+
+
+def test_brazier_flattening_and_kink_agree_with_the_energy_minimum():
+    a, t, nu = 0.01, 0.0008, 0.4
+
+    def settled(kappa: float) -> tuple[float, float]:
+        res = minimize_scalar(lambda z: _brazier_energy(kappa, z, a, t, nu),
+                              bounds=(0.0, 1.0), method="bounded",
+                              options={"xatol": 1e-12})
+        return res.x, res.fun
+
+    for kappa in (0.5, 1.5, 3.0):
+        zeta, _ = settled(kappa)
+        assert zeta == pytest.approx(float(brazier_flattening(kappa, a, t, nu)), rel=1e-5)
+
+    def moment(kappa: float, h: float = 1e-4) -> float:  # dU/dkappa at the settled zeta
+        return (settled(kappa + h)[1] - settled(kappa - h)[1]) / (2 * h)
+
+    peak = minimize_scalar(lambda k: -moment(k), bounds=(0.5, 12.0), method="bounded",
+                           options={"xatol": 1e-6}).x
+    kink = brazier_kink_curvature(a, t, nu)
+    assert peak == pytest.approx(kink, rel=1e-3)
+    assert float(brazier_flattening(kink, a, t, nu)) == pytest.approx(2.0 / 9.0, rel=1e-12)
+
+
+def test_inside_bend_radii_move_the_centreline_limit_by_half_the_diameter():
+    assert centreline_min_radius(0.05, 0.02, "inside") == pytest.approx(0.06)
+    assert centreline_min_radius(0.05, 0.02, "centreline") == pytest.approx(0.05)
+    with pytest.raises(ValueError, match="outer_diameter"):
+        centreline_min_radius(0.05, None, "inside")
+
+
+def test_twist_is_the_integral_of_torque_over_gj():
+    s = np.linspace(0.0, 2.0, 201)
+    assert twist_angle(s, np.full(201, 0.3), 1.5, 0.0, 2.0) == pytest.approx(0.4)
+    assert twist_angle(s, np.full(201, 0.3), 1.5, 0.5, 1.0) == pytest.approx(0.1)
+
+
+# -- scenes -------------------------------------------------------------------------------
+def _arc_scene(kind: str, min_bend_radius: float, radius: float = 0.2,
+               length: float = 0.5) -> str:
+    """A part held by a clamp and a hand on a circular arc of ``radius``: the uniform
+    arc is the equilibrium (a constant moment EI / R, no force)."""
+    phi = length / radius
+    end = (radius * math.sin(phi), radius * (1.0 - math.cos(phi)), 0.0)
+    tangent = (math.cos(phi), math.sin(phi), 0.0)
+    return f"""
+name = "arc"
+gravity = [0.0, 0.0, 0.0]
+[part]
+name = "arc"
+length = {length}
+bending_stiffness = 0.02
+outer_diameter = 0.04
+min_bend_radius = {min_bend_radius}
+kind = "{kind}"
+[solver]
+elements = 60
+[evaluation]
+grips = ["hand"]
+[[condition]]
+name = "clamp"
+s = 0.0
+x = 0.0
+y = 0.0
+z = 0.0
+tangent = [1.0, 0.0, 0.0]
+normal = [0.0, 0.0, 1.0]
+[[condition]]
+name = "hand"
+s = {length}
+x = {end[0]}
+y = {end[1]}
+z = {end[2]}
+tangent = [{tangent[0]}, {tangent[1]}, {tangent[2]}]
+normal = [0.0, 0.0, 1.0]
+"""
+
+
+def test_a_scene_built_to_fail_the_bend_radius_fails_it_and_only_it():
+    # A rubber hose quotes 190 mm to the inside: 190 + 20 mm at the centreline > 200 mm.
+    ev = evaluate(parse_scene(_arc_scene("rubber hose", 0.19), "arc.toml"))
+    red = [c for c in ev.checks + ev.chosen.checks if c.zone == Zone.RED]
+    assert [c.rule for c in red] == ["bend radius"]
+    bend = red[0]
+    assert bend.value == pytest.approx(0.2, rel=2e-3) and bend.red_at == pytest.approx(0.21)
+    assert not ev.verdict.passes and not ev.verdict.assemblable
+    assert ev.verdict.headline.startswith("DOES NOT FIT: smallest bend radius")
+    # The hand holds the arc with its constant moment EI / R and no force.
+    hand = ev.run.equilibria[-1].loads["hand"]
+    assert np.linalg.norm(hand.moment) == pytest.approx(0.02 / 0.2, rel=2e-3)
+    assert np.linalg.norm(hand.force) < 2e-3 * 0.02 / 0.2**2  # of EI / R^2: discretisation
+
+
+def test_the_same_radius_quoted_at_the_centreline_is_only_yellow():
+    ev = evaluate(parse_scene(_arc_scene("wire", 0.19), "arc.toml"))
+    bend = next(c for c in ev.checks if c.rule == "bend radius")
+    assert bend.zone == Zone.YELLOW and bend.red_at == pytest.approx(0.19)
+    assert bend.yellow_at == pytest.approx(1.2 * 0.19)
+    assert ev.verdict.passes and ev.verdict.operator == "one hand"
+
+
+def test_a_fallback_radius_is_labelled_and_a_missing_one_is_unchecked():
+    text = _arc_scene("multi-core cable", 0.19).replace("min_bend_radius = 0.19\n", "")
+    bend = next(c for c in evaluate(parse_scene(text, "arc.toml")).checks
+                if c.rule == "bend radius")
+    assert bend.provenance == "fallback" and bend.red_at == pytest.approx(12 * 0.04)
+    text = _arc_scene("reinforced hose", 0.19).replace("min_bend_radius = 0.19\n", "")
+    bend = next(c for c in evaluate(parse_scene(text, "arc.toml")).checks
+                if c.rule == "bend radius")
+    assert bend.zone == Zone.UNCHECKED and "datasheet" in bend.note
+
+
+def _carried(grips: str, length: float = 1.0, mass: float = 4.0,
+             stiffness: float = 1.0e4) -> str:
+    return f"""
+name = "carried"
+gravity = [0.0, 0.0, -{G}]
+[part]
+name = "heavy hose"
+length = {length}
+bending_stiffness = {stiffness}
+mass_per_length = {mass}
+outer_diameter = 0.04
+kind = "rubber hose"
+[solver]
+elements = 60
+{grips}
+"""
+
+
+HAND = """
+[[condition]]
+name = "{name}"
+s = {s}
+x = {x}
+y = 0.0
+z = 0.0
+tangent = [1.0, 0.0, 0.0]
+normal = [0.0, 0.0, 1.0]
+"""
+
+
+def test_a_symmetric_part_carried_by_two_hands_puts_half_its_weight_in_each():
+    # Both ends held level, 0.1 % closer than the length: each carries W / 2 upward.
+    text = _carried(HAND.format(name="left", s=0.0, x=0.0)
+                    + HAND.format(name="right", s=1.0, x=0.999))
+    ev = evaluate(parse_scene(text, "carried.toml"))
+    weight = 4.0 * G
+    eq = ev.run.equilibria[0]
+    for name in ("left", "right"):
+        assert eq.loads[name].force[2] == pytest.approx(weight / 2, rel=1e-6)
+    assert ev.grips == ("left", "right")
+    lateral = ev.table[0]
+    assert lateral["left lateral"] == pytest.approx(weight / 2, rel=1e-6)
+    assert lateral["right lateral"] == pytest.approx(weight / 2, rel=1e-6)
+
+
+def _twin(s2: float, weight: float, length: float, rules) -> float:
+    """The best worst ratio with the second hand pushing up with f at s2 under a rigid
+    beam held at its last end: hand 1 carries W - f and the moment |W L / 2 - f (L - s2)|
+    (rigid statics), hand 2 the lateral f."""
+    grip = rules.capacities["power grip"].yellow
+    bend = rules.capacities["hand bending"].yellow
+    f = np.linspace(0.0, weight, 400001)
+    first = np.maximum(np.abs(weight - f) / grip,
+                       np.abs(weight * length / 2 - f * (length - s2)) / bend)
+    return float(np.min(np.maximum(first, f / grip)))
+
+
+def test_the_second_hand_goes_where_a_rigid_beam_twin_says_and_balances_the_hands():
+    length, mass = 1.0, 4.0
+    weight = mass * G * length
+    text = _carried(HAND.format(name="hand", s=length, x=length), length, mass)
+    ev = evaluate(parse_scene(text, "cantilever.toml"))
+    names = [o.operator for o in ev.operators]
+    assert names[:2] == ["one hand", "two hands side by side"]
+    assert ev.operators[0].zone == Zone.RED  # W L / 2 = 19.6 N m at the wrist
+    placed = ev.operators[2]
+    assert placed.passes and ev.verdict.operator == placed.operator
+    assert placed.solves <= 20
+    rules = bundled_rules()
+    candidates = np.linspace(0.0, length, 61)[[10, 20, 30, 40, 50]]
+    twins = {float(s): _twin(float(s), weight, length, rules) for s in candidates}
+    best = min(twins, key=twins.get)
+    assert placed.second_hand_s == pytest.approx(best, abs=1e-9)
+    worst = max(c.value / c.red_at for c in placed.checks if c.red_at)
+    assert worst == pytest.approx(twins[best], rel=0.03)
+    push = np.array(placed.second_hand_forces[0])
+    assert abs(push[0]) < 0.02 * weight and abs(push[1]) < 0.02 * weight and push[2] > 0
+    assert "second at s = " in ev.verdict.headline or "the second at s" in ev.verdict.headline
+
+
+def test_when_no_hand_will_do_the_tool_rating_needed_is_reported():
+    text = _carried(HAND.format(name="hand", s=3.0, x=3.0), length=3.0, mass=40.0,
+                    stiffness=1.0e6)
+    ev = evaluate(parse_scene(text, "beam.toml"))
+    tool = ev.operators[-1]
+    assert tool.operator == "tool or robot" and ev.verdict.operator == "tool or robot"
+    weight = 40.0 * G * 3.0
+    force, moment = tool.rating
+    assert force == pytest.approx(weight / 0.5, rel=1e-3)  # green at half the rating
+    assert moment == pytest.approx(weight * 1.5 / 0.5, rel=2e-3)
+
+
+# -- the bundled scene, files and the CLI -------------------------------------------------
+SCENE = Path(__file__).resolve().parents[1] / "examples" / "scenes" / "engine_bay.toml"
+
+
+@pytest.fixture(scope="module")
+def engine_bay():
+    from pliant.io.problem_file import load_scene
+
+    return evaluate(load_scene(SCENE))
+
+
+def test_the_engine_bay_fits_with_one_hand_and_names_its_reservations(engine_bay):
+    ev = engine_bay
+    assert ev.verdict.passes and ev.verdict.operator == "one hand"
+    rules = {c.rule: c for c in ev.checks}
+    assert rules["clearance: exhaust manifold"].zone == Zone.YELLOW  # it ends touching
+    assert rules["bend radius"].zone == Zone.GREEN
+    assert rules["kink"].zone == Zone.INFO and "a/t = 3.5" in rules["kink"].note
+    assert rules["insertion"].step == 100
+    for c in ev.items:
+        assert c.source and c.provenance
+
+
+def test_the_json_validates_against_its_schema_and_the_csv_has_a_row_per_step(engine_bay,
+                                                                             tmp_path):
+    data = json.loads(evaluation_json(engine_bay))
+    report = EvaluationReport.model_validate(data)
+    assert report.schema_version == 1 and report.steps_solved == 101
+    assert report.verdict.passes
+    path = write_csv(engine_bay, tmp_path / "e.csv")
+    lines = path.read_text().splitlines()
+    assert len(lines) == 102 and "hand axial [N]" in lines[0]
+    assert path.stat().st_mode & 0o044  # colleagues can read it
+
+
+CHROMIUM = shutil.which("chromium") or "/usr/bin/chromium"
+
+
+@pytest.mark.skipif(not Path(CHROMIUM).exists(), reason="Debian's chromium is not installed")
+def test_the_report_opens_offline_in_chromium_and_shows_the_verdict(engine_bay, tmp_path):
+    from playwright.sync_api import sync_playwright
+
+    from pliant.cli.evaluation_report import write_html
+
+    path = write_html(engine_bay, tmp_path / "report.html")
+    with sync_playwright() as p:
+        browser = p.chromium.launch(executable_path=CHROMIUM, headless=True, args=[
+            "--no-sandbox", "--disable-gpu", "--disable-background-networking"])
+        page = browser.new_page()
+        fetched: list[str] = []
+        page.on("request", lambda r: fetched.append(r.url))
+        page.goto(path.as_uri())
+        assert fetched == [path.as_uri()]  # one file: nothing else is fetched
+        assert page.inner_text("#verdict").startswith("FITS with one hand")
+        assert "exhaust manifold" in page.inner_text("#items")
+        assert page.locator("svg").count() >= 3 and page.locator("img").count() == 3
+        browser.close()
+
+
+def _cli(*args):
+    return subprocess.run([sys.executable, "-m", "pliant.cli.app", *args],
+                          capture_output=True, text=True, timeout=300)
+
+
+def test_pliant_evaluate_exits_1_when_the_operation_fails_and_0_when_it_passes(tmp_path):
+    bad = tmp_path / "bad.toml"
+    bad.write_text(_arc_scene("rubber hose", 0.19))
+    out = _cli("evaluate", str(bad), "--json", str(tmp_path / "bad.json"))
+    assert out.returncode == 1, out.stderr
+    assert "DOES NOT FIT" in out.stdout
+    assert json.loads((tmp_path / "bad.json").read_text())["verdict"]["passes"] is False
+    good = tmp_path / "good.toml"
+    good.write_text(_arc_scene("wire", 0.19))
+    assert _cli("evaluate", str(good)).returncode == 0
+    unknown = tmp_path / "unknown.toml"
+    unknown.write_text(_arc_scene("garden hose", 0.19))
+    out = _cli("evaluate", str(unknown))
+    assert out.returncode == 2 and "part.kind" in out.stderr and "coolant hose" in out.stderr
+    assert "Traceback" not in out.stderr
+
+
+# -- bad input ----------------------------------------------------------------------------
+def test_an_unknown_part_kind_is_an_error_naming_the_field_and_the_known_kinds():
+    with pytest.raises(InputError, match=r"part\.kind: no part kind 'garden hose'.*wire"):
+        evaluate(parse_scene(_arc_scene("garden hose", 0.19), "arc.toml"))
+
+
+@pytest.mark.parametrize(("old", "new", "where"), [
+    ('unit = "N m"\ncapacity = 2.14\nsource = "forearm', 'capacity = 2.14\nsource = "forearm',
+     r"capacity\[4\]\.unit.*'wrist twist'"),
+    ("capacity = 200.0", "capacity = -200.0", r"capacity\[1\]\.capacity.*'palm push'"),
+    ('unit = "N"\ncapacity = 161.0', 'unit = "N m"\ncapacity = 161.0',
+     r"capacity\[3\].*grip demand is in N"),
+    ("fallback_od = 12.0", "fallback_od = 0.0", r"kind\[7\]\.fallback_od"),
+    ("red = 5.0", "red = 0.5", r"twist: the yellow"),
+])
+def test_a_rules_table_with_a_missing_unit_or_a_bad_value_names_the_field(old, new, where):
+    assert old in RULES_TEXT
+    with pytest.raises(FileFormatError, match=where):
+        parse_rules(RULES_TEXT.replace(old, new, 1), "mine.toml")
+
+
+def test_a_users_own_table_replaces_the_bundled_one(tmp_path):
+    mine = tmp_path / "mine.toml"
+    mine.write_text(RULES_TEXT.replace("capacity = 2.14\nsource = \"wrist flexion",
+                                       "capacity = 40.0\nsource = \"wrist flexion"))
+    text = _carried(HAND.format(name="hand", s=1.0, x=1.0)).replace(
+        "[solver]", f'[evaluation]\nrules = "{mine}"\n[solver]')
+    ev = evaluate(parse_scene(text, "own.toml"))
+    assert ev.rules_origin == str(mine)
+    bending = next(c for c in ev.operators[0].checks if c.rule == "grip: hand bending")
+    assert bending.red_at == pytest.approx(0.7 * 40.0)
+
+
+def test_evaluation_settings_reject_nonsense_naming_the_field():
+    with pytest.raises(InputError, match="evaluation.operator"):
+        EvaluationSettings(operator="octopus")
+    with pytest.raises(InputError, match="evaluation.rating"):
+        EvaluationSettings(operator="robot")
+    with pytest.raises(FileFormatError, match=r"evaluation\.multipliers"):
+        parse_scene(_arc_scene("wire", 0.19).replace(
+            'grips = ["hand"]', 'grips = ["hand"]\nmultipliers = [2.0, 1.0, 1.0]'), "x.toml")
+    with pytest.raises(FileFormatError, match=r"evaluation\.rules.*no such rules file"):
+        parse_scene(_arc_scene("wire", 0.19).replace(
+            'grips = ["hand"]', 'grips = ["hand"]\nrules = "none.toml"'), "x.toml")
