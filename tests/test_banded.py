@@ -4,6 +4,7 @@ of the factorisation (the free contact probes)."""
 from __future__ import annotations
 
 import numpy as np
+import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
@@ -69,3 +70,40 @@ def test_a_singular_remainder_is_reported():
     drop = np.array([False, False, True, False])
     _, ok = band_solve_reduced(ab, kl, ku, np.ones(n), drop)
     assert not ok
+
+
+@settings(max_examples=60, deadline=None, derandomize=True)
+@given(n=st.integers(4, 60), k=st.integers(1, 5), seed=st.integers(0, 2**31 - 1))
+def test_the_lanczos_kernel_finds_the_smallest_eigenvalue_of_a_banded_pencil(n, k, seed):
+    """softest_mode on a random symmetric band matrix A (indefinite) with a positive
+    diagonal M, shifted below its spectrum, against scipy's dense generalized eigh."""
+    from scipy.linalg import eigh
+
+    from pliant.models.banded import band_lu
+    from pliant.models.lanczos import softest_mode
+
+    rng = np.random.default_rng(seed)
+    k = min(k, n - 1)
+    A = np.zeros((n, n))
+    for d in range(k + 1):
+        v = rng.normal(size=n - d)
+        A += np.diag(v, d) + (np.diag(v, -d) if d else 0.0)
+    w = rng.uniform(0.5, 2.0, size=n)
+    exact = eigh(A, np.diag(w), eigvals_only=True)
+    sigma = exact[0] - 1.0 - abs(exact[0])
+    shifted = A - sigma * np.diag(w)
+    ab = np.zeros((n, 3 * k + 1))
+    for j in range(n):
+        for i in range(max(0, j - k), min(n, j + k + 1)):
+            ab[j, 2 * k + i - j] = shifted[i, j]
+    piv, ok = band_lu(ab, k, k)
+    assert ok
+    theta, vector, converged, steps = softest_mode(ab, piv, k, k, np.arange(n), w,
+                                                   rng.normal(size=n), 1e-12, n + 1)
+    assert converged and steps <= n + 1
+    assert sigma + 1.0 / theta == pytest.approx(exact[0], abs=1e-8 * (1 + abs(exact[0])))
+    # Its vector is the mode: A v = lambda M v, M-normalised.
+    lam = sigma + 1.0 / theta
+    residual = A @ vector - lam * w * vector
+    assert np.linalg.norm(residual) <= 1e-6 * (1 + np.abs(exact).max())
+    assert vector @ (w * vector) == pytest.approx(1.0, rel=1e-9)

@@ -10,6 +10,7 @@ from scipy.optimize import brentq
 from scipy.special import ellipe, ellipk
 
 import pliant as pl
+from pliant.core.equilibrium import WARM_START_LOST
 from pliant.errors import (
     ConvergenceError,
     IllPosedProblemError,
@@ -494,3 +495,28 @@ def test_a_reversed_tangent_swings_toward_the_station_motion():
     assert np.allclose(_slerp_vectors(a, -a, 1.0, hint)[0], -a[0])
     v = _slerp_vectors(a, -a, 0.5, None)[0]  # no hint: still a unit vector across a
     assert abs(v @ a[0]) < 1e-12 and np.linalg.norm(v) == pytest.approx(1.0)
+
+
+def test_a_hand_added_at_a_node_starts_warm_from_the_equilibrium_without_it():
+    """A push added at a node (a second hand) keeps the mesh: the new station's frame
+    starts from its neighbours' and a damped Newton converges at once; with zero force
+    the shape is the old one (to the discretisation of the added frame), and a push
+    moves the loads by global balance."""
+    part = pl.Part(0.8, 0.5, mass_per_length=0.3, outer_diameter=0.01)
+    base = pl.Problem(part, (pl.clamp(0.0, (0.0, 0.0, 0.0), tangent=(1, 0, 0),
+                                      normal=(0, 0, 1), name="clamp"),
+                             pl.grip(0.8, (0.5, 0.2, 0.3), tangent=(0, 0, 1), name="hand")),
+                      gravity=(0.0, 0.0, -9.81))
+    solver = rod3d.RodSolver(elements=80)
+    eq = rod3d.solve(base, solver=solver)
+    idle = base.with_conditions([*base.conditions, pl.push(0.4, force=(0.0, 0.0, 0.0),
+                                                           name="second")])
+    warm = rod3d.solve(idle, warm_start=eq, solver=solver)
+    assert WARM_START_LOST not in warm.notes and warm.iterations <= 4
+    assert np.abs(warm.position - eq.position).max() < 1e-5 * part.length
+    pushed = base.with_conditions([*base.conditions, pl.push(0.4, force=(0.0, 0.0, 1.0),
+                                                             name="second")])
+    moved = rod3d.solve(pushed, warm_start=eq, solver=solver)
+    assert WARM_START_LOST not in moved.notes
+    total = moved.loads["clamp"].force + moved.loads["hand"].force + (0.0, 0.0, 1.0)
+    np.testing.assert_allclose(total, (0.0, 0.0, 0.8 * 0.3 * 9.81), atol=1e-9)

@@ -110,6 +110,9 @@ class _WarmState:
     state: State
     gauge_quat: np.ndarray
     friction: tuple = ()  # the friction reference it was found with (see _Run.hold)
+    # The softest mode, once the stability test has found it: the next warm step's
+    # Lanczos starts from it (a list, filled on first access of the stability).
+    mode: list = field(default_factory=list, compare=False)
 
 
 @dataclass
@@ -709,10 +712,13 @@ def _solve(problem: Problem, warm_start: Equilibrium3D | None, solver: RodSolver
             f"(relative residual {stall.residual:.2e}); try smaller steps or check that "
             "the targets can be reached", residual=stall.residual, progress=stall.t,
             last_good=warm_start) from None
-    return _build(run, state)
+    seed = None
+    if warm_start is not None and isinstance(warm_start.state, _WarmState):
+        seed = warm_start.state.mode[0] if warm_start.state.mode else None
+    return _build(run, state, seed)
 
 
-def _build(run: _Run, state: State) -> Equilibrium3D:
+def _build(run: _Run, state: State, seed: np.ndarray | None = None) -> Equilibrium3D:
     rod = run.rod
     nu = state[3]
     R, _, _ = run.residual(state, rod.target)
@@ -720,11 +726,13 @@ def _build(run: _Run, state: State) -> Equilibrium3D:
         raise IllPosedProblemError(
             "nothing holds the part's twist, yet a twisting moment acts on it; prescribe an "
             "orientation (tangent and normal) somewhere")
+    warm = _WarmState(rod, state, run.gauge_quat, run.friction)
     return Equilibrium3D(
         problem=rod.problem, residual=float(np.abs(R).max()), iterations=run.iterations,
         steps=run.steps, sampler=_Sampler(run, state), notes=tuple(run.notes),
-        state=_WarmState(rod, state, run.gauge_quat, run.friction),
-        stability_check=(lambda: _stability(run, state)) if _conservative(run, state) else None)
+        state=warm,
+        stability_check=(lambda: _stability(run, state, seed, warm.mode))
+        if _conservative(run, state) else None)
 
 
 @dataclass(frozen=True, eq=False)
@@ -845,20 +853,25 @@ def _metric(rod: Rod) -> tuple[np.ndarray, np.ndarray]:
     return primal, weight
 
 
-def _stability(run: _Run, state: State) -> tuple[bool, float]:
+def _stability(run: _Run, state: State, seed: np.ndarray | None = None,
+               found: list | None = None) -> tuple[bool, float]:
     """(stable, smallest eigenvalue [N m]) of the Hessian of the Lagrangian on the
     constraints' tangent space (positions and frame rotations, weighed by the metric of
     ``_metric``): positive definite means stable.
 
-    Shift-invert Lanczos (ARPACK) at a shift -c below any negative eigenvalue, each step
+    Shift-invert Lanczos (``pliant.models.lanczos``, one numba kernel; ARPACK where it
+    does not converge) at a shift -c below any negative eigenvalue, each step
     one solve with the band LU of the shifted KKT matrix (its solutions lie in the
     tangent space), so the eigenvalue nearest -c is the smallest: milliseconds where a
     dense null space takes a tenth of a second. The geometric terms that can make the
     Hessian indefinite are bounded by the internal force n and moment m (by Young's
     inequality, by |n| + |m|^2 / 2 min(EI, GJ) in these units); c is twice that bound.
+
+    ``seed``: the softest mode of a nearby equilibrium on the same unknowns (the step
+    before on a path), where Lanczos starts: along a path the mode changes little, so it
+    needs fewer iterations. ``found`` (a list) receives this one's mode.
     """
-    from scipy.sparse import diags  # noqa: PLC0415 (heavy; on demand)
-    from scipy.sparse.linalg import ArpackError, LinearOperator, eigsh  # noqa: PLC0415
+    from pliant.models.lanczos import softest_mode  # noqa: PLC0415 (its own kernel)
 
     rod = run.rod
     X, Q, lam = state[:3]
@@ -876,6 +889,33 @@ def _stability(run: _Run, state: State) -> tuple[bool, float]:
         return _stability_dense(run, state)
     size = int(primal.sum())
 
+    primal_index = np.flatnonzero(primal)
+    w = np.ascontiguousarray(weight[primal])
+    # A fixed pseudo-random start (never orthogonal to the mode by a symmetry of the
+    # problem), mixed with the nearby equilibrium's mode where there is one.
+    start = np.random.default_rng(12345).standard_normal(size)
+    start /= np.linalg.norm(start)
+    if seed is not None and seed.shape == (size,):
+        start = seed / np.linalg.norm(seed) + 0.3 * start
+    theta, vector, converged, _ = softest_mode(ab, piv, kl, ku, primal_index, w, start,
+                                               1e-10, 80)
+    if converged and theta > 0.0:
+        value = -c + 1.0 / theta
+    else:
+        value, vector = _stability_arpack(ab, piv, n, kl, ku, primal, weight, c, size)
+        if value is None:
+            return _stability_dense(run, state)
+    if found is not None:
+        found[:] = [vector]
+    return value > 1e-9, value * rod.moment_scale  # EI / L
+
+
+def _stability_arpack(ab, piv, n, kl, ku, primal, weight, c, size):
+    """The same eigenvalue by ARPACK (the fallback where the kernel's Lanczos did not
+    converge): (value, vector), or (None, None)."""
+    from scipy.sparse import diags  # noqa: PLC0415 (heavy; on demand)
+    from scipy.sparse.linalg import ArpackError, LinearOperator, eigsh  # noqa: PLC0415
+
     def solve(r: np.ndarray) -> np.ndarray:
         rhs = np.zeros(n)
         rhs[primal] = r.ravel()
@@ -884,11 +924,11 @@ def _stability(run: _Run, state: State) -> tuple[bool, float]:
     inverse = LinearOperator((size, size), matvec=solve, dtype=float)
     unused = LinearOperator((size, size), matvec=lambda x: x, dtype=float)
     try:
-        value = float(eigsh(unused, k=1, M=diags(weight[primal]), sigma=-c, which="LM",
-                            OPinv=inverse, return_eigenvectors=False, tol=1e-10)[0])
+        values, vectors = eigsh(unused, k=1, M=diags(weight[primal]), sigma=-c, which="LM",
+                                OPinv=inverse, tol=1e-10)
     except ArpackError:
-        return _stability_dense(run, state)
-    return value > 1e-9, value * rod.moment_scale  # EI / L
+        return None, None
+    return float(values[0]), vectors[:, 0]
 
 
 def _stability_dense(run: _Run, state: State) -> tuple[bool, float]:

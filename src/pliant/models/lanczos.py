@@ -1,0 +1,75 @@
+"""The softest mode of a banded symmetric pencil by shift-invert Lanczos, in one numba
+kernel: the stability test of the accurate 3D rod at every step of a path, without the
+Python round trips of ARPACK's reverse communication (about 80 per eigenvalue, each a
+band solve: most of its cost at a few hundred unknowns).
+
+For the pencil (A, M) restricted to some unknowns (``primal``; A's other rows are
+constraints, eliminated by solving the whole KKT system), with M = diag(weight) > 0 and
+a shift sigma below every eigenvalue, the operator OP = (A - sigma M)^-1 M is symmetric
+in the M inner product and its largest eigenvalue theta belongs to the smallest
+eigenvalue lambda = sigma + 1 / theta of the pencil. Lanczos builds an M-orthonormal
+Krylov basis of OP from a start vector (fully reorthogonalised, twice: a few tens of
+vectors), and stops when the Ritz pair's residual beta |s_last| falls below
+tol * theta (ARPACK's test).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import njit
+
+from pliant.models.banded import band_lu_solve
+
+
+@njit(cache=True)
+def softest_mode(ab, piv, kl, ku, primal, weight, v0, tol, max_steps):
+    """(theta, vector (p,), converged, steps): the largest eigenvalue of OP (see the
+    module) and its M-normalised vector over the ``primal`` unknowns (p,), from the band
+    LU factors (ab, piv) of A - sigma M. ``weight`` (p,) is M's diagonal."""
+    n = ab.shape[0]
+    p = primal.shape[0]
+    Q = np.zeros((max_steps + 1, p))
+    alpha = np.zeros(max_steps)
+    beta = np.zeros(max_steps)
+    q = v0.copy()
+    q /= np.sqrt(np.sum(weight * q * q))
+    Q[0] = q
+    rhs = np.zeros(n)
+    theta = 0.0
+    best = np.zeros(p)
+    for j in range(max_steps):
+        rhs[:] = 0.0
+        for i in range(p):
+            rhs[primal[i]] = weight[i] * Q[j, i]
+        x = band_lu_solve(ab, piv, kl, ku, rhs)
+        z = np.empty(p)
+        for i in range(p):
+            z[i] = x[primal[i]]
+        a = np.sum(z * weight * Q[j])
+        z -= a * Q[j]
+        if j > 0:
+            z -= beta[j - 1] * Q[j - 1]
+        for _ in range(2):  # full reorthogonalisation, twice ("twice is enough")
+            for k in range(j + 1):
+                c = np.sum(z * weight * Q[k])
+                z -= c * Q[k]
+        b = np.sqrt(np.sum(weight * z * z))
+        alpha[j] = a
+        beta[j] = b
+        m = j + 1
+        T = np.zeros((m, m))
+        for k in range(m):
+            T[k, k] = alpha[k]
+            if k + 1 < m:
+                T[k, k + 1] = beta[k]
+                T[k + 1, k] = beta[k]
+        values, vectors = np.linalg.eigh(T)
+        theta = values[m - 1]
+        s = vectors[:, m - 1]
+        best = np.zeros(p)
+        for k in range(m):
+            best += s[k] * Q[k]
+        if b * abs(s[m - 1]) <= tol * abs(theta) or b <= 1e-300:
+            return theta, best, True, m
+        Q[j + 1] = z / b
+    return theta, best, False, max_steps
