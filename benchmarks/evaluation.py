@@ -91,7 +91,7 @@ def stability() -> None:
         r.gauge_quat = eq.state.gauge_quat
         state = eq.state.state
         rod = r.rod
-        X, Q, lam = state[:3]
+        Q, lam = state[1], state[2]
         _, moments = kernels.node_outputs(Q, rod.elem_frame, rod.joint_hh,
                                           rod.target.joint_k0, rod.K, rod.node_frame)
         c = 2.0 * (1.0 + float(np.abs(lam).max(initial=0.0))
@@ -99,7 +99,7 @@ def stability() -> None:
         primal, weight = _metric(rod)
         _, ab, _ = r.residual(state, rod.target, want_jac=True)
         ab[:, rod.kl + rod.ku] += c * np.where(primal, weight, 0.0)
-        piv, ok = kernels.band_lu(ab, rod.kl, rod.ku)
+        piv, _ = kernels.band_lu(ab, rod.kl, rod.ku)
         size = int(primal.sum())
         start = np.random.default_rng(12345).standard_normal(size)
         t0 = time.perf_counter()

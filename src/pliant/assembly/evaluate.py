@@ -20,6 +20,7 @@ with the rating it needs. The verdict names the cheapest operator that passes.
 
 from __future__ import annotations
 
+import itertools
 import math
 from collections.abc import Callable
 from dataclasses import dataclass, field
@@ -522,8 +523,8 @@ def _bend_limit(part: Any, kind: PartKind | None) -> tuple[float | None, str, st
     od = part.outer_diameter
     if part.min_bend_radius is not None:
         if kind is None:
-            return (part.min_bend_radius, "the part's minimum, taken at the centreline "
-                    "(no kind given)", "the part's datasheet", "user")
+            how = "the part's minimum, taken at the centreline (no kind given)"
+            return part.min_bend_radius, how, "the part's datasheet", "user"
         try:
             limit = centreline_min_radius(part.min_bend_radius, od, kind.bend_radius_to)
         except ValueError:
@@ -624,7 +625,7 @@ def _twist_checks(run: PathRun, part: Any, kind: PartKind | None, rules: Rules,
         last = len(eqs) - 1
         fittings = sorted({c.s for c in scene.problem.conditions if c.name in scene.fixed}
                           | ({eqs[-1].loads[grips[0]].s} if scene.path else set(held)))
-        spans = list(zip(fittings, fittings[1:]))
+        spans = list(itertools.pairwise(fittings))
         if spans:
             twist = max((math.degrees(twist_angle(eqs[-1].s, eqs[-1].torque, gj, a, b))
                          for a, b in spans), key=abs)

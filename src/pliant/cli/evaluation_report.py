@@ -11,7 +11,7 @@ import base64
 import html
 import io
 import math
-from datetime import datetime, timezone
+from datetime import UTC, datetime
 from pathlib import Path
 from typing import Any
 
@@ -269,15 +269,17 @@ def render_html(ev: Any) -> str:
         poses.append(("worst", worst))
     if last > 0:
         poses.append(("last (worst)" if worst == last else "last", last))
-    parts = [f"<!doctype html><html lang=en><head><meta charset=utf-8><title>pliant "
-             f"evaluation: {e(ev.name)}</title><style>{STYLE}</style></head><body><main>",
-             f"<h1>{e(ev.name)}</h1><div class=meta>{e(ev.part)} · {len(ev.run.steps) - 1} "
-             f"of {ev.run.planned} steps solved · grips: {e(', '.join(ev.grips))} · rules: "
-             f"{e(ev.rules_origin)} · pliant {__version__} · "
-             f"{datetime.now(timezone.utc):%Y-%m-%d %H:%M} UTC</div>",
-             f'<div class="verdict {"pass" if v.passes else "fail"}" id=verdict>'
-             f"{e(v.headline)}<small>{'The operation passes.' if v.passes else 'The operation does not pass.'}"
-             f" Exit status of <code>pliant evaluate</code>: {0 if v.passes else 1}.</small></div>"]
+    passes = "The operation passes." if v.passes else "The operation does not pass."
+    head = (f"<!doctype html><html lang=en><head><meta charset=utf-8><title>pliant "
+            f"evaluation: {e(ev.name)}</title><style>{STYLE}</style></head><body><main>")
+    meta = (f"<h1>{e(ev.name)}</h1><div class=meta>{e(ev.part)} · {len(ev.run.steps) - 1} "
+            f"of {ev.run.planned} steps solved · grips: {e(', '.join(ev.grips))} · rules: "
+            f"{e(ev.rules_origin)} · pliant {__version__} · "
+            f"{datetime.now(UTC):%Y-%m-%d %H:%M} UTC</div>")
+    verdict = (f'<div class="verdict {"pass" if v.passes else "fail"}" id=verdict>'
+               f"{e(v.headline)}<small>{passes} Exit status of <code>pliant evaluate</code>: "
+               f"{0 if v.passes else 1}.</small></div>")
+    parts = [head, meta, verdict]
     parts.append("<h2>Operators tried</h2><table><tr><th>operator</th><th>zone</th>"
                  "<th>what it takes</th><th>accurate solves</th></tr>")
     for op in ev.operators:
