@@ -154,3 +154,18 @@ def test_a_vr_controller_grabs_the_grip_and_moves_it(page):
                                atol=1e-5)
     end = page.evaluate("window.pliant.state.frame.curve.at(-1)")
     np.testing.assert_allclose(end, pose["position"], atol=1e-6)
+
+
+def test_the_panel_shows_the_poses_verdict_from_the_server(page):
+    """The verdict panel shows what the server's evaluation says (no rules in the page):
+    the bundled start pose fits with one hand, its reservations listed with sources."""
+    page, server, _ = page
+    page.goto(server.url)
+    page.wait_for_function(LOADED, timeout=120_000)
+    page.wait_for_function("window.pliant.state.accurate.verdict !== null")
+    verdict = page.evaluate("window.pliant.state.accurate.verdict")
+    assert page.inner_text("#verdict") == verdict["headline"]
+    assert verdict["headline"].startswith("FITS with one hand") and verdict["passes"]
+    items = page.locator("#verdict-items li")
+    assert items.count() == len(verdict["items"]) >= 1
+    assert "bending moment at the hand" in page.inner_text("#verdict-items")

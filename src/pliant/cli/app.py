@@ -91,11 +91,23 @@ def run(
     _run_scene(file, out, elements)
 
 
+def _with_progress(console, scene, file: Path, work):
+    """Say what is being solved, then run ``work(on_step)`` under a progress bar over the
+    path's steps; its result."""
+    from rich.progress import Progress  # noqa: PLC0415
+
+    problem = scene.problem
+    console.print(f"[bold]{problem.name or file.stem}[/bold]: {problem.part.name}, "
+                  f"{len(problem.obstacles)} obstacles, {len(scene.path)} steps")
+    with Progress(console=console, transient=True) as bar:
+        task = bar.add_task("solving the path", total=len(scene.path) + 1)
+        return work(lambda k, r: bar.advance(task))
+
+
 def _run_scene(file: Path, out: Path, elements: int | None) -> None:
     import json as _json  # noqa: PLC0415
 
     from rich.console import Console  # noqa: PLC0415
-    from rich.progress import Progress  # noqa: PLC0415
 
     from pliant.assembly import follow_path  # noqa: PLC0415
     from pliant.cli.plot import plot_path  # noqa: PLC0415
@@ -115,14 +127,9 @@ def _run_scene(file: Path, out: Path, elements: int | None) -> None:
                           "use `pliant solve` for a single pose")
     problem = scene.problem
     console = Console()
-    console.print(f"[bold]{problem.name or file.stem}[/bold]: {problem.part.name}, "
-                  f"{len(problem.obstacles)} obstacles, {len(scene.path)} steps")
-    with Progress(console=console, transient=True) as bar:
-        task = bar.add_task("solving the path", total=len(scene.path) + 1)
-        result = follow_path(problem, scene.path, scene.grip,
-                             margin=scene.margin,
-                             elements=elements or scene.solver.elements,
-                             on_step=lambda k, r: bar.advance(task))
+    result = _with_progress(console, scene, file, lambda step: follow_path(
+        problem, scene.path, scene.grip, margin=scene.margin,
+        elements=elements or scene.solver.elements, on_step=step))
     if not result.steps:
         raise PliantError(f"{file}: the start pose could not be solved: {result.stopped}")
     print_path(result, problem.part, console)
@@ -185,7 +192,6 @@ def _evaluate_scene(file: Path, report: Path | None, json_out: Path | None,
     from dataclasses import replace  # noqa: PLC0415
 
     from rich.console import Console  # noqa: PLC0415
-    from rich.progress import Progress  # noqa: PLC0415
 
     from pliant.assembly.evaluate import evaluate as evaluate_scene  # noqa: PLC0415
     from pliant.cli.evaluation_report import print_evaluation, write_html  # noqa: PLC0415
@@ -204,12 +210,8 @@ def _evaluate_scene(file: Path, report: Path | None, json_out: Path | None,
     rules = load_rules(rules_file if rules_file is not None else scene.evaluation.rules)
     problem = scene.problem
     console = Console()
-    console.print(f"[bold]{problem.name or file.stem}[/bold]: {problem.part.name}, "
-                  f"{len(problem.obstacles)} obstacles, {len(scene.path)} steps")
-    with Progress(console=console, transient=True) as bar:
-        task = bar.add_task("solving the path", total=len(scene.path) + 1)
-        ev = evaluate_scene(scene, rules=rules, elements=elements,
-                            on_step=lambda k, r: bar.advance(task))
+    ev = _with_progress(console, scene, file, lambda step: evaluate_scene(
+        scene, rules=rules, elements=elements, on_step=step))
     from pliant.cli.report import print_path  # noqa: PLC0415
 
     print_path(ev.run, problem.part, console)

@@ -16,7 +16,6 @@ one-word change: ``y = 0.3`` becomes ``Fy = 2.0``. See the README for the whole 
 from __future__ import annotations
 
 import math
-import tomllib
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any, Literal
@@ -29,6 +28,7 @@ from pliant.core.part import Material, Part
 from pliant.core.problem import Problem
 from pliant.core.rules import EvaluationSettings
 from pliant.errors import FileFormatError, InputError, PliantError
+from pliant.io.tomlfile import field_path, read_toml
 
 
 class _Strict(BaseModel):
@@ -541,13 +541,6 @@ class Scene:
     evaluation: EvaluationSettings = field(default_factory=EvaluationSettings)
 
 
-def _where(loc: tuple[Any, ...]) -> str:
-    out = ""
-    for item in loc:
-        out += f"[{item}]" if isinstance(item, int) else (f".{item}" if out else str(item))
-    return out or "(top level)"
-
-
 def parse_problem(text: str, source: str = "<string>") -> Problem:
     """Parse TOML text into a ``Problem``; errors name the source and the field."""
     return parse_problem_file(text, source)[0]
@@ -564,15 +557,12 @@ def parse_scene(text: str, source: str = "<string>", base: Path | None = None,
     """Parse TOML text into a ``Scene``; mesh files are looked up relative to ``base``
     (the file's folder); ``nested`` (an assembled part's own file) skips its
     [[assembled]] parts."""
-    try:
-        data = tomllib.loads(text)
-    except tomllib.TOMLDecodeError as err:
-        raise FileFormatError(f"{source}: not valid TOML: {err}") from None
+    data = read_toml(text, source)
     try:
         model = ProblemFile.model_validate(data)
     except ValidationError as err:
         first = err.errors()[0]
-        where = _where(tuple(first["loc"]))
+        where = field_path(tuple(first["loc"]))
         message = first["msg"]
         if first["type"] == "extra_forbidden":
             message = ("unknown key; see the README's file format (a condition takes s, "

@@ -7,7 +7,6 @@ so that a verdict can always say which rule it applied and where the rule comes 
 
 from __future__ import annotations
 
-import tomllib
 from functools import cache
 from importlib import resources
 from pathlib import Path
@@ -17,6 +16,7 @@ from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_valida
 
 from pliant.core.rules import Capacity, PartKind, Rules, Sourced
 from pliant.errors import FileFormatError
+from pliant.io.tomlfile import field_path, read_toml
 
 UNITS = {"axial": "N", "lateral": "N", "grip": "N", "force": "N", "twist": "N m",
          "bending": "N m"}
@@ -177,24 +177,14 @@ class RulesFile(_Strict):
             twist=Sourced(self.twist.source, "standard"), origin=origin)
 
 
-def _where(loc: tuple) -> str:
-    out = ""
-    for item in loc:
-        out += f"[{item}]" if isinstance(item, int) else (f".{item}" if out else str(item))
-    return out or "(top level)"
-
-
 def parse_rules(text: str, source: str = "<string>") -> Rules:
     """Rules from TOML text; errors name the source and the field."""
-    try:
-        data = tomllib.loads(text)
-    except tomllib.TOMLDecodeError as err:
-        raise FileFormatError(f"{source}: not valid TOML: {err}") from None
+    data = read_toml(text, source)
     try:
         model = RulesFile.model_validate(data)
     except ValidationError as err:
         first = err.errors()[0]
-        where = _where(tuple(first["loc"]))
+        where = field_path(tuple(first["loc"]))
         if where.startswith("capacity[") and "id" not in where:
             rows = data.get("capacity", [])
             index = first["loc"][1] if len(first["loc"]) > 1 else None
