@@ -90,10 +90,11 @@ class Check:
             return math.inf
         return self.red_at / self.value
 
-    def sentence(self) -> str:
-        """The item in plain words: what, how much, against what, where, by which rule."""
+    def sentence(self, with_step: bool = True) -> str:
+        """The item in plain words: what, how much, against what, where (``with_step``:
+        the step too, for a path), by which rule."""
         where = []
-        if self.step is not None:
+        if self.step is not None and with_step:
             where.append(f"step {self.step}")
         if self.grip and f"at {self.grip}" not in self.title:
             where.append(f"at {self.grip}")
@@ -107,7 +108,7 @@ class Check:
         text = f"{self.title}: {_fmt(self.value, self.unit)}{against}"
         if where:
             text += ", " + ", ".join(where)
-        if len(self.red_steps) + len(self.yellow_steps) > 1:
+        if with_step and len(self.red_steps) + len(self.yellow_steps) > 1:
             text += f"; {_ranges(self.red_steps)} red" if self.red_steps else ""
             text += f"; {_ranges(self.yellow_steps)} yellow" if self.yellow_steps else ""
         if self.note:

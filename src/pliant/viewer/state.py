@@ -346,7 +346,8 @@ class ViewerState:
                    key=lambda z: z.rank)
         return P.Verdict(passes=ev.verdict.passes, headline=ev.verdict.headline,
                          operator=ev.verdict.operator, zone=zone.value,
-                         items=[P.VerdictItem(zone=c.zone.value, text=c.sentence(),
+                         items=[P.VerdictItem(zone=c.zone.value,
+                                              text=c.sentence(with_step=False),
                                               source=f"{c.source} ({c.provenance})")
                                 for c in ev.items])
 
