@@ -736,7 +736,8 @@ def _two_hands(scene: Any, run: PathRun, rules: Rules, settings: EvaluationSetti
                                   note=note if share < 1 else "")
     out = [OperatorResult("two hands side by side", checks,
                           "two hands side by side at " + ", ".join(grips))]
-    if len(grips) == 1 and search:
+    # Side by side passes: no need to look for where else the second hand could go.
+    if len(grips) == 1 and search and not out[0].passes:
         placed = place_second_hand(scene, run, rules, settings, grips[0], grip_steps[grips[0]],
                                    elements or scene.solver.elements)
         if placed is not None:

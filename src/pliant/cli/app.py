@@ -236,6 +236,71 @@ def _evaluate_scene(file: Path, report: Path | None, json_out: Path | None,
 
 
 @app.command()
+def study(
+    file: Annotated[Path, typer.Argument(help="a scene file (TOML, SI units) whose operation "
+                                              "is evaluated for each sample")],
+    vary: Annotated[list[str], typer.Option(help="NAME=TOL[UNIT][,normal], e.g. "
+                                                 "bending_stiffness=20%, length=5mm, "
+                                                 "'clip[0].position=2mm' (repeat it)")],
+    samples: Annotated[int, typer.Option(help="how many samples")] = 64,
+    out: Annotated[Path, typer.Option(help="the study's folder: its samples as they come "
+                                           "(run again to resume), report, envelope")]
+    = Path("pliant-study"),
+    method: Annotated[str, typer.Option(help="lhs (Latin hypercube) or sobol")] = "lhs",
+    seed: Annotated[int, typer.Option(help="the sample plan's seed")] = 0,
+    scheduler: Annotated[str | None, typer.Option(help="a Dask scheduler's address "
+                                                       "(tcp://HOST:PORT); default: a local "
+                                                       "cluster on this machine")] = None,
+    workers: Annotated[int | None, typer.Option(help="local worker processes (default: one "
+                                                     "per core; 0: in this process)")] = None,
+    restart: Annotated[bool, typer.Option(help="discard the folder's samples and start "
+                                               "again")] = False,
+    elements: Annotated[int | None, typer.Option(help="about how many elements (default: "
+                                                      "the file's \\[solver])")] = None,
+) -> None:
+    """How robust is the verdict to real parts? Sample the tolerances, evaluate every
+    sample's operation (on Dask), and report the probability of each verdict, the
+    outputs' percentiles, the sensitivities and the tolerance envelope."""
+    from rich.console import Console  # noqa: PLC0415
+    from rich.progress import BarColumn, Progress, TextColumn, TimeRemainingColumn  # noqa: PLC0415
+
+    import json as _json  # noqa: PLC0415
+
+    from pliant.assembly.study import Store, final_voxels, summarize  # noqa: PLC0415
+    from pliant.assembly.study import study as run_study  # noqa: PLC0415
+    from pliant.cli.study_report import print_study, write_html  # noqa: PLC0415
+    from pliant.io.atomic import atomic_write  # noqa: PLC0415
+    from pliant.io.jsontext import finite  # noqa: PLC0415
+    from pliant.io.mesh_export import export_envelope  # noqa: PLC0415
+
+    if elements is not None and not 4 <= elements <= 100000:
+        raise PliantError(f"--elements: must be from 4 to 100000, got {elements}")
+    console = Console()
+    columns = (TextColumn("{task.description}"), BarColumn(), TextColumn("{task.completed}/"
+               "{task.total}"), TimeRemainingColumn())
+    with Progress(*columns, console=console) as bar:
+        task = bar.add_task("samples", total=samples)
+        result = run_study(file, vary, samples, out=out, method=method, seed=seed,
+                           scheduler=scheduler, workers=workers, elements=elements,
+                           restart=restart,
+                           on_done=lambda n, total: bar.update(task, completed=n))
+    summary = summarize(result)
+    print_study(result, summary, console)
+    envelope = Store(result.folder).swept([r["index"] for r in result.ok])
+    result_envelope = final_voxels(result)
+    text = _json.dumps(finite(summary), indent=1).encode()
+    written = [atomic_write(result.folder / "summary.json", lambda h: h.write(text),
+                            "the study's summary"),
+               export_envelope([("envelope along the path", envelope, (150, 160, 170, 90)),
+                                ("envelope at the final pose", result_envelope,
+                                 (224, 112, 30, 160))], result.voxel,
+                               result.folder / "envelope.glb"),
+               write_html(result, summary, envelope, result_envelope,
+                          result.folder / "report.html")]
+    console.print("written: " + ", ".join(str(w) for w in written))
+
+
+@app.command()
 def demo(
     out: Annotated[Path, typer.Option(help="folder for the report, plot and scene")] = Path(
         "pliant-demo"),

@@ -100,3 +100,58 @@ def export_scene(eq, path: str | Path, sides: int = 24) -> Path:
         scene.add_geometry(mesh, node_name=obstacle.name, geom_name=obstacle.name)
     return atomic_write(path, lambda handle: handle.write(scene.export(file_type="glb")),
                         "the scene")
+
+
+def voxel_surface(voxels: np.ndarray, size: float) -> tuple[np.ndarray, np.ndarray]:
+    """The outer surface of a set of voxels (k, 3) int of edge ``size`` [m] (voxel
+    (i, j, k) spans [i, i + 1) size along x, and so on): (vertices (v, 3) [m], triangles
+    (t, 3)), only the faces between a filled voxel and an empty one."""
+    voxels = np.asarray(voxels, dtype=np.int64).reshape(-1, 3)
+    if voxels.shape[0] == 0:
+        return np.zeros((0, 3)), np.zeros((0, 3), dtype=np.int64)
+    lo = voxels.min(axis=0) - 1
+    dims = voxels.max(axis=0) - lo + 2
+
+    def key(v):
+        v = v - lo
+        return (v[:, 0] * dims[1] + v[:, 1]) * dims[2] + v[:, 2]
+
+    filled = np.unique(key(voxels))
+    # The unit cube's corners and, per direction, the face's corners (outward winding).
+    faces = {(1, 0, 0): ((1, 0, 0), (1, 1, 0), (1, 1, 1), (1, 0, 1)),
+             (-1, 0, 0): ((0, 0, 0), (0, 0, 1), (0, 1, 1), (0, 1, 0)),
+             (0, 1, 0): ((0, 1, 0), (0, 1, 1), (1, 1, 1), (1, 1, 0)),
+             (0, -1, 0): ((0, 0, 0), (1, 0, 0), (1, 0, 1), (0, 0, 1)),
+             (0, 0, 1): ((0, 0, 1), (1, 0, 1), (1, 1, 1), (0, 1, 1)),
+             (0, 0, -1): ((0, 0, 0), (0, 1, 0), (1, 1, 0), (1, 0, 0))}
+    quads = []
+    for direction, corners in faces.items():
+        outside = ~np.isin(key(voxels + np.array(direction)), filled)
+        base = voxels[outside]
+        quads.append(base[:, None, :] + np.array(corners)[None, :, :])
+    quad = np.concatenate(quads)  # (q, 4, 3) integer corners
+    vertices, inverse = np.unique(quad.reshape(-1, 3), axis=0, return_inverse=True)
+    idx = inverse.reshape(-1, 4)
+    tri = np.concatenate([idx[:, [0, 1, 2]], idx[:, [0, 2, 3]]])
+    return vertices * float(size), tri.astype(np.int64)
+
+
+def export_envelope(layers: list[tuple[str, np.ndarray, tuple[int, int, int, int]]],
+                    size: float, path: str | Path) -> Path:
+    """A GLB of voxel envelopes: each layer (name, voxels (k, 3), RGBA colour) as the
+    surface of its voxels of edge ``size`` [m], in the scene's frame (as
+    ``export_scene`` writes it, so that the two overlay)."""
+    import trimesh  # noqa: PLC0415
+
+    from pliant.io.atomic import atomic_write  # noqa: PLC0415
+
+    scene = trimesh.Scene()
+    for name, voxels, colour in layers:
+        vertices, faces = voxel_surface(voxels, size)
+        if len(faces) == 0:
+            continue
+        mesh = trimesh.Trimesh(vertices=vertices, faces=faces, process=False)
+        mesh.visual.face_colors = np.tile(np.array(colour, dtype=np.uint8), (len(faces), 1))
+        scene.add_geometry(mesh, geom_name=name, node_name=name)
+    data = scene.export(file_type="glb")
+    return atomic_write(path, lambda h: h.write(data), "the envelope")

@@ -557,7 +557,13 @@ def parse_scene(text: str, source: str = "<string>", base: Path | None = None,
     """Parse TOML text into a ``Scene``; mesh files are looked up relative to ``base``
     (the file's folder); ``nested`` (an assembled part's own file) skips its
     [[assembled]] parts."""
-    data = read_toml(text, source)
+    return scene_from_data(read_toml(text, source), source, base, nested)
+
+
+def scene_from_data(data: dict[str, Any], source: str = "<data>", base: Path | None = None,
+                    nested: bool = False) -> Scene:
+    """A ``Scene`` from a scene file's document already read (a TOML table as dicts and
+    lists: what a variation study changes sample by sample)."""
     try:
         model = ProblemFile.model_validate(data)
     except ValidationError as err:
