@@ -15,7 +15,7 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from pliant.core.conditions import Condition
-from pliant.errors import PliantError
+from pliant.errors import InputError, PliantError
 from pliant.io.problem_file import load_scene
 from pliant.session.accurate import AccurateSolver
 from pliant.viewer import protocol as P
@@ -484,3 +484,23 @@ def test_the_page_gets_the_poses_verdict_by_the_same_rules_as_pliant_evaluate(st
     assert red.min_bend_radius < 0.5 and not red.verdict.passes
     assert red.verdict.headline.startswith("DOES NOT FIT: smallest bend radius")
     assert red.verdict.items[0].zone == "red"
+
+
+def test_a_studys_envelope_is_sent_with_the_scene(folder):
+    from pliant.io.mesh_export import export_envelope, voxel_surface
+    from pliant.viewer.state import load_envelope
+
+    voxels = np.array([[0, 0, 0], [1, 0, 0], [1, 1, 0], [5, 5, 5]])
+    export_envelope([("envelope along the path", voxels, (150, 160, 170, 90))], 0.01,
+                    folder / "study" / "envelope.glb")
+    meshes = load_envelope(folder / "study")
+    viewer = ViewerState(Path("hose.toml"), folder, live=False, envelopes=meshes)
+    try:
+        scene = by_type(viewer.handle(msg(type="hello")), "scene")[0]
+    finally:
+        viewer.close()
+    assert [e.name for e in scene.envelopes] == ["envelope along the path"]
+    _, faces = voxel_surface(voxels, 0.01)
+    assert len(scene.envelopes[0].faces) == len(faces)
+    with pytest.raises(InputError, match="envelope"):
+        load_envelope(folder / "hose.toml")

@@ -328,6 +328,9 @@ def view(
     elements: Annotated[int | None, typer.Option(help="3D: about how many elements "
                                                       "(default: the file's \\[solver])")]
     = None,
+    envelope: Annotated[Path | None, typer.Option(help="show a variation study's tolerance "
+                                                       "envelope (its folder or "
+                                                       "envelope.glb)")] = None,
 ) -> None:
     """The interactive environment in the browser: drag the part's grips (mouse or VR
     controllers), see its shape, the force and moment each hand must apply, what it
@@ -336,7 +339,7 @@ def view(
     from pliant.viewer.state import ViewerState  # noqa: PLC0415
 
     scene = scene or EXAMPLES / "scenes" / "engine_bay.toml"
-    server = Server(scene, host=host, port=port, elements=elements)
+    server = Server(scene, host=host, port=port, elements=elements, envelope=envelope)
     typer.echo(f"checking {scene.name} and loading the solvers…")
     ViewerState(server.scene, server.root, live=False, elements=elements).close()
     if host not in ("127.0.0.1", "localhost", "::1"):

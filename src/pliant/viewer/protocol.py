@@ -222,7 +222,9 @@ class ServerAccurate(_Message):
 
 class ServerScene(_Message):
     """The scene: its name, the part (length, radius [m]), the obstacles as triangle
-    meshes [m], the grips, the dimension (2D scenes lie in z = 0)."""
+    meshes [m], the grips, the dimension (2D scenes lie in z = 0), and the tolerance
+    envelopes of a variation study when the server was given one (``pliant view
+    --envelope``)."""
 
     type: Literal["scene"] = "scene"
     name: str
@@ -232,6 +234,7 @@ class ServerScene(_Message):
     obstacles: list[ObstacleMesh]
     grips: list[Grip]
     margin: float
+    envelopes: list[ObstacleMesh] = []
 
 
 class ServerSaved(_Message):

@@ -41,11 +41,12 @@ def node_modules() -> Path:
 class Server:
     """Serves ``scene`` (a file inside ``root``, its folder by default) on ``host:port``
     (port 0: any free one). ``live``: accurate solves in worker processes (else inline,
-    deterministic); ``elements``: the 3D resolution (default: the scene's)."""
+    deterministic); ``elements``: the 3D resolution (default: the scene's); ``envelope``:
+    a variation study's envelope.glb (or its folder), shown with the scene."""
 
     def __init__(self, scene: Path, *, host: str = "127.0.0.1", port: int = 8765,
                  root: Path | None = None, live: bool = True,
-                 elements: int | None = None) -> None:
+                 elements: int | None = None, envelope: Path | None = None) -> None:
         scene = Path(scene).resolve()
         if not scene.is_file():
             raise InputError("scene", f"{scene} is not a file; give a scene file (TOML)")
@@ -53,6 +54,11 @@ class Server:
         self.scene = scene.relative_to(self.root)
         self.host, self.port = host, port
         self.live, self.elements = live, elements
+        self.envelopes = []
+        if envelope is not None:
+            from pliant.viewer.state import load_envelope  # noqa: PLC0415
+
+            self.envelopes = load_envelope(envelope)
         self.modules = node_modules()
         self.connections = 0
         self._server = None
@@ -113,7 +119,8 @@ class Server:
         self.connections += 1
         try:
             state = await asyncio.to_thread(ViewerState, self.scene, self.root,
-                                            live=self.live, elements=self.elements)
+                                            live=self.live, elements=self.elements,
+                                            envelopes=self.envelopes)
         except PliantError as err:
             await ws.send(P.dump(P.ServerError(message=f"the scene cannot be opened: {err}")))
             await ws.close()

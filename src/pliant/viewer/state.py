@@ -44,14 +44,17 @@ class ViewerState:
     """The scene at ``scene_path`` (inside ``root``) in one coupled session.
 
     live : the accurate model runs in a worker process (the server); inline otherwise
-    (tests: deterministic). ``elements`` overrides the scene's resolution.
+    (tests: deterministic). ``elements`` overrides the scene's resolution. ``envelopes``:
+    a variation study's envelope meshes (``load_envelope``) shown with the scene.
     """
 
     def __init__(self, scene_path: Path, root: Path, *, live: bool = True,
-                 elements: int | None = None) -> None:
+                 elements: int | None = None,
+                 envelopes: list[P.ObstacleMesh] | None = None) -> None:
         self.root = root.resolve()
         self.live = live
         self.elements = elements
+        self.envelopes = list(envelopes or [])
         self.session = None
         self._open(inside(self.root, str(scene_path), "scene"))
 
@@ -278,7 +281,8 @@ class ViewerState:
             dimension=problem.dimension,
             part={"name": part.name, "length": part.length, "radius": self.radius,
                   "min_bend_radius": part.min_bend_radius},
-            obstacles=self._meshes, grips=self.grips(), margin=self.scene.margin)
+            obstacles=self._meshes, grips=self.grips(), margin=self.scene.margin,
+            envelopes=self.envelopes)
 
     def accurate_message(self) -> P.ServerAccurate:
         if self.session.accurate is None:
@@ -384,6 +388,26 @@ class ViewerState:
 
 
 # -- helpers ---------------------------------------------------------------------------------
+def load_envelope(path: Path) -> list[P.ObstacleMesh]:
+    """The meshes of a study's envelope GLB (a study folder: its envelope.glb), each
+    named as ``pliant study`` named it."""
+    import trimesh  # noqa: PLC0415
+
+    from pliant.errors import InputError  # noqa: PLC0415
+
+    path = Path(path)
+    if path.is_dir():
+        path = path / "envelope.glb"
+    try:
+        loaded = trimesh.load(path, force="scene")
+    except (OSError, ValueError, NotImplementedError) as err:
+        raise InputError("envelope", f"{path}: cannot be read as a GLB ({err}); give the "
+                         "envelope.glb of a pliant study, or its folder") from None
+    return [P.ObstacleMesh(name=name, vertices=np.round(mesh.vertices, 6).tolist(),
+                           faces=mesh.faces.tolist())
+            for name, mesh in loaded.geometry.items()]
+
+
 def _mode(cond: Condition, fixed: tuple[str, ...]) -> str:
     if cond.name in fixed or cond.normal is not None:
         return "fixed"

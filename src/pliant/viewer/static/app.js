@@ -68,6 +68,7 @@ const state = {
   latency: [],
 };
 const obstacleGroup = new THREE.Group(); world.add(obstacleGroup);
+const envelopeGroup = new THREE.Group(); envelopeGroup.name = 'envelopes'; world.add(envelopeGroup);
 const gripGroup = new THREE.Group(); world.add(gripGroup);
 const arrowGroup = new THREE.Group(); world.add(arrowGroup);
 const contactGroup = new THREE.Group(); world.add(contactGroup);
@@ -117,9 +118,31 @@ function onScene(msg) {
       mesh.name = ob.name;
       obstacleGroup.add(mesh);
     }
+    drawEnvelopes(msg.envelopes || []);
     frameCamera();
   }
   buildGrips(msg.grips);
+}
+
+// A variation study's tolerance envelope (pliant view --envelope): what the part sweeps
+// over every sample, along the path (grey) and at the final pose (orange), see-through.
+function drawEnvelopes(envelopes) {
+  envelopeGroup.clear();
+  for (const en of envelopes) {
+    const geometry = new THREE.BufferGeometry();
+    geometry.setAttribute('position', new THREE.Float32BufferAttribute(en.vertices.flat(), 3));
+    geometry.setIndex(en.faces.flat());
+    geometry.computeVertexNormals();
+    const final = en.name.includes('final');
+    const material = new THREE.MeshStandardMaterial({
+      color: final ? 0xe0701e : 0x9aa3ad, transparent: true, opacity: final ? 0.45 : 0.18,
+      depthWrite: false, side: THREE.DoubleSide,
+    });
+    const mesh = new THREE.Mesh(geometry, material);
+    mesh.name = en.name;
+    envelopeGroup.add(mesh);
+  }
+  $('envelope-row').hidden = envelopes.length === 0;
 }
 
 function frameCamera() {
@@ -348,6 +371,8 @@ function onAccurate(msg) {
   showVerdict(msg.verdict);
   showWarnings();
 }
+
+$('envelope').addEventListener('change', (e) => { envelopeGroup.visible = e.target.checked; });
 
 // The pose's A/D verdict, judged on the server by the same rules as `pliant evaluate`:
 // the page only shows it.
