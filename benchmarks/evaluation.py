@@ -77,6 +77,7 @@ def engine_bay(repeats: int = 3) -> None:
 
 
 def stability() -> None:
+    from pliant.models.banded import band_reduce
     from pliant.models.lanczos import softest_mode
     from pliant.models.rod3d import RodSolver, kernels
     from pliant.models.rod3d.solver import _metric, _Run, _stability_arpack
@@ -99,22 +100,27 @@ def stability() -> None:
         primal, weight = _metric(rod)
         _, ab, _ = r.residual(state, rod.target, want_jac=True)
         ab[:, rod.kl + rod.ku] += c * np.where(primal, weight, 0.0)
-        piv, _ = kernels.band_lu(ab, rod.kl, rod.ku)
+        drop = kernels.identity_rows(ab, rod.kl, rod.ku, rod.iprobe, rod.slot)
+        reduced, lo, up, new = band_reduce(ab, rod.kl, rod.ku, drop)
+        piv, _ = kernels.band_lu(reduced, lo, up)
+        keep = new >= 0
         size = int(primal.sum())
         start = np.random.default_rng(12345).standard_normal(size)
         t0 = time.perf_counter()
-        theta, _, _, _ = softest_mode(ab, piv, rod.kl, rod.ku, np.flatnonzero(primal),
+        theta, _, _, _ = softest_mode(reduced, piv, lo, up, new[np.flatnonzero(primal)],
                                       np.ascontiguousarray(weight[primal]), start, 1e-10, 80)
         t1 = time.perf_counter()
-        value, _ = _stability_arpack(ab, piv, rod.n, rod.kl, rod.ku, primal, weight, c, size)
+        value, _ = _stability_arpack(reduced, piv, int(keep.sum()), lo, up, primal[keep],
+                                     weight[keep], c, size)
         t2 = time.perf_counter()
         t_lanczos += t1 - t0
         t_arpack += t2 - t1
         worst = max(worst, abs((-c + 1.0 / theta) - value) / max(abs(value), 1e-12))
     n = len(run.equilibria)
-    print(f"stability at {n} steps: Lanczos kernel {t_lanczos / n * 1e3:.2f} ms a step, "
-          f"ARPACK eigsh {t_arpack / n * 1e3:.2f} ms: {t_arpack / t_lanczos:.1f}x; largest "
-          f"relative difference of the eigenvalues {worst:.1e}")
+    print(f"stability at {n} steps (free probes out of the factorisation): Lanczos kernel "
+          f"{t_lanczos / n * 1e3:.2f} ms a step, ARPACK eigsh {t_arpack / n * 1e3:.2f} ms: "
+          f"{t_arpack / t_lanczos:.1f}x; largest relative difference of the eigenvalues "
+          f"{worst:.1e}")
 
 
 def second_hand() -> None:

@@ -340,7 +340,7 @@ class Equilibrium3D:
         part = self.problem.part
         ei1, ei2, _ = part.stiffnesses
         local = np.einsum("nji,nj->ni", self.frames, self.internal_moment)
-        rest = np.array([part.rest_darboux_at(float(si)) for si in self.s])
+        rest = part.rest_darboux_along(self.s)
         k1 = local[:, 0] / ei1 + rest[:, 0]
         k2 = local[:, 1] / ei2 + rest[:, 1]
         return np.hypot(k1, k2)

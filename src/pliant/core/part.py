@@ -6,6 +6,8 @@ import math
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 
+import numpy as np
+
 from pliant.errors import InputError
 
 
@@ -193,6 +195,13 @@ class Part:
         """Rest curvature [1/m] at arc length s [m] (linear between knots)."""
         return _interpolate(self.rest_knots, s)
 
+    def rest_darboux_along(self, s: np.ndarray) -> np.ndarray:
+        """(n, 3) rest curvatures about (d1, d2) and rest twist [1/m] at arc lengths s
+        (n,) [m]: ``rest_darboux_at`` for many points at once."""
+        s = np.asarray(s, float)
+        return np.column_stack([_interpolate_many(k, s) for k in (
+            self.rest_knots, self.rest_knots_2, self.twist_knots)])
+
     def rest_darboux_at(self, s: float) -> tuple[float, float, float]:
         """Rest curvatures about (d1, d2) and rest twist [1/m] at s [m] (3D)."""
         return (_interpolate(self.rest_knots, s), _interpolate(self.rest_knots_2, s),
@@ -215,3 +224,10 @@ def _interpolate(knots: tuple[tuple[float, float], ...], s: float) -> float:
         if s <= s1:
             return k0 + (k1 - k0) * (s - s0) / (s1 - s0)
     return knots[-1][1]
+
+
+def _interpolate_many(knots: tuple[tuple[float, float], ...], s: np.ndarray) -> np.ndarray:
+    """``_interpolate`` at every s: linear between knots, constant beyond the ends."""
+    xs = np.array([k[0] for k in knots])
+    ys = np.array([k[1] for k in knots])
+    return np.interp(s, xs, ys)

@@ -128,16 +128,13 @@ def identity_rows(ab, kl, ku, first, width):
 
 
 @njit(cache=True)
-def band_solve_reduced(ab, kl, ku, rhs, drop):
-    """Solve A x = rhs where each row i with drop[i] is the identity's (x_i = rhs_i is
-    known): those unknowns go to the right-hand side and only the others are factorised,
-    in a band renumbered without them and as narrow as their entries allow. The contact
-    probes far from everything are such rows: leaving them out halves the factorisation.
-    ``ab`` is left as it was. Returns (x, ok)."""
+def band_reduce(ab, kl, ku, drop):
+    """The band matrix without the rows and columns where ``drop`` (n,) is True,
+    renumbered in order and as narrow as its entries allow: (c, lo, up, new), c in the
+    same layout with lo sub- and up superdiagonals, new (n,) each unknown's number in it
+    (-1 where dropped)."""
     n = ab.shape[0]
     kv = kl + ku
-    x = np.zeros(n)
-    b = rhs.copy()
     new = np.empty(n, dtype=np.int64)
     m = 0
     for i in range(n):
@@ -146,16 +143,6 @@ def band_solve_reduced(ab, kl, ku, rhs, drop):
         else:
             new[i] = m
             m += 1
-    for j in range(n):  # the known unknowns' columns to the right-hand side
-        if drop[j]:
-            xj = rhs[j]
-            x[j] = xj
-            if xj != 0.0:
-                for i in range(max(0, j - ku), min(n, j + kl + 1)):
-                    if i != j:
-                        b[i] -= ab[j, kv + i - j] * xj
-    if m == 0:
-        return x, True
     lo = 0
     up = 0
     for j in range(n):
@@ -169,17 +156,44 @@ def band_solve_reduced(ab, kl, ku, rhs, drop):
                 elif -d > up:
                     up = -d
     c = np.zeros((m, 2 * lo + up + 1))
-    bc = np.empty(m)
     for j in range(n):
         if drop[j]:
             continue
         jn = new[j]
-        bc[jn] = b[j]
         for i in range(max(0, j - ku), min(n, j + kl + 1)):
             if not drop[i]:
                 v = ab[j, kv + i - j]
                 if v != 0.0:
                     c[jn, lo + up + new[i] - jn] = v
+    return c, lo, up, new
+
+
+@njit(cache=True)
+def band_solve_reduced(ab, kl, ku, rhs, drop):
+    """Solve A x = rhs where each row i with drop[i] is the identity's (x_i = rhs_i is
+    known): those unknowns go to the right-hand side and only the others are factorised,
+    in a band renumbered without them (``band_reduce``). The contact probes far from
+    everything are such rows: leaving them out halves the factorisation. ``ab`` is left
+    as it was. Returns (x, ok)."""
+    n = ab.shape[0]
+    x = np.zeros(n)
+    b = rhs.copy()
+    for j in range(n):  # the known unknowns' columns to the right-hand side
+        if drop[j]:
+            xj = rhs[j]
+            x[j] = xj
+            if xj != 0.0:
+                for i in range(max(0, j - ku), min(n, j + kl + 1)):
+                    if i != j:
+                        b[i] -= ab[j, kl + ku + i - j] * xj
+    c, lo, up, new = band_reduce(ab, kl, ku, drop)
+    m = c.shape[0]
+    if m == 0:
+        return x, True
+    bc = np.empty(m)
+    for j in range(n):
+        if not drop[j]:
+            bc[new[j]] = b[j]
     piv, ok = band_lu(c, lo, up)
     if not ok:
         return x, False

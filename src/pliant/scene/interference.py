@@ -15,6 +15,7 @@ samples is cut into ``subdivide`` pieces) and the distances exact near the surfa
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import lru_cache
 from typing import Any
 
 import numpy as np
@@ -102,7 +103,7 @@ def of_curve(s: np.ndarray, points: np.ndarray, radius: float,
     band = radius + margin + 1e-3
     clearances, penetrations, too_close = [], [], []
     for obstacle in obstacles:
-        d, _, _ = DistanceField([obstacle]).query(dense, band=band)
+        d, _, _ = _field(obstacle).query(dense, band=band)
         gap = d - radius
         k = int(np.argmin(gap))
         clearances.append(Clearance(obstacle.name, float(gap[k]), float(ds[k]),
@@ -111,6 +112,13 @@ def of_curve(s: np.ndarray, points: np.ndarray, radius: float,
         too_close += _spans(obstacle.name, ds, gap, (gap >= -tolerance) & (gap < margin))
     return Interference(margin, tolerance, tuple(clearances), tuple(penetrations),
                         tuple(too_close))
+
+
+@lru_cache(maxsize=256)
+def _field(obstacle: Obstacle) -> DistanceField:
+    """One obstacle's distance field, built once: obstacles are immutable, and a path's
+    every step (a viewer's every frame) asks the same ones again."""
+    return DistanceField([obstacle])
 
 
 def of_equilibrium(eq: Any, obstacles: tuple[Obstacle, ...] | None = None, *,

@@ -834,6 +834,8 @@ def _metric(rod: Rod) -> tuple[np.ndarray, np.ndarray]:
     or joint span): the metric that makes the discrete Hessian's eigenvalues those of
     the continuous operator, and pseudo-time a physical relaxation."""
     n = rod.n
+    ix = rod.ix[:, None] + np.arange(3)
+    ith = rod.ith[:, None] + np.arange(3)
     primal = np.zeros(n, dtype=bool)
     weight = np.zeros(n)
     node_len = np.zeros(rod.elements + 1)
@@ -844,12 +846,10 @@ def _metric(rod: Rod) -> tuple[np.ndarray, np.ndarray]:
     end_len = np.concatenate([[rod.joint_hh[0]], rod.joint_hh[:-1] + rod.joint_hh[1:],
                               [rod.joint_hh[-1]]]) * 0.5
     frame_len = np.where(frame_len > 0.0, frame_len, end_len)
-    for i in range(rod.elements + 1):
-        primal[rod.ix[i]:rod.ix[i] + 3] = True
-        weight[rod.ix[i]:rod.ix[i] + 3] = node_len[i]
-    for f in range(rod.ith.shape[0]):
-        primal[rod.ith[f]:rod.ith[f] + 3] = True
-        weight[rod.ith[f]:rod.ith[f] + 3] = frame_len[f]
+    primal[ix] = True
+    weight[ix] = node_len[:, None]
+    primal[ith] = True
+    weight[ith] = frame_len[:, None]
     return primal, weight
 
 
@@ -871,6 +871,7 @@ def _stability(run: _Run, state: State, seed: np.ndarray | None = None,
     before on a path), where Lanczos starts: along a path the mode changes little, so it
     needs fewer iterations. ``found`` (a list) receives this one's mode.
     """
+    from pliant.models.banded import band_reduce  # noqa: PLC0415
     from pliant.models.lanczos import softest_mode  # noqa: PLC0415 (its own kernel)
 
     rod = run.rod
@@ -884,12 +885,16 @@ def _stability(run: _Run, state: State, seed: np.ndarray | None = None,
     _, ab, _ = run.residual(state, rod.target, want_jac=True)
     n, kl, ku = rod.n, rod.kl, rod.ku
     ab[:, kl + ku] += c * np.where(primal, weight, 0.0)
-    piv, ok = kernels.band_lu(ab, kl, ku)
+    # A free probe's row and column are the identity's and its part of every solve is 0:
+    # they leave the factorisation (a narrower band, as in the Newton steps).
+    drop = kernels.identity_rows(ab, kl, ku, rod.iprobe, rod.slot)
+    reduced, lo, up, new = band_reduce(ab, kl, ku, drop)
+    piv, ok = kernels.band_lu(reduced, lo, up)
     if not ok:
         return _stability_dense(run, state)
     size = int(primal.sum())
 
-    primal_index = np.flatnonzero(primal)
+    primal_index = new[np.flatnonzero(primal)]
     w = np.ascontiguousarray(weight[primal])
     # A fixed pseudo-random start (never orthogonal to the mode by a symmetry of the
     # problem), mixed with the nearby equilibrium's mode where there is one.
@@ -897,12 +902,14 @@ def _stability(run: _Run, state: State, seed: np.ndarray | None = None,
     start /= np.linalg.norm(start)
     if seed is not None and seed.shape == (size,):
         start = seed / np.linalg.norm(seed) + 0.3 * start
-    theta, vector, converged, _ = softest_mode(ab, piv, kl, ku, primal_index, w, start,
+    theta, vector, converged, _ = softest_mode(reduced, piv, lo, up, primal_index, w, start,
                                                1e-10, 80)
     if converged and theta > 0.0:
         value = -c + 1.0 / theta
     else:
-        value, vector = _stability_arpack(ab, piv, n, kl, ku, primal, weight, c, size)
+        keep = new >= 0
+        value, vector = _stability_arpack(reduced, piv, int(keep.sum()), lo, up,
+                                          primal[keep], weight[keep], c, size)
         if value is None:
             return _stability_dense(run, state)
     if found is not None:

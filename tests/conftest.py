@@ -1,0 +1,37 @@
+"""Before any test: the numba kernels compiled (or loaded from their cache) once, with no
+time budget running. In a fresh clone compiling them takes about a minute, and a test's
+first solve (or a CLI subprocess's) would otherwise spend its solver's time budget on it
+on a slow machine; compiled here, they are cached next to the sources for every process
+after."""
+
+from __future__ import annotations
+
+import pytest
+
+
+@pytest.fixture(scope="session", autouse=True)
+def compiled_kernels():
+    import pliant as pl
+    from pliant.errors import PliantError
+    from pliant.models import rod3d
+    from pliant.models.elastica2d import ShootingSolver
+    from pliant.scene.distance import Obstacle
+
+    part = pl.Part(length=1.0, bending_stiffness=1.0, mass_per_length=0.1,
+                   outer_diameter=0.02)
+    flat = pl.Problem(part, (pl.clamp(0.0), pl.grip(1.0, position=(0.7, 0.4), angle=1.0)),
+                      gravity=(0.0, -9.81))
+    try:  # the answer does not matter here, only that the kernels ran
+        pl.solve(flat, solver=ShootingSolver(time_budget=3600.0))
+    except PliantError:
+        pass
+    space = pl.Problem(part, (pl.clamp(0.0, (0.0, 0.0, 0.0)),
+                              pl.grip(1.0, (0.7, 0.3, 0.2), tangent=(0.0, 1.0, 0.0),
+                                      name="hand")),
+                       gravity=(0.0, 0.0, -9.81),
+                       obstacles=(Obstacle.sphere("ball", 0.1, (0.4, 0.0, -0.2)),))
+    try:
+        rod3d.solve(space, solver=rod3d.RodSolver(elements=12, time_budget=3600.0)).stability
+    except PliantError:
+        pass
+    yield
