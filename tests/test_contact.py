@@ -16,7 +16,9 @@ import pliant as pl
 from pliant.errors import PliantError
 from pliant.models import rod3d
 from pliant.models.banded import dense
+from pliant.models.rod3d.lowering import lower
 from pliant.scene import Obstacle
+from pliant.scene.interference import of_equilibrium
 
 RADIUS = 0.01
 ACROSS_Y = np.array([[1.0, 0.0, 0.0], [0.0, 0.0, -1.0], [0.0, 1.0, 0.0]])  # z axis -> y
@@ -315,3 +317,21 @@ def test_contact_jacobian_with_friction_matches_finite_differences():
     on = gam[:, 0] > 0
     assert np.any(z[on] < 0.4 * gam[on, 0]) and np.any(z[on] > 0.4 * gam[on, 0])
     assert np.abs(J - fd).max() < 1e-5 * max(1.0, np.abs(J).max())
+
+
+def test_the_rest_shape_through_an_obstacle_is_measured_in_metres_on_a_2_m_part():
+    """The unloaded part's straight line from the clamp runs through a ball; the homotopy
+    starts with every gap widened by how deep it goes, in units of L: (R + r) / L plus
+    a hundredth. (It was queried at points in units of L, as if in metres: on a part
+    that is not 1 m long the ball was missed, and the solve failed at the start.)"""
+    part = pl.Part(length=2.0, bending_stiffness=2.0, outer_diameter=0.02)
+    problem = pl.Problem(part, (pl.clamp(0.0, (0.0, 0.0, 0.0), tangent=(1, 0, 0),
+                                         normal=(0, 0, 1)),
+                                pl.grip(2.0, (1.6, 0.6, 0.0), tangent=(0.0, 1.0, 0.0),
+                                        name="hand")),
+                         obstacles=(Obstacle.sphere("ball", 0.1, (1.5, 0.0, 0.0)),))
+    loads, _ = lower(problem, elements=40).rest()
+    assert loads.offset == pytest.approx((0.1 + 0.01) / 2.0 + 0.01, rel=1e-9)
+    eq = rod3d.solve(problem, solver=rod3d.RodSolver(elements=40))
+    assert eq.residual < 1e-9
+    assert of_equilibrium(eq).smallest.clearance > 0.0

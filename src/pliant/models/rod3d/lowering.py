@@ -326,7 +326,8 @@ class Rod:
         # every gap widened enough to clear it (the obstacles grow back along the way).
         offset = 0.0
         if self.obstacles is not None:
-            d, _, _ = self.obstacles.query(self.probe_points(X), band=2.0 * self.radius)
+            d, _, _ = self.obstacles.query(self.probe_points(X) * self.length,
+                                           band=2.0 * self.radius)
             deepest = float(np.min((d - self.radius) / self.length))
             if deepest < 0.0:
                 offset = -deepest + 0.01
