@@ -182,3 +182,18 @@ def test_deep_compression_follows_the_stable_branch(scale):
     load = np.array([-30 * scale, 3 * scale])
     potential = cold.energy - load @ np.array(cold.tip[:2])
     assert potential < 0.0  # the S-shaped equilibria have a positive potential energy
+
+
+@pytest.mark.parametrize("knots", [((0.0, 0.0), (0.5, 2.0)), ((0.3, 1.0), (0.7, -1.0)),
+                                   ((0.2, 3.0),), ((0.1, 0.0), (0.4, 2.0), (0.9, -1.0))])
+def test_an_unloaded_part_takes_its_rest_profile_whatever_its_knots(knots):
+    """With nothing on it the free end's angle is the rest curvature's integral: linear
+    between the knots and constant beyond the first and the last (two knots inside the
+    part used to be read as a line from s = 0 to L)."""
+    part = pl.Part(1.0, 1.0, rest_curvature=knots)
+    eq = pl.solve(pl.Problem(part, (pl.clamp(0.0), pl.push(1.0, force=(0.0, 0.0)))))
+    s = np.linspace(0.0, 1.0, 20001)
+    kappa = np.array([part.rest_curvature_at(x) for x in s])
+    expected = float(np.sum(0.5 * (kappa[1:] + kappa[:-1]) * np.diff(s)))
+    assert eq.tip[2] == pytest.approx(expected, abs=1e-7)
+    assert eq.residual < 1e-10

@@ -135,7 +135,7 @@ position = [0.4, 0.0, 0.6]
 
 @pytest.mark.parametrize("change, where", [
     (('shape = "sphere"', 'shape = "cone"'), "obstacle[1].shape"),
-    (("radius = 0.05\n", ""), "obstacle[1]: Value error, a sphere needs radius"),
+    (("radius = 0.05\n", ""), "obstacle[1]: a sphere needs radius"),
     (('position = [0.6, -0.3, 0.0]\n', 'position = [0.6, -0.3, 0.0]\naxis = [0, 0, 1]\n'),
      "give rotation or axis, not both"),
     (('material = "pa12"', 'material = "unobtainium"'), "no material 'unobtainium'"),
@@ -314,3 +314,25 @@ def test_an_obstacle_takes_its_friction():
                         "small.toml")
     mu = {o.name: o.friction for o in scene.problem.obstacles}
     assert mu["floor"] == 0.35 and all(v == 0.0 for k, v in mu.items() if k != "floor")
+
+
+@pytest.mark.parametrize(("obj", "message"), [
+    ("v 0 0 0\nv 1 0 0\nv nan 1 0\nf 1 2 3\n", "not finite"),
+    ("v 0 0 0\nv 1 0 0\nv 2 0 0\nf 1 2 3\n", "no surface"),
+])
+def test_a_mesh_with_nan_vertices_or_no_area_is_refused_naming_the_obstacle(tmp_path, obj,
+                                                                           message):
+    (tmp_path / "bad.obj").write_text(obj)
+    text = SMALL + '[[obstacle]]\nname = "bracket"\nshape = "mesh"\nfile = "bad.obj"\n'
+    with pytest.raises(FileFormatError,
+                       match=rf"obstacle\[\d\].*bad\.obj.*{message}.*'bracket'"):
+        parse_scene(text, "s.toml", tmp_path)
+
+
+def test_a_boolean_is_not_a_length_and_a_huge_tangent_keeps_its_direction():
+    with pytest.raises(FileFormatError, match=r"part\.length: a number is wanted here"):
+        parse_scene(SMALL.replace("length = 1.0", "length = true", 1), "s.toml")
+    from pliant.core.conditions import Condition
+
+    c = Condition(s=0.0, position=(0.0, 0.0, 0.0), tangent=(1e200, 1e200, 0.0))
+    assert c.tangent == pytest.approx((2**-0.5, 2**-0.5, 0.0))

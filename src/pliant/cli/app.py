@@ -27,6 +27,14 @@ app = typer.Typer(
 EXAMPLES = Path(__file__).resolve().parents[3] / "examples"  # the repository (editable install)
 
 
+def _elements(value: int | None) -> int | None:
+    """``--elements``, checked: None (the file's), or a count the 3D model takes."""
+    if value is not None and not 4 <= value <= 100000:
+        raise PliantError(f"--elements: must be from 4 to 100000, got {value}; leave it out "
+                          "for the file's [solver] elements")
+    return value
+
+
 @app.command()
 def solve(
     file: Annotated[Path, typer.Argument(help="a problem file (TOML, SI units)")],
@@ -48,6 +56,7 @@ def solve(
     )
     from pliant.io.problem_file import load_scene  # noqa: PLC0415
 
+    elements = _elements(elements)
     scene = load_scene(file)
     problem = scene.problem
     eq, seconds = timed_solve(problem, elements or scene.solver.elements)
@@ -88,7 +97,7 @@ def run(
 ) -> None:
     """Follow a scene's manipulation: solve every step of its [path], report the force and
     moment at the grip, contacts, clearances and bend radius, and write them out."""
-    _run_scene(file, out, elements)
+    _run_scene(file, out, _elements(elements))
 
 
 def _with_progress(console, scene, file: Path, work):
@@ -199,8 +208,7 @@ def _evaluate_scene(file: Path, report: Path | None, json_out: Path | None,
     from pliant.io.problem_file import load_scene  # noqa: PLC0415
     from pliant.io.rules_file import load_rules  # noqa: PLC0415
 
-    if elements is not None and not 4 <= elements <= 100000:
-        raise PliantError(f"--elements: must be from 4 to 100000, got {elements}")
+    elements = _elements(elements)
     scene = load_scene(file)
     if operator is not None:
         from pliant.core.rules import EvaluationSettings  # noqa: PLC0415
@@ -273,8 +281,7 @@ def study(
     from pliant.io.jsontext import finite  # noqa: PLC0415
     from pliant.io.mesh_export import export_envelope  # noqa: PLC0415
 
-    if elements is not None and not 4 <= elements <= 100000:
-        raise PliantError(f"--elements: must be from 4 to 100000, got {elements}")
+    elements = _elements(elements)
     console = Console()
     columns = (TextColumn("{task.description}"), BarColumn(), TextColumn("{task.completed}/"
                "{task.total}"), TimeRemainingColumn())
@@ -338,6 +345,7 @@ def view(
     from pliant.viewer.server import Server  # noqa: PLC0415
     from pliant.viewer.state import ViewerState  # noqa: PLC0415
 
+    elements = _elements(elements)
     scene = scene or EXAMPLES / "scenes" / "engine_bay.toml"
     server = Server(scene, host=host, port=port, elements=elements, envelope=envelope)
     typer.echo(f"checking {scene.name} and loading the solvers…")

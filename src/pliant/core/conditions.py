@@ -59,10 +59,16 @@ def _vector(field: str, value, allow_none: bool = True) -> Vector:
 
 
 def _unit(field: str, value: Vector) -> tuple[float, float, float]:
-    norm = math.sqrt(sum(v * v for v in value))  # type: ignore[operator]
-    if not norm > 1e-12:
+    # Scaled by its largest component first: (1e200, 1e200, 0) squared overflows to inf,
+    # and dividing by that norm would turn the direction into (0, 0, 0).
+    big = max(abs(v) for v in value)  # type: ignore[type-var,arg-type]
+    if not big > 0.0:
         raise InputError(field, f"must be a non-zero direction, got {value!r}")
-    return tuple(v / norm for v in value)  # type: ignore[return-value,operator]
+    scaled = [v / big for v in value]  # type: ignore[operator]
+    norm = math.sqrt(sum(v * v for v in scaled))
+    if not norm * big > 1e-12:
+        raise InputError(field, f"must be a non-zero direction, got {value!r}")
+    return tuple(v / norm for v in scaled)  # type: ignore[return-value]
 
 
 @dataclass(frozen=True)

@@ -212,8 +212,7 @@ class Part:
         """Interior arc lengths [m] where a rest-curvature profile has a kink."""
         out = set()
         for knots in (self.rest_knots, self.rest_knots_2, self.twist_knots):
-            if len(knots) > 2:
-                out.update(s for s, _ in knots if 0.0 < s < self.length)
+            out.update(s for s, _ in knots if 0.0 < s < self.length)
         return tuple(sorted(out))
 
 

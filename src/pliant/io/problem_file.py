@@ -21,7 +21,15 @@ from pathlib import Path
 from typing import Any, Literal
 
 import numpy as np
-from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
+from pydantic import (
+    BaseModel,
+    ConfigDict,
+    Field,
+    ValidationError,
+    ValidationInfo,
+    field_validator,
+    model_validator,
+)
 
 from pliant.core.conditions import Condition
 from pliant.core.part import Material, Part
@@ -33,6 +41,23 @@ from pliant.io.tomlfile import field_path, read_toml
 
 class _Strict(BaseModel):
     model_config = ConfigDict(extra="forbid", allow_inf_nan=False)
+
+    @field_validator("*", mode="before")
+    @classmethod
+    def _no_booleans(cls, value: Any, info: ValidationInfo) -> Any:
+        """``length = true`` is not 1 m: a TOML boolean is only taken where a field is
+        one (pydantic would read it as 1.0)."""
+        if _has_bool(value) and "bool" not in str(cls.model_fields[info.field_name].annotation):
+            raise ValueError("a number is wanted here, not true or false")
+        return value
+
+
+def _has_bool(value: Any) -> bool:
+    if isinstance(value, bool):
+        return True
+    if isinstance(value, (list, tuple)):
+        return any(_has_bool(v) for v in value)
+    return False
 
 
 class MaterialModel(_Strict):
@@ -250,9 +275,12 @@ class ObstacleModel(_Strict):
         if self.shape in ("halfspace", "plane"):
             normal = (0.0, 0.0, 1.0) if rotation is None else rotation[:, 2]
             return Obstacle.halfspace(self.name, self.position, normal)
-        vertices, faces = _read_mesh(self.file, base)
-        return Obstacle.from_mesh(self.name, vertices * self.scale, faces, self.position,
-                                  rotation, self.resolution)
+        try:
+            vertices, faces = _read_mesh(self.file, base)
+            return Obstacle.from_mesh(self.name, vertices * self.scale, faces, self.position,
+                                      rotation, self.resolution)
+        except ValueError as err:
+            raise ValueError(f"{err} (the obstacle {self.name!r})") from None
 
 
 def _referenced(name: str | None, base: Path | None, what: str) -> Path:
@@ -272,12 +300,21 @@ def _read_mesh(name: str | None, base: Path | None) -> tuple[np.ndarray, np.ndar
 
     path = _referenced(name, base, "mesh")
     try:
-        mesh = trimesh.load(path, force="mesh")
+        mesh = trimesh.load(path, force="mesh", process=False)
     except Exception as err:  # trimesh raises many kinds on a bad file
         raise ValueError(f"file: {str(path)!r} is not a mesh trimesh can read "
                          f"(STL, OBJ, PLY, glTF): {err}") from None
     if not isinstance(mesh, trimesh.Trimesh) or len(mesh.faces) == 0:
         raise ValueError(f"file: {str(path)!r} holds no triangles")
+    # Checked as the file has it (processing would silently drop NaN vertices), then
+    # merged (an STL repeats each vertex per triangle).
+    from pliant.scene.distance import check_mesh  # noqa: PLC0415
+
+    try:
+        check_mesh(np.asarray(mesh.vertices, dtype=float), np.asarray(mesh.faces, np.int64))
+    except ValueError as err:
+        raise ValueError(f"file: {str(path)!r}: {err}") from None
+    mesh.process()
     return np.asarray(mesh.vertices, dtype=float), np.asarray(mesh.faces, dtype=np.int64)
 
 
@@ -569,7 +606,7 @@ def scene_from_data(data: dict[str, Any], source: str = "<data>", base: Path | N
     except ValidationError as err:
         first = err.errors()[0]
         where = field_path(tuple(first["loc"]))
-        message = first["msg"]
+        message = first["msg"].removeprefix("Value error, ")
         if first["type"] == "extra_forbidden":
             message = ("unknown key; see the README's file format (a condition takes s, "
                        "x, y, z, angle, tangent, normal, Fx, Fy, Fz, moment, Ft, Fn, port, "

@@ -574,12 +574,34 @@ def cache_dir() -> Path:
     return Path(root) if root else Path.home() / ".cache" / "pliant"
 
 
+def check_mesh(vertices: np.ndarray, faces: np.ndarray) -> None:
+    """A mesh an obstacle can be made of: finite vertices (v, 3), triangles (f, 3) that
+    index them, and a surface (not every triangle degenerate); else a ValueError that
+    says what is wrong."""
+    if vertices.ndim != 2 or vertices.shape[1] != 3 or vertices.shape[0] < 3:
+        raise ValueError("the mesh needs vertices (v, 3), at least 3 of them")
+    if not np.isfinite(vertices).all():
+        bad = int((~np.isfinite(vertices)).any(axis=1).sum())
+        raise ValueError(f"the mesh has {bad} vertices that are not finite numbers (NaN or "
+                         "inf); repair or re-export it")
+    if faces.ndim != 2 or faces.shape[1] != 3 or faces.shape[0] == 0:
+        raise ValueError("the mesh needs triangles (f, 3)")
+    if faces.min() < 0 or faces.max() >= vertices.shape[0]:
+        raise ValueError("the mesh's triangles index vertices it does not have")
+    tri = vertices[faces]
+    area = 0.5 * np.linalg.norm(np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]), axis=1)
+    extent = float(np.ptp(vertices, axis=0).max())
+    if not area.sum() > 1e-12 * max(extent, 1e-300) ** 2:
+        raise ValueError("the mesh has no surface: every triangle is degenerate (no area)")
+
+
 def prepare_mesh(vertices: np.ndarray, faces: np.ndarray, resolution: int = 64,
                  cache: bool = True) -> MeshData:
     """Pseudonormals, box tree and signed distance grid of a mesh (the grid cached on
     disk under the hash of the mesh and the resolution)."""
     vertices = np.ascontiguousarray(vertices, dtype=float)
     faces = np.ascontiguousarray(faces, dtype=np.int64)
+    check_mesh(vertices, faces)
     tri = np.ascontiguousarray(vertices[faces])
     pseudo, solid = _pseudonormals(vertices, faces)
     bvh = build_bvh(tri)

@@ -274,9 +274,10 @@ def lower(problem: Problem, nodes: int | None = None) -> Lowered:
 
     stations: list[tuple[float, Station | None, bool]] = [
         (st.s / length, st, False) for st in problem.stations]
-    extra = [0.0, 1.0]
-    if len(part.rest_knots) > 2:
-        extra += [s / length for s, _ in part.rest_knots if 0.0 < s < length]
+    # Every knot inside the part is a kink of kappa0 (two knots at 0.3 and 0.7 m are
+    # two kinks, with constant curvature beyond them): a station, so that the kernel's
+    # linear interpolation between stations is the profile's.
+    extra = [0.0, 1.0] + [s / length for s, _ in part.rest_knots if 0.0 < s < length]
     for s in extra:
         if not any(abs(s - t) <= 1e-12 for t, _, _ in stations):
             stations.append((s, None, False))
