@@ -12,6 +12,8 @@ from pliant.errors import FileFormatError, InputError, UnreachableTargetError
 from pliant.io.recording import load_recording, save_recording
 from pliant.session import GripEvent, Session, replay
 
+from .helpers import EXAMPLES
+
 HOSE = pl.Part(length=1.0, bending_stiffness=0.05, mass_per_length=0.3, outer_diameter=0.02)
 PROBLEM_3D = pl.Problem(HOSE, (pl.clamp(0.0, position=(0.0, 0.0, 0.0)),
                                pl.pin(1.0, position=(0.9, 0.0, 0.0), name="hand")),
@@ -112,3 +114,26 @@ def test_live_frames_are_not_blocked_by_accurate_solves():
     assert len(overlapped) > len(frames) / 2
     assert max(f.seconds for f in overlapped) < 0.5 * slowest_solve
     assert final.accurate.index > frames[len(frames) // 2].index
+
+
+def test_the_worker_sends_results_back_without_the_scene():
+    """A live result comes back from the worker process without its problem (a scene's
+    obstacle grids: about a megabyte a solve, kept for every solve); the session puts
+    back the problem it sent, the very object."""
+    import pickle
+    from dataclasses import replace
+
+    from pliant.io.problem_file import load_scene
+    from pliant.session.accurate import ProcessExecutor
+
+    problem = load_scene(EXAMPLES / "scenes" / "engine_bay.toml").problem
+    executor = ProcessExecutor(elements=30)
+    try:
+        executor.submit(7, problem)
+        result = executor.wait(timeout=240)
+    finally:
+        executor.close()
+    assert result is not None and result.ok and result.index == 7
+    assert result.problem is problem
+    sent = len(pickle.dumps(replace(result, problem=None)))
+    assert sent < 100_000 < len(pickle.dumps(result))

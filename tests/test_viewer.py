@@ -504,3 +504,55 @@ def test_a_studys_envelope_is_sent_with_the_scene(folder):
     assert len(scene.envelopes[0].faces) == len(faces)
     with pytest.raises(InputError, match="envelope"):
         load_envelope(folder / "hose.toml")
+
+
+def _raw_get(server, path: str, host: str, origin: str | None = None) -> int:
+    """The status of a GET sent with exactly these Host and Origin headers."""
+    import http.client
+
+    conn = http.client.HTTPConnection("127.0.0.1", server.port, timeout=30)
+    try:
+        conn.putrequest("GET", path, skip_host=True, skip_accept_encoding=True)
+        conn.putheader("Host", host)
+        if origin is not None:
+            conn.putheader("Origin", origin)
+        conn.endheaders()
+        return conn.getresponse().status
+    finally:
+        conn.close()
+
+
+def test_a_rebinding_page_under_another_name_is_refused(server):
+    """DNS rebinding: evil.example resolving to 127.0.0.1, its page at
+    http://evil.example:PORT sends Host and Origin of its own name. The server answers only
+    to its own address (localhost, an IP, the --host it was given)."""
+    port = server.port
+    assert _raw_get(server, "/", f"127.0.0.1:{port}") == 200
+    assert _raw_get(server, "/", f"localhost:{port}") == 200
+    assert _raw_get(server, "/", f"evil.example:{port}") == 403
+    assert _raw_get(server, "/", f"127.0.0.1:{port + 1}") == 403
+    assert _raw_get(server, "/ws", f"evil.example:{port}", f"http://evil.example:{port}") == 403
+    from websockets.exceptions import InvalidStatus
+
+    with pytest.raises(InvalidStatus) as err:
+        connect(server, additional_headers={"Host": f"evil.example:{port}"},
+                origin=f"http://evil.example:{port}")
+    assert err.value.response.status_code == 403
+
+
+def test_odd_paths_and_values_get_clean_answers(server):
+    for path in ("/static/%00x.js", "/static/" + "a" * 5000 + ".js", "/" + "b" * 300):
+        status, _ = get(server, path)
+        assert status == 404, path[:40]
+    with connect(server) as ws:
+        ws.send(json.dumps({"v": 1, "type": "hello"}))
+        receive(ws, "scene")
+        ws.send(json.dumps({"v": 1, "type": "move", "grip": "hand",
+                            "position": [1e308, 0.0, 0.0], "seq": 1}))
+        error = receive(ws, "error")
+        assert "position" in error["message"] and "internal" not in error["message"]
+        ws.send("[" * 30000 + "]" * 30000)
+        error = receive(ws, "error")
+        assert "nested too deeply" in error["message"]
+        ws.send(json.dumps({"v": 1, "type": "hello"}))
+        assert receive(ws, "scene")["type"] == "scene"  # it goes on serving

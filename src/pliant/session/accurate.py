@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import math
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Any
 
 import numpy as np
@@ -192,11 +192,13 @@ class ProcessExecutor:
 
     def _take(self, message) -> AccurateResult:
         self._busy = False
+        index, problem = self._submitted or (0, None)
         if message is None:
-            index, problem = self._submitted or (0, None)
             return AccurateResult(index, problem, np.zeros(0), np.zeros((0, 0)), {},
                                   error="the accurate worker process stopped; restart the "
                                   "session")
+        if message.problem is None:  # sent back without it (see the worker)
+            message = replace(message, problem=problem)
         return message
 
     def poll(self) -> AccurateResult | None:

@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import os
 import sys
+from dataclasses import replace
 
 from pliant.session.accurate import AccurateSolver, read_message, write_message
 
@@ -22,7 +23,9 @@ def main() -> None:
         if message is None:
             return
         index, problem = message
-        write_message(channel, solver.solve(index, problem))
+        # The answer goes back without its problem: the session has it (it sent it), and
+        # with a scene's obstacle grids it is a megabyte a solve.
+        write_message(channel, replace(solver.solve(index, problem), problem=None))
 
 
 if __name__ == "__main__":

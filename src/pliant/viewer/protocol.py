@@ -23,7 +23,9 @@ MAX_MESSAGE = 64 * 1024  # bytes: the largest client message parsed
 MAX_FRAME = 1024 * 1024  # bytes: the websocket layer closes a connection past this
 NAME = r"^[A-Za-z0-9][A-Za-z0-9 _.-]{0,63}$"  # a session file's name (in the scene folder)
 
-Finite = Annotated[float, Field(allow_inf_nan=False)]
+# A coordinate, tangent component or load: finite and within a million (m, N): a scene
+# is metres across, and 1e308 only overflows the models.
+Finite = Annotated[float, Field(allow_inf_nan=False, ge=-1e6, le=1e6)]
 Vec3 = tuple[Finite, Finite, Finite]
 
 
@@ -269,6 +271,8 @@ def parse(raw: str | bytes) -> ClientHello | ClientMove | ClientMode | ClientSol
         data = json.loads(raw)
     except (ValueError, UnicodeDecodeError) as err:
         raise ProtocolError(f"not JSON: {err}", "message") from None
+    except RecursionError:
+        raise ProtocolError("not a message: JSON nested too deeply", "message") from None
     if not isinstance(data, dict):
         raise ProtocolError("a message is a JSON object with 'v' and 'type'", "message")
     if data.get("v") != VERSION:

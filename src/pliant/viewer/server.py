@@ -74,6 +74,8 @@ class Server:
     def _file(self, path: str) -> Path | None:
         """The file a GET path names, or None (not ours, or outside its folder)."""
         path = unquote(urlsplit(path).path)
+        if "\x00" in path or len(path) > 512:  # no file of ours is named so
+            return None
         if path in ("/", "/index.html"):
             return STATIC / "index.html"
         parts = path.lstrip("/").split("/", 2)
@@ -84,18 +86,55 @@ class Server:
         else:
             return None
         base = base.resolve()
-        target = (base / rest).resolve()
-        if not target.is_relative_to(base) or not target.is_file():
+        try:
+            target = (base / rest).resolve()
+            if not target.is_relative_to(base) or not target.is_file():
+                return None
+        except (OSError, ValueError):  # a name too long for the file system, say
             return None
         return target
+
+    def _allowed(self, authority: str | None) -> bool:
+        """A Host (or an Origin's host and port) this server answers to: its port, and
+        localhost, an IP address or the address it was told to listen on. A DNS name
+        that merely resolves here is refused, so a rebinding page (evil.example:PORT
+        pointed at 127.0.0.1) cannot read the scene or drive the grips."""
+        import ipaddress  # noqa: PLC0415
+
+        if not authority:
+            return False
+        parsed = urlsplit(f"//{authority}")
+        try:
+            port = parsed.port
+        except ValueError:
+            return False
+        if port != self.port or parsed.hostname is None:
+            return False
+        host = parsed.hostname
+        if host in ("localhost", self.host.strip("[]").lower()):
+            return True
+        try:
+            ipaddress.ip_address(host)
+        except ValueError:
+            return False
+        return True
 
     def _process_request(self, connection, request):
         from websockets.datastructures import Headers  # noqa: PLC0415
         from websockets.http11 import Response  # noqa: PLC0415
 
+        hosts = request.headers.get_all("Host")
+        host = hosts[0] if len(hosts) == 1 else None
+        if not self._allowed(host):
+            return connection.respond(403, "this server answers to its own address only "
+                                      "(open it as http://127.0.0.1:PORT/)\n")
         if urlsplit(request.path).path == "/ws":
-            origin = request.headers.get("Origin")
-            if origin is not None and urlsplit(origin).netloc != request.headers.get("Host"):
+            origins = request.headers.get_all("Origin")
+            if len(origins) > 1:
+                return connection.respond(403, "one Origin, please\n")
+            origin = origins[0] if origins else None
+            if origin is not None and (urlsplit(origin).netloc != host
+                                       or not self._allowed(urlsplit(origin).netloc)):
                 return connection.respond(403, "cross-origin websocket refused\n")
             return None
         target = self._file(request.path)
