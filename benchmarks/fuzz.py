@@ -1,0 +1,238 @@
+"""Random problems, each answer checked independently of pliant's own residual.
+
+2D (the elastica): clamped parts under random end loads (force space), and parts held
+by a clamp or a pin and a hand at a random reachable target (configuration space), with
+weight and rest curvature. Each equilibrium is checked by integrating the ODE again from
+s = 0 with scipy's solve_ivp (x' = cos theta, y' = sin theta, theta' = kappa0 + M / EI,
+n' = -q, M' = -(t x n)), applying every condition's load (reactions included) as a jump
+at its station: the integrated shape must follow the returned one, every prescribed
+value must hold, and past the last station nothing may be left over (n = 0, M = 0).
+
+3D (the Kirchhoff rod): a clamp and a hand at a random reachable pose (position, and
+axis or not), with weight, rest curvature and sometimes a ball to avoid. Each is checked
+by global balance of forces and moments (conditions, weight and contacts), the
+prescribed positions and axes, inextensibility (every element its rest length) and the
+tube outside the ball.
+
+    .venv/bin/python benchmarks/fuzz.py [N2D] [N3D]
+
+It prints, per family: tried, converged and checked right, converged but wrong, typed
+errors, untyped exceptions, and runs slower than the solver's budget.
+"""
+
+from __future__ import annotations
+
+import math
+import sys
+import time
+from collections import Counter, defaultdict
+
+import numpy as np
+from scipy.integrate import solve_ivp
+
+import pliant as pl
+from pliant.errors import PliantError
+
+BUDGET = 20.0  # s: a solve past this counts as a timeout
+WORST: dict[str, float] = defaultdict(float)  # the largest error of a converged answer
+
+
+def random_part(rng: np.random.Generator, three: bool) -> pl.Part:
+    length = float(rng.uniform(0.3, 2.0))
+    stiffness = float(10 ** rng.uniform(-2, 1))
+    mass = float(rng.choice([0.0, 10 ** rng.uniform(-2, 0)]))
+    curvature: float | tuple = 0.0
+    kind = rng.integers(3)
+    if kind == 1:
+        curvature = float(rng.uniform(-2, 2) / length)
+    elif kind == 2:
+        knots = np.sort(rng.uniform(0, length, 2))
+        curvature = tuple((float(s), float(rng.uniform(-2, 2) / length)) for s in knots)
+    return pl.Part(length, stiffness, mass_per_length=mass, rest_curvature=curvature,
+                   outer_diameter=0.01 * length if three else None)
+
+
+def problem_2d(rng: np.random.Generator) -> tuple[str, pl.Problem]:
+    part = random_part(rng, False)
+    L = part.length
+    gravity = (0.0, -9.81) if part.mass_per_length else None
+    if rng.random() < 0.4:
+        scale = part.bending_stiffness / L**2
+        force = tuple(float(x) for x in rng.uniform(-10, 10, 2) * scale)
+        moment = float(rng.uniform(-3, 3) * part.bending_stiffness / L)
+        return "2D force space", pl.Problem(
+            part, (pl.clamp(0.0), pl.push(L, force=force, moment=moment)), gravity=gravity)
+    r = L * math.sqrt(rng.uniform(0.05, 0.9))
+    a = rng.uniform(-math.pi, math.pi)
+    target = (float(r * math.cos(a)), float(r * math.sin(a)))
+    start = pl.clamp(0.0) if rng.random() < 0.7 else pl.pin(0.0)
+    angle = float(rng.uniform(-math.pi, math.pi)) if rng.random() < 0.5 else None
+    if start.angle is None and angle is None:
+        angle = float(rng.uniform(-math.pi, math.pi))
+    return "2D configuration space", pl.Problem(
+        part, (start, pl.grip(L, position=target, angle=angle, name="hand")),
+        gravity=gravity)
+
+
+def check_2d(eq) -> float:
+    """The largest error (relative: lengths by L, forces by EI/L^2, moments by EI/L) of
+    the returned equilibrium: the ODE integrated again (solve_ivp, DOP853, tolerances
+    1e-11) from each returned sample to the next, each station's load (reactions
+    included) applied as the jump it is, nothing left beyond the last end, and every
+    prescribed value met. Integrated sample to sample, not from s = 0 alone: a floppy,
+    heavy part (q L^3 / EI in the hundreds) makes one long shot lose all its digits, the
+    reason the solver shoots in pieces."""
+    problem = eq.problem
+    part = problem.part
+    L, EI = part.length, part.bending_stiffness
+    q = part.mass_per_length * np.array(problem.gravity, float)
+    scale = np.array([L, L, 1.0, EI / L**2, EI / L**2, EI / L])
+
+    def rhs(s, h):
+        t = np.array([math.cos(h[2]), math.sin(h[2])])
+        return [t[0], t[1], part.rest_curvature_at(s) + h[5] / EI, -q[0], -q[1],
+                -(t[0] * h[4] - t[1] * h[3])]
+
+    s = eq.s
+    H = np.column_stack([eq.position, eq.angle, eq.internal_force, eq.bending_moment])
+    knots = sorted(k for k, _ in part.rest_knots if 0.0 < k < L)
+    errors = [0.0]
+    for i in range(len(s) - 1):
+        if s[i + 1] - s[i] <= 1e-14 * L:  # a station's two samples: its jump
+            continue
+        a, b = s[i], s[i + 1]
+        cuts = [a, *[k for k in knots if a < k < b], b]
+        state = H[i].copy()
+        for lo, hi in zip(cuts, cuts[1:]):
+            state = solve_ivp(rhs, (lo, hi), state, rtol=1e-11, atol=1e-13,
+                              method="DOP853").y[:, -1]
+        d = state - H[i + 1]
+        d[2] = (d[2] + math.pi) % (2 * math.pi) - math.pi
+        errors.append(float(np.max(np.abs(d) / scale)))
+    # The jumps: n(s+) = n(s-) - F, M(s+) = M(s-) - M_load, with nothing before s = 0
+    # and nothing beyond s = L.
+    for name, ld in eq.loads.items():
+        k = np.flatnonzero(np.abs(s - ld.s) <= 1e-12 * L)
+        before = np.zeros(3) if ld.s <= 1e-12 * L else H[k[0], 3:]
+        after = np.zeros(3) if ld.s >= L * (1 - 1e-12) else H[k[-1], 3:]
+        jump = before - np.array([*ld.force, float(ld.moment)]) - after
+        errors.append(float(np.max(np.abs(jump) / scale[3:])))
+    for c in problem.conditions:
+        k = int(np.argmin(np.abs(s - c.s)))
+        for i in range(2):
+            if c.position[i] is not None:
+                errors.append(abs(eq.position[k, i] - c.position[i]) / L)
+        if c.angle is not None:
+            d = (eq.angle[k] - c.angle + math.pi) % (2 * math.pi) - math.pi
+            errors.append(abs(d))
+    return float(max(errors))
+
+
+def problem_3d(rng: np.random.Generator) -> tuple[str, pl.Problem]:
+    from pliant.scene.distance import Obstacle
+
+    part = random_part(rng, True)
+    L = part.length
+    r = L * rng.uniform(0.3, 0.9)
+    direction = rng.normal(size=3)
+    direction /= np.linalg.norm(direction)
+    target = tuple(float(x) for x in r * direction)
+    tangent = None
+    if rng.random() < 0.6:
+        t = rng.normal(size=3)
+        tangent = tuple(float(x) for x in t / np.linalg.norm(t))
+    obstacles = ()
+    family = "3D"
+    if rng.random() < 0.3:
+        centre = 0.5 * np.array(target) + rng.normal(size=3) * 0.2 * L
+        radius = 0.1 * L
+        if np.linalg.norm(centre) > radius + 0.05 * L and np.linalg.norm(
+                centre - np.array(target)) > radius + 0.05 * L:
+            obstacles = (Obstacle.sphere("ball", radius, tuple(float(x) for x in centre)),)
+            family = "3D with a ball"
+    return family, pl.Problem(
+        part, (pl.clamp(0.0, (0.0, 0.0, 0.0), tangent=(1.0, 0.0, 0.0), normal=(0, 0, 1)),
+               pl.grip(L, target, tangent=tangent, name="hand")),
+        gravity=(0.0, 0.0, -9.81), obstacles=obstacles)
+
+
+def check_3d(eq) -> float:
+    problem = eq.problem
+    part = problem.part
+    L, EI = part.length, part.bending_stiffness
+    q = part.mass_per_length * np.array(problem.gravity, float)
+    x = eq.position
+    ds = np.diff(eq.s)
+    mid = 0.5 * (x[1:] + x[:-1])
+    force = q * L + sum(ld.force for ld in eq.loads.values())
+    moment = np.cross(mid, q[None, :] * ds[:, None]).sum(axis=0)
+    for ld in eq.loads.values():
+        k = int(np.argmin(np.abs(eq.s - ld.s)))
+        moment = moment + np.cross(x[k], ld.force) + ld.moment
+    c = eq.contacts
+    if len(c):
+        force = force + c.force.sum(axis=0)
+        moment = moment + np.cross(c.point, c.force).sum(axis=0)
+    errors = [np.abs(force).max() / (EI / L**2), np.abs(moment).max() / (EI / L)]
+    lengths = np.linalg.norm(np.diff(x, axis=0), axis=1)
+    errors.append(np.abs(lengths - ds).max() / L)
+    for cond in problem.conditions:
+        k = int(np.argmin(np.abs(eq.s - cond.s)))
+        for i in range(3):
+            if cond.position[i] is not None:
+                errors.append(abs(x[k, i] - cond.position[i]) / L)
+        if cond.tangent is not None:
+            errors.append(float(np.linalg.norm(eq.tangent[k] - np.array(cond.tangent))))
+    if problem.obstacles:
+        from pliant.scene.interference import of_equilibrium
+
+        gap = of_equilibrium(eq).smallest.clearance
+        errors.append(max(0.0, -gap - 0.01 * 0.5 * part.outer_diameter) / L)
+    return float(max(errors))
+
+
+def run(kind: str, count: int, seed: int, tolerance: float) -> dict[str, Counter]:
+    rng = np.random.default_rng(seed)
+    table: dict[str, Counter] = defaultdict(Counter)
+    solver = None
+    if kind == "3D":
+        solver = pl.RodSolver(elements=40)
+    for _ in range(count):
+        family, problem = problem_2d(rng) if kind == "2D" else problem_3d(rng)
+        row = table[family]
+        row["tried"] += 1
+        start = time.perf_counter()
+        try:
+            eq = pl.solve(problem, solver=solver)
+            error = check_2d(eq) if kind == "2D" else check_3d(eq)
+        except PliantError:
+            row["typed error"] += 1
+            continue
+        except Exception:  # noqa: BLE001 (counted: there should be none)
+            row["untyped"] += 1
+            continue
+        finally:
+            if time.perf_counter() - start > BUDGET:
+                row["timeout"] += 1
+        WORST[family] = max(WORST[family], error)
+        row["right" if error < tolerance else "wrong"] += 1
+    return table
+
+
+def main() -> None:
+    n2 = int(sys.argv[1]) if len(sys.argv) > 1 else 3000
+    n3 = int(sys.argv[2]) if len(sys.argv) > 2 else 2000
+    print(f"{'family':26s} {'tried':>6s} {'right':>6s} {'wrong':>6s} {'typed':>6s} "
+          f"{'untyped':>8s} {'timeout':>8s}  converged")
+    for kind, count, tolerance in (("2D", n2, 1e-6), ("3D", n3, 1e-6)):
+        start = time.perf_counter()
+        for family, row in sorted(run(kind, count, 1, tolerance).items()):
+            done = row["right"] + row["wrong"]
+            print(f"{family:26s} {row['tried']:6d} {row['right']:6d} {row['wrong']:6d} "
+                  f"{row['typed error']:6d} {row['untyped']:8d} {row['timeout']:8d}  "
+                  f"{done / max(row['tried'], 1):.1%} (worst error {WORST[family]:.1e})")
+        print(f"  ({kind}: {time.perf_counter() - start:.0f} s)")
+
+
+if __name__ == "__main__":
+    main()
