@@ -28,7 +28,6 @@ import time
 from collections import Counter, defaultdict
 
 import numpy as np
-from scipy.integrate import solve_ivp
 
 import pliant as pl
 from pliant.errors import PliantError
@@ -75,57 +74,12 @@ def problem_2d(rng: np.random.Generator) -> tuple[str, pl.Problem]:
 
 
 def check_2d(eq) -> float:
-    """The largest error (relative: lengths by L, forces by EI/L^2, moments by EI/L) of
-    the returned equilibrium: the ODE integrated again (solve_ivp, DOP853, tolerances
-    1e-11) from each returned sample to the next, each station's load (reactions
-    included) applied as the jump it is, nothing left beyond the last end, and every
-    prescribed value met. Integrated sample to sample, not from s = 0 alone: a floppy,
-    heavy part (q L^3 / EI in the hundreds) makes one long shot lose all its digits, the
-    reason the solver shoots in pieces."""
-    problem = eq.problem
-    part = problem.part
-    L, EI = part.length, part.bending_stiffness
-    q = part.mass_per_length * np.array(problem.gravity, float)
-    scale = np.array([L, L, 1.0, EI / L**2, EI / L**2, EI / L])
+    """The independent 2D check (``pliant.models.elastica2d.reference.equilibrium_error``:
+    the ODE integrated again with solve_ivp sample to sample, the jumps at the stations,
+    the prescribed values)."""
+    from pliant.models.elastica2d.reference import equilibrium_error
 
-    def rhs(s, h):
-        t = np.array([math.cos(h[2]), math.sin(h[2])])
-        return [t[0], t[1], part.rest_curvature_at(s) + h[5] / EI, -q[0], -q[1],
-                -(t[0] * h[4] - t[1] * h[3])]
-
-    s = eq.s
-    H = np.column_stack([eq.position, eq.angle, eq.internal_force, eq.bending_moment])
-    knots = sorted(k for k, _ in part.rest_knots if 0.0 < k < L)
-    errors = [0.0]
-    for i in range(len(s) - 1):
-        if s[i + 1] - s[i] <= 1e-14 * L:  # a station's two samples: its jump
-            continue
-        a, b = s[i], s[i + 1]
-        cuts = [a, *[k for k in knots if a < k < b], b]
-        state = H[i].copy()
-        for lo, hi in zip(cuts, cuts[1:]):
-            state = solve_ivp(rhs, (lo, hi), state, rtol=1e-11, atol=1e-13,
-                              method="DOP853").y[:, -1]
-        d = state - H[i + 1]
-        d[2] = (d[2] + math.pi) % (2 * math.pi) - math.pi
-        errors.append(float(np.max(np.abs(d) / scale)))
-    # The jumps: n(s+) = n(s-) - F, M(s+) = M(s-) - M_load, with nothing before s = 0
-    # and nothing beyond s = L.
-    for name, ld in eq.loads.items():
-        k = np.flatnonzero(np.abs(s - ld.s) <= 1e-12 * L)
-        before = np.zeros(3) if ld.s <= 1e-12 * L else H[k[0], 3:]
-        after = np.zeros(3) if ld.s >= L * (1 - 1e-12) else H[k[-1], 3:]
-        jump = before - np.array([*ld.force, float(ld.moment)]) - after
-        errors.append(float(np.max(np.abs(jump) / scale[3:])))
-    for c in problem.conditions:
-        k = int(np.argmin(np.abs(s - c.s)))
-        for i in range(2):
-            if c.position[i] is not None:
-                errors.append(abs(eq.position[k, i] - c.position[i]) / L)
-        if c.angle is not None:
-            d = (eq.angle[k] - c.angle + math.pi) % (2 * math.pi) - math.pi
-            errors.append(abs(d))
-    return float(max(errors))
+    return equilibrium_error(eq)
 
 
 def problem_3d(rng: np.random.Generator) -> tuple[str, pl.Problem]:

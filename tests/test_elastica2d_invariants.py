@@ -3,6 +3,8 @@ agreement with solve_bvp, exact derivatives, warm starts and continuation."""
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 import pytest
 
@@ -260,3 +262,23 @@ def test_retarget_equals_a_fresh_lowering(name):
     other = problem.with_conditions(problem.conditions + (
         pl.push(0.37 * problem.part.length, force=(0.0, 0.1), name="other"),))
     assert lower(problem).retarget(other) is None
+
+
+@pytest.mark.parametrize(("hand", "name"), [
+    (pl.pin(1.0, position=(-0.3, 0.2), name="hand"), "target behind the clamp"),
+    (pl.grip(1.0, position=(0.7, 0.4), angle=math.pi / 2, name="hand"), "up at the tip"),
+    (pl.grip(1.0, position=(0.2, 0.6), angle=math.pi, name="hand"), "turned back"),
+])
+def test_targets_the_2d_routes_missed_are_reached_through_the_3d_model(hand, name):
+    """Issue reports: these were refused with "no equilibrium" although one exists. The
+    planar problem's 3D equilibrium starts the 2D Newton; the answer is checked by
+    integrating the ODE again (solve_ivp) and by the conditions it must meet."""
+    from pliant.models.dispatch import PLANAR_NOTE
+    from pliant.models.elastica2d.reference import equilibrium_error
+
+    problem = pl.Problem(pl.Part(1.0, 1.0), (pl.clamp(0.0), hand))
+    eq = pl.solve(problem)
+    assert equilibrium_error(eq) < 1e-8, name
+    assert eq.residual < 1e-9
+    np.testing.assert_allclose(eq.position[-1], hand.position, atol=1e-9)
+    assert PLANAR_NOTE in eq.notes

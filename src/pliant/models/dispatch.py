@@ -1,4 +1,11 @@
-"""``solve`` and ``trace`` for any problem: the 2D elastica or the 3D rod, by dimension."""
+"""``solve`` and ``trace`` for any problem: the 2D elastica or the 3D rod, by dimension.
+
+This is the one module that knows both models, so it also holds the route between them:
+a 2D problem the shooting solver refuses is the same problem in the plane z = 0 for the
+3D rod, whose routes (bow sides, loads first, snaps past folds) reach equilibria the 2D
+ones miss; its planar answer is then the start of the 2D Newton, and the 2D model
+answers with its own accuracy.
+"""
 
 from __future__ import annotations
 
@@ -19,13 +26,94 @@ def _model(problem: Problem):
     return elastica2d
 
 
+PLANAR_NOTE = ("found from the 3D model's equilibrium of the same problem in the plane "
+               "(the 2D routes did not reach one)")
+
+
 def solve(problem: Problem, *, warm_start: Any = None, solver: Any = None):
     """The equilibrium of a problem (``Equilibrium`` in 2D, ``Equilibrium3D`` in 3D).
 
     warm_start : an earlier equilibrium to start from; solver : the model's settings
-    (``ShootingSolver`` in 2D, ``RodSolver`` in 3D).
+    (``ShootingSolver`` in 2D, ``RodSolver`` in 3D). A cold 2D solve that finds nothing
+    tries the route through the 3D model (see the module) before it gives up.
     """
-    return _model(problem).solve(problem, warm_start=warm_start, solver=solver)
+    model = _model(problem)
+    if problem.dimension == 3 or warm_start is not None:
+        return model.solve(problem, warm_start=warm_start, solver=solver)
+    from dataclasses import replace  # noqa: PLC0415
+
+    from pliant.errors import ConvergenceError, PliantError  # noqa: PLC0415
+
+    try:
+        return model.solve(problem, solver=solver)
+    except ConvergenceError as refused:
+        try:
+            start = _planar_start(problem)
+            eq = model.solve(problem, warm_start=start, solver=solver)
+        except PliantError:
+            raise refused from None
+        if any(n.startswith("the warm start could not be followed") for n in eq.notes):
+            raise refused from None
+        return replace(eq, notes=(*eq.notes, PLANAR_NOTE))
+
+
+def _planar_start(problem: Problem) -> Any:
+    """The 3D rod's equilibrium of a 2D problem lifted into z = 0, as the arrays a 2D
+    warm start reads (s, position, angle, internal force, bending moment, loads)."""
+    import math  # noqa: PLC0415
+    from types import SimpleNamespace  # noqa: PLC0415
+
+    import numpy as np  # noqa: PLC0415
+
+    from pliant.core.conditions import Condition  # noqa: PLC0415
+    from pliant.errors import IllPosedProblemError  # noqa: PLC0415
+    from pliant.models import rod3d  # noqa: PLC0415
+
+    lifted = []
+    for c in problem.conditions:
+        position = ()
+        if any(v is not None for v in c.position):
+            position = (*c.position, 0.0)
+        tangent = normal = None
+        if c.angle is not None:
+            tangent, normal = (math.cos(c.angle), math.sin(c.angle), 0.0), (0.0, 0.0, 1.0)
+        force: tuple = ()
+        moment = None
+        if c.follower:
+            # 2D (tangential, normal nu); 3D in (d1, d2, d3) with d1 = +z, d2 = -nu.
+            ft, fn = (c.force[0] or 0.0), (c.force[1] or 0.0)
+            force, follower = (0.0, -fn, ft), True
+            if c.moment is not None:
+                raise IllPosedProblemError("a follower moment in 2D: no planar route")
+        else:
+            follower = False
+            if any(f is not None for f in c.force):
+                force = (c.force[0] or 0.0, c.force[1] or 0.0, 0.0)
+            if c.moment is not None:
+                moment = (0.0, 0.0, float(c.moment))
+        lifted.append(Condition(s=c.s, name=c.name, position=position, force=force,
+                                moment=moment, follower=follower, tangent=tangent,
+                                normal=normal))
+    gravity = (*problem.gravity, 0.0)
+    space = Problem(problem.part, tuple(lifted), gravity, problem.name)
+    eq = rod3d.solve(space, solver=rod3d.RodSolver(elements=80))
+    L = problem.part.length
+    if np.abs(eq.position[:, 2]).max() > 1e-6 * L:
+        raise IllPosedProblemError("the 3D answer left the plane")
+    tangent = eq.tangent
+    angle = np.unwrap(np.arctan2(tangent[:, 1], tangent[:, 0]))
+    first = next((c for c in problem.conditions if c.angle is not None and c.s <= 1e-12),
+                 None)
+    if first is not None:
+        angle += 2.0 * math.pi * round((first.angle - angle[0]) / (2.0 * math.pi))
+    force = np.column_stack([np.interp(eq.s, eq.element_s, eq.internal_force[:, i])
+                             for i in range(2)])
+    loads = {name: SimpleNamespace(force=np.asarray(ld.force[:2]), moment=float(ld.moment[2]))
+             for name, ld in eq.loads.items()}
+    return SimpleNamespace(problem=problem, s=np.asarray(eq.s), position=eq.position[:, :2],
+                           angle=angle, internal_force=force,
+                           bending_moment=np.asarray(eq.internal_moment[:, 2]), loads=loads,
+                           notes=(), state=None)
 
 
 def trace(problems: Iterable[Problem], *, start: Any = None,

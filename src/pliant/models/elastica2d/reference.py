@@ -230,3 +230,60 @@ def solve_reference(problem: Problem, guess: object | None = None, *, tol: float
         s=np.concatenate(s_all) * low.length, position=np.vstack(pos) * low.length,
         angle=np.concatenate(ang), bending_moment=np.concatenate(mom) * low.moment_scale,
         nodes=int(sol.x.size), station_states=states, bvp=sol)
+
+
+def equilibrium_error(eq) -> float:
+    """The largest error of a 2D equilibrium, checked without the shooting solver (the
+    fuzz benchmark's and the tests' independent check), relative: lengths by L, forces
+    by EI / L^2, moments by EI / L.
+
+    The ODE x' = cos theta, y' = sin theta, theta' = kappa0 + M / EI, n' = -q,
+    M' = -(t x n) is integrated again by solve_ivp (DOP853, rtol 1e-11) from each
+    returned sample to the next (one long shot from s = 0 would lose its digits on a
+    floppy, heavy part), each condition's load (reactions included) is the jump
+    n(s+) = n(s-) - F, M(s+) = M(s-) - M_load at its station with nothing before s = 0
+    or beyond s = L, and every prescribed value must hold.
+    """
+    from scipy.integrate import solve_ivp  # noqa: PLC0415
+
+    problem = eq.problem
+    part = problem.part
+    L, EI = part.length, part.bending_stiffness
+    q = part.mass_per_length * np.array(problem.gravity, float)
+    scale = np.array([L, L, 1.0, EI / L**2, EI / L**2, EI / L])
+
+    def rhs(s, h):
+        t = (math.cos(h[2]), math.sin(h[2]))
+        return [t[0], t[1], part.rest_curvature_at(s) + h[5] / EI, -q[0], -q[1],
+                -(t[0] * h[4] - t[1] * h[3])]
+
+    s = eq.s
+    H = np.column_stack([eq.position, eq.angle, eq.internal_force, eq.bending_moment])
+    knots = sorted(k for k, _ in part.rest_knots if 0.0 < k < L)
+    errors = [0.0]
+    for i in range(len(s) - 1):
+        if s[i + 1] - s[i] <= 1e-14 * L:  # a station's two samples: its jump
+            continue
+        a, b = s[i], s[i + 1]
+        cuts = [a, *[k for k in knots if a < k < b], b]
+        state = H[i].copy()
+        for lo, hi in zip(cuts, cuts[1:]):
+            state = solve_ivp(rhs, (lo, hi), state, rtol=1e-11, atol=1e-13,
+                              method="DOP853").y[:, -1]
+        d = state - H[i + 1]
+        d[2] = (d[2] + math.pi) % (2 * math.pi) - math.pi
+        errors.append(float(np.max(np.abs(d) / scale)))
+    for ld in eq.loads.values():
+        k = np.flatnonzero(np.abs(s - ld.s) <= 1e-12 * L)
+        before = np.zeros(3) if ld.s <= 1e-12 * L else H[k[0], 3:]
+        after = np.zeros(3) if ld.s >= L * (1 - 1e-12) else H[k[-1], 3:]
+        jump = before - np.array([*ld.force, float(ld.moment)]) - after
+        errors.append(float(np.max(np.abs(jump) / scale[3:])))
+    for c in problem.conditions:
+        k = int(np.argmin(np.abs(s - c.s)))
+        for i in range(2):
+            if c.position[i] is not None:
+                errors.append(abs(eq.position[k, i] - c.position[i]) / L)
+        if c.angle is not None:
+            errors.append(abs((eq.angle[k] - c.angle + math.pi) % (2 * math.pi) - math.pi))
+    return float(max(errors))
