@@ -125,3 +125,17 @@ def test_trace_stops_at_a_snap_through_with_the_last_good_state():
     # Turned the other way, the strip follows smoothly.
     *_, last = pl.trace([problem(-a) for a in turns])
     assert last.residual < 1e-9
+
+
+def test_files_that_are_not_text_too_deep_or_far_out_get_one_line_errors(tmp_path):
+    from pliant.errors import FileFormatError, UnreachableTargetError
+    from pliant.io.problem_file import load_problem
+
+    (tmp_path / "binary.toml").write_bytes(b"x = \xff\xfe\n")
+    with pytest.raises(FileFormatError, match="not a text file in UTF-8"):
+        load_problem(tmp_path / "binary.toml")
+    (tmp_path / "deep.toml").write_text("a = " + "[" * 100000 + "]" * 100000 + "\n")
+    with pytest.raises(FileFormatError, match="nested too deeply"):
+        load_problem(tmp_path / "deep.toml")
+    with pytest.raises(UnreachableTargetError, match="reaches or exceeds"):
+        pl.Problem(pl.Part(1.0, 1.0), (pl.clamp(0.0), pl.pin(1.0, position=(1e160, 0.0))))

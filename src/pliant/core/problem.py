@@ -230,8 +230,8 @@ class Problem:
                 both = [k for k in self._located(a) if k in self._located(b)]
                 if not both:
                     continue
-                gap = math.sqrt(sum((self._coordinate(b, k) - self._coordinate(a, k)) ** 2
-                                    for k in both))
+                gap = math.hypot(*(self._coordinate(b, k) - self._coordinate(a, k)
+                                   for k in both))  # no overflow at 1e160 m
                 if gap >= arc * (1.0 - 1e-9):
                     what = ("distance" if len(both) == self.dimension
                             else "-".join("xyz"[k] for k in both) + "-distance")

@@ -643,6 +643,9 @@ def load_scene(path: str | Path) -> Scene:
         text = path.read_text(encoding="utf-8")
     except FileNotFoundError:
         raise FileFormatError(f"{path}: no such file; check the path") from None
+    except UnicodeDecodeError as err:
+        raise FileFormatError(f"{path}: not a text file in UTF-8 (byte {err.start}); save "
+                              "it as UTF-8 TOML") from None
     except OSError as err:
         raise FileFormatError(f"{path}: cannot be read: {err.strerror}") from None
     return parse_scene(text, str(path), path.parent)

@@ -16,6 +16,9 @@ def read_toml(text: str, source: str) -> dict[str, Any]:
         return tomllib.loads(text)
     except tomllib.TOMLDecodeError as err:
         raise FileFormatError(f"{source}: not valid TOML: {err}") from None
+    except RecursionError:
+        raise FileFormatError(f"{source}: not valid TOML for pliant: arrays or tables "
+                              "nested too deeply") from None
 
 
 def field_path(loc: tuple[Any, ...]) -> str:
