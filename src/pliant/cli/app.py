@@ -27,6 +27,14 @@ app = typer.Typer(
 EXAMPLES = Path(__file__).resolve().parents[3] / "examples"  # the repository (editable install)
 
 
+def _first_run_note() -> None:
+    """Say so (on stderr) when the numba kernels are not cached yet: a fresh install
+    compiles them once, for about a minute, and should not look hung."""
+    cache = Path(__file__).resolve().parents[1] / "models" / "rod3d" / "__pycache__"
+    if not any(cache.glob("kernels.*.nbi")):
+        typer.echo("compiling the solvers (first run only, about a minute)…", err=True)
+
+
 def _elements(value: int | None) -> int | None:
     """``--elements``, checked: None (the file's), or a count the 3D model takes."""
     if value is not None and not 4 <= value <= 100000:
@@ -59,6 +67,7 @@ def solve(
     elements = _elements(elements)
     scene = load_scene(file)
     problem = scene.problem
+    _first_run_note()
     eq, seconds = timed_solve(problem, elements or scene.solver.elements)
     report = None
     if problem.obstacles:
@@ -136,6 +145,7 @@ def _run_scene(file: Path, out: Path, elements: int | None) -> None:
                           "use `pliant solve` for a single pose")
     problem = scene.problem
     console = Console()
+    _first_run_note()
     result = _with_progress(console, scene, file, lambda step: follow_path(
         problem, scene.path, scene.grip, margin=scene.margin,
         elements=elements or scene.solver.elements, on_step=step))
@@ -218,6 +228,7 @@ def _evaluate_scene(file: Path, report: Path | None, json_out: Path | None,
     rules = load_rules(rules_file if rules_file is not None else scene.evaluation.rules)
     problem = scene.problem
     console = Console()
+    _first_run_note()
     ev = _with_progress(console, scene, file, lambda step: evaluate_scene(
         scene, rules=rules, elements=elements, on_step=step))
     from pliant.cli.report import print_path  # noqa: PLC0415
