@@ -173,6 +173,12 @@ def worst_zone(checks: list[Check]) -> Zone:
     return max((c.zone for c in checks), key=lambda z: z.rank, default=Zone.GREEN)
 
 
+def worst_first(checks: list[Check]) -> list[Check]:
+    """The checks ordered as a reader should meet them: highest zone, then deepest into
+    its limits."""
+    return sorted(checks, key=lambda c: (-c.zone.rank, -c.ratio))
+
+
 # -- grips --------------------------------------------------------------------------------
 @dataclass(frozen=True)
 class GripStep:
@@ -186,14 +192,24 @@ class GripStep:
     s: float
 
 
+def tangent_at(eq: Any, s: float) -> np.ndarray:
+    """The part's unit tangent (3,) at its node nearest arc length s [m]."""
+    return eq.tangent[int(np.argmin(np.abs(eq.s - s)))]
+
+
+def outward_sign(s: float, length: float) -> float:
+    """+1 where the tangent points out of the part (its last half, the end at s = L),
+    -1 where it points in: what makes a grip's axial force its pull."""
+    return 1.0 if s > 0.5 * length else -1.0
+
+
 def grip_step(eq: Any, name: str, extra_push: float = 0.0,
               push_axis: np.ndarray | None = None) -> GripStep:
     """The grip ``name`` at equilibrium ``eq``. ``extra_push`` [N] along ``push_axis`` is
     added to the force the grip applies (a connector's own mating force)."""
     load = eq.loads[name]
-    node = int(np.argmin(np.abs(eq.s - load.s)))
-    tangent = eq.tangent[node]
-    outward = 1.0 if load.s > 0.5 * eq.problem.part.length else -1.0
+    tangent = tangent_at(eq, load.s)
+    outward = outward_sign(load.s, eq.problem.part.length)
     force = np.array(load.force, float)
     if extra_push and push_axis is not None:
         force = force + extra_push * push_axis
@@ -330,8 +346,8 @@ class Evaluation:
         of the one chosen (or of one hand when none passes)."""
         chosen = self.chosen
         pool = self.checks + (chosen.checks if chosen else [])
-        shown = [c for c in pool if c.zone in (Zone.RED, Zone.YELLOW, Zone.UNCHECKED)]
-        return sorted(shown, key=lambda c: (-c.zone.rank, -c.ratio))
+        return worst_first([c for c in pool
+                            if c.zone in (Zone.RED, Zone.YELLOW, Zone.UNCHECKED)])
 
     @property
     def chosen(self) -> OperatorResult | None:
@@ -381,7 +397,7 @@ def evaluate(scene: Any, *, rules: Rules | None = None, run: PathRun | None = No
                           on_step=on_step)
     if not run.steps:
         raise InputError("scene", f"the start pose could not be solved: {run.stopped}")
-    return _judge(scene, run, rules, grips, port, elements if search else None, search)
+    return _judge(scene, run, rules, grips, port, elements, search)
 
 
 def evaluate_pose(scene: Any, pose: Any, clearances: dict[str, float], *,
@@ -436,14 +452,13 @@ def _judge(scene: Any, run: PathRun, rules: Rules, grips: tuple[str, ...], port:
     kind = rules.kind(part.kind)
     eqs = run.equilibria
     last = len(eqs) - 1
-    push_axis = None if port is None else -np.asarray(port.axis, float) / np.linalg.norm(
-        port.axis)
+    push_axis = None if port is None else _arrival(port)
     grip_steps = {g: [grip_step(eq, g, settings.connector_force if k == last and g == grips[0]
                                 else 0.0, push_axis) for k, eq in enumerate(eqs)]
                   for g in grips}
     checks = _part_checks(scene, run, rules, kind, settings, port, grips, grip_steps)
     operators = _operators(scene, run, rules, settings, grips, grip_steps, elements, search)
-    verdict = _verdict(run, checks, operators, settings)
+    verdict = _verdict(run, checks, operators)
     table = _table(run, grips, grip_steps, part, kind)
     return Evaluation(problem.name or "operation", part.name, grips, run, checks, operators,
                       verdict, table, rules.origin, settings)
@@ -506,8 +521,7 @@ def _part_checks(scene: Any, run: PathRun, rules: Rules, kind: PartKind | None,
     checks += _contact_checks(run, settings)
     if port is not None:
         g = grip_steps[grips[0]][-1]
-        axis = -np.asarray(port.axis, float) / np.linalg.norm(port.axis)
-        push = float(np.dot(g.force, axis))
+        push = float(np.dot(g.force, _arrival(port)))
         note = ("the hand pushes the part onto the port" if push > 0 else
                 "the part goes onto the port by itself; the hand holds it back")
         if settings.connector_force:
@@ -517,6 +531,17 @@ def _part_checks(scene: Any, run: PathRun, rules: Rules, kind: PartKind | None,
                             "the accurate model; judged by the grip rows", "computed",
                             step=len(eqs) - 1, grip=grips[0], s=g.s, note=note))
     return checks
+
+
+def _arrival(port: Any) -> np.ndarray:
+    """The unit direction a part arrives along at a port: against the axis it leaves
+    by."""
+    return -np.asarray(port.axis, float) / np.linalg.norm(port.axis)
+
+
+def _twist_rate(eq: Any, torsional_stiffness: float) -> float:
+    """The largest twist rate [deg/m] along a shape: torque / GJ."""
+    return math.degrees(float(np.abs(eq.torque).max()) / torsional_stiffness)
 
 
 def _bend_limit(part: Any, kind: PartKind | None) -> tuple[float | None, str, str, str]:
@@ -618,9 +643,6 @@ def _twist_checks(run: PathRun, part: Any, kind: PartKind | None, rules: Rules,
     held = sorted({c.s for c in scene.problem.conditions if not c.loads_only})
     if len(held) < 2:
         return []
-    angles = [math.degrees(twist_angle(eq.s, eq.torque, gj, held[0], held[-1]))
-              for eq in eqs]
-    rates = [math.degrees(float(np.abs(eq.torque).max()) / gj) for eq in eqs]
     out = []
     if kind is not None and kind.hose:
         last = len(eqs) - 1
@@ -634,12 +656,15 @@ def _twist_checks(run: PathRun, part: Any, kind: PartKind | None, rules: Rules,
                                     "damage", [abs(twist)], "deg", "above",
                                     rules.twist_yellow, rules.twist_red, rules.twist.source,
                                     rules.twist.provenance, steps=[last]))
+        angles = [abs(math.degrees(twist_angle(eq.s, eq.torque, gj, held[0], held[-1])))
+                  for eq in eqs]
         out.append(series_check("twist along the path", "twist between the held ends",
-                                "damage", [abs(a) for a in angles], "deg", "above", None, None,
+                                "damage", angles, "deg", "above", None, None,
                                 rules.twist.source, "computed",
                                 note="while handled; judged only installed"))
         return out
     limit = settings.max_twist_rate
+    rates = [_twist_rate(eq, gj) for eq in eqs]
     return [series_check("twist rate", "largest twist rate", "damage", rates, "deg/m",
                          "above", None if limit is None else 0.8 * limit, limit,
                          "the user's torsion rating" if limit else "no torsion rating given",
@@ -759,19 +784,15 @@ def _tool_needed(rules: Rules, settings: EvaluationSettings, grips: tuple[str, .
 
 
 # -- the verdict --------------------------------------------------------------------------
-def _verdict(run: PathRun, checks: list[Check], operators: list[OperatorResult],
-             settings: EvaluationSettings) -> Verdict:
+def _verdict(run: PathRun, checks: list[Check],
+             operators: list[OperatorResult]) -> Verdict:
     red = [c for c in checks if c.zone == Zone.RED]
     assemblable = not red and run.complete
     chosen = next((o for o in operators if o.passes), None)
-    reasons = [f"[{c.zone.value}] {c.sentence()}"
-               for c in sorted(checks, key=lambda c: (-c.zone.rank, -c.ratio))
-               if c.zone in (Zone.RED, Zone.YELLOW)]
     ops = chosen or (operators[0] if operators else None)
-    if ops is not None:
-        reasons += [f"[{c.zone.value}] {c.sentence()}"
-                    for c in sorted(ops.checks, key=lambda c: (-c.zone.rank, -c.ratio))
-                    if c.zone in (Zone.RED, Zone.YELLOW)]
+    reasons = [f"[{c.zone.value}] {c.sentence()}"
+               for group in (checks, ops.checks if ops is not None else [])
+               for c in worst_first(group) if c.zone in (Zone.RED, Zone.YELLOW)]
     if not assemblable:
         first = red[0] if red else None
         headline = ("DOES NOT FIT: " + first.sentence().split(". ")[0]) if first else (
@@ -796,6 +817,8 @@ def _table(run: PathRun, grips: tuple[str, ...], grip_steps: dict[str, list[Grip
     gj = part.stiffnesses[2]
     thin = (kind is not None and kind.thin_walled and part.outer_diameter is not None
             and part.inner_diameter > 0)
+    if thin:
+        a, t = tube_section(part.outer_diameter, part.inner_diameter)
     rows = []
     for k, (r, eq) in enumerate(zip(run.steps, run.equilibria)):
         row: dict[str, Any] = {"step": k, "progress": r.progress}
@@ -810,10 +833,9 @@ def _table(run: PathRun, grips: tuple[str, ...], grip_steps: dict[str, list[Grip
         row.update({"bend radius": r.bend_radius, "bend at": r.bend_at,
                     "clearance": r.clearance, "nearest": r.nearest,
                     "contact force": r.contact_force,
-                    "twist rate": math.degrees(float(np.abs(eq.torque).max()) / gj),
+                    "twist rate": _twist_rate(eq, gj),
                     "stable": r.stable, "snap": r.snap})
         if thin:
-            a, t = tube_section(part.outer_diameter, part.inner_diameter)
             row["flattening"] = float(brazier_flattening(1.0 / r.bend_radius, a, t,
                                                          part.poisson_ratio or 0.0))
         for name, c in r.clearances:

@@ -31,7 +31,9 @@ from pliant.assembly.evaluate import (
     grip_step,
     hand_checks,
     hand_rows,
+    outward_sign,
     series_check,
+    tangent_at,
 )
 from pliant.core.conditions import push
 from pliant.core.rules import Capacity, EvaluationSettings, Rules
@@ -96,12 +98,15 @@ class _Placement:
         self.warm = eq
         return eq
 
-    def objective(self, eq: Any, f: np.ndarray) -> float:
-        first = grip_step(eq, self.grip).wrench
-        node = int(np.argmin(np.abs(eq.s - self.s2)))
-        second = split_wrench(f, np.zeros(3), eq.tangent[node])
+    def worst(self, first: Any, f: np.ndarray, tangent: np.ndarray) -> float:
+        """The worst ratio over both hands: the first hand's wrench, and the push f
+        split at the part's tangent where the second hand holds it."""
+        second = split_wrench(f, np.zeros(3), tangent)
         return max(_ratio(first, self.rows, self.friction),
                    _ratio(second, self.rows, self.friction))
+
+    def objective(self, eq: Any, f: np.ndarray) -> float:
+        return self.worst(grip_step(eq, self.grip).wrench, f, tangent_at(eq, self.s2))
 
     def sensitivity(self, eq0: Any, f0: np.ndarray) -> np.ndarray | None:
         """(6, 3): the first hand's (force, moment) per newton pushed, by finite
@@ -130,17 +135,13 @@ class _Placement:
 
         g0 = grip_step(eq0, self.grip)
         w0 = np.concatenate([g0.force, g0.moment])
-        node = int(np.argmin(np.abs(eq0.s - self.s2)))
-        t2 = eq0.tangent[node]
+        t2 = tangent_at(eq0, self.s2)
         t1 = np.array(g0.tangent)
-        outward = 1.0 if g0.s > 0.5 * self.problem.part.length else -1.0
+        outward = outward_sign(g0.s, self.problem.part.length)
 
         def model(f: np.ndarray) -> float:
             w = w0 + A @ (f - f0)
-            first = split_wrench(w[:3], w[3:], t1, outward)
-            second = split_wrench(f, np.zeros(3), t2)
-            return max(_ratio(first, self.rows, self.friction),
-                       _ratio(second, self.rows, self.friction))
+            return self.worst(split_wrench(w[:3], w[3:], t1, outward), f, t2)
 
         # Also start from the push that cancels the first hand's force in least squares.
         cancel = f0 + np.linalg.lstsq(A[:3], -w0[:3], rcond=None)[0]
@@ -180,7 +181,7 @@ def place_second_hand(scene: Any, run: Any, rules: Rules, settings: EvaluationSe
     friction = rules.hand_friction
     rows = hand_rows(rules, settings, settings.hold)
     ratios = [_ratio(g.wrench, rows, friction) for g in steps]
-    red = [k for k, r in enumerate(ratios) if r > 1.0]
+    red = {k for k, r in enumerate(ratios) if r > 1.0}
     if not red:
         return None
     worst = max(red, key=lambda k: ratios[k])
@@ -236,9 +237,7 @@ def place_second_hand(scene: Any, run: Any, rules: Rules, settings: EvaluationSe
     second = []
     indices = sorted(equilibria)
     for k in indices:
-        eq = equilibria[k]
-        node = int(np.argmin(np.abs(eq.s - s2)))
-        tangent = eq.tangent[node]
+        tangent = tangent_at(equilibria[k], s2)
         second.append(GripStep(split_wrench(np.array(pushes[k]), np.zeros(3), tangent),
                                pushes[k], (0.0, 0.0, 0.0), tuple(float(x) for x in tangent),
                                s2))

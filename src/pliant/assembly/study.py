@@ -227,16 +227,13 @@ def study(scene_file: str | Path, variations: list[str], samples: int, *, out: s
           elements: int | None = None, restart: bool = False, search: bool = True,
           on_done: Callable[[int, int], None] | None = None) -> StudyResult:
     """Run (or resume) a variation study of a scene file; see the module."""
-    from pliant.io.problem_file import load_scene  # noqa: PLC0415
+    from pliant.io.problem_file import read_text, scene_from_data  # noqa: PLC0415
     from pliant.io.tomlfile import read_toml  # noqa: PLC0415
 
     scene_file = Path(scene_file)
-    try:
-        text = scene_file.read_text(encoding="utf-8")
-    except OSError as err:
-        raise InputError("scene", f"{scene_file}: cannot be read: {err}") from None
+    text = read_text(scene_file)  # read once: the document varied and the plan's key
     data = read_toml(text, str(scene_file))
-    nominal_scene = load_scene(scene_file)
+    nominal_scene = scene_from_data(data, str(scene_file), scene_file.parent)
     parsed = [parse_variation(s, data, i) for i, s in enumerate(variations)]
     names = [v.name for v in parsed]
     if len(set(names)) != len(names):

@@ -150,7 +150,7 @@ class Equilibrium:
     def curvature(self) -> np.ndarray:
         """dtheta/ds [1/m] = kappa0 + M / EI."""
         part = self.problem.part
-        kappa0 = np.array([part.rest_curvature_at(float(si)) for si in self.s])
+        kappa0 = part.rest_darboux_along(self.s)[:, 0]
         return kappa0 + self.bending_moment / part.bending_stiffness
 
     @property

@@ -636,11 +636,11 @@ def load_problem_file(path: str | Path) -> tuple[Problem, SolverModel]:
     return scene.problem, scene.solver
 
 
-def load_scene(path: str | Path) -> Scene:
-    """Read a problem or scene file (TOML, SI units): obstacles, ports, clips, path."""
+def read_text(path: str | Path) -> str:
+    """A file's text (UTF-8), or a one-line ``FileFormatError`` saying why not."""
     path = Path(path)
     try:
-        text = path.read_text(encoding="utf-8")
+        return path.read_text(encoding="utf-8")
     except FileNotFoundError:
         raise FileFormatError(f"{path}: no such file; check the path") from None
     except UnicodeDecodeError as err:
@@ -648,7 +648,12 @@ def load_scene(path: str | Path) -> Scene:
                               "it as UTF-8 TOML") from None
     except OSError as err:
         raise FileFormatError(f"{path}: cannot be read: {err.strerror}") from None
-    return parse_scene(text, str(path), path.parent)
+
+
+def load_scene(path: str | Path) -> Scene:
+    """Read a problem or scene file (TOML, SI units): obstacles, ports, clips, path."""
+    path = Path(path)
+    return parse_scene(read_text(path), str(path), path.parent)
 
 
 def dump_problem(problem: Problem, description: str = "") -> str:

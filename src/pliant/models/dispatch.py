@@ -10,10 +10,18 @@ answers with its own accuracy.
 from __future__ import annotations
 
 import itertools
+import math
 from collections.abc import Iterable, Iterator
+from dataclasses import replace
+from types import SimpleNamespace
 from typing import Any
 
+import numpy as np
+
+from pliant.core.conditions import Condition
+from pliant.core.equilibrium import WARM_START_LOST
 from pliant.core.problem import Problem
+from pliant.errors import ConvergenceError, IllPosedProblemError, PliantError
 
 
 def _model(problem: Problem):
@@ -41,10 +49,6 @@ def solve(problem: Problem, *, warm_start: Any = None, solver: Any = None):
     model = _model(problem)
     if problem.dimension == 3 or warm_start is not None:
         return model.solve(problem, warm_start=warm_start, solver=solver)
-    from dataclasses import replace  # noqa: PLC0415
-
-    from pliant.errors import ConvergenceError, PliantError  # noqa: PLC0415
-
     try:
         return model.solve(problem, solver=solver)
     except ConvergenceError as refused:
@@ -53,7 +57,7 @@ def solve(problem: Problem, *, warm_start: Any = None, solver: Any = None):
             eq = model.solve(problem, warm_start=start, solver=solver)
         except PliantError:
             raise refused from None
-        if any(n.startswith("the warm start could not be followed") for n in eq.notes):
+        if WARM_START_LOST in eq.notes:  # Newton did not take the 3D answer: solved cold
             raise refused from None
         return replace(eq, notes=(*eq.notes, PLANAR_NOTE))
 
@@ -61,14 +65,7 @@ def solve(problem: Problem, *, warm_start: Any = None, solver: Any = None):
 def _planar_start(problem: Problem) -> Any:
     """The 3D rod's equilibrium of a 2D problem lifted into z = 0, as the arrays a 2D
     warm start reads (s, position, angle, internal force, bending moment, loads)."""
-    import math  # noqa: PLC0415
-    from types import SimpleNamespace  # noqa: PLC0415
-
-    import numpy as np  # noqa: PLC0415
-
-    from pliant.core.conditions import Condition  # noqa: PLC0415
-    from pliant.errors import IllPosedProblemError  # noqa: PLC0415
-    from pliant.models import rod3d  # noqa: PLC0415
+    from pliant.models import rod3d  # noqa: PLC0415 (numba kernels: on demand)
 
     lifted = []
     for c in problem.conditions:
