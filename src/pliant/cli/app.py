@@ -117,6 +117,7 @@ def _with_progress(console, scene, file: Path, work):
     problem = scene.problem
     console.print(f"[bold]{problem.name or file.stem}[/bold]: {problem.part.name}, "
                   f"{len(problem.obstacles)} obstacles, {len(scene.path)} steps")
+    _first_run_note()
     with Progress(console=console, transient=True) as bar:
         task = bar.add_task("solving the path", total=len(scene.path) + 1)
         return work(lambda k, r: bar.advance(task))
@@ -145,7 +146,6 @@ def _run_scene(file: Path, out: Path, elements: int | None) -> None:
                           "use `pliant solve` for a single pose")
     problem = scene.problem
     console = Console()
-    _first_run_note()
     result = _with_progress(console, scene, file, lambda step: follow_path(
         problem, scene.path, scene.grip, margin=scene.margin,
         elements=elements or scene.solver.elements, on_step=step))
@@ -220,15 +220,11 @@ def _evaluate_scene(file: Path, report: Path | None, json_out: Path | None,
 
     elements = _elements(elements)
     scene = load_scene(file)
-    if operator is not None:
-        from pliant.core.rules import EvaluationSettings  # noqa: PLC0415
-
-        settings = EvaluationSettings(**{**scene.evaluation.__dict__, "operator": operator})
-        scene = replace(scene, evaluation=settings)
+    if operator is not None:  # checked as the file's would be (EvaluationSettings)
+        scene = replace(scene, evaluation=replace(scene.evaluation, operator=operator))
     rules = load_rules(rules_file if rules_file is not None else scene.evaluation.rules)
     problem = scene.problem
     console = Console()
-    _first_run_note()
     ev = _with_progress(console, scene, file, lambda step: evaluate_scene(
         scene, rules=rules, elements=elements, on_step=step))
     from pliant.cli.report import print_path  # noqa: PLC0415
@@ -280,10 +276,10 @@ def study(
     """How robust is the verdict to real parts? Sample the tolerances, evaluate every
     sample's operation (on Dask), and report the probability of each verdict, the
     outputs' percentiles, the sensitivities and the tolerance envelope."""
+    import json as _json  # noqa: PLC0415
+
     from rich.console import Console  # noqa: PLC0415
     from rich.progress import BarColumn, Progress, TextColumn, TimeRemainingColumn  # noqa: PLC0415
-
-    import json as _json  # noqa: PLC0415
 
     from pliant.assembly.study import Store, final_voxels, summarize  # noqa: PLC0415
     from pliant.assembly.study import study as run_study  # noqa: PLC0415

@@ -59,7 +59,8 @@ def _figure(plt, rows: int = 1, cols: int = 1, height: float = 3.0):
     return plt.subplots(rows, cols, figsize=(9.5, height), layout="constrained", squeeze=False)
 
 
-def _svg(fig, plt) -> str:
+def inline_svg(fig, plt) -> str:
+    """The figure as SVG markup to put in a page as it is (and the figure closed)."""
     buffer = io.StringIO()
     fig.savefig(buffer, format="svg")
     plt.close(fig)
@@ -67,7 +68,8 @@ def _svg(fig, plt) -> str:
     return text[text.index("<svg"):]
 
 
-def _png(fig, plt, dpi: int = 90) -> str:
+def png_data_url(fig, plt, dpi: int = 90) -> str:
+    """The figure as a PNG data URL for an <img> of a self-contained page (closed)."""
     buffer = io.BytesIO()
     fig.savefig(buffer, format="png", dpi=dpi)
     plt.close(fig)
@@ -117,7 +119,7 @@ def figures(ev: Any) -> list[tuple[str, str]]:
             ax.set_xlabel("step")
             ax.grid(alpha=0.3)
             ax.legend(fontsize=8)
-        out.append((f"Force and moment at {g}", _svg(fig, plt)))
+        out.append((f"Force and moment at {g}", inline_svg(fig, plt)))
     obstacles = [k.removeprefix("clearance ") for k in table[0] if k.startswith("clearance ")]
     if obstacles:
         fig, axes = _figure(plt)
@@ -133,7 +135,7 @@ def figures(ev: Any) -> list[tuple[str, str]]:
         ax.set_xlabel("step")
         ax.grid(alpha=0.3)
         ax.legend(fontsize=8, ncol=3)
-        out.append(("Clearance to each obstacle", _svg(fig, plt)))
+        out.append(("Clearance to each obstacle", inline_svg(fig, plt)))
     fig, axes = _figure(plt, 1, 2)
     bend, twist = axes[0]
     bend.plot(steps, [min(r["bend radius"], 10.0) * 1e3 for r in table], color="tab:brown",
@@ -154,7 +156,7 @@ def figures(ev: Any) -> list[tuple[str, str]]:
         ax.grid(alpha=0.3)
         ax.legend(fontsize=8)
     out.append(("Damage: bend radius and twist (red dotted: unstable or snapping)",
-                _svg(fig, plt)))
+                inline_svg(fig, plt)))
     return out
 
 
@@ -211,7 +213,7 @@ def pictures(ev: Any, steps: list[tuple[str, int]]) -> list[tuple[str, str]]:
         ax.set_zlabel("z [m]", fontsize=7)
         ax.tick_params(labelsize=6)
         ax.set_title(f"{caption}: step {k}", fontsize=9)
-        out.append((f"{caption} (step {k})", _png(fig, plt)))
+        out.append((f"{caption} (step {k})", png_data_url(fig, plt)))
     return out
 
 

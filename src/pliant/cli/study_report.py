@@ -14,7 +14,7 @@ from rich.console import Console
 from rich.markup import escape
 from rich.table import Table
 
-from pliant.cli.evaluation_report import STYLE, _png, _svg
+from pliant.cli.evaluation_report import STYLE, inline_svg, png_data_url
 from pliant.io.atomic import atomic_write
 
 SCALE = {"N": (1.0, "N"), "N m": (1.0, "N m"), "m": (1e3, "mm")}
@@ -62,12 +62,13 @@ def render_html(result: Any, summary: dict[str, Any], envelope: np.ndarray,
 
     e = html.escape
     ok = result.ok
-    parts = [f"<!doctype html><html lang=en><head><meta charset=utf-8><title>pliant study"
-             f"</title><style>{STYLE}</style></head><body><main>",
-             f"<h1>Variation study: {e(str(result.scene.problem.name or 'scene'))}</h1>",
-             f"<div class=meta>{summary['samples']} samples ({summary['evaluated']} evaluated, "
-             f"{summary['failed']} failed) · variations: "
-             f"{e(', '.join(v.name + ' ' + _tol(v) for v in result.variations))}</div>"]
+    head = (f"<!doctype html><html lang=en><head><meta charset=utf-8><title>pliant study"
+            f"</title><style>{STYLE}</style></head><body><main>")
+    title = f"<h1>Variation study: {e(str(result.scene.problem.name or 'scene'))}</h1>"
+    meta = (f"<div class=meta>{summary['samples']} samples ({summary['evaluated']} "
+            f"evaluated, {summary['failed']} failed) · variations: "
+            f"{e(', '.join(v.name + ' ' + _tol(v) for v in result.variations))}</div>")
+    parts = [head, title, meta]
     passing = sum(v["count"] for k, v in summary["verdicts"].items() if k.startswith("passes"))
     share = passing / max(summary["samples"], 1)
     parts.append(f'<div class="verdict {"pass" if share >= 0.99 else "fail"}" id=verdict>'
@@ -91,7 +92,7 @@ def render_html(result: Any, summary: dict[str, Any], envelope: np.ndarray,
                 ax.axvline(p[q] * scale, color="#c0262d", ls=style, lw=1)
         ax.set_title(f"{p['title']} [{unit}]", fontsize=9)
         ax.tick_params(labelsize=7)
-    parts.append(_svg(fig, plt))
+    parts.append(inline_svg(fig, plt))
     parts.append("</div><table><tr><th>output</th><th>p5</th><th>p50</th><th>p95</th>"
                  "<th>min</th><th>max</th></tr>")
     for p in summary["percentiles"].values():
@@ -129,7 +130,7 @@ def render_html(result: Any, summary: dict[str, Any], envelope: np.ndarray,
         ax.set_ylabel("y [m]", fontsize=7)
         ax.set_zlabel("z [m]", fontsize=7)
         ax.tick_params(labelsize=6)
-        parts.append(f"<img alt='envelope' src='{_png(fig, plt)}'>")
+        parts.append(f"<img alt='envelope' src='{png_data_url(fig, plt)}'>")
     if summary["errors"]:
         parts.append("<h2>Failed samples</h2><table><tr><th>sample</th><th>error</th></tr>")
         for err in summary["errors"]:

@@ -337,7 +337,7 @@ class ViewerState:
         None where it cannot be judged (2D, no grip)."""
         if self.dimension != 3:
             return None
-        from pliant.assembly.evaluate import evaluate_pose  # noqa: PLC0415
+        from pliant.assembly.evaluate import evaluate_pose, worst_zone  # noqa: PLC0415
 
         clearances = {c.obstacle: c.clearance for c in interference.clearances}
         held = tuple(name for name, mode in self.modes.items() if mode != "fixed")
@@ -346,8 +346,7 @@ class ViewerState:
         except PliantError:
             return None
         chosen = ev.chosen
-        zone = max([c.zone for c in ev.checks] + ([chosen.zone] if chosen else []),
-                   key=lambda z: z.rank)
+        zone = worst_zone(ev.checks + (chosen.checks if chosen else []))
         return P.Verdict(passes=ev.verdict.passes, headline=ev.verdict.headline,
                          operator=ev.verdict.operator, zone=zone.value,
                          items=[P.VerdictItem(zone=c.zone.value,
