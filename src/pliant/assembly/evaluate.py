@@ -390,7 +390,7 @@ def evaluate(scene: Any, *, rules: Rules | None = None, run: PathRun | None = No
     or the bundled table; ``run`` reuses a path already followed; ``search`` places a
     second hand with the accurate model where one hand is red (else two hands are only
     tried side by side)."""
-    rules, grips, port = _prepare(scene, rules)
+    rules, grips, port = prepare(scene, rules)
     if run is None:
         run = follow_path(scene.problem, scene.path, scene.grip or grips[0],
                           margin=scene.margin, elements=elements or scene.solver.elements,
@@ -413,7 +413,7 @@ def evaluate_pose(scene: Any, pose: Any, clearances: dict[str, float], *,
     scene = replace(scene, path=[], problem=pose.problem)
     if grips is not None and not scene.evaluation.grips:
         scene = replace(scene, evaluation=replace(scene.evaluation, grips=tuple(grips)))
-    rules, grips, port = _prepare(scene, rules)
+    rules, grips, port = prepare(scene, rules)
     radius, at = pose.min_bend_radius if isinstance(pose.min_bend_radius, tuple) else (
         pose.min_bend_radius())
     nearest = min(clearances.items(), key=lambda kv: kv[1], default=("", math.inf))
@@ -430,7 +430,7 @@ def evaluate_pose(scene: Any, pose: Any, clearances: dict[str, float], *,
     return _judge(scene, run, rules, grips, port, None, False)
 
 
-def _prepare(scene: Any, rules: Rules | None) -> tuple[Rules, tuple[str, ...], Any]:
+def prepare(scene: Any, rules: Rules | None) -> tuple[Rules, tuple[str, ...], Any]:
     """The rules, the grips and the goal port, each checked before anything is solved."""
     from pliant.io.rules_file import load_rules  # noqa: PLC0415 (pydantic: on demand)
 
@@ -544,7 +544,7 @@ def _twist_rate(eq: Any, torsional_stiffness: float) -> float:
     return math.degrees(float(np.abs(eq.torque).max()) / torsional_stiffness)
 
 
-def _bend_limit(part: Any, kind: PartKind | None) -> tuple[float | None, str, str, str]:
+def bend_limit(part: Any, kind: PartKind | None) -> tuple[float | None, str, str, str]:
     """(the centreline minimum [m] or None, how it was found, its source, provenance)."""
     od = part.outer_diameter
     if part.min_bend_radius is not None:
@@ -569,7 +569,7 @@ def _bend_limit(part: Any, kind: PartKind | None) -> tuple[float | None, str, st
 
 def _bend_checks(run: PathRun, part: Any, kind: PartKind | None, rules: Rules, scene: Any,
                  grips: tuple[str, ...], port: Any) -> list[Check]:
-    limit, how, source, provenance = _bend_limit(part, kind)
+    limit, how, source, provenance = bend_limit(part, kind)
     radii = [r.bend_radius for r in run.steps]
     where = [r.bend_at for r in run.steps]
     if limit is None:

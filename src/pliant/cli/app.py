@@ -315,6 +315,98 @@ def study(
 
 
 @app.command()
+def plan(
+    file: Annotated[Path, typer.Argument(help="a scene file (TOML, SI units): its grip's "
+                                              "start pose, its ports and obstacles")],
+    goal: Annotated[str | None, typer.Option(help="the [[port]] to seat the part's end in "
+                                                  "(default: the file's \\[plan] goal)")]
+    = None,
+    out: Annotated[Path, typer.Option(help="folder for the planned scene (TOML), its "
+                                           "evaluation (HTML, JSON) and the plan (JSON)")]
+    = Path("pliant-plan"),
+    budget: Annotated[float | None, typer.Option(help="seconds the search may take "
+                                                      "(default: \\[plan] budget, 30)")]
+    = None,
+    seed: Annotated[int | None, typer.Option(help="the search's seed: the same seed, the "
+                                                  "same path")] = None,
+    allow_contact: Annotated[bool | None, typer.Option(
+        "--allow-contact/--keep-margin", help="let the part touch obstacles (not enter "
+        "them), or keep the scene's margin (default: \\[plan] allow_contact)")] = None,
+    attempts: Annotated[int | None, typer.Option(help="trees grown at most; the path of "
+                                                      "least hand demand is kept")] = None,
+    elements: Annotated[int | None, typer.Option(help="about how many elements "
+                                                      "(default: the file's \\[solver])")]
+    = None,
+) -> None:
+    """Find the grip's path: from the scene's start pose to the port, through stable
+    equilibria of the accurate model only, clear of the obstacles, within the part's
+    bend limit, with the least hand demand found. Writes the scene with that [path]
+    (play it with `pliant view`) and its evaluation. Exit status 0 when the planned
+    operation passes the evaluation, 1 when it does not, 2 when no path is found."""
+    _plan_scene(file, goal, out, budget, seed, allow_contact, attempts, _elements(elements))
+
+
+def _plan_scene(file: Path, goal: str | None, out: Path, budget: float | None,
+                seed: int | None, allow_contact: bool | None, attempts: int | None,
+                elements: int | None) -> None:
+    import json as _json  # noqa: PLC0415
+    from dataclasses import replace  # noqa: PLC0415
+
+    from rich.console import Console  # noqa: PLC0415
+
+    from pliant.assembly.evaluate import evaluate as evaluate_scene  # noqa: PLC0415
+    from pliant.assembly.plan import Planner  # noqa: PLC0415
+    from pliant.cli.evaluation_report import print_evaluation, write_html  # noqa: PLC0415
+    from pliant.cli.report import print_path  # noqa: PLC0415
+    from pliant.io.atomic import atomic_write  # noqa: PLC0415
+    from pliant.io.evaluation_file import write_json  # noqa: PLC0415
+    from pliant.io.jsontext import finite  # noqa: PLC0415
+    from pliant.io.problem_file import load_scene, read_text, with_path_table  # noqa: PLC0415
+
+    scene = load_scene(file)
+    changes = {k: v for k, v in (("budget", budget), ("seed", seed), ("attempts", attempts),
+                                 ("allow_contact", allow_contact), ("elements", elements),
+                                 ("goal", goal)) if v is not None}
+    settings = replace(scene.plan, **changes)  # checked as the file's would be
+    if settings.goal is None:
+        raise PliantError(f"{file}: which port? give --goal PORT, or [plan] goal in the file "
+                          f"(ports: {', '.join(scene.ports) or 'none'})")
+    console = Console()
+    problem = scene.problem
+    console.print(f"[bold]{problem.name or file.stem}[/bold]: planning {problem.part.name} "
+                  f"into {settings.goal!r} ({len(problem.obstacles)} obstacles, budget "
+                  f"{settings.budget:g} s, seed {settings.seed}, "
+                  + ("contact allowed" if settings.allow_contact
+                     else f"margin {scene.margin * 1e3:g} mm") + ")")
+    _first_run_note()
+    planner = Planner(scene, settings)
+    with console.status("searching (OMPL's RRT over accurate equilibria)…"):
+        found = planner.plan(settings.goal, on_progress=console.print)
+    console.print(f"found a path in {found.seconds:.1f} s: {len(found.poses)} waypoints, "
+                  f"{found.solves} accurate solves, {found.motions} motions checked, "
+                  f"{found.attempts} tree(s); followed again in {found.steps} steps")
+    planned = replace(scene, path=found.path, grip=found.grip,
+                      evaluation=replace(scene.evaluation, port=settings.goal))
+    ev = evaluate_scene(planned, run=found.run, elements=elements)
+    print_path(found.run, problem.part, console)
+    print_evaluation(ev, console)
+    out.mkdir(parents=True, exist_ok=True)
+    stem = file.stem
+    text = with_path_table(read_text(file), found.path_table(), str(file), file.parent, out)
+    written = [atomic_write(out / f"{stem}-planned.toml", lambda h: h.write(text.encode()),
+                            "the planned scene")]
+    summary = _json.dumps(finite({"schema_version": 1, **found.summary(),
+                                  "run": found.run.to_dict()}), indent=1).encode()
+    written.append(atomic_write(out / f"{stem}-plan.json", lambda h: h.write(summary),
+                                "the plan"))
+    written.append(write_json(ev, out / f"{stem}-planned-evaluation.json"))
+    written.append(write_html(ev, out / f"{stem}-planned.html"))
+    console.print("written: " + ", ".join(str(w) for w in written))
+    console.print(f"play it: pliant view {written[0]}")
+    raise typer.Exit(0 if ev.verdict.passes else 1)
+
+
+@app.command()
 def demo(
     out: Annotated[Path, typer.Option(help="folder for the report, plot and scene")] = Path(
         "pliant-demo"),

@@ -16,6 +16,7 @@ one-word change: ``y = 0.3`` becomes ``Fy = 2.0``. See the README for the whole 
 from __future__ import annotations
 
 import math
+import re
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any, Literal
@@ -33,6 +34,7 @@ from pydantic import (
 
 from pliant.core.conditions import Condition
 from pliant.core.part import Material, Part
+from pliant.core.planning import PlanSettings
 from pliant.core.problem import Problem
 from pliant.core.rules import EvaluationSettings
 from pliant.errors import FileFormatError, InputError, PliantError
@@ -430,6 +432,25 @@ class EvaluationModel(_Strict):
             max_contact_force=self.max_contact_force, rules=rules)
 
 
+class PlanModel(_Strict):
+    """[plan]: how ``pliant plan`` searches for the grip's path (see ``PlanSettings``)."""
+
+    goal: str | None = Field(None, description="the [[port]] the part's end is seated in")
+    budget: float = Field(30.0, gt=0, le=3600, description="[s]")
+    seed: int = Field(1, ge=1, lt=2**31)
+    allow_contact: bool = False
+    approach: float = Field(0.05, ge=0, description="[m]")
+    attempts: int = Field(3, ge=1, le=100)
+    step: float = Field(0.03, gt=0, description="[m]")
+    turn: float = Field(15.0, gt=0, le=90, description="[deg]")
+
+    def build(self) -> PlanSettings:
+        return PlanSettings(budget=self.budget, seed=self.seed, step=self.step,
+                            turn=self.turn, approach=self.approach,
+                            allow_contact=self.allow_contact, attempts=self.attempts,
+                            goal=self.goal)
+
+
 class SolverModel(_Strict):
     """[solver]: settings of the model (3D: how many elements)."""
 
@@ -453,6 +474,7 @@ class ProblemFile(_Strict):
     path: PathModel | None = None
     margin: float = Field(0.0, ge=0, description="clearance wanted round obstacles [m]")
     evaluation: EvaluationModel = Field(default_factory=EvaluationModel)
+    plan: PlanModel = Field(default_factory=PlanModel)
 
     @property
     def dimension(self) -> int:
@@ -565,8 +587,9 @@ def _slerp(a: np.ndarray, b: np.ndarray, t: float) -> np.ndarray:
 class Scene:
     """A whole file as built: the problem (with its obstacles), the solver settings,
     the manipulation along its [path] (empty without one) and the condition it carries
-    (``grip``, None without a path), the clearance margin, and ``fixed``: the conditions
-    a user does not move (at ports, and clips)."""
+    (``grip``, None without a path), the clearance margin, ``fixed``: the conditions
+    a user does not move (at ports, and clips), how it is judged (``evaluation``) and
+    how a path for it is planned (``plan``)."""
 
     problem: Problem
     solver: SolverModel
@@ -576,6 +599,7 @@ class Scene:
     grip: str | None = None
     fixed: tuple[str, ...] = ()
     evaluation: EvaluationSettings = field(default_factory=EvaluationSettings)
+    plan: PlanSettings = field(default_factory=PlanSettings)
 
 
 def parse_problem(text: str, source: str = "<string>") -> Problem:
@@ -620,7 +644,7 @@ def scene_from_data(data: dict[str, Any], source: str = "<data>", base: Path | N
                      model.path.grip if model.path is not None else None,
                      tuple(c.name or f"condition{i + 1}" for i, c in enumerate(model.condition)
                            if c.port is not None) + tuple(c.name for c in model.clip),
-                     model.evaluation.build(base))
+                     model.evaluation.build(base), model.plan.build())
     except PliantError as err:
         raise FileFormatError(f"{source}: {err}") from None
 
@@ -721,3 +745,57 @@ def _num(value: float) -> str:
 def _toml(text: str) -> str:
     escaped = text.replace("\\", "\\\\").replace('"', '\\"').replace("\n", "\\n")
     return f'"{escaped}"'
+
+
+_HEADER = re.compile(r'^\s*\[\[?\s*[A-Za-z_"]')
+_PATH_HEADER = re.compile(r"^\s*\[\s*path\s*\]")
+_FILE_KEY = re.compile(r'^(\s*(?:file|rules)\s*=\s*)"([^"\\]*)"(.*)$')
+
+
+def with_path_table(text: str, table: str, source: str = "<string>",
+                    moved_from: Path | None = None, moved_to: Path | None = None) -> str:
+    """A scene's TOML text with its [path] table replaced by ``table`` (or added): what
+    ``pliant plan`` writes, comments and all. When the copy goes to another folder
+    (``moved_from`` -> ``moved_to``), its relative ``file`` and ``rules`` references are
+    made absolute so that they still point at the same files. The result is read back
+    and must hold the same document but for the path: otherwise a ``FileFormatError``."""
+    lines = text.splitlines()
+    start = next((k for k, line in enumerate(lines) if _PATH_HEADER.match(line)), None)
+    if start is not None:
+        end = next((k for k in range(start + 1, len(lines)) if _HEADER.match(lines[k])),
+                   len(lines))
+        # A comment right above the next table belongs to it.
+        while end - 1 > start and lines[end - 1].lstrip().startswith("#"):
+            end -= 1
+        lines = lines[:start] + table.rstrip("\n").splitlines() + [""] + lines[end:]
+    else:
+        first = next((k for k, line in enumerate(lines) if _HEADER.match(line)), len(lines))
+        lines = lines[:first] + table.rstrip("\n").splitlines() + [""] + lines[first:]
+    if moved_from is not None and moved_to is not None and (
+            moved_from.resolve() != moved_to.resolve()):
+        for k, line in enumerate(lines):
+            m = _FILE_KEY.match(line)
+            if m and not Path(m.group(2)).is_absolute():
+                target = (moved_from / m.group(2)).resolve()
+                lines[k] = f"{m.group(1)}{_toml(str(target))}{m.group(3)}"
+    out = "\n".join(lines) + "\n"
+    before = read_toml(text, source)
+    try:
+        after = read_toml(out, source)
+    except FileFormatError:
+        after = None
+    for doc in (before, after or {}):
+        doc.pop("path", None)
+    if after is None or _without_files(before) != _without_files(after):
+        raise FileFormatError(f"{source}: the planned path could not be written into a "
+                              "copy of this file (its [path] table is not where a table "
+                              "header can find it); add the planned [path] by hand")
+    return out
+
+
+def _without_files(doc: Any) -> Any:
+    if isinstance(doc, dict):
+        return {k: _without_files(v) for k, v in doc.items() if k not in ("file", "rules")}
+    if isinstance(doc, list):
+        return [_without_files(v) for v in doc]
+    return doc

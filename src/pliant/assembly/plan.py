@@ -1,0 +1,759 @@
+"""Find a path for the grip: from the scene's start pose to the pose that seats the
+part's end in a port, through stable equilibria of the accurate 3D model only.
+
+The planner is OMPL's RRT over the hand's position (R^3), with the hand's axis set by the
+part, and a motion validator that knows the part is flexible:
+
+- **The wrist is relaxed while the part is carried.** A fitter carrying a hose end lets
+  it turn in the hand and aligns it only at the port: the hand applies a force and no
+  moment. The planner does the same: at the start pose the hand's moment is released
+  in steps (the part turns the end to its natural axis), the part is carried with its
+  end held in position only, and the axis at every pose is the part's own. Planning
+  the axis as well (R^3 x S^2) was tried first: uniform samples of the axis are mostly
+  poses a hand would not take, and on the bundled engine bay 950 solves in 20 s did not
+  reach the port. Releasing the wrist also minimises the wrist's demands (twist and
+  bending at the hand), which are part of the cost.
+- **A pose's shape is the one reached along the tree.** A flexible part held at a pose
+  can sit in several equilibria; which one it is in depends on how the hand got there.
+  Every node of the tree stores the equilibrium reached by continuation along the edges
+  from the start (``_Tree``), and an edge is checked by following the part from its
+  first node's equilibrium to its last pose in steps (warm solves that may not jump to
+  another branch). A single tree grown from the start is the faithful model of this
+  hysteresis: a second tree grown from the goal (RRT-Connect) would need the seated
+  shape before the route to it is known, and that shape depends on the route (the
+  bundled engine bay, solved cold at the port, reaches a shape pressed on the manifold
+  after a snap, in 6 s).
+- **A step is valid** when it converges without a fold (the part keeps its shape), its
+  tube keeps the scene's margin from every obstacle (or only stays out of them, with
+  ``allow_contact``), no obstacle presses harder than ``max_contact_force``, and the
+  part bends no tighter than the evaluation's limit; the edge's last pose must be
+  stable. What blocked each rejected edge is counted: the error of a failed plan says
+  what stood in the way.
+- **The cost is the evaluation's ergonomic demand**: at each step, the largest ratio of
+  a hand demand (push or pull, grip force, wrist twist, bending at the hand) to its red
+  onset in the rules table. A node keeps the worst ratio on its way from the start; the
+  shortcuts that simplify the found path keep every step valid and never raise it, and
+  with time left further trees (``attempts``) are grown and the path of least peak
+  demand is kept.
+- **The last leg enters the port along its axis**: the tree's goal is the point
+  ``approach`` metres out along the port's axis; there the hand takes hold of the end's
+  axis and turns it onto the port's while pushing it straight in (that leg may touch the
+  port's own parts: it is only kept out of obstacles).
+
+The found path is written as the scene's [path] (a waypoint every ``step``, with the
+axis the part had there), and that path is followed again at its own step count, as
+``pliant run`` would, and evaluated (``pliant.assembly.evaluate``): a plan whose path
+does not hold when followed so is discarded and the search goes on.
+
+A ``Planner`` keeps its tree of equilibria: a second query in the same scene (another
+port) starts from it, and its cached motions cost no solve. A seed makes a plan
+reproducible: OMPL's samplers are seeded before the planner is built, and the search
+stops when the goal is reached, not when a clock runs out (it fails only on the clock).
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from collections import Counter
+from collections.abc import Callable
+from dataclasses import dataclass, field, replace
+from typing import Any
+
+import numpy as np
+
+from pliant.core.planning import PlanSettings
+from pliant.core.problem import Problem
+from pliant.errors import ConvergenceError, InputError, PliantError
+
+PENETRATION = 1e-6  # m: a clearance below minus this is inside the obstacle
+
+
+class NoPathError(PliantError):
+    """No path was found within the budget.
+
+    closest : the pose of the tree nearest the goal (a ``Pose``), distance : how far it
+    is from the goal in the planner's metric [m], blocked : what rejected the motions
+    tried ({reason: count}), seconds : the time spent, solves : accurate solves made.
+    """
+
+    def __init__(self, message: str, *, closest: Pose | None, distance: float,
+                 blocked: dict[str, int], seconds: float, solves: int) -> None:
+        self.closest = closest
+        self.distance = distance
+        self.blocked = blocked
+        self.seconds = seconds
+        self.solves = solves
+        super().__init__(message)
+
+
+@dataclass(frozen=True)
+class Pose:
+    """Where the hand holds the part: position [m] and the unit axis it holds the
+    part's end along (the part's tangent there, pointing from s = 0 to s = L)."""
+
+    position: tuple[float, float, float]
+    tangent: tuple[float, float, float]
+
+    def __str__(self) -> str:
+        p = ", ".join(f"{x:.3f}" for x in self.position)
+        t = ", ".join(f"{x:.2f}" for x in self.tangent)
+        return f"({p}) m holding the axis ({t})"
+
+
+@dataclass
+class Plan:
+    """A found path: the hand's poses from the start (excluded) to the seated pose
+    (``poses``; the last is at the port), the problems along it at the scene's step
+    count (``path``) and their run (``run``: every step solved again, in order), the
+    peak ergonomic demand (the largest ratio of a hand demand to its red onset; per step
+    in ``demands``), and what the search cost: seconds, accurate solves, motions
+    checked, trees grown, nodes in the tree, and the path's step count."""
+
+    grip: str
+    port: str
+    poses: list[Pose]
+    path: list[Problem]
+    run: Any
+    peak_demand: float
+    demands: list[float]
+    seconds: float
+    solves: int
+    motions: int
+    attempts: int
+    nodes: int
+    steps: int
+
+    def path_table(self) -> str:
+        """The path as a scene's [path] table (TOML): a waypoint and the hand's axis at
+        every step of the planned legs."""
+        def vec(v) -> str:
+            return "[" + ", ".join(f"{float(x):.6g}" for x in v) + "]"
+
+        name = self.grip.replace("\\", "\\\\").replace('"', '\\"')
+        return "\n".join([
+            (f"[path]                         # planned by `pliant plan` into {self.port!r}: "
+             f"peak hand demand {self.peak_demand:.2f} of the red onset"),
+            f'grip = "{name}"',
+            "waypoints = [", *[f"    {vec(p.position)}," for p in self.poses], "]",
+            "tangents = [", *[f"    {vec(p.tangent)}," for p in self.poses], "]",
+            f"steps = {self.steps}", ""])
+
+    @property
+    def cost(self) -> tuple[float, float]:
+        """What the planner minimises: the peak hand demand once the part is moving
+        (the start is given), then the mean over the steps."""
+        values = self.demands[1:] or self.demands
+        return (round(max(values), 3), float(np.mean(values)))
+
+    def summary(self) -> dict[str, Any]:
+        return {"grip": self.grip, "port": self.port, "peak_demand": self.peak_demand,
+                "seconds": self.seconds, "solves": self.solves, "motions": self.motions,
+                "attempts": self.attempts, "nodes": self.nodes, "steps": self.steps,
+                "waypoints": [list(p.position) for p in self.poses],
+                "tangents": [list(p.tangent) for p in self.poses]}
+
+
+# -- geometry -----------------------------------------------------------------------------
+def _unit(v) -> np.ndarray:
+    v = np.asarray(v, dtype=float)
+    return v / np.linalg.norm(v)
+
+
+def _slerp(a: np.ndarray, b: np.ndarray, t: float) -> np.ndarray:
+    angle = math.acos(max(-1.0, min(1.0, float(a @ b))))
+    if angle < 1e-9:
+        return a
+    return (math.sin((1 - t) * angle) * a + math.sin(t * angle) * b) / math.sin(angle)
+
+
+def _quat_with_z(t: np.ndarray) -> tuple[float, float, float, float]:
+    """A unit quaternion (x, y, z, w) turning +z onto the unit vector t."""
+    z = np.array([0.0, 0.0, 1.0])
+    c = float(z @ t)
+    if c < -1.0 + 1e-12:
+        return (1.0, 0.0, 0.0, 0.0)  # half a turn about x
+    axis = np.cross(z, t)
+    w = math.sqrt(0.5 * (1.0 + c))
+    xyz = axis / (2.0 * w)
+    return (float(xyz[0]), float(xyz[1]), float(xyz[2]), w)
+
+
+def _z_of(q: tuple[float, float, float, float]) -> np.ndarray:
+    x, y, z, w = q
+    return np.array([2 * (x * z + w * y), 2 * (y * z - w * x), 1 - 2 * (x * x + y * y)])
+
+
+# -- the hand's axis ----------------------------------------------------------------------
+@dataclass(frozen=True)
+class _Turning:
+    """The axes the hand may hold, as coordinates (u, v) in metres of the planner's
+    metric: u turns the axis along the great circle from its start direction to the one
+    it must hold at the port (0 at the start, ``length`` at the port, and a little past
+    either), v tilts it off that circle toward its pole (up to 60 degrees either way)."""
+
+    start: np.ndarray
+    normal: np.ndarray
+    angle: float
+    metre: float  # [m per rad]
+
+    OVER = math.radians(30.0)
+    TILT = math.radians(60.0)
+
+    @classmethod
+    def between(cls, t0, t1, toward, rotation_length: float) -> _Turning:
+        """From axis t0 to t1; when they are opposite, turning toward ``toward``."""
+        t0, t1 = _unit(t0), _unit(t1)
+        angle = math.acos(max(-1.0, min(1.0, float(t0 @ t1))))
+        normal = np.cross(t0, t1)
+        if np.linalg.norm(normal) < 1e-6:
+            normal = np.cross(t0, np.asarray(toward, dtype=float))
+            if np.linalg.norm(normal) < 1e-6 * max(1.0, float(np.linalg.norm(toward))):
+                normal = np.cross(t0, [1.0, 0.0, 0.0] if abs(t0[0]) < 0.9 else [0.0, 1.0, 0.0])
+        return cls(t0, _unit(normal), angle, rotation_length)
+
+    @property
+    def length(self) -> float:
+        """u at the port's axis."""
+        return self.angle * self.metre
+
+    def bounds(self) -> tuple[tuple[float, float], tuple[float, float]]:
+        return ((-self.OVER * self.metre, (self.angle + self.OVER) * self.metre),
+                (-self.TILT * self.metre, self.TILT * self.metre))
+
+    def axis(self, u: float, v: float) -> tuple[float, float, float]:
+        lon, lat = u / self.metre, v / self.metre
+        t, n = self.start, self.normal
+        along = t * math.cos(lon) + np.cross(n, t) * math.sin(lon)
+        return tuple(float(x) for x in _unit(math.cos(lat) * along + math.sin(lat) * n))
+
+
+# -- the search tree ----------------------------------------------------------------------
+@dataclass
+class _Node:
+    """A pose reached: the hand's pose, the equilibrium there, the largest demand ratio
+    on the way from the start, the waypoints of the edge that led here (for the written
+    path), and its axis's coordinates (u, v) in the planner's metric."""
+
+    pose: Pose
+    eq: Any
+    peak: float
+    via: tuple[Pose, ...] = ()
+    uv: tuple[float, float] = (0.0, 0.0)
+
+
+class _Blocked(Exception):
+    def __init__(self, reason: str) -> None:
+        self.reason = reason
+        super().__init__(reason)
+
+
+@dataclass
+class _Tree:
+    """The equilibria reached, by position, and the rules a step is checked against."""
+
+    scene: Any
+    grip: str
+    settings: PlanSettings
+    rules: Any
+    solver: Any
+    bend_limit: float | None
+    turning: _Turning
+    root: Any = None
+    nodes: dict[tuple, _Node] = field(default_factory=dict)
+    edges: dict[tuple, bool] = field(default_factory=dict)
+    blocked: Counter = field(default_factory=Counter)
+    solves: int = 0
+    motions: int = 0
+    deadline: float = math.inf
+
+    def problem_at(self, position, tangent) -> Problem:
+        """The scene's problem with the grip at ``position`` holding the axis ``tangent``
+        (its roll follows the turn, as along a scene's [path])."""
+        problem = self.scene.problem
+
+        def moved(c):
+            if c.name != self.grip:
+                return c
+            return replace(c, position=tuple(map(float, position)), normal=None,
+                           tangent=tuple(map(float, tangent)))
+        return replace(problem, conditions=tuple(moved(c) for c in problem.conditions))
+
+    def axis(self, eq: Any) -> tuple[float, float, float]:
+        """The part's unit tangent at the grip."""
+        from pliant.assembly.evaluate import tangent_at
+
+        s = self.scene.problem.condition(self.grip).s
+        return tuple(float(x) for x in _unit(tangent_at(eq, s)))
+
+    def demand(self, eq: Any) -> float:
+        """The largest ratio of a hand demand at the grip to its red onset."""
+        from pliant.assembly.evaluate import grip_step, hand_rows
+
+        settings = self.scene.evaluation
+        wrench = grip_step(eq, self.grip).wrench
+        rows = hand_rows(self.rules, settings, settings.hold)
+        return max(wrench.demand(r.demand, self.rules.hand_friction) / r.yellow
+                   for r in rows)
+
+    def check_step(self, eq: Any, near_port: bool = False) -> None:
+        """Raise ``_Blocked`` naming why the step ``eq`` is not acceptable."""
+        from pliant.scene.interference import of_equilibrium
+
+        if self.bend_limit is not None:
+            radius, _ = eq.min_bend_radius()
+            if radius < self.bend_limit:
+                raise _Blocked(f"bend radius below {self.bend_limit * 1e3:.3g} mm")
+        margin = self.scene.margin
+        floor = -PENETRATION if (self.settings.allow_contact or near_port) else margin
+        report = of_equilibrium(eq, margin=margin, subdivide=2)
+        for c in report.clearances:
+            if c.clearance < floor:
+                raise _Blocked(f"clearance to {c.obstacle}")
+        limit = self.scene.evaluation.max_contact_force
+        if limit is not None and eq.contacts is not None:
+            for name, f in eq.contacts.by_obstacle().items():
+                if float(np.linalg.norm(f)) > limit:
+                    raise _Blocked(f"contact force from {name}")
+
+    def _solve(self, problem: Problem, eq: Any) -> Any:
+        """One step, followed from ``eq`` only: where its branch ends, the part would
+        snap, and the step is refused rather than solved afresh."""
+        from pliant.models import rod3d
+
+        if time.perf_counter() > self.deadline:
+            raise _Blocked("out of time")
+        self.solves += 1
+        try:
+            return next(rod3d.trace([problem], start=eq, solver=self.solver))
+        except ConvergenceError:
+            raise _Blocked("a fold (the part would snap to another shape)") from None
+        except PliantError:
+            raise _Blocked("out of reach") from None
+
+    def carry(self, start: _Node, point) -> _Node:
+        """The node reached by carrying the hand from ``start`` straight to ``point``
+        (x, y, z, u, v: its axis's coordinates in ``turning``) in steps; ``_Blocked``
+        when a step is not acceptable."""
+        a, b = np.array([*start.pose.position, *start.uv]), np.asarray(point, dtype=float)
+        turn = math.degrees(math.acos(max(-1.0, min(1.0, float(
+            np.dot(start.pose.tangent, self.turning.axis(b[3], b[4])))))))
+        n = max(1, math.ceil(float(np.linalg.norm(b[:3] - a[:3])) / self.settings.step),
+                math.ceil(turn / self.settings.turn))
+        eq, peak, via = start.eq, start.peak, []
+        for k in range(1, n + 1):
+            x = a + (k / n) * (b - a)
+            pose = Pose(tuple(float(v) for v in x[:3]), self.turning.axis(x[3], x[4]))
+            eq = self._solve(self.problem_at(pose.position, pose.tangent), eq)
+            self.check_step(eq)
+            peak = max(peak, self.demand(eq))
+            via.append(pose)
+        if eq.stable is False:
+            raise _Blocked("instability (the part would not stay in that shape)")
+        return _Node(via[-1], eq, peak, tuple(via), (float(b[3]), float(b[4])))
+
+    def turn_in(self, start: _Node, end: Pose, near_port: bool) -> _Node:
+        """The node reached by taking hold of the end's axis at ``start`` and carrying
+        the hand straight to ``end``, its axis turned onto ``end.tangent``."""
+        a, b = np.asarray(start.pose.position), np.asarray(end.position)
+        ta, tb = _unit(start.pose.tangent), _unit(end.tangent)
+        angle = math.degrees(math.acos(max(-1.0, min(1.0, float(ta @ tb)))))
+        if angle > 170.0:
+            raise _Blocked("a half turn of the hand's axis in the last leg")
+        n = max(1, math.ceil(float(np.linalg.norm(b - a)) / self.settings.step),
+                math.ceil(angle / self.settings.turn))
+        eq, peak, via = start.eq, start.peak, []
+        for k in range(1, n + 1):
+            t = k / n
+            pose = Pose(tuple(float(x) for x in a + t * (b - a)),
+                        tuple(float(x) for x in _unit(_slerp(ta, tb, t))))
+            eq = self._solve(self.problem_at(pose.position, pose.tangent), eq)
+            self.check_step(eq, near_port)
+            peak = max(peak, self.demand(eq))
+            via.append(pose)
+        if eq.stable is False:
+            raise _Blocked("instability (the part would not stay in that shape)")
+        return _Node(end, eq, peak, tuple(via))
+
+    def same_shape(self, a: Any, b: Any) -> bool:
+        """Whether two equilibria at one pose are the same shape (not two branches)."""
+        gap = float(np.abs(a.position - b.position).max())
+        return gap < 1e-3 * self.scene.problem.part.length
+
+
+def _key(position) -> tuple:
+    return tuple(round(float(v), 9) for v in position)
+
+
+# -- OMPL ---------------------------------------------------------------------------------
+def _ompl():
+    try:
+        from ompl import base as ob
+        from ompl import geometric as og
+        from ompl import util as ou
+    except ImportError as err:  # pragma: no cover (a dependency of the package)
+        raise PliantError(f"planning needs OMPL (pip install ompl): {err}") from None
+    return ob, og, ou
+
+
+class Planner:
+    """Plans in one scene; its trees of equilibria (one per port) are kept between
+    queries."""
+
+    def __init__(self, scene: Any, settings: PlanSettings | None = None, *,
+                 rules: Any = None, grip: str | None = None) -> None:
+        from pliant.assembly.evaluate import bend_limit, prepare
+        from pliant.models import rod3d
+
+        self.scene = scene
+        self.settings = settings or PlanSettings()
+        rules, grips, _ = prepare(scene, rules)
+        self.rules = rules
+        self.grip = grip or grips[0]
+        names = [c.name for c in scene.problem.conditions]
+        if self.grip not in names:
+            raise InputError("plan.grip", f"no condition named {self.grip!r}; known: "
+                             f"{', '.join(names)}")
+        condition = scene.problem.condition(self.grip)
+        if condition.tangent is None or any(v is None for v in condition.position):
+            raise InputError("plan.grip", f"{self.grip!r} must hold x, y, z and a tangent "
+                             "(the hand's pose) to be planned for")
+        if not any(c.name != self.grip and all(v is not None for v in c.position)
+                   for c in scene.problem.conditions):
+            raise InputError("plan", "nothing else holds the part in place: a plan carries "
+                             "one end while the other is fitted (give it a port or x, y, z)")
+        self.bend_limit = bend_limit(scene.problem.part, rules.kind(scene.problem.part.kind))[0]
+        self.solver = rod3d.RodSolver(elements=self.settings.elements or scene.solver.elements)
+        self.rotation_length = (self.settings.rotation_length
+                                or 0.1 * scene.problem.part.length)
+        self.trees: dict[str, _Tree] = {}
+        self._start_eq: Any = None
+        self._field: Any = None
+
+    # -- the start and the goal -----------------------------------------------------------
+    def start_pose(self) -> Pose:
+        c = self.scene.problem.condition(self.grip)
+        return Pose(tuple(map(float, c.position)), tuple(map(float, _unit(c.tangent))))
+
+    def goal_pose(self, port_name: str) -> tuple[Pose, np.ndarray]:
+        """(the seated pose, the point ``approach`` out along the port's axis)."""
+        ports = self.scene.ports
+        if port_name not in ports:
+            raise InputError("plan.goal", f"no [[port]] named {port_name!r}; known: "
+                             f"{', '.join(ports) or 'none'}")
+        port = ports[port_name]
+        axis = _unit(port.axis)
+        c = self.scene.problem.condition(self.grip)
+        arriving = c.s > 0.5 * self.scene.problem.part.length
+        tangent = tuple(float(x) for x in (-axis if arriving else axis))
+        seated = Pose(tuple(map(float, port.position)), tangent)
+        return seated, np.asarray(port.position) + self.settings.approach * axis
+
+    def _tree(self, goal: str) -> _Tree:
+        """The tree toward port ``goal``, its root the start pose (solved once)."""
+        if goal in self.trees:
+            return self.trees[goal]
+        start = self.start_pose()
+        seated, before = self.goal_pose(goal)
+        turning = _Turning.between(start.tangent, seated.tangent,
+                                   before - np.asarray(start.position), self.rotation_length)
+        tree = _Tree(self.scene, self.grip, self.settings, self.rules, self.solver,
+                     self.bend_limit, turning)
+        if self._start_eq is None:
+            from pliant.models import rod3d
+
+            tree.solves += 1
+            eq = rod3d.solve(tree.problem_at(start.position, start.tangent), solver=self.solver)
+            try:
+                tree.check_step(eq)
+                if eq.stable is False:
+                    raise _Blocked("it is unstable: the part would not stay in it")
+            except _Blocked as why:
+                raise InputError("plan", f"the start pose is not acceptable: {why.reason}; "
+                                 "move the grip's start, or plan with allow_contact "
+                                 "(--allow-contact)") from None
+            self._start_eq = eq
+        tree.root = _Node(start, self._start_eq, tree.demand(self._start_eq))
+        tree.nodes[_key((*start.position, 0.0, 0.0))] = tree.root
+        self.trees[goal] = tree
+        return tree
+
+    # -- one query ------------------------------------------------------------------------
+    def plan(self, goal: str, *, on_progress: Callable[[str], None] | None = None) -> Plan:
+        """A path for the grip to the port ``goal``; ``NoPathError`` within the budget
+        when none is found."""
+        begin = time.perf_counter()
+        s = self.settings
+        seated, before = self.goal_pose(goal)
+        tree = self._tree(goal)
+        tree.deadline = begin + s.budget
+        solves0, motions0 = tree.solves, tree.motions
+        best: Plan | None = None
+        attempts = 0
+        for attempt in range(s.attempts):
+            left = tree.deadline - time.perf_counter()
+            if left <= 0 or (best is not None and left < 0.3 * s.budget / s.attempts):
+                break
+            attempts += 1
+            found = self._search(tree, before, s.seed + attempt, left)
+            if found is None:
+                continue
+            try:  # to the point before the port, then straight in along its axis
+                ready = Pose(tuple(float(x) for x in before), seated.tangent)
+                nodes = list(found)
+                if np.linalg.norm(np.subtract(found[-1].pose.position, before)) > 1e-9:
+                    nodes.append(tree.turn_in(found[-1], ready, near_port=False))
+                nodes.append(tree.turn_in(nodes[-1], seated, near_port=True))
+            except _Blocked as why:
+                tree.blocked[f"the last leg into the port: {why.reason}"] += 1
+                continue
+            result = self._result(tree, nodes, goal)
+            if not result.run.complete:
+                tree.blocked["the written path, followed again, did not hold"] += 1
+                continue
+            if best is None or result.cost < best.cost:
+                best = result
+            if on_progress is not None:
+                on_progress(f"tree {attempt + 1}: a path of {len(nodes) - 1} legs, peak "
+                            f"hand demand {result.peak_demand:.2f} of the red onset")
+        seconds = time.perf_counter() - begin
+        if best is None:
+            raise self._failure(tree, before, seconds, tree.solves - solves0)
+        best.seconds, best.attempts = seconds, attempts
+        best.solves, best.motions = tree.solves - solves0, tree.motions - motions0
+        best.nodes = len(tree.nodes)
+        return best
+
+    def _search(self, tree: _Tree, goal: np.ndarray, seed: int,
+                budget: float) -> list[_Node] | None:
+        """Grow a tree from the start toward the point before the port with OMPL's RRT
+        over (x, y, z, u, v); the nodes of the path it finds, simplified (None: not found
+        in ``budget`` s)."""
+        ob, og, ou = _ompl()
+        s = self.settings
+        level = ou.getLogLevel()
+        ou.setLogLevel(ou.LOG_NONE)  # OMPL warns that seeding after its first use is late
+        nodes = None
+        try:
+            ou.RNG.setSeed(seed)
+            space = ob.RealVectorStateSpace(5)
+            bounds = ob.RealVectorBounds(5)
+            lo, hi = self._bounds(goal)
+            for i in range(3):
+                bounds.setLow(i, float(lo[i]))
+                bounds.setHigh(i, float(hi[i]))
+            for i, (low, high) in enumerate(tree.turning.bounds(), start=3):
+                bounds.setLow(i, low)
+                bounds.setHigh(i, high)
+            space.setBounds(bounds)
+            si = ob.SpaceInformation(space)
+            si.setStateValidityChecker(self._valid_state)
+            validator = _validator(ob)(si, self, tree)
+            si.setMotionValidator(validator)
+            si.setup()
+            setup = og.SimpleSetup(si)
+            start, target = si.allocState(), si.allocState()
+            root = tree.root
+            for i in range(3):
+                start[i] = root.pose.position[i]
+                target[i] = float(goal[i])
+            start[3], start[4] = 0.0, 0.0
+            target[3], target[4] = tree.turning.length, 0.0
+            setup.setStartAndGoalStates(start, target, s.goal_tolerance)
+            planner = og.RRT(si)
+            planner.setRange(s.reach)
+            planner.setGoalBias(s.goal_bias)
+            setup.setPlanner(planner)
+            status = setup.solve(max(budget, 1e-3))
+            if status and setup.haveExactSolutionPath():
+                path = setup.getSolutionPath()
+                nodes = [tree.nodes[_key(_point(path.getState(k)))]
+                         for k in range(path.getStateCount())]
+            validator.planner = validator.tree = None  # no cycle through OMPL's objects
+        finally:
+            ou.setLogLevel(level)
+        if nodes is None:
+            return None
+        return self._shortcut(tree, nodes) if s.simplify else nodes
+
+    def _shortcut(self, tree: _Tree, nodes: list[_Node]) -> list[_Node]:
+        """Drop waypoints where the part can go straight from an earlier node to a later
+        one: the direct leg must be valid, end in the same shape (one branch), and not
+        raise the peak demand."""
+        i = 0
+        out = [nodes[0]]
+        while i < len(nodes) - 1:
+            j, reached = len(nodes) - 1, None
+            while j > i + 1:
+                try:
+                    node = tree.carry(out[-1], (*nodes[j].pose.position, *nodes[j].uv))
+                except _Blocked:
+                    node = None
+                if (node is not None and tree.same_shape(node.eq, nodes[j].eq)
+                        and node.peak <= nodes[j].peak):
+                    reached = node
+                    break
+                j -= 1
+            if reached is None:
+                j = i + 1
+                reached = replace(nodes[j], peak=max(out[-1].peak, nodes[j].peak))
+            out.append(reached)
+            i = j
+        return out
+
+    # -- OMPL callbacks -------------------------------------------------------------------
+    def _valid_state(self, state: Any) -> bool:
+        """A cheap test of a sampled pose: the hand within reach of the part's other
+        held stations and outside every obstacle. The part itself is checked along the
+        motions."""
+        p = _point(state)[:3]
+        problem = self.scene.problem
+        grip = problem.condition(self.grip)
+        for c in problem.conditions:
+            if c.name == self.grip or any(v is None for v in c.position):
+                continue
+            if np.linalg.norm(p - np.asarray(c.position)) > 0.98 * abs(grip.s - c.s):
+                return False
+        field_ = self._hand_field()
+        if field_ is not None:
+            d, _, _ = field_.query(p[None, :])
+            part = problem.part
+            radius = 0.5 * part.outer_diameter if part.outer_diameter else 0.0
+            if d[0] - radius < (-PENETRATION if self.settings.allow_contact
+                                else self.scene.margin):
+                return False
+        return True
+
+    def check_motion(self, tree: _Tree, a: Any, b: Any) -> bool:
+        """OMPL's motion check: carry the part from a's equilibrium to b."""
+        tree.motions += 1
+        start = tree.nodes.get(_key(_point(a)))
+        if start is None or not self._valid_state(b):
+            return False
+        key = _key(_point(b))
+        edge = (_key(_point(a)), key)
+        if edge in tree.edges:
+            return tree.edges[edge]
+        try:
+            reached = tree.carry(start, _point(b))
+        except _Blocked as why:
+            tree.blocked[why.reason] += 1
+            if why.reason != "out of time":
+                tree.edges[edge] = False
+            return False
+        known = tree.nodes.get(key)
+        if known is not None and not tree.same_shape(known.eq, reached.eq):
+            tree.blocked["another shape at a pose already reached"] += 1
+            tree.edges[edge] = False
+            return False
+        tree.nodes[key] = reached
+        tree.edges[edge] = True
+        return True
+
+    # -- helpers --------------------------------------------------------------------------
+    def _hand_field(self):
+        if self._field is None and self.scene.problem.obstacles:
+            from pliant.scene.distance import DistanceField
+
+            self._field = DistanceField(list(self.scene.problem.obstacles))
+        return self._field
+
+    def _bounds(self, goal: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """The box the hand may move in: as far as the part reaches round its other
+        held stations, and round the start and the goal."""
+        problem = self.scene.problem
+        grip = problem.condition(self.grip)
+        points, reach = [np.asarray(grip.position), goal], []
+        for c in problem.conditions:
+            if c.name != self.grip and all(v is not None for v in c.position):
+                points.append(np.asarray(c.position))
+                reach.append(abs(grip.s - c.s))
+        pts = np.array(points)
+        return pts.min(axis=0) - min(reach), pts.max(axis=0) + min(reach)
+
+    def _failure(self, tree: _Tree, goal: np.ndarray, seconds: float,
+                 solves: int) -> NoPathError:
+        closest, distance = None, math.inf
+        for node in tree.nodes.values():
+            d = float(np.linalg.norm(np.subtract(node.pose.position, goal)))
+            if d < distance:
+                closest, distance = node.pose, d
+        blocked = dict(tree.blocked.most_common())
+        blocked.pop("out of time", None)
+        total = sum(blocked.values())
+        why = "; ".join(f"{reason} ({100 * n / total:.0f} %)"
+                        for reason, n in list(blocked.items())[:4]) if total else "nothing"
+        where = (f"closest pose reached {distance:.3f} m from the point before the port, "
+                 f"at {closest}" if closest is not None else "no pose reached")
+        return NoPathError(
+            f"no path found in {seconds:.1f} s ({solves} solves, seed "
+            f"{self.settings.seed}); {where}; what blocked the motions tried: {why}. Give "
+            "more time (--budget), allow contact (--allow-contact), or move what blocks it",
+            closest=closest, distance=distance, blocked=blocked, seconds=seconds,
+            solves=solves)
+
+    def _result(self, tree: _Tree, nodes: list[_Node], goal: str) -> Plan:
+        """Write the nodes as the scene's path (a waypoint at every step of every edge)
+        and follow it again as ``pliant run`` would."""
+        from pliant.assembly.path import follow_path
+
+        poses = [p for n in nodes[1:] for p in n.via]
+        start = self.start_pose()
+        points = np.array([start.position, *[p.position for p in poses]])
+        length = float(np.linalg.norm(np.diff(points, axis=0), axis=1).sum())
+        steps = max(len(poses), math.ceil(length / (0.5 * self.settings.step)))
+        problems = path_problems(tree.problem_at, start, poses, steps)
+        run = follow_path(self.scene.problem, problems, self.grip, margin=self.scene.margin,
+                          elements=self.solver.elements)
+        demands = [tree.demand(eq) for eq in run.equilibria]
+        return Plan(self.grip, goal, poses, problems, run, max(demands, default=math.inf),
+                    demands, 0.0, 0, 0, 0, 0, steps)
+
+
+def _point(state: Any) -> np.ndarray:
+    return np.array([state[i] for i in range(5)])
+
+
+def path_problems(problem_at: Callable[..., Problem], start: Pose, poses: list[Pose],
+                  steps: int) -> list[Problem]:
+    """The problems along straight legs through ``poses`` (the hand's axis turned by
+    slerp on each leg), in ``steps`` equal steps of length: what a scene's [path] gives."""
+    points = np.array([start.position, *[p.position for p in poses]], dtype=float)
+    tangents = np.array([start.tangent, *[p.tangent for p in poses]], dtype=float)
+    legs = np.linalg.norm(np.diff(points, axis=0), axis=1)
+    at = np.concatenate([[0.0], np.cumsum(legs)])
+    total = float(at[-1])
+    out = []
+    for k in range(1, steps + 1):
+        u = total * k / steps
+        leg = min(int(np.searchsorted(at, u, side="right")) - 1, len(legs) - 1)
+        t = (u - at[leg]) / legs[leg] if legs[leg] > 0 else 1.0
+        where = points[leg] + t * (points[leg + 1] - points[leg])
+        direction = _unit(_slerp(_unit(tangents[leg]), _unit(tangents[leg + 1]), t))
+        out.append(problem_at(where, direction))
+    return out
+
+
+def _validator(ob):
+    """OMPL's MotionValidator class, subclassed once OMPL is imported."""
+    global _VALIDATOR
+    if _VALIDATOR is None:
+        class _PartMotion(ob.MotionValidator):
+            def __init__(self, si, planner: Planner, tree: _Tree) -> None:
+                super().__init__(si)
+                self.planner, self.tree = planner, tree
+
+            def checkMotion(self, a, b) -> bool:
+                return self.planner is not None and self.planner.check_motion(self.tree, a, b)
+
+        _VALIDATOR = _PartMotion
+    return _VALIDATOR
+
+
+_VALIDATOR: Any = None
+
+
+def plan(scene: Any, goal: str, settings: PlanSettings | None = None, *, rules: Any = None,
+         grip: str | None = None, on_progress: Callable[[str], None] | None = None) -> Plan:
+    """A path for ``scene``'s grip to the port ``goal`` (see the module docstring)."""
+    return Planner(scene, settings, rules=rules, grip=grip).plan(goal, on_progress=on_progress)
