@@ -169,3 +169,28 @@ def test_the_panel_shows_the_poses_verdict_from_the_server(page):
     items = page.locator("#verdict-items li")
     assert items.count() == len(verdict["items"]) >= 1
     assert "bending moment at the hand" in page.inner_text("#verdict-items")
+
+
+def test_the_page_plays_the_scenes_path_step_by_step(page):
+    """Play path carries the grip through every pose of the scene's [path] (what
+    `pliant plan` writes), each sent once the server has answered the last: the tube
+    ends where the path ends."""
+    page, server, _ = page
+    page.goto(server.url)
+    page.wait_for_function(LOADED, timeout=120_000)
+    scene = load_scene(SCENE)
+    steps = len(scene.path)
+    assert page.evaluate("window.pliant.state.scene.path.positions.length") == steps
+    assert page.is_visible("#play")
+    seq = page.evaluate("window.pliant.state.seq")
+    page.click("#play")
+    page.wait_for_function(f"document.querySelector('#path-step').textContent === "
+                           f"'played {steps} steps'", timeout=120_000)
+    page.wait_for_function("!window.pliant.state.inFlight && !window.pliant.state.queued")
+    assert page.evaluate("window.pliant.state.seq") - seq == steps  # none skipped
+    last = scene.path[-1].condition("hand")
+    pose = page.evaluate("window.pliant.state.lastPose")
+    np.testing.assert_allclose(pose["position"], last.position, atol=1e-6)
+    np.testing.assert_allclose(pose["tangent"], last.tangent, atol=1e-6)
+    end = np.array(page.evaluate("window.pliant.state.frame.curve.at(-1)"))
+    np.testing.assert_allclose(end, last.position, atol=1e-6)

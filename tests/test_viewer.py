@@ -556,3 +556,33 @@ def test_odd_paths_and_values_get_clean_answers(server):
         assert "nested too deeply" in error["message"]
         ws.send(json.dumps({"v": 1, "type": "hello"}))
         assert receive(ws, "scene")["type"] == "scene"  # it goes on serving
+
+
+def test_the_scene_message_carries_the_path_to_play(folder):
+    """A scene's [path] reaches the page as the grip's pose at each step; a long path
+    is thinned to PATH_STEPS poses, evenly, its first and last kept."""
+    plain = ViewerState(Path("hose.toml"), folder, live=False)
+    try:
+        assert by_type(plain.handle(msg(type="hello")), "scene")[0].path is None
+    finally:
+        plain.close()
+    for steps, shown in ((40, 40), (2500, P.PATH_STEPS)):
+        (folder / "walk.toml").write_text(SCENE + f"""
+[path]
+grip = "hand"
+waypoints = [[0.5, 0.4, 0.3], [0.4, 0.5, 0.3]]
+tangents = [[0.0, 1.0, 0.0], [-1.0, 0.0, 0.0]]
+steps = {steps}
+""")
+        viewer = ViewerState(Path("walk.toml"), folder, live=False)
+        try:
+            play = by_type(viewer.handle(msg(type="hello")), "scene")[0].path
+        finally:
+            viewer.close()
+        scene = load_scene(folder / "walk.toml")
+        assert play.grip == "hand" and len(play.positions) == len(play.tangents) == shown
+        for k, j in ((0, 0), (-1, -1), (shown // 2, round((shown // 2) * (steps - 1)
+                                                              / (shown - 1)))):
+            c = scene.path[j].condition("hand")
+            np.testing.assert_allclose(play.positions[k], c.position, atol=1e-9)
+            np.testing.assert_allclose(play.tangents[k], c.tangent, atol=1e-9)

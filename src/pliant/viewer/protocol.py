@@ -222,6 +222,18 @@ class ServerAccurate(_Message):
     verdict: Verdict | None = None
 
 
+class PathPlay(BaseModel):
+    """A scene's [path] for the page to play: the grip's pose at each step (at most
+    ``PATH_STEPS`` of them, evenly taken, the last always)."""
+
+    grip: str
+    positions: list[list[float]]
+    tangents: list[list[float]] | None = None
+
+
+PATH_STEPS = 1000
+
+
 class ServerScene(_Message):
     """The scene: its name, the part (length, radius [m]), the obstacles as triangle
     meshes [m], the grips, the dimension (2D scenes lie in z = 0), and the tolerance
@@ -237,6 +249,7 @@ class ServerScene(_Message):
     grips: list[Grip]
     margin: float
     envelopes: list[ObstacleMesh] = []
+    path: PathPlay | None = None
 
 
 class ServerSaved(_Message):

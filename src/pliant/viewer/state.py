@@ -282,7 +282,22 @@ class ViewerState:
             part={"name": part.name, "length": part.length, "radius": self.radius,
                   "min_bend_radius": part.min_bend_radius},
             obstacles=self._meshes, grips=self.grips(), margin=self.scene.margin,
-            envelopes=self.envelopes)
+            envelopes=self.envelopes, path=self.path_play())
+
+    def path_play(self) -> P.PathPlay | None:
+        """The scene's [path] as the grip's poses step by step (None without one)."""
+        scene = self.scene
+        if not scene.path or scene.grip is None or self.dimension != 3:
+            return None
+        n = len(scene.path)
+        keep = (range(n) if n <= P.PATH_STEPS else
+                sorted({round(k * (n - 1) / (P.PATH_STEPS - 1)) for k in range(P.PATH_STEPS)}))
+        poses = [scene.path[k].condition(scene.grip) for k in keep]
+        tangents = None
+        if all(c.tangent is not None for c in poses):
+            tangents = [[round(float(x), 9) for x in c.tangent] for c in poses]
+        return P.PathPlay(grip=scene.grip, tangents=tangents,
+                          positions=[[round(float(x), 9) for x in c.position] for c in poses])
 
     def accurate_message(self) -> P.ServerAccurate:
         if self.session.accurate is None:

@@ -122,6 +122,46 @@ function onScene(msg) {
     frameCamera();
   }
   buildGrips(msg.grips);
+  $('path-row').hidden = !msg.path;
+  $('path-step').textContent = msg.path ? `${msg.path.positions.length} steps` : '';
+}
+
+// -- playing a scene's [path] ----------------------------------------------------------------
+// The grip is carried through the path's poses one at a time: the next pose is sent when
+// the server has answered the last (the part is followed step by step, as `pliant run`
+// does, never skipping a step), at most every 30 ms so that it can be watched.
+const player = { playing: false, k: 0, timer: null };
+$('play').onclick = () => (player.playing ? stopPath() : playPath());
+function playPath() {
+  const path = state.scene && state.scene.path;
+  const handle = path && state.grips.get(path.grip);
+  if (!handle) return;
+  player.playing = true;
+  player.k = 0;
+  $('play').textContent = 'Stop';
+  gizmo.attach(handle);
+  playStep();
+}
+function stopPath(done = false) {
+  player.playing = false;
+  clearTimeout(player.timer);
+  $('play').textContent = 'Play path';
+  const n = state.scene && state.scene.path ? state.scene.path.positions.length : 0;
+  $('path-step').textContent = done ? `played ${n} steps` : `stopped at step ${player.k} of ${n}`;
+}
+function playStep() {
+  if (!player.playing) return;
+  if (state.inFlight) { player.timer = setTimeout(playStep, 10); return; }
+  const path = state.scene.path;
+  const handle = state.grips.get(path.grip);
+  const k = player.k;
+  handle.position.set(...path.positions[k]);
+  if (path.tangents) handle.quaternion.setFromUnitVectors(Z, new THREE.Vector3(...path.tangents[k]).normalize());
+  moved(handle);
+  player.k = k + 1;
+  $('path-step').textContent = `step ${player.k} of ${path.positions.length}`;
+  if (player.k >= path.positions.length) { stopPath(true); return; }
+  player.timer = setTimeout(playStep, 30);
 }
 
 // A variation study's tolerance envelope (pliant view --envelope): what the part sweeps
