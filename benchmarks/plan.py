@@ -81,12 +81,14 @@ def _obstacle(rng: np.random.Generator, k: int) -> dict:
             rng.random() < 0.5 else [0.0, 1.0, 0.0]}
 
 
-def generated(count: int) -> None:
+def scenes(count: int) -> list[tuple[object, bool]]:
+    """``count`` generated scenes and whether the straight move works in each; at least
+    a third of them blocked."""
     base = read_toml(read_text(EXAMPLES / "hose_past_post.toml"), "hose_past_post.toml")
     rng = np.random.default_rng(2026)
-    scenes, blocked = [], 0
+    out, blocked = [], 0
     tries = 0
-    while len(scenes) < count and tries < 50 * count:
+    while len(out) < count and tries < 50 * count:
         tries += 1
         data = dict(base)
         data["obstacle"] = [_obstacle(rng, k) for k in range(int(rng.integers(1, 4)))]
@@ -109,14 +111,35 @@ def generated(count: int) -> None:
         except _Blocked:
             straight = False
         need = -(-count // 3) - blocked  # blocked scenes still wanted
-        if straight and count - len(scenes) <= need:
+        if straight and count - len(out) <= need:
             continue
         blocked += not straight
-        scenes.append((scene, straight))
-    print(f"\n{len(scenes)} generated scenes ({blocked} where the straight move is blocked), "
+        out.append((scene, straight))
+    return out
+
+
+def _seated(scene) -> str:
+    """Evidence for a failure: the seated pose solved afresh (its cold branch), and how
+    close it comes to each obstacle."""
+    from pliant.models import rod3d
+    from pliant.scene.interference import of_equilibrium
+
+    planner = Planner(scene, scene.plan)
+    seated, _ = planner.goal_pose("port")
+    tree = planner._tree("port")
+    eq = rod3d.solve(tree.problem_at(seated.position, seated.tangent), solver=planner.solver)
+    worst = min(of_equilibrium(eq).clearances, key=lambda c: c.clearance)
+    return (f"the seated shape solved afresh comes {worst.clearance * 1e3:.1f} mm from "
+            f"{worst.obstacle} (margin {scene.margin * 1e3:g} mm)")
+
+
+def generated(count: int) -> None:
+    made = scenes(count)
+    blocked = sum(not straight for _, straight in made)
+    print(f"\n{len(made)} generated scenes ({blocked} where the straight move is blocked), "
           "30 s budget, seed 1, one tree:")
     ok, times, solves = 0, [], []
-    for k, (scene, straight) in enumerate(scenes):
+    for k, (scene, straight) in enumerate(made):
         names = ", ".join(o.name for o in scene.problem.obstacles)
         begin = time.perf_counter()
         try:
@@ -124,7 +147,7 @@ def generated(count: int) -> None:
         except NoPathError as err:
             print(f"  {k:2d} {'straight' if straight else 'blocked '} {names}: no path in "
                   f"{err.seconds:.1f} s ({err.solves} solves): "
-                  f"{', '.join(list(err.blocked)[:2])}")
+                  f"{', '.join(list(err.blocked)[:2])}; {_seated(scene)}")
             continue
         seconds = time.perf_counter() - begin
         ok += 1
@@ -134,7 +157,7 @@ def generated(count: int) -> None:
               f"{found.solves} solves, {len(found.poses)} waypoints, peak force "
               f"{found.run.peak('force')[0]:.1f} N")
     if times:
-        print(f"found {ok} of {len(scenes)}; median {statistics.median(times):.2f} s and "
+        print(f"found {ok} of {len(made)}; median {statistics.median(times):.2f} s and "
               f"{statistics.median(solves):.0f} solves a plan (max {max(times):.2f} s); "
               "reference: 2.5-2.8 s median a query with a 500-milestone roadmap "
               "(Sintov et al. 2020)")

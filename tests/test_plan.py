@@ -87,7 +87,7 @@ def test_the_planned_detour_holds_when_followed_again_from_the_written_file(foun
 
 def test_the_plan_reports_what_it_cost_and_its_demand(found):
     _, result = found
-    assert result.solves > 0 and result.motions > 0 and result.attempts == 1
+    assert result.solves > 0 and result.motions > 0 and result.trees >= 1
     assert len(result.demands) == result.steps + 1
     assert result.peak_demand == pytest.approx(max(result.demands))
     assert result.cost[0] == pytest.approx(max(result.demands[1:]), abs=1e-3)

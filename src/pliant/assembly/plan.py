@@ -1,18 +1,21 @@
 """Find a path for the grip: from the scene's start pose to the pose that seats the
 part's end in a port, through stable equilibria of the accurate 3D model only.
 
-The planner is OMPL's RRT over the hand's position (R^3), with the hand's axis set by the
-part, and a motion validator that knows the part is flexible:
+The planner is OMPL's RRT over the hand's pose, and a motion validator that knows the
+part is flexible:
 
-- **The wrist is relaxed while the part is carried.** A fitter carrying a hose end lets
-  it turn in the hand and aligns it only at the port: the hand applies a force and no
-  moment. The planner does the same: at the start pose the hand's moment is released
-  in steps (the part turns the end to its natural axis), the part is carried with its
-  end held in position only, and the axis at every pose is the part's own. Planning
-  the axis as well (R^3 x S^2) was tried first: uniform samples of the axis are mostly
-  poses a hand would not take, and on the bundled engine bay 950 solves in 20 s did not
-  reach the port. Releasing the wrist also minimises the wrist's demands (twist and
-  bending at the hand), which are part of the cost.
+- **The hand's pose in five coordinates** (``RealVectorStateSpace(5)``): its position,
+  and its axis (the direction it holds the part's end along; its roll follows the
+  turn, as along a scene's [path]) as (u, v) on a band of the sphere: u turns the axis
+  along the great circle from its start direction to the one the port needs (and up to
+  30 degrees past either), v tilts it off that circle by up to 60 degrees. Both are in
+  metres of the metric (``rotation_length`` per radian), so that a turn of the hand
+  weighs against a move. Two earlier designs were measured and dropped: the axis
+  anywhere on the sphere (SE(3), uniform samples of the axis) mostly samples poses a
+  hand would not take, and on the bundled engine bay 950 solves in 20 s did not reach
+  the port; a relaxed wrist (the end held by position only, its axis the part's own)
+  makes the engine bay's start unstable once the hand's moment is released (smallest
+  eigenvalue -1.86: the line would swing over).
 - **A pose's shape is the one reached along the tree.** A flexible part held at a pose
   can sit in several equilibria; which one it is in depends on how the hand got there.
   Every node of the tree stores the equilibrium reached by continuation along the edges
@@ -36,17 +39,18 @@ part, and a motion validator that knows the part is flexible:
   with time left further trees (``attempts``) are grown and the path of least peak
   demand is kept.
 - **The last leg enters the port along its axis**: the tree's goal is the point
-  ``approach`` metres out along the port's axis; there the hand takes hold of the end's
-  axis and turns it onto the port's while pushing it straight in (that leg may touch the
-  port's own parts: it is only kept out of obstacles).
+  ``approach`` metres out along the port's axis, holding the axis the port needs (within
+  ``goal_tolerance`` in the metric: a last straight leg goes there); from it the hand
+  pushes the end straight in (that leg may touch the port's own parts: it is only kept
+  out of obstacles). The insertion force is evaluated at the last step.
 
 The found path is written as the scene's [path] (a waypoint every ``step``, with the
 axis the part had there), and that path is followed again at its own step count, as
 ``pliant run`` would, and evaluated (``pliant.assembly.evaluate``): a plan whose path
 does not hold when followed so is discarded and the search goes on.
 
-A ``Planner`` keeps its tree of equilibria: a second query in the same scene (another
-port) starts from it, and its cached motions cost no solve. A seed makes a plan
+A ``Planner`` keeps its trees of equilibria, one per port: a second query to that port
+(another seed, more time) reuses every motion already followed without a solve. A seed makes a plan
 reproducible: OMPL's samplers are seeded before the planner is built, and the search
 stops when the goal is reached, not when a clock runs out (it fails only on the clock).
 """
@@ -120,7 +124,7 @@ class Plan:
     seconds: float
     solves: int
     motions: int
-    attempts: int
+    trees: int
     nodes: int
     steps: int
 
@@ -149,7 +153,7 @@ class Plan:
     def summary(self) -> dict[str, Any]:
         return {"grip": self.grip, "port": self.port, "peak_demand": self.peak_demand,
                 "seconds": self.seconds, "solves": self.solves, "motions": self.motions,
-                "attempts": self.attempts, "nodes": self.nodes, "steps": self.steps,
+                "trees": self.trees, "nodes": self.nodes, "steps": self.steps,
                 "waypoints": [list(p.position) for p in self.poses],
                 "tangents": [list(p.tangent) for p in self.poses]}
 
@@ -489,13 +493,13 @@ class Planner:
         tree.deadline = begin + s.budget
         solves0, motions0 = tree.solves, tree.motions
         best: Plan | None = None
-        attempts = 0
-        for attempt in range(s.attempts):
+        trees = paths = 0
+        while paths < s.attempts:
             left = tree.deadline - time.perf_counter()
             if left <= 0 or (best is not None and left < 0.3 * s.budget / s.attempts):
                 break
-            attempts += 1
-            found = self._search(tree, before, s.seed + attempt, left)
+            trees += 1
+            found = self._search(tree, before, s.seed + trees - 1, left)
             if found is None:
                 continue
             try:  # to the point before the port, then straight in along its axis
@@ -508,18 +512,22 @@ class Planner:
                 tree.blocked[f"the last leg into the port: {why.reason}"] += 1
                 continue
             result = self._result(tree, nodes, goal)
+            paths += 1
             if not result.run.complete:
                 tree.blocked["the written path, followed again, did not hold"] += 1
                 continue
+            if on_progress is not None:
+                on_progress(f"tree {trees}: a path of {len(nodes) - 1} legs, peak "
+                            f"hand demand {result.peak_demand:.2f} of the red onset")
+            if best is not None and abs(result.cost[0] - best.cost[0]) < 5e-3 and (
+                    abs(result.cost[1] - best.cost[1]) < 0.02 * best.cost[1]):
+                break  # two trees, the same demand: the search has settled
             if best is None or result.cost < best.cost:
                 best = result
-            if on_progress is not None:
-                on_progress(f"tree {attempt + 1}: a path of {len(nodes) - 1} legs, peak "
-                            f"hand demand {result.peak_demand:.2f} of the red onset")
         seconds = time.perf_counter() - begin
         if best is None:
             raise self._failure(tree, before, seconds, tree.solves - solves0)
-        best.seconds, best.attempts = seconds, attempts
+        best.seconds, best.trees = seconds, trees
         best.solves, best.motions = tree.solves - solves0, tree.motions - motions0
         best.nodes = len(tree.nodes)
         return best

@@ -384,7 +384,7 @@ def _plan_scene(file: Path, goal: str | None, out: Path, budget: float | None,
         found = planner.plan(settings.goal, on_progress=console.print)
     console.print(f"found a path in {found.seconds:.1f} s: {len(found.poses)} waypoints, "
                   f"{found.solves} accurate solves, {found.motions} motions checked, "
-                  f"{found.attempts} tree(s); followed again in {found.steps} steps")
+                  f"{found.trees} tree(s); followed again in {found.steps} steps")
     planned = replace(scene, path=found.path, grip=found.grip,
                       evaluation=replace(scene.evaluation, port=settings.goal))
     ev = evaluate_scene(planned, run=found.run, elements=elements)

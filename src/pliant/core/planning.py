@@ -15,14 +15,17 @@ class PlanSettings:
     budget [s]: the wall time a query may take; seed: makes the plan reproducible;
     step [m] and turn [deg]: the largest move and turn of the hand between two solves
     along an edge; reach [m]: the longest edge (in the metric below); approach [m]: the
-    straight last leg along the port's axis; goal_bias: how often the tree grows toward
+    straight last leg along the port's axis (the connector's engagement: the farther the
+    part is pushed straight in, the more the hand must hold; a push-in connector engages
+    a couple of centimetres); goal_bias: how often the tree grows toward
     the goal; goal_tolerance [m]: how near (in the metric) the tree must come to the
     point before the port, holding the port's axis, for a last leg to go there straight;
     allow_contact: the part may touch obstacles (not enter them) instead of
     keeping the scene's margin; rotation_length [m per rad]: what a turn of the hand
     weighs against a move in the metric (default a tenth of the part's length);
-    attempts: trees grown per query at most, the least peak demand kept (time
-    permitting); simplify: shortcut the found path; elements: the accurate model's
+    attempts: paths found per query at most, each from a tree of its own, the least
+    peak demand kept (time permitting; it stops early when two give the same demand;
+    a tree whose path cannot be finished into the port is followed by another); simplify: shortcut the found path; elements: the accurate model's
     resolution (default the scene's); goal: the port to seat the part's end in (a
     scene's [plan] goal; the command line's --goal overrides it)."""
 
@@ -31,7 +34,7 @@ class PlanSettings:
     step: float = 0.03
     turn: float = 15.0
     reach: float = 0.15
-    approach: float = 0.05
+    approach: float = 0.02
     goal_bias: float = 0.2
     goal_tolerance: float = 0.04
     allow_contact: bool = False

@@ -439,7 +439,7 @@ class PlanModel(_Strict):
     budget: float = Field(30.0, gt=0, le=3600, description="[s]")
     seed: int = Field(1, ge=1, lt=2**31)
     allow_contact: bool = False
-    approach: float = Field(0.05, ge=0, description="[m]")
+    approach: float = Field(0.02, ge=0, description="[m]: the straight push into the port")
     attempts: int = Field(3, ge=1, le=100)
     step: float = Field(0.03, gt=0, description="[m]")
     turn: float = Field(15.0, gt=0, le=90, description="[deg]")
