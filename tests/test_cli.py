@@ -114,3 +114,36 @@ def test_solve_3d_with_plot_and_meshes(tmp_path):
     data = json.loads(out.stdout)
     assert data["dimension"] == 3 and data["stable"] is True
     assert trimesh.load(tmp_path / "hose.stl").is_watertight
+
+
+def test_plan_writes_the_planned_scene_and_its_evaluation(tmp_path):
+    scene = EXAMPLES / "scenes" / "hose_past_post.toml"
+    out = run("plan", str(scene), "--out", str(tmp_path), "--attempts", "1")
+    assert out.returncode == 0, out.stderr  # planned, and the evaluation passes
+    assert "found a path in" in out.stdout and "FITS" in out.stdout
+    planned = tmp_path / "hose_past_post-planned.toml"
+    text = planned.read_text()
+    assert "# planned by `pliant plan` into 'port'" in text
+    assert "# A planning example" in text  # the scene's own comments are kept
+    followed = run("run", str(planned), "--out", str(tmp_path / "run"))
+    assert followed.returncode == 0, followed.stderr
+    assert "the path was followed to its end" in followed.stdout
+    record = json.loads((tmp_path / "hose_past_post-plan.json").read_text())
+    assert record["schema_version"] == 1 and record["run"]["complete"]
+    assert len(record["waypoints"]) == len(record["tangents"]) > 1
+    report = json.loads((tmp_path / "hose_past_post-planned-evaluation.json").read_text())
+    assert report["verdict"]["passes"]
+    assert (tmp_path / "hose_past_post-planned.html").read_text().startswith("<!doctype html>")
+
+
+def test_plan_without_a_goal_or_a_way_is_one_line(tmp_path):
+    scene = EXAMPLES / "scenes" / "hose_past_post.toml"
+    text = scene.read_text().replace('goal = "port"\n', "")
+    (tmp_path / "nogoal.toml").write_text(text)
+    out = run("plan", str(tmp_path / "nogoal.toml"), "--out", str(tmp_path))
+    assert out.returncode == 2 and out.stderr.startswith("error: ")
+    assert "give --goal PORT" in out.stderr and "Traceback" not in out.stderr
+    out = run("plan", str(scene), "--goal", "nowhere", "--out", str(tmp_path))
+    assert out.returncode == 2 and "no [[port]] named 'nowhere'" in out.stderr
+    out = run("plan", str(scene), "--budget", "-1", "--out", str(tmp_path))
+    assert out.returncode == 2 and "plan.budget" in out.stderr
