@@ -199,3 +199,38 @@ def test_the_planned_scene_parses_with_the_same_problem(found):
     original = load_scene(EXAMPLE)
     assert scene.problem.conditions == original.problem.conditions
     assert [o.name for o in scene.problem.obstacles] == ["post"]
+
+
+def test_ctrl_c_ends_a_plan_at_once_and_gives_the_handler_back(tmp_path):
+    """Ctrl+C while OMPL searches: the planner's own handler refuses every motion from
+    then on and ends the search at its next check; KeyboardInterrupt, the previous
+    handler back. In a child process, the signal sent once the planner holds it."""
+    import subprocess
+    import sys
+
+    script = f"""
+import os, signal, threading, time
+from pliant.assembly.plan import Planner
+from pliant.core.planning import PlanSettings
+from pliant.io.problem_file import scene_from_data
+from tests.test_plan import _walled, EXAMPLE
+scene = scene_from_data(_walled(), "walled", EXAMPLE.parent)
+def press():
+    while signal.getsignal(signal.SIGINT) is signal.default_int_handler:
+        time.sleep(0.01)
+    time.sleep(0.5)
+    os.kill(os.getpid(), signal.SIGINT)
+threading.Thread(target=press, daemon=True).start()
+begin = time.perf_counter()
+try:
+    Planner(scene, PlanSettings(budget=120.0)).plan("port")
+except KeyboardInterrupt:
+    print("interrupted", time.perf_counter() - begin)
+print(signal.getsignal(signal.SIGINT) is signal.default_int_handler)
+"""
+    out = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True,
+                         timeout=300, cwd=Path(__file__).resolve().parents[1])
+    assert out.returncode == 0, out.stderr
+    first, second = out.stdout.split("\n")[:2]
+    assert first.startswith("interrupted") and float(first.split()[1]) < 60.0
+    assert second == "True"

@@ -58,6 +58,8 @@ stops when the goal is reached, not when a clock runs out (it fails only on the 
 from __future__ import annotations
 
 import math
+import signal
+import threading
 import time
 from collections import Counter
 from collections.abc import Callable
@@ -270,6 +272,13 @@ class _Tree:
     solves: int = 0
     motions: int = 0
     deadline: float = math.inf
+    interrupted: bool = False
+
+    def interrupt(self, *_: Any) -> None:
+        """Ctrl+C while planning: every motion is refused from now on and OMPL's search
+        ends at its next check (a signal handler: no exception thrown through OMPL)."""
+        self.interrupted = True
+        self.deadline = -math.inf
 
     def problem_at(self, position, tangent) -> Problem:
         """The scene's problem with the grip at ``position`` holding the axis ``tangent``
@@ -487,10 +496,23 @@ class Planner:
         """A path for the grip to the port ``goal``; ``NoPathError`` within the budget
         when none is found."""
         begin = time.perf_counter()
+        seated, _ = self.goal_pose(goal)
+        tree = self._tree(goal)
+        tree.deadline = begin + self.settings.budget
+        tree.interrupted = False
+        previous = None
+        if threading.current_thread() is threading.main_thread():
+            previous = signal.signal(signal.SIGINT, tree.interrupt)
+        try:
+            return self._plan(tree, goal, begin, on_progress)
+        finally:
+            if previous is not None:
+                signal.signal(signal.SIGINT, previous)
+
+    def _plan(self, tree: _Tree, goal: str, begin: float,
+              on_progress: Callable[[str], None] | None) -> Plan:
         s = self.settings
         seated, before = self.goal_pose(goal)
-        tree = self._tree(goal)
-        tree.deadline = begin + s.budget
         solves0, motions0 = tree.solves, tree.motions
         best: Plan | None = None
         trees = paths = 0
@@ -513,8 +535,9 @@ class Planner:
                 continue
             result = self._result(tree, nodes, goal)
             paths += 1
-            if not result.run.complete:
-                tree.blocked["the written path, followed again, did not hold"] += 1
+            broken = self._breaks(tree, result, seated)
+            if broken is not None:
+                tree.blocked[f"the written path, followed again: {broken}"] += 1
                 continue
             if on_progress is not None:
                 on_progress(f"tree {trees}: a path of {len(nodes) - 1} legs, peak "
@@ -525,6 +548,8 @@ class Planner:
             if best is None or result.cost < best.cost:
                 best = result
         seconds = time.perf_counter() - begin
+        if tree.interrupted:
+            raise KeyboardInterrupt
         if best is None:
             raise self._failure(tree, before, seconds, tree.solves - solves0)
         best.seconds, best.trees = seconds, trees
@@ -572,7 +597,8 @@ class Planner:
             planner.setRange(s.reach)
             planner.setGoalBias(s.goal_bias)
             setup.setPlanner(planner)
-            status = setup.solve(max(budget, 1e-3))
+            status = setup.solve(ob.PlannerTerminationCondition(
+                lambda: time.perf_counter() > tree.deadline))
             if status and setup.haveExactSolutionPath():
                 path = setup.getSolutionPath()
                 nodes = [tree.nodes[_key(_point(path.getState(k)))]
@@ -716,6 +742,29 @@ class Planner:
         demands = [tree.demand(eq) for eq in run.equilibria]
         return Plan(self.grip, goal, poses, problems, run, max(demands, default=math.inf),
                     demands, 0.0, 0, 0, 0, 0, steps)
+
+
+    def _breaks(self, tree: _Tree, result: Plan, seated: Pose) -> str | None:
+        """What the written path, followed again step by step, breaks of the rules its
+        motions were checked by (None: nothing)."""
+        run = result.run
+        if not run.complete:
+            return "it could not be solved to its end"
+        port = np.asarray(seated.position)
+        reach = self.settings.approach + 1e-6
+        for k, (record, eq) in enumerate(zip(run.steps, run.equilibria)):
+            if k == 0:
+                continue  # the start, as given (checked when the tree was rooted)
+            if record.snap:
+                return f"a snap at step {k}"
+            if record.stable is False:
+                return f"an unstable shape at step {k}"
+            near = np.linalg.norm(np.asarray(record.grip_position) - port) <= reach
+            try:
+                tree.check_step(eq, near_port=bool(near))
+            except _Blocked as why:
+                return f"{why.reason} at step {k}"
+        return None
 
 
 def _point(state: Any) -> np.ndarray:

@@ -380,8 +380,12 @@ def _plan_scene(file: Path, goal: str | None, out: Path, budget: float | None,
                      else f"margin {scene.margin * 1e3:g} mm") + ")")
     _first_run_note()
     planner = Planner(scene, settings)
-    with console.status("searching (OMPL's RRT over accurate equilibria)…"):
-        found = planner.plan(settings.goal, on_progress=console.print)
+    try:
+        with console.status("searching (OMPL's RRT over accurate equilibria)…"):
+            found = planner.plan(settings.goal, on_progress=console.print)
+    except KeyboardInterrupt:
+        typer.echo("interrupted: no path yet, nothing written", err=True)
+        raise typer.Exit(130) from None
     console.print(f"found a path in {found.seconds:.1f} s: {len(found.poses)} waypoints, "
                   f"{found.solves} accurate solves, {found.motions} motions checked, "
                   f"{found.trees} tree(s); followed again in {found.steps} steps")
