@@ -208,7 +208,7 @@ def test_ctrl_c_ends_a_plan_at_once_and_gives_the_handler_back(tmp_path):
     import subprocess
     import sys
 
-    script = f"""
+    script = """
 import os, signal, threading, time
 from pliant.assembly.plan import Planner
 from pliant.core.planning import PlanSettings
@@ -229,7 +229,7 @@ except KeyboardInterrupt:
 print(signal.getsignal(signal.SIGINT) is signal.default_int_handler)
 """
     out = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True,
-                         timeout=300, cwd=Path(__file__).resolve().parents[1])
+                         timeout=300, cwd=Path(__file__).resolve().parents[1], check=False)
     assert out.returncode == 0, out.stderr
     first, second = out.stdout.split("\n")[:2]
     assert first.startswith("interrupted") and float(first.split()[1]) < 60.0

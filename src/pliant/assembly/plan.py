@@ -494,10 +494,9 @@ class Planner:
     # -- one query ------------------------------------------------------------------------
     def plan(self, goal: str, *, on_progress: Callable[[str], None] | None = None) -> Plan:
         """A path for the grip to the port ``goal``; ``NoPathError`` within the budget
-        when none is found."""
+        when none is found; KeyboardInterrupt at once on Ctrl+C."""
         begin = time.perf_counter()
-        seated, _ = self.goal_pose(goal)
-        tree = self._tree(goal)
+        tree = self._tree(goal)  # checks the port first
         tree.deadline = begin + self.settings.budget
         tree.interrupted = False
         previous = None
