@@ -128,8 +128,11 @@ def test_a_walled_in_port_is_a_typed_error_inside_its_budget():
     e = err.value
     assert e.seconds < budget + 3.0  # at most the solve under way when the time ran out
     assert e.closest is not None and e.distance > 0.05
-    assert any(reason.startswith("clearance to cage") for reason in e.blocked)
+    centre = np.asarray(scene.ports["port"].position)
+    assert np.abs(np.asarray(e.closest.position) - centre).max() > 0.08  # never got in
+    assert e.blocked and all(n > 0 for n in e.blocked.values())
     assert "no path found" in str(e) and "--budget" in str(e)
+    assert next(iter(e.blocked)) in str(e)  # the commonest reason is named
 
 
 def test_a_second_query_reuses_the_tree():
@@ -234,3 +237,28 @@ print(signal.getsignal(signal.SIGINT) is signal.default_int_handler)
     first, second = out.stdout.split("\n")[:2]
     assert first.startswith("interrupted") and float(first.split()[1]) < 60.0
     assert second == "True"
+
+
+def test_a_query_to_another_port_grows_from_the_poses_reached_before():
+    """The roadmap is reused: every pose an earlier query reached (with the equilibrium
+    it was reached with) seeds the next query's tree, and the path found through them
+    holds when followed again from the start. The second port sits where the first
+    path passed, facing it."""
+    scene = load_scene(EXAMPLE)
+    planner = Planner(scene, PlanSettings(budget=60.0, seed=1, attempts=1))
+    first = planner.plan("port")
+    middle = first.poses[len(first.poses) // 2]
+    ports = dict(scene.ports)
+    ports["midway"] = ports["port"].model_copy(update={
+        "name": "midway", "position": middle.position,
+        "axis": tuple(-x for x in middle.tangent)})
+    planner.scene = replace(scene, ports=ports)
+    before = len(planner.forest)
+    second = planner.plan("midway")
+    assert first.reused == 0 and before > 5
+    assert second.reused > 0  # its search went through poses the first query reached
+    run = follow_path(scene.problem, second.path, "hand", margin=scene.margin,
+                      elements=scene.solver.elements)
+    assert run.complete and all(r.stable is True for r in run.steps) and not run.snaps
+    assert min(r.clearance for r in run.steps) >= scene.margin
+    np.testing.assert_allclose(run.final.position[-1], middle.position, atol=1e-6)

@@ -70,7 +70,7 @@ import numpy as np
 
 from pliant.core.planning import PlanSettings
 from pliant.core.problem import Problem
-from pliant.errors import ConvergenceError, InputError, PliantError
+from pliant.errors import ConvergenceError, InputError, PliantError, UnreachableTargetError
 
 PENETRATION = 1e-6  # m: a clearance below minus this is inside the obstacle
 
@@ -114,7 +114,8 @@ class Plan:
     count (``path``) and their run (``run``: every step solved again, in order), the
     peak ergonomic demand (the largest ratio of a hand demand to its red onset; per step
     in ``demands``), and what the search cost: seconds, accurate solves, motions
-    checked, trees grown, nodes in the tree, and the path's step count."""
+    checked, trees grown, nodes in the tree, the path's step count, and how many of the
+    poses its search went through were reached by an earlier query (``reused``)."""
 
     grip: str
     port: str
@@ -129,6 +130,7 @@ class Plan:
     trees: int
     nodes: int
     steps: int
+    reused: int = 0
 
     def path_table(self) -> str:
         """The path as a scene's [path] table (TOML): a waypoint and the hand's axis at
@@ -156,6 +158,7 @@ class Plan:
         return {"grip": self.grip, "port": self.port, "peak_demand": self.peak_demand,
                 "seconds": self.seconds, "solves": self.solves, "motions": self.motions,
                 "trees": self.trees, "nodes": self.nodes, "steps": self.steps,
+                "reused": self.reused,
                 "waypoints": [list(p.position) for p in self.poses],
                 "tangents": [list(p.tangent) for p in self.poses]}
 
@@ -227,6 +230,21 @@ class _Turning:
         return ((-self.OVER * self.metre, (self.angle + self.OVER) * self.metre),
                 (-self.TILT * self.metre, self.TILT * self.metre))
 
+    def coordinates(self, axis) -> tuple[float, float] | None:
+        """(u, v) of a unit axis, or None where it lies outside the band."""
+        a = _unit(axis)
+        t, n = self.start, self.normal
+        lat = math.asin(max(-1.0, min(1.0, float(n @ a))))
+        flat = a - float(n @ a) * n
+        lon = math.atan2(float(np.cross(n, t) @ flat), float(t @ flat))
+        if lon < -self.OVER - 1e-9:
+            lon += 2.0 * math.pi
+        (u_lo, u_hi), (v_lo, v_hi) = self.bounds()
+        u, v = lon * self.metre, lat * self.metre
+        if not (u_lo - 1e-12 <= u <= u_hi + 1e-12 and v_lo - 1e-12 <= v <= v_hi + 1e-12):
+            return None
+        return u, v
+
     def axis(self, u: float, v: float) -> tuple[float, float, float]:
         lon, lat = u / self.metre, v / self.metre
         t, n = self.start, self.normal
@@ -239,13 +257,22 @@ class _Turning:
 class _Node:
     """A pose reached: the hand's pose, the equilibrium there, the largest demand ratio
     on the way from the start, the waypoints of the edge that led here (for the written
-    path), and its axis's coordinates (u, v) in the planner's metric."""
+    path), and the node it was reached from (None: the start)."""
 
     pose: Pose
     eq: Any
     peak: float
     via: tuple[Pose, ...] = ()
-    uv: tuple[float, float] = (0.0, 0.0)
+    parent: _Node | None = field(default=None, repr=False)
+    query: int = 0  # the planner's query that reached it (0: the start)
+
+    def chain(self) -> list[_Node]:
+        """The nodes from the start to this one."""
+        out, node = [], self
+        while node is not None:
+            out.append(node)
+            node = node.parent
+        return out[::-1]
 
 
 class _Blocked(Exception):
@@ -341,14 +368,19 @@ class _Tree:
             return next(rod3d.trace([problem], start=eq, solver=self.solver))
         except ConvergenceError:
             raise _Blocked("a fold (the part would snap to another shape)") from None
-        except PliantError:
+        except UnreachableTargetError:
             raise _Blocked("out of reach") from None
+        except PliantError as err:
+            raise _Blocked(f"no equilibrium ({str(err).split(';')[0]})") from None
 
     def carry(self, start: _Node, point) -> _Node:
         """The node reached by carrying the hand from ``start`` straight to ``point``
         (x, y, z, u, v: its axis's coordinates in ``turning``) in steps; ``_Blocked``
         when a step is not acceptable."""
-        a, b = np.array([*start.pose.position, *start.uv]), np.asarray(point, dtype=float)
+        uv = self.turning.coordinates(start.pose.tangent)
+        if uv is None:
+            raise _Blocked("an axis outside the turns planned")
+        a, b = np.array([*start.pose.position, *uv]), np.asarray(point, dtype=float)
         turn = math.degrees(math.acos(max(-1.0, min(1.0, float(
             np.dot(start.pose.tangent, self.turning.axis(b[3], b[4])))))))
         n = max(1, math.ceil(float(np.linalg.norm(b[:3] - a[:3])) / self.settings.step),
@@ -363,7 +395,7 @@ class _Tree:
             via.append(pose)
         if eq.stable is False:
             raise _Blocked("instability (the part would not stay in that shape)")
-        return _Node(via[-1], eq, peak, tuple(via), (float(b[3]), float(b[4])))
+        return _Node(via[-1], eq, peak, tuple(via), start)
 
     def turn_in(self, start: _Node, end: Pose, near_port: bool) -> _Node:
         """The node reached by taking hold of the end's axis at ``start`` and carrying
@@ -386,7 +418,7 @@ class _Tree:
             via.append(pose)
         if eq.stable is False:
             raise _Blocked("instability (the part would not stay in that shape)")
-        return _Node(end, eq, peak, tuple(via))
+        return _Node(end, eq, peak, tuple(via), start)
 
     def same_shape(self, a: Any, b: Any) -> bool:
         """Whether two equilibria at one pose are the same shape (not two branches)."""
@@ -410,8 +442,10 @@ def _ompl():
 
 
 class Planner:
-    """Plans in one scene; its trees of equilibria (one per port) are kept between
-    queries."""
+    """Plans in one scene; every pose its trees reached (with its equilibrium) is kept
+    between queries and seeds the next one's tree."""
+
+    FOREST = 2000  # poses reached before that seed a new tree, at most (the latest)
 
     def __init__(self, scene: Any, settings: PlanSettings | None = None, *,
                  rules: Any = None, grip: str | None = None) -> None:
@@ -440,6 +474,9 @@ class Planner:
         self.rotation_length = (self.settings.rotation_length
                                 or 0.1 * scene.problem.part.length)
         self.trees: dict[str, _Tree] = {}
+        self.forest: list[_Node] = []  # every pose reached from the start, any tree
+        self.queries = 0
+        self._reused = 0
         self._start_eq: Any = None
         self._field: Any = None
 
@@ -499,6 +536,7 @@ class Planner:
         tree = self._tree(goal)  # checks the port first
         tree.deadline = begin + self.settings.budget
         tree.interrupted = False
+        self.queries += 1
         previous = None
         if threading.current_thread() is threading.main_thread():
             previous = signal.signal(signal.SIGINT, tree.interrupt)
@@ -533,6 +571,7 @@ class Planner:
                 tree.blocked[f"the last leg into the port: {why.reason}"] += 1
                 continue
             result = self._result(tree, nodes, goal)
+            result.reused = self._reused
             paths += 1
             broken = self._breaks(tree, result, seated)
             if broken is not None:
@@ -584,14 +623,23 @@ class Planner:
             si.setMotionValidator(validator)
             si.setup()
             setup = og.SimpleSetup(si)
-            start, target = si.allocState(), si.allocState()
-            root = tree.root
+            target = si.allocState()
             for i in range(3):
-                start[i] = root.pose.position[i]
                 target[i] = float(goal[i])
-            start[3], start[4] = 0.0, 0.0
             target[3], target[4] = tree.turning.length, 0.0
-            setup.setStartAndGoalStates(start, target, s.goal_tolerance)
+            setup.setGoalState(target, s.goal_tolerance)
+            # The tree grows from the start and from every pose reached before in this
+            # scene (toward any port, by any tree) whose axis its turns can express:
+            # each keeps the equilibrium it was reached with, so the roadmap is reused.
+            for node in [tree.root, *self.forest[-self.FOREST:]]:
+                uv = tree.turning.coordinates(node.pose.tangent)
+                if uv is None:
+                    continue
+                state = si.allocState()
+                for i, x in enumerate((*node.pose.position, *uv)):
+                    state[i] = float(x)
+                tree.nodes.setdefault(_key(_point(state)), node)
+                setup.addStartState(state)
             planner = og.RRT(si)
             planner.setRange(s.reach)
             planner.setGoalBias(s.goal_bias)
@@ -602,6 +650,8 @@ class Planner:
                 path = setup.getSolutionPath()
                 nodes = [tree.nodes[_key(_point(path.getState(k)))]
                          for k in range(path.getStateCount())]
+                nodes = nodes[0].chain()[:-1] + nodes  # from the start itself
+                self._reused = sum(0 < n.query < self.queries for n in nodes)
             validator.planner = validator.tree = None  # no cycle through OMPL's objects
         finally:
             ou.setLogLevel(level)
@@ -619,7 +669,10 @@ class Planner:
             j, reached = len(nodes) - 1, None
             while j > i + 1:
                 try:
-                    node = tree.carry(out[-1], (*nodes[j].pose.position, *nodes[j].uv))
+                    uv = tree.turning.coordinates(nodes[j].pose.tangent)
+                    if uv is None:
+                        raise _Blocked("an axis outside the turns planned")
+                    node = tree.carry(out[-1], (*nodes[j].pose.position, *uv))
                 except _Blocked:
                     node = None
                 if (node is not None and tree.same_shape(node.eq, nodes[j].eq)
@@ -679,8 +732,10 @@ class Planner:
             tree.blocked["another shape at a pose already reached"] += 1
             tree.edges[edge] = False
             return False
+        reached.query = self.queries
         tree.nodes[key] = reached
         tree.edges[edge] = True
+        self.forest.append(reached)
         return True
 
     # -- helpers --------------------------------------------------------------------------
