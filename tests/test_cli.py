@@ -125,9 +125,9 @@ def test_plan_writes_the_planned_scene_and_its_evaluation(tmp_path):
     text = planned.read_text()
     assert "# planned by `pliant plan` into 'port'" in text
     assert "# A planning example" in text  # the scene's own comments are kept
-    followed = run("run", str(planned), "--out", str(tmp_path / "run"))
-    assert followed.returncode == 0, followed.stderr
-    assert "the path was followed to its end" in followed.stdout
+    from pliant.io.problem_file import load_scene
+
+    assert len(load_scene(planned).path) > 1  # test_plan.py follows such a file again
     record = json.loads((tmp_path / "hose_past_post-plan.json").read_text())
     assert record["schema_version"] == 1 and record["run"]["complete"]
     assert len(record["waypoints"]) == len(record["tangents"]) > 1
