@@ -136,14 +136,11 @@ def test_plan_writes_the_planned_scene_and_its_evaluation(tmp_path):
     assert (tmp_path / "hose_past_post-planned.html").read_text().startswith("<!doctype html>")
 
 
-def test_plan_without_a_goal_or_a_way_is_one_line(tmp_path):
+def test_plan_without_a_goal_is_one_line(tmp_path):
     scene = EXAMPLES / "scenes" / "hose_past_post.toml"
     text = scene.read_text().replace('goal = "port"\n', "")
     (tmp_path / "nogoal.toml").write_text(text)
     out = run("plan", str(tmp_path / "nogoal.toml"), "--out", str(tmp_path))
     assert out.returncode == 2 and out.stderr.startswith("error: ")
     assert "give --goal PORT" in out.stderr and "Traceback" not in out.stderr
-    out = run("plan", str(scene), "--goal", "nowhere", "--out", str(tmp_path))
-    assert out.returncode == 2 and "no [[port]] named 'nowhere'" in out.stderr
-    out = run("plan", str(scene), "--budget", "-1", "--out", str(tmp_path))
-    assert out.returncode == 2 and "plan.budget" in out.stderr
+    # (An unknown port and a bad budget are typed errors too: test_plan.py.)

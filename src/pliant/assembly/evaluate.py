@@ -539,7 +539,7 @@ def _arrival(port: Any) -> np.ndarray:
     return -np.asarray(port.axis, float) / np.linalg.norm(port.axis)
 
 
-def _twist_rate(eq: Any, torsional_stiffness: float) -> float:
+def twist_rate(eq: Any, torsional_stiffness: float) -> float:
     """The largest twist rate [deg/m] along a shape: torque / GJ."""
     return math.degrees(float(np.abs(eq.torque).max()) / torsional_stiffness)
 
@@ -664,7 +664,7 @@ def _twist_checks(run: PathRun, part: Any, kind: PartKind | None, rules: Rules,
                                 note="while handled; judged only installed"))
         return out
     limit = settings.max_twist_rate
-    rates = [_twist_rate(eq, gj) for eq in eqs]
+    rates = [twist_rate(eq, gj) for eq in eqs]
     return [series_check("twist rate", "largest twist rate", "damage", rates, "deg/m",
                          "above", None if limit is None else 0.8 * limit, limit,
                          "the user's torsion rating" if limit else "no torsion rating given",
@@ -833,7 +833,7 @@ def _table(run: PathRun, grips: tuple[str, ...], grip_steps: dict[str, list[Grip
         row.update({"bend radius": r.bend_radius, "bend at": r.bend_at,
                     "clearance": r.clearance, "nearest": r.nearest,
                     "contact force": r.contact_force,
-                    "twist rate": _twist_rate(eq, gj),
+                    "twist rate": twist_rate(eq, gj),
                     "stable": r.stable, "snap": r.snap})
         if thin:
             row["flattening"] = float(brazier_flattening(1.0 / r.bend_radius, a, t,

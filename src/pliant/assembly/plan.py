@@ -29,8 +29,9 @@ part is flexible:
 - **A step is valid** when it converges without a fold (the part keeps its shape), its
   tube keeps the scene's margin from every obstacle (or only stays out of them, with
   ``allow_contact``), no obstacle presses harder than ``max_contact_force``, and the
-  part bends no tighter than the evaluation's limit; the edge's last pose must be
-  stable. What blocked each rejected edge is counted: the error of a failed plan says
+  part keeps the evaluation's damage limits that apply along a path: its bend radius,
+  a thin-walled tube's flattening (Brazier, as a radius) and a cable's twist rate (when
+  ``max_twist_rate`` is given); the edge's last pose must be stable. What blocked each rejected edge is counted: the error of a failed plan says
   what stood in the way.
 - **The cost is the evaluation's ergonomic demand**: at each step, the largest ratio of
   a hand demand (push or pull, grip force, wrist twist, bending at the hand) to its red
@@ -292,6 +293,8 @@ class _Tree:
     solver: Any
     bend_limit: float | None
     turning: _Turning
+    kink_limit: float | None = None
+    twist_limit: float | None = None
     root: Any = None
     nodes: dict[tuple, _Node] = field(default_factory=dict)
     edges: dict[tuple, bool] = field(default_factory=dict)
@@ -340,10 +343,18 @@ class _Tree:
         """Raise ``_Blocked`` naming why the step ``eq`` is not acceptable."""
         from pliant.scene.interference import of_equilibrium
 
-        if self.bend_limit is not None:
+        if self.bend_limit is not None or self.kink_limit is not None:
             radius, _ = eq.min_bend_radius()
-            if radius < self.bend_limit:
+            if self.bend_limit is not None and radius < self.bend_limit:
                 raise _Blocked(f"bend radius below {self.bend_limit * 1e3:.3g} mm")
+            if self.kink_limit is not None and radius < self.kink_limit:
+                raise _Blocked(f"a kink (Brazier: bend radius below "
+                               f"{self.kink_limit * 1e3:.3g} mm)")
+        if self.twist_limit is not None:
+            from pliant.assembly.evaluate import twist_rate
+
+            if twist_rate(eq, self.scene.problem.part.stiffnesses[2]) > self.twist_limit:
+                raise _Blocked(f"a twist rate above {self.twist_limit:.3g} deg/m")
         margin = self.scene.margin
         floor = -PENETRATION if (self.settings.allow_contact or near_port) else margin
         report = of_equilibrium(eq, margin=margin, subdivide=2)
@@ -469,7 +480,9 @@ class Planner:
                    for c in scene.problem.conditions):
             raise InputError("plan", "nothing else holds the part in place: a plan carries "
                              "one end while the other is fitted (give it a port or x, y, z)")
-        self.bend_limit = bend_limit(scene.problem.part, rules.kind(scene.problem.part.kind))[0]
+        kind = rules.kind(scene.problem.part.kind)
+        self.bend_limit = bend_limit(scene.problem.part, kind)[0]
+        self.kink_limit = kink_radius(scene.problem.part, kind, rules)
         self.solver = rod3d.RodSolver(elements=self.settings.elements or scene.solver.elements)
         self.rotation_length = (self.settings.rotation_length
                                 or 0.1 * scene.problem.part.length)
@@ -508,7 +521,8 @@ class Planner:
         turning = _Turning.between(start.tangent, seated.tangent,
                                    before - np.asarray(start.position), self.rotation_length)
         tree = _Tree(self.scene, self.grip, self.settings, self.rules, self.solver,
-                     self.bend_limit, turning)
+                     self.bend_limit, turning, self.kink_limit,
+                     self.scene.evaluation.max_twist_rate)
         if self._start_eq is None:
             from pliant.models import rod3d
 
@@ -819,6 +833,23 @@ class Planner:
             except _Blocked as why:
                 return f"{why.reason} at step {k}"
         return None
+
+
+def kink_radius(part: Any, kind: Any, rules: Any) -> float | None:
+    """The centreline bend radius [m] below which a thin-walled tube's section flattens
+    past the rules' red limit (Brazier: zeta = (1 - nu^2) a^4 / (t^2 R^2)), None where the
+    rule does not apply (not thin-walled, or a/t below the rules' ratio: the evaluation's
+    own test). nu not given: 0, the larger flattening, as the evaluation assumes."""
+    from pliant.assembly.checks import tube_section
+
+    if kind is None or not kind.thin_walled or part.outer_diameter is None or not (
+            part.inner_diameter and part.inner_diameter > 0.0):
+        return None
+    a, t = tube_section(part.outer_diameter, part.inner_diameter)
+    if a / t < rules.kink_min_ratio:
+        return None
+    nu = part.poisson_ratio or 0.0
+    return a * a * math.sqrt(1.0 - nu * nu) / (t * math.sqrt(rules.kink_red))
 
 
 def _point(state: Any) -> np.ndarray:
