@@ -254,7 +254,7 @@ class _Turning:
 
 
 # -- the search tree ----------------------------------------------------------------------
-@dataclass
+@dataclass(repr=False)
 class _Node:
     """A pose reached: the hand's pose, the equilibrium there, the largest demand ratio
     on the way from the start, the waypoints of the edge that led here (for the written
@@ -282,7 +282,7 @@ class _Blocked(Exception):
         super().__init__(reason)
 
 
-@dataclass
+@dataclass(repr=False)
 class _Tree:
     """The equilibria reached, by position, and the rules a step is checked against."""
 
@@ -553,7 +553,8 @@ class Planner:
         self.queries += 1
         previous = None
         if threading.current_thread() is threading.main_thread():
-            previous = signal.signal(signal.SIGINT, tree.interrupt)
+            # A plain function: signal.signal reprs a handler it cannot map to its enum.
+            previous = signal.signal(signal.SIGINT, lambda *_: tree.interrupt())
         try:
             return self._plan(tree, goal, begin, on_progress)
         finally:
