@@ -144,3 +144,10 @@ def test_plan_without_a_goal_is_one_line(tmp_path):
     assert out.returncode == 2 and out.stderr.startswith("error: ")
     assert "give --goal PORT" in out.stderr and "Traceback" not in out.stderr
     # (An unknown port and a bad budget are typed errors too: test_plan.py.)
+
+
+def test_version_answers_at_once():
+    out = run("--version")
+    from pliant import __version__
+
+    assert out.returncode == 0 and out.stdout.strip() == f"pliant {__version__}"

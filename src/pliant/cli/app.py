@@ -27,6 +27,21 @@ app = typer.Typer(
 EXAMPLES = Path(__file__).resolve().parents[3] / "examples"  # the repository (editable install)
 
 
+def _version(value: bool) -> None:
+    if value:
+        from pliant import __version__  # noqa: PLC0415
+
+        typer.echo(f"pliant {__version__}")
+        raise typer.Exit()
+
+
+@app.callback()
+def _main(version: Annotated[bool, typer.Option(
+        "--version", callback=_version, is_eager=True,
+        help="print pliant's version and exit")] = False) -> None:
+    """Flexible parts (hoses, pipes, cables) in assembly and disassembly."""
+
+
 def _first_run_note() -> None:
     """Say so (on stderr) when the numba kernels are not cached yet: a fresh install
     compiles them once, for about a minute, and should not look hung."""
@@ -104,7 +119,7 @@ def run(
                                                       "(default: the file's \\[solver])")]
     = None,
 ) -> None:
-    """Follow a scene's manipulation: solve every step of its [path], report the force and
+    """Follow a scene's manipulation: solve every step of its \\[path], report the force and
     moment at the grip, contacts, clearances and bend radius, and write them out."""
     _run_scene(file, out, _elements(elements))
 
@@ -340,7 +355,7 @@ def plan(
 ) -> None:
     """Find the grip's path: from the scene's start pose to the port, through stable
     equilibria of the accurate model only, clear of the obstacles, within the part's
-    bend limit, with the least hand demand found. Writes the scene with that [path]
+    bend limit, with the least hand demand found. Writes the scene with that \\[path]
     (play it with `pliant view`) and its evaluation. Exit status 0 when the planned
     operation passes the evaluation, 1 when it does not, 2 when no path is found."""
     _plan_scene(file, goal, out, budget, seed, allow_contact, attempts, _elements(elements))
