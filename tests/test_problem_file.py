@@ -182,3 +182,22 @@ def test_parser_gives_a_problem_or_a_file_error(doc):
         assert str(err).startswith("fuzz.toml: ")
     else:
         assert isinstance(problem, pl.Problem)
+
+
+def test_a_misspelt_key_is_named_with_the_nearest_the_table_takes():
+    from pliant.errors import FileFormatError
+    from pliant.io.problem_file import parse_scene
+
+    with pytest.raises(FileFormatError) as err:
+        parse_scene("[part]\nlenght = 1.0\nbending_stiffness = 1.0\n", "x.toml")
+    message = str(err.value)
+    assert message.startswith("x.toml: part.lenght: unknown key 'lenght'; did you mean "
+                              "'length'? [part] takes ")
+    assert "(and 1 more)" in message  # the length it then misses
+    with pytest.raises(FileFormatError, match="did you mean 'tangent'\\? \\[condition\\] "
+                                              "takes Fn, Ft"):
+        parse_scene("[part]\nlength = 1.0\nbending_stiffness = 1.0\n[[condition]]\ns = 0\n"
+                    "tangnet = [1, 0, 0]\n", "x.toml")
+    with pytest.raises(FileFormatError, match="unknown key 'zzz'; the file's top level "
+                                              "takes assembled"):
+        parse_scene("zzz = 1\n[part]\nlength = 1.0\nbending_stiffness = 1.0\n", "x.toml")

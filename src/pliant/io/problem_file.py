@@ -602,6 +602,29 @@ class Scene:
     plan: PlanSettings = field(default_factory=PlanSettings)
 
 
+def _unknown_key(loc: tuple) -> str:
+    """The message for a key no table of that name takes: the nearest it does take, and
+    all of them (SI units)."""
+    import difflib  # noqa: PLC0415
+
+    names = [x for x in loc if isinstance(x, str)]
+    key = names[-1]
+    tables = {"part": PartModel, "condition": ConditionModel, "obstacle": ObstacleModel,
+              "assembled": AssembledModel, "port": PortModel, "clip": ClipModel,
+              "path": PathModel, "evaluation": EvaluationModel, "solver": SolverModel,
+              "plan": PlanModel, "part.material": MaterialModel,
+              "evaluation.rating": RatingModel}
+    table = ".".join(names[:-1])
+    model = tables.get(table, ProblemFile if not table else None)
+    if model is None:
+        return "unknown key; see the README's file format (SI units)"
+    known = sorted(model.model_fields)
+    close = difflib.get_close_matches(key, known, n=1, cutoff=0.6)
+    hint = f"did you mean {close[0]!r}? " if close else ""
+    where = f"[{table}]" if table else "the file's top level"
+    return f"unknown key {key!r}; {hint}{where} takes {', '.join(known)} (SI units)"
+
+
 def parse_problem(text: str, source: str = "<string>") -> Problem:
     """Parse TOML text into a ``Problem``; errors name the source and the field."""
     return parse_problem_file(text, source)[0]
@@ -628,13 +651,13 @@ def scene_from_data(data: dict[str, Any], source: str = "<data>", base: Path | N
     try:
         model = ProblemFile.model_validate(data)
     except ValidationError as err:
-        first = err.errors()[0]
+        errors = err.errors()
+        # A misspelt key explains the key "missing" beside it: name it first.
+        first = next((e for e in errors if e["type"] == "extra_forbidden"), errors[0])
         where = field_path(tuple(first["loc"]))
         message = first["msg"].removeprefix("Value error, ")
         if first["type"] == "extra_forbidden":
-            message = ("unknown key; see the README's file format (a condition takes s, "
-                       "x, y, z, angle, tangent, normal, Fx, Fy, Fz, moment, Ft, Fn, port, "
-                       "name, note; SI units)")
+            message = _unknown_key(tuple(first["loc"]))
         more = f" (and {len(err.errors()) - 1} more)" if len(err.errors()) > 1 else ""
         raise FileFormatError(f"{source}: {where}: {message}{more}") from None
     try:
