@@ -216,6 +216,12 @@ def test_a_path_into_an_obstacle_stops_with_the_reason_and_keeps_the_steps():
     run = follow_path(scene.problem, scene.path, "hand", elements=40)
     assert not run.complete and "could not be solved" in run.stopped
     assert 1 <= len(run.steps) < 4
+    # It says why: the hand's target is inside the ball (the part's tube round it).
+    assert "hand.position: the part's tube there would be" in run.stopped
+    assert "inside the obstacle 'ball'; move the target out of it" in run.stopped
+    end = np.array(scene.path[len(run.steps) - 1].condition("hand").position)
+    depth = 0.05 + 0.005 - np.linalg.norm(end - [0.4, 0.3, 0.0])
+    assert f"would be {depth * 1e3:.3g} mm inside" in run.stopped
 
 
 def _cli(*args):

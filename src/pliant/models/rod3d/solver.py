@@ -45,7 +45,7 @@ from pliant.core.equilibrium import (
     StationLoad,
 )
 from pliant.core.problem import Problem
-from pliant.errors import ConvergenceError, IllPosedProblemError
+from pliant.errors import ConvergenceError, IllPosedProblemError, InputError
 from pliant.models.banded import dense
 from pliant.models.rod3d import kernels
 from pliant.models.rod3d.kernels import AXIS, FULL
@@ -707,6 +707,7 @@ def _solve(problem: Problem, warm_start: Equilibrium3D | None, solver: RodSolver
         if state is None:
             state = run.cold()
     except _Stalled as stall:
+        _held_inside(problem)  # the likeliest cause, named, where it is the cause
         raise ConvergenceError(
             f"no equilibrium: {stall.reason}; stopped at {stall.t:.3g} of the way "
             f"(relative residual {stall.residual:.2e}); try smaller steps or check that "
@@ -716,6 +717,29 @@ def _solve(problem: Problem, warm_start: Equilibrium3D | None, solver: RodSolver
     if warm_start is not None and isinstance(warm_start.state, _WarmState):
         seed = warm_start.state.mode[0] if warm_start.state.mode else None
     return _build(run, state, seed)
+
+
+def _held_inside(problem: Problem) -> None:
+    """Raise ``InputError`` naming the condition and the obstacle when a position the
+    problem prescribes lies where the part's tube cannot be: inside an obstacle (what a
+    solve that stalls most often means in a scene). Checked only once a solve failed."""
+    if not problem.obstacles:
+        return
+    from pliant.scene.distance import DistanceField  # noqa: PLC0415
+
+    held = [c for c in problem.conditions if c.position and all(v is not None
+                                                               for v in c.position)]
+    if not held:
+        return
+    radius = 0.5 * problem.part.outer_diameter if problem.part.outer_diameter else 0.0
+    for obstacle in problem.obstacles:
+        d, _, _ = DistanceField([obstacle]).query(np.array([c.position for c in held]),
+                                                  band=radius + 1e-3)
+        for c, gap in zip(held, d - radius):
+            if gap < -1e-6:
+                raise InputError(f"{c.name}.position",
+                                 f"the part's tube there would be {-gap * 1e3:.3g} mm inside "
+                                 f"the obstacle {obstacle.name!r}; move the target out of it")
 
 
 def _build(run: _Run, state: State, seed: np.ndarray | None = None) -> Equilibrium3D:
