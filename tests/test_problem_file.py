@@ -201,3 +201,15 @@ def test_a_misspelt_key_is_named_with_the_nearest_the_table_takes():
     with pytest.raises(FileFormatError, match="unknown key 'zzz'; the file's top level "
                                               "takes assembled"):
         parse_scene("zzz = 1\n[part]\nlength = 1.0\nbending_stiffness = 1.0\n", "x.toml")
+
+
+def test_a_diameter_given_in_millimetres_is_refused_with_the_units():
+    from pliant.io.problem_file import parse_scene
+
+    with pytest.raises(FileFormatError, match="part: outer_diameter 20 m is more than half "
+                                              "the part's length \\(1 m\\).*20 mm is 0.02"):
+        parse_scene("[part]\nlength = 1.0\nbending_stiffness = 1.0\nouter_diameter = 20\n",
+                    "x.toml")
+    ok = parse_scene("[part]\nlength = 1.0\nbending_stiffness = 1.0\nouter_diameter = 0.02\n"
+                     "[[condition]]\ns = 0.0\nx = 0.0\ny = 0.0\nangle = 0.0\n", "x.toml")
+    assert ok.problem.part.outer_diameter == 0.02

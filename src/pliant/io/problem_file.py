@@ -105,6 +105,10 @@ class PartModel(_Strict):
                              "youngs_modulus)")
         if self.material is not None and self.outer_diameter is None:
             raise ValueError("a material needs outer_diameter [m] to make a section")
+        if self.outer_diameter is not None and self.outer_diameter > 0.5 * self.length:
+            raise ValueError(f"outer_diameter {self.outer_diameter:g} m is more than half the "
+                             f"part's length ({self.length:g} m): no hose or cable is that "
+                             "fat; the file's units are SI (metres: 20 mm is 0.02)")
         return self
 
     def build(self) -> Part:
