@@ -130,6 +130,7 @@ def test_plan_writes_the_planned_scene_and_its_evaluation(tmp_path):
     assert len(load_scene(planned).path) > 1  # test_plan.py follows such a file again
     record = json.loads((tmp_path / "hose_past_post-plan.json").read_text())
     assert record["schema_version"] == 1 and record["run"]["complete"]
+    assert record["units"]["waypoints"] == "m" and record["units"]["run"]["force"] == "N"
     assert len(record["waypoints"]) == len(record["tangents"]) > 1
     report = json.loads((tmp_path / "hose_past_post-planned-evaluation.json").read_text())
     assert report["verdict"]["passes"]

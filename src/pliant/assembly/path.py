@@ -22,6 +22,11 @@ from pliant.core.problem import Problem
 from pliant.errors import PliantError
 from pliant.scene.interference import Interference, of_equilibrium
 
+# The units of a run's records, as its JSON states them.
+STEP_UNITS = {"progress": "1", "grip_position": "m", "force": "N", "moment": "N m",
+              "clearance": "m", "clearances": "m", "contact_force": "N", "bend_radius": "m",
+              "bend_at": "m", "seconds": "s", "margin": "m"}
+
 
 @dataclass(frozen=True)
 class StepRecord:

@@ -144,6 +144,7 @@ def _run_scene(file: Path, out: Path, elements: int | None) -> None:
     from rich.console import Console  # noqa: PLC0415
 
     from pliant.assembly import follow_path  # noqa: PLC0415
+    from pliant.assembly.path import STEP_UNITS  # noqa: PLC0415
     from pliant.cli.plot import plot_path  # noqa: PLC0415
     from pliant.cli.report import (  # noqa: PLC0415
         print_contacts,
@@ -172,8 +173,9 @@ def _run_scene(file: Path, out: Path, elements: int | None) -> None:
     print_contacts(result.final, console)
     stem = file.stem
     report = out / f"{stem}.json"
-    atomic_write(report, lambda h: h.write(_json.dumps(finite(result.to_dict()),
-                                                       indent=1).encode()), "the report")
+    record = {"schema_version": 1, "units": STEP_UNITS, **result.to_dict()}
+    atomic_write(report, lambda h: h.write(_json.dumps(finite(record), indent=1).encode()),
+                 "the report")
     plot = plot_path(result, out / f"{stem}.png", problem.part.min_bend_radius)
     glb = export_scene(result.final, out / f"{stem}.glb")
     console.print(f"written: {report}, {plot}, {glb} (the last pose with the obstacles)")
@@ -370,6 +372,7 @@ def _plan_scene(file: Path, goal: str | None, out: Path, budget: float | None,
     from rich.console import Console  # noqa: PLC0415
 
     from pliant.assembly.evaluate import evaluate as evaluate_scene  # noqa: PLC0415
+    from pliant.assembly.path import STEP_UNITS  # noqa: PLC0415
     from pliant.assembly.plan import Planner  # noqa: PLC0415
     from pliant.cli.evaluation_report import print_evaluation, write_html  # noqa: PLC0415
     from pliant.cli.report import print_path  # noqa: PLC0415
@@ -415,6 +418,8 @@ def _plan_scene(file: Path, goal: str | None, out: Path, budget: float | None,
     written = [atomic_write(out / f"{stem}-planned.toml", lambda h: h.write(text.encode()),
                             "the planned scene")]
     summary = _json.dumps(finite({"schema_version": 1, **found.summary(),
+                                  "units": {"waypoints": "m", "tangents": "1",
+                                            "seconds": "s", "run": STEP_UNITS},
                                   "run": found.run.to_dict()}), indent=1).encode()
     written.append(atomic_write(out / f"{stem}-plan.json", lambda h: h.write(summary),
                                 "the plan"))
