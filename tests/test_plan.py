@@ -270,3 +270,12 @@ def test_the_kink_limit_is_brazier_at_the_rules_red_flattening():
     bay = load_scene(EXAMPLE.parent / "engine_bay.toml").problem.part
     assert kink_radius(bay, rules.kind(bay.kind), rules) is None
     assert kink_radius(part, rules.kind("rubber hose"), rules) is None
+
+
+def test_the_path_table_reads_back_whatever_the_grip_is_called(found):
+    _, result = found
+    odd = replace(result, grip='left "hand"\\\n\tnaïve')
+    doc = read_toml(odd.path_table(), "table")
+    assert doc["path"]["grip"] == odd.grip
+    assert doc["path"]["waypoints"] == [list(map(float, f"{x:.6g} {y:.6g} {z:.6g}".split()))
+                                        for x, y, z in (p.position for p in result.poses)]

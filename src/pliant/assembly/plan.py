@@ -58,6 +58,7 @@ stops when the goal is reached, not when a clock runs out (it fails only on the 
 
 from __future__ import annotations
 
+import json
 import math
 import signal
 import threading
@@ -139,11 +140,10 @@ class Plan:
         def vec(v) -> str:
             return "[" + ", ".join(f"{float(x):.6g}" for x in v) + "]"
 
-        name = self.grip.replace("\\", "\\\\").replace('"', '\\"')
         return "\n".join([
             (f"[path]                         # planned by `pliant plan` into {self.port!r}: "
              f"peak hand demand {self.peak_demand:.2f} of the red onset"),
-            f'grip = "{name}"',
+            f"grip = {json.dumps(self.grip, ensure_ascii=False)}",  # TOML's escapes too
             "waypoints = [", *[f"    {vec(p.position)}," for p in self.poses], "]",
             "tangents = [", *[f"    {vec(p.tangent)}," for p in self.poses], "]",
             f"steps = {self.steps}", ""])
