@@ -70,11 +70,11 @@ from typing import Any
 
 import numpy as np
 
+from pliant.assembly.evaluate import PENETRATION
 from pliant.core.planning import PlanSettings
 from pliant.core.problem import Problem
 from pliant.errors import ConvergenceError, InputError, PliantError, UnreachableTargetError
-
-PENETRATION = 1e-6  # m: a clearance below minus this is inside the obstacle
+from pliant.io.problem_file import along_legs, slerp
 
 
 class NoPathError(PliantError):
@@ -168,30 +168,6 @@ class Plan:
 def _unit(v) -> np.ndarray:
     v = np.asarray(v, dtype=float)
     return v / np.linalg.norm(v)
-
-
-def _slerp(a: np.ndarray, b: np.ndarray, t: float) -> np.ndarray:
-    angle = math.acos(max(-1.0, min(1.0, float(a @ b))))
-    if angle < 1e-9:
-        return a
-    return (math.sin((1 - t) * angle) * a + math.sin(t * angle) * b) / math.sin(angle)
-
-
-def _quat_with_z(t: np.ndarray) -> tuple[float, float, float, float]:
-    """A unit quaternion (x, y, z, w) turning +z onto the unit vector t."""
-    z = np.array([0.0, 0.0, 1.0])
-    c = float(z @ t)
-    if c < -1.0 + 1e-12:
-        return (1.0, 0.0, 0.0, 0.0)  # half a turn about x
-    axis = np.cross(z, t)
-    w = math.sqrt(0.5 * (1.0 + c))
-    xyz = axis / (2.0 * w)
-    return (float(xyz[0]), float(xyz[1]), float(xyz[2]), w)
-
-
-def _z_of(q: tuple[float, float, float, float]) -> np.ndarray:
-    x, y, z, w = q
-    return np.array([2 * (x * z + w * y), 2 * (y * z - w * x), 1 - 2 * (x * x + y * y)])
 
 
 # -- the hand's axis ----------------------------------------------------------------------
@@ -304,7 +280,7 @@ class _Tree:
     deadline: float = math.inf
     interrupted: bool = False
 
-    def interrupt(self, *_: Any) -> None:
+    def interrupt(self) -> None:
         """Ctrl+C while planning: every motion is refused from now on and OMPL's search
         ends at its next check (a signal handler: no exception thrown through OMPL)."""
         self.interrupted = True
@@ -321,13 +297,6 @@ class _Tree:
             return replace(c, position=tuple(map(float, position)), normal=None,
                            tangent=tuple(map(float, tangent)))
         return replace(problem, conditions=tuple(moved(c) for c in problem.conditions))
-
-    def axis(self, eq: Any) -> tuple[float, float, float]:
-        """The part's unit tangent at the grip."""
-        from pliant.assembly.evaluate import tangent_at
-
-        s = self.scene.problem.condition(self.grip).s
-        return tuple(float(x) for x in _unit(tangent_at(eq, s)))
 
     def demand(self, eq: Any) -> float:
         """The largest ratio of a hand demand at the grip to its red onset."""
@@ -396,17 +365,11 @@ class _Tree:
             np.dot(start.pose.tangent, self.turning.axis(b[3], b[4])))))))
         n = max(1, math.ceil(float(np.linalg.norm(b[:3] - a[:3])) / self.settings.step),
                 math.ceil(turn / self.settings.turn))
-        eq, peak, via = start.eq, start.peak, []
+        poses = []
         for k in range(1, n + 1):
             x = a + (k / n) * (b - a)
-            pose = Pose(tuple(float(v) for v in x[:3]), self.turning.axis(x[3], x[4]))
-            eq = self._solve(self.problem_at(pose.position, pose.tangent), eq)
-            self.check_step(eq)
-            peak = max(peak, self.demand(eq))
-            via.append(pose)
-        if eq.stable is False:
-            raise _Blocked("instability (the part would not stay in that shape)")
-        return _Node(via[-1], eq, peak, tuple(via), start)
+            poses.append(Pose(tuple(float(v) for v in x[:3]), self.turning.axis(x[3], x[4])))
+        return self._walk(start, poses, poses[-1], near_port=False)
 
     def turn_in(self, start: _Node, end: Pose, near_port: bool) -> _Node:
         """The node reached by taking hold of the end's axis at ``start`` and carrying
@@ -418,18 +381,22 @@ class _Tree:
             raise _Blocked("a half turn of the hand's axis in the last leg")
         n = max(1, math.ceil(float(np.linalg.norm(b - a)) / self.settings.step),
                 math.ceil(angle / self.settings.turn))
-        eq, peak, via = start.eq, start.peak, []
-        for k in range(1, n + 1):
-            t = k / n
-            pose = Pose(tuple(float(x) for x in a + t * (b - a)),
-                        tuple(float(x) for x in _unit(_slerp(ta, tb, t))))
+        poses = [Pose(tuple(float(x) for x in a + (k / n) * (b - a)),
+                      tuple(float(x) for x in _unit(slerp(ta, tb, k / n))))
+                 for k in range(1, n + 1)]
+        return self._walk(start, poses, end, near_port)
+
+    def _walk(self, start: _Node, poses: list[Pose], end: Pose, near_port: bool) -> _Node:
+        """The node at ``end`` reached by solving ``poses`` in turn from ``start``, each
+        step checked; the last must be stable."""
+        eq, peak = start.eq, start.peak
+        for pose in poses:
             eq = self._solve(self.problem_at(pose.position, pose.tangent), eq)
             self.check_step(eq, near_port)
             peak = max(peak, self.demand(eq))
-            via.append(pose)
         if eq.stable is False:
             raise _Blocked("instability (the part would not stay in that shape)")
-        return _Node(end, eq, peak, tuple(via), start)
+        return _Node(end, eq, peak, tuple(poses), start)
 
     def same_shape(self, a: Any, b: Any) -> bool:
         """Whether two equilibria at one pose are the same shape (not two branches)."""
@@ -489,7 +456,6 @@ class Planner:
         self.trees: dict[str, _Tree] = {}
         self.forest: list[_Node] = []  # every pose reached from the start, any tree
         self.queries = 0
-        self._reused = 0
         self._start_eq: Any = None
         self._field: Any = None
 
@@ -573,7 +539,7 @@ class Planner:
             if left <= 0 or (best is not None and left < 0.3 * s.budget / s.attempts):
                 break
             trees += 1
-            found = self._search(tree, before, s.seed + trees - 1, left)
+            found, reused = self._search(tree, before, s.seed + trees - 1)
             if found is None:
                 continue
             try:  # to the point before the port, then straight in along its axis
@@ -586,7 +552,7 @@ class Planner:
                 tree.blocked[f"the last leg into the port: {why.reason}"] += 1
                 continue
             result = self._result(tree, nodes, goal)
-            result.reused = self._reused
+            result.reused = reused
             paths += 1
             broken = self._breaks(tree, result, seated)
             if broken is not None:
@@ -610,16 +576,16 @@ class Planner:
         best.nodes = len(tree.nodes)
         return best
 
-    def _search(self, tree: _Tree, goal: np.ndarray, seed: int,
-                budget: float) -> list[_Node] | None:
+    def _search(self, tree: _Tree, goal: np.ndarray,
+                seed: int) -> tuple[list[_Node] | None, int]:
         """Grow a tree from the start toward the point before the port with OMPL's RRT
-        over (x, y, z, u, v); the nodes of the path it finds, simplified (None: not found
-        in ``budget`` s)."""
+        over (x, y, z, u, v), until the tree's deadline: the nodes of the path it finds,
+        simplified (None: none found), and how many of them an earlier query reached."""
         ob, og, ou = _ompl()
         s = self.settings
         level = ou.getLogLevel()
         ou.setLogLevel(ou.LOG_NONE)  # OMPL warns that seeding after its first use is late
-        nodes = None
+        nodes, reused = None, 0
         try:
             ou.RNG.setSeed(seed)
             space = ob.RealVectorStateSpace(5)
@@ -666,13 +632,13 @@ class Planner:
                 nodes = [tree.nodes[_key(_point(path.getState(k)))]
                          for k in range(path.getStateCount())]
                 nodes = nodes[0].chain()[:-1] + nodes  # from the start itself
-                self._reused = sum(0 < n.query < self.queries for n in nodes)
+                reused = sum(0 < n.query < self.queries for n in nodes)
             validator.planner = validator.tree = None  # no cycle through OMPL's objects
         finally:
             ou.setLogLevel(level)
         if nodes is None:
-            return None
-        return self._shortcut(tree, nodes) if s.simplify else nodes
+            return None, 0
+        return (self._shortcut(tree, nodes) if s.simplify else nodes), reused
 
     def _shortcut(self, tree: _Tree, nodes: list[_Node]) -> list[_Node]:
         """Drop waypoints where the part can go straight from an earlier node to a later
@@ -718,9 +684,7 @@ class Planner:
         field_ = self._hand_field()
         if field_ is not None:
             d, _, _ = field_.query(p[None, :])
-            part = problem.part
-            radius = 0.5 * part.outer_diameter if part.outer_diameter else 0.0
-            if d[0] - radius < (-PENETRATION if self.settings.allow_contact
+            if d[0] - problem.part.tube_radius < (-PENETRATION if self.settings.allow_contact
                                 else self.scene.margin):
                 return False
         return True
@@ -863,18 +827,8 @@ def path_problems(problem_at: Callable[..., Problem], start: Pose, poses: list[P
     slerp on each leg), in ``steps`` equal steps of length: what a scene's [path] gives."""
     points = np.array([start.position, *[p.position for p in poses]], dtype=float)
     tangents = np.array([start.tangent, *[p.tangent for p in poses]], dtype=float)
-    legs = np.linalg.norm(np.diff(points, axis=0), axis=1)
-    at = np.concatenate([[0.0], np.cumsum(legs)])
-    total = float(at[-1])
-    out = []
-    for k in range(1, steps + 1):
-        u = total * k / steps
-        leg = min(int(np.searchsorted(at, u, side="right")) - 1, len(legs) - 1)
-        t = (u - at[leg]) / legs[leg] if legs[leg] > 0 else 1.0
-        where = points[leg] + t * (points[leg + 1] - points[leg])
-        direction = _unit(_slerp(_unit(tangents[leg]), _unit(tangents[leg + 1]), t))
-        out.append(problem_at(where, direction))
-    return out
+    return [problem_at(where, _unit(direction))
+            for where, direction in along_legs(points, tangents, steps)]
 
 
 def _validator(ob):

@@ -185,6 +185,12 @@ class Part:
                                               self.twist_knots) for _, kappa in knots)
 
     @property
+    def tube_radius(self) -> float:
+        """The radius [m] of the tube kept out of obstacles: half the outer diameter (0,
+        a line, when the part has none)."""
+        return 0.5 * self.outer_diameter if self.outer_diameter else 0.0
+
+    @property
     def stiffnesses(self) -> tuple[float, float, float]:
         """(EI1, EI2, GJ) [N m^2]: bending about d1 and d2, torsion about d3."""
         ei2 = self.bending_stiffness_2 or self.bending_stiffness

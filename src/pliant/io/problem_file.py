@@ -552,22 +552,12 @@ class ProblemFile(_Strict):
         points = np.array([grip.position, *path.waypoints], dtype=float)
         turn = path.tangents is not None and grip.tangent is not None
         tangents = (np.array([grip.tangent, *path.tangents], dtype=float) if turn else None)
-        legs = np.linalg.norm(np.diff(points, axis=0), axis=1)
-        total = float(legs.sum())
-        if total == 0.0:
+        if float(np.linalg.norm(np.diff(points, axis=0), axis=1).sum()) == 0.0:
             raise InputError("path.waypoints", "the path has no length: move the grip")
-        at = np.concatenate([[0.0], np.cumsum(legs)])
         problems = []
-        for k in range(1, path.steps + 1):
-            u = total * k / path.steps
-            leg = min(int(np.searchsorted(at, u, side="right")) - 1, len(legs) - 1)
-            t = (u - at[leg]) / legs[leg] if legs[leg] > 0 else 1.0
-            where = points[leg] + t * (points[leg + 1] - points[leg])
+        for where, direction in along_legs(points, tangents, path.steps):
             changes: dict[str, Any] = {"position": tuple(float(x) for x in where)}
-            if tangents is not None:
-                a, b = tangents[leg] / np.linalg.norm(tangents[leg]), tangents[leg + 1]
-                b = b / np.linalg.norm(b)
-                direction = _slerp(a, b, t)
+            if direction is not None:
                 changes["tangent"] = tuple(float(x) for x in direction)
                 if grip.normal is not None:
                     changes["normal"] = None  # the hand's roll follows the turn
@@ -577,7 +567,32 @@ class ProblemFile(_Strict):
         return problems
 
 
-def _slerp(a: np.ndarray, b: np.ndarray, t: float) -> np.ndarray:
+def along_legs(points: np.ndarray, tangents: np.ndarray | None,
+               steps: int) -> list[tuple[np.ndarray, np.ndarray | None]]:
+    """The poses a [path] gives: ``steps`` equal steps of arc length along straight legs
+    through ``points`` (n, 3) [m], each with the axis turned at a constant rate from one
+    of ``tangents`` (n, 3) to the next (None: no axis). A leg of no length gets no step."""
+    legs = np.linalg.norm(np.diff(points, axis=0), axis=1)
+    at = np.concatenate([[0.0], np.cumsum(legs)])
+    total = float(at[-1])
+    out = []
+    for k in range(1, steps + 1):
+        u = total * k / steps
+        leg = min(int(np.searchsorted(at, u, side="right")) - 1, len(legs) - 1)
+        t = (u - at[leg]) / legs[leg] if legs[leg] > 0 else 1.0
+        where = points[leg] + t * (points[leg + 1] - points[leg])
+        direction = None
+        if tangents is not None:
+            a = tangents[leg] / np.linalg.norm(tangents[leg])
+            b = tangents[leg + 1] / np.linalg.norm(tangents[leg + 1])
+            direction = slerp(a, b, t)
+        out.append((where, direction))
+    return out
+
+
+def slerp(a: np.ndarray, b: np.ndarray, t: float) -> np.ndarray:
+    """The unit vector a fraction t of the way from unit a to unit b along their great
+    circle (a half turn has none: an error naming [path] tangents)."""
     angle = math.acos(max(-1.0, min(1.0, float(a @ b))))
     if angle < 1e-9:
         return a

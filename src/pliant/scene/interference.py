@@ -128,9 +128,7 @@ def of_equilibrium(eq: Any, obstacles: tuple[Obstacle, ...] | None = None, *,
     The tube's radius is the part's outer radius (0: a line, when it has none)."""
     if eq.problem.dimension != 3:
         raise InputError("eq", "interference is checked in 3D scenes; this is a 2D answer")
-    part = eq.problem.part
-    radius = 0.5 * part.outer_diameter if part.outer_diameter else 0.0
-    return of_curve(eq.s, eq.position, radius,
+    return of_curve(eq.s, eq.position, eq.problem.part.tube_radius,
                     eq.problem.obstacles if obstacles is None else obstacles,
                     margin=margin, tolerance=tolerance, subdivide=subdivide)
 

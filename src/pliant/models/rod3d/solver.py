@@ -723,23 +723,21 @@ def _held_inside(problem: Problem) -> None:
     """Raise ``InputError`` naming the condition and the obstacle when a position the
     problem prescribes lies where the part's tube cannot be: inside an obstacle (what a
     solve that stalls most often means in a scene). Checked only once a solve failed."""
-    if not problem.obstacles:
+    held = [c for c in problem.conditions
+            if c.position and all(v is not None for v in c.position)]
+    if not problem.obstacles or not held:
         return
     from pliant.scene.distance import DistanceField  # noqa: PLC0415
 
-    held = [c for c in problem.conditions if c.position and all(v is not None
-                                                               for v in c.position)]
-    if not held:
-        return
-    radius = 0.5 * problem.part.outer_diameter if problem.part.outer_diameter else 0.0
-    for obstacle in problem.obstacles:
-        d, _, _ = DistanceField([obstacle]).query(np.array([c.position for c in held]),
-                                                  band=radius + 1e-3)
-        for c, gap in zip(held, d - radius):
-            if gap < -1e-6:
-                raise InputError(f"{c.name}.position",
-                                 f"the part's tube there would be {-gap * 1e3:.3g} mm inside "
-                                 f"the obstacle {obstacle.name!r}; move the target out of it")
+    radius = problem.part.tube_radius
+    d, _, nearest = DistanceField(list(problem.obstacles)).query(
+        np.array([c.position for c in held]), band=radius + 1e-3)
+    for c, gap, k in zip(held, d - radius, nearest):
+        if gap < -1e-6:
+            raise InputError(f"{c.name}.position",
+                             f"the part's tube there would be {-gap * 1e3:.3g} mm inside "
+                             f"the obstacle {problem.obstacles[k].name!r}; move the target "
+                             "out of it")
 
 
 def _build(run: _Run, state: State, seed: np.ndarray | None = None) -> Equilibrium3D:
