@@ -431,6 +431,59 @@ def _plan_scene(file: Path, goal: str | None, out: Path, budget: float | None,
 
 
 @app.command()
+def identify(
+    file: Annotated[Path, typer.Argument(help="a stiffness test (TOML): a problem file with "
+                                              "\\[identify] and \\[\\[measured]] tables")],
+    json_out: Annotated[Path | None, typer.Option("--json", help="write the estimates, "
+                                                  "intervals and fit as JSON")] = None,
+    plot: Annotated[Path | None, typer.Option(help="draw measured against fitted (PNG)")]
+    = None,
+    part: Annotated[Path | None, typer.Option(help="write the fitted \\[part] entry "
+                                                   "(TOML) to paste into a scene")] = None,
+) -> None:
+    """Identify the part's stiffness (or weight) from a test: the accurate model fitted
+    to what was measured (a shape, deflections under loads, a three-point bending curve,
+    a twist curve) by weighted least squares, each value with its confidence interval."""
+    from rich.console import Console  # noqa: PLC0415
+
+    from pliant.assembly.identify import identify as fit  # noqa: PLC0415
+    from pliant.cli.identify_report import plot_identification, print_identification  # noqa: PLC0415
+    from pliant.io.atomic import atomic_write  # noqa: PLC0415
+    from pliant.io.identify_file import load_test  # noqa: PLC0415
+    from pliant.io.jsontext import finite  # noqa: PLC0415
+
+    test, settings = load_test(file)
+    console = Console()
+    console.print(f"[bold]{test.name}[/bold]: fitting {', '.join(test.unknowns)} to "
+                  f"{len(test.measured)} measurement(s)")
+    _first_run_note()
+    solver = None
+    if test.problem.dimension == 3:
+        from pliant.models.rod3d import RodSolver  # noqa: PLC0415
+
+        solver = RodSolver(elements=settings.elements)
+    with console.status("fitting the accurate model…"):
+        result = fit(test, solver=solver)
+    print_identification(result, console)
+    written = []
+    if json_out is not None:
+        import json as _json  # noqa: PLC0415
+
+        text = _json.dumps(finite({"schema_version": 1, **result.to_dict()}), indent=1)
+        written.append(atomic_write(json_out, lambda h: h.write(text.encode()), "the JSON"))
+    if plot is not None:
+        written.append(plot_identification(result, plot))
+    if part is not None:
+        entry = result.part_table()
+        written.append(atomic_write(part, lambda h: h.write(entry.encode()), "the part"))
+    else:
+        console.print(result.part_table().rstrip(), markup=False, highlight=False,
+                      soft_wrap=True)
+    if written:
+        console.print("written: " + ", ".join(str(w) for w in written))
+
+
+@app.command()
 def demo(
     out: Annotated[Path, typer.Option(help="folder for the report, plot and scene")] = Path(
         "pliant-demo"),

@@ -638,6 +638,9 @@ def _unknown_key(loc: tuple) -> str:
     if model is None:
         return "unknown key; see the README's file format (SI units)"
     known = sorted(model.model_fields)
+    if table and key in ProblemFile.model_fields:
+        return (f"{key!r} is a top-level key, but it stands under [{table}]: TOML puts a "
+                "key in the table above it; write it before the file's first [table]")
     close = difflib.get_close_matches(key, known, n=1, cutoff=0.6)
     hint = f"did you mean {close[0]!r}? " if close else ""
     where = f"[{table}]" if table else "the file's top level"
