@@ -167,12 +167,12 @@ def _build(m: MeasuredModel, index: int, problem, base: Path | None):
         if m.condition is None:
             raise InputError(f"{label}.condition", "name the [[condition]] whose load the "
                              "table's load column gives")
-        cols = _data(m, "data", base, label)
         try:
             c = problem.condition(m.condition)
         except KeyError:
             raise InputError(f"{label}.condition", f"no condition named {m.condition!r}; "
                              "known: " + ", ".join(x.name for x in problem.conditions)) from None
+        cols = _data(m, "data", base, label)
         if m.direction is not None:
             direction = np.array(m.direction, dtype=float)
         else:
