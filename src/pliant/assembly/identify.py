@@ -389,13 +389,19 @@ def project(points: np.ndarray, s: np.ndarray, position: np.ndarray,
         p0, p1 = position[seg], position[seg + 1]
         m0, m1 = tangent[seg], tangent[seg + 1]
         h = s[seg + 1] - s[seg]
-        t = np.full(len(points), 0.5)
+        chord = p1 - p0  # the chord's projection starts Newton close
+        t = np.clip(np.einsum("ij,ij->i", points - p0, chord)
+                    / np.einsum("ij,ij->i", chord, chord), 0.0, 1.0)
         for _ in range(12):  # Newton on |H(t) - q|^2, kept in the segment
             pt, d1, d2 = _hermite(p0, p1, m0, m1, h, t)
             diff = pt - points
             g = np.einsum("ij,ij->i", diff, d1)
             hess = np.einsum("ij,ij->i", d1, d1) + np.einsum("ij,ij->i", diff, d2)
-            t = np.clip(t - g / np.where(hess > 0, hess, np.inf), 0.0, 1.0)
+            moved = np.clip(t - g / np.where(hess > 0, hess, np.inf), 0.0, 1.0)
+            done = np.abs(moved - t).max() < 1e-12  # of a segment: 1e-14 m here
+            t = moved
+            if done:
+                break
         pt = _hermite(p0, p1, m0, m1, h, t)[0]
         dist = np.linalg.norm(pt - points, axis=1)
         better = dist < best_d
