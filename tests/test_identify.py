@@ -321,3 +321,40 @@ def test_cli_writes_the_fit_and_a_part_entry_that_a_scene_reads(tmp_path):
     problem = parse_problem(scene, "part.toml")  # the entry reads as a problem's [part]
     assert problem.part.bending_stiffness == pytest.approx(
         by_name["bending_stiffness"]["value"], rel=1e-5)
+
+
+def test_every_library_material_states_its_source_and_provenance():
+    from pliant.io.materials import PROVENANCE, library
+
+    entries = library()
+    assert len(entries) >= 10
+    for entry in entries.values():
+        assert entry["provenance"] in PROVENANCE and len(entry["source"]) > 20
+
+
+REINFORCED = """
+[part]
+length = 1.0
+outer_diameter = 0.03
+inner_diameter = 0.02
+material = "EPDM"
+kind = "reinforced hose"
+{extra}
+[[condition]]
+name = "clamp"
+s = 0.0
+x = 0.0
+y = 0.0
+angle = 0.0
+"""
+
+
+def test_a_reinforced_hose_stiffened_only_by_its_rubber_is_warned_about():
+    from pliant.io.problem_file import parse_scene
+
+    warned = parse_scene(REINFORCED.format(extra=""), "h.toml").warnings
+    assert len(warned) == 1 and "plies make it many times stiffer" in warned[0]
+    assert "pliant identify" in warned[0]
+    measured = parse_scene(REINFORCED.format(extra="bending_stiffness = 2.5"), "h.toml")
+    assert measured.warnings == ()
+    assert measured.problem.part.bending_stiffness == 2.5

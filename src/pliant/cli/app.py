@@ -50,6 +50,16 @@ def _first_run_note() -> None:
         typer.echo("compiling the solvers (first run only, about a minute)…", err=True)
 
 
+def _load_scene(file: Path):
+    """The scene file, its warnings said on stderr (a valid file may still mislead)."""
+    from pliant.io.problem_file import load_scene  # noqa: PLC0415
+
+    scene = load_scene(file)
+    for warning in scene.warnings:
+        typer.echo(f"warning: {warning}", err=True)
+    return scene
+
+
 def _elements(value: int | None) -> int | None:
     """``--elements``, checked: None (the file's), or a count the 3D model takes."""
     if value is not None and not 4 <= value <= 100000:
@@ -77,10 +87,9 @@ def solve(
         print_summary,
         timed_solve,
     )
-    from pliant.io.problem_file import load_scene  # noqa: PLC0415
 
     elements = _elements(elements)
-    scene = load_scene(file)
+    scene = _load_scene(file)
     problem = scene.problem
     _first_run_note()
     eq, seconds = timed_solve(problem, elements or scene.solver.elements)
@@ -154,9 +163,8 @@ def _run_scene(file: Path, out: Path, elements: int | None) -> None:
     from pliant.io.atomic import atomic_write  # noqa: PLC0415
     from pliant.io.jsontext import finite  # noqa: PLC0415
     from pliant.io.mesh_export import export_scene  # noqa: PLC0415
-    from pliant.io.problem_file import load_scene  # noqa: PLC0415
 
-    scene = load_scene(file)
+    scene = _load_scene(file)
     if not scene.path:
         raise PliantError(f"{file}: no [path] to follow; give one (see the README), or "
                           "use `pliant solve` for a single pose")
@@ -232,11 +240,10 @@ def _evaluate_scene(file: Path, report: Path | None, json_out: Path | None,
     from pliant.assembly.evaluate import evaluate as evaluate_scene  # noqa: PLC0415
     from pliant.cli.evaluation_report import print_evaluation, write_html  # noqa: PLC0415
     from pliant.io.evaluation_file import write_csv, write_json  # noqa: PLC0415
-    from pliant.io.problem_file import load_scene  # noqa: PLC0415
     from pliant.io.rules_file import load_rules  # noqa: PLC0415
 
     elements = _elements(elements)
-    scene = load_scene(file)
+    scene = _load_scene(file)
     if operator is not None:  # checked as the file's would be (EvaluationSettings)
         scene = replace(scene, evaluation=replace(scene.evaluation, operator=operator))
     rules = load_rules(rules_file if rules_file is not None else scene.evaluation.rules)
@@ -379,9 +386,9 @@ def _plan_scene(file: Path, goal: str | None, out: Path, budget: float | None,
     from pliant.io.atomic import atomic_write  # noqa: PLC0415
     from pliant.io.evaluation_file import write_json  # noqa: PLC0415
     from pliant.io.jsontext import finite  # noqa: PLC0415
-    from pliant.io.problem_file import load_scene, read_text, with_path_table  # noqa: PLC0415
+    from pliant.io.problem_file import read_text, with_path_table  # noqa: PLC0415
 
-    scene = load_scene(file)
+    scene = _load_scene(file)
     changes = {k: v for k, v in (("budget", budget), ("seed", seed), ("attempts", attempts),
                                  ("allow_contact", allow_contact), ("elements", elements),
                                  ("goal", goal)) if v is not None}

@@ -11,12 +11,20 @@ from pliant.core.part import Material
 from pliant.errors import InputError
 
 
+PROVENANCE = ("measured", "identified", "handbook", "correlation")
+
+
 @cache
 def library() -> dict[str, dict]:
     """Every entry of the library, by name: youngs_modulus [Pa], density [kg/m^3],
-    poisson_ratio, description, source."""
+    poisson_ratio, description, source and provenance (one of ``PROVENANCE``)."""
     text = resources.files("pliant.data").joinpath("materials.toml").read_text("utf-8")
-    return tomllib.loads(text)
+    entries = tomllib.loads(text)
+    for name, entry in entries.items():
+        if entry.get("provenance") not in PROVENANCE or not entry.get("source"):
+            raise InputError(f"materials.toml: [{name}]", "every entry states its source "
+                             f"and its provenance ({', '.join(PROVENANCE)})")
+    return entries
 
 
 def material(name: str) -> Material:

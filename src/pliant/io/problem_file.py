@@ -619,6 +619,27 @@ class Scene:
     fixed: tuple[str, ...] = ()
     evaluation: EvaluationSettings = field(default_factory=EvaluationSettings)
     plan: PlanSettings = field(default_factory=PlanSettings)
+    warnings: tuple[str, ...] = ()
+
+
+# Part kinds whose bending stiffness a solid section of their material does not give.
+SECTION_MISLEADS = {
+    "reinforced hose": "its braided or spiral plies make it many times stiffer in bending "
+                       "than its rubber",
+    "multi-core cable": "its strands slide on each other, so it is far softer than a solid "
+                        "section of its material",
+    "coax": "its braid and dielectric do not bend as one solid section",
+}
+
+
+def _warnings(model: ProblemFile, part: Part) -> tuple[str, ...]:
+    """What the user should know about the file although it is valid."""
+    why = SECTION_MISLEADS.get(part.kind or "")
+    if why and model.part.bending_stiffness is None:
+        return (f"part: a {part.kind} whose bending stiffness comes from its material and "
+                f"section ({part.bending_stiffness:.3g} N m^2): {why}; give a measured "
+                "bending_stiffness (pliant identify fits one to a bench test)",)
+    return ()
 
 
 def _unknown_key(loc: tuple) -> str:
@@ -689,7 +710,8 @@ def scene_from_data(data: dict[str, Any], source: str = "<data>", base: Path | N
                      model.path.grip if model.path is not None else None,
                      tuple(c.name or f"condition{i + 1}" for i, c in enumerate(model.condition)
                            if c.port is not None) + tuple(c.name for c in model.clip),
-                     model.evaluation.build(base), model.plan.build())
+                     model.evaluation.build(base), model.plan.build(),
+                     _warnings(model, problem.part))
     except PliantError as err:
         raise FileFormatError(f"{source}: {err}") from None
 
