@@ -201,6 +201,10 @@ def test_a_misspelt_key_is_named_with_the_nearest_the_table_takes():
     with pytest.raises(FileFormatError, match="unknown key 'zzz'; the file's top level "
                                               "takes assembled"):
         parse_scene("zzz = 1\n[part]\nlength = 1.0\nbending_stiffness = 1.0\n", "x.toml")
+    with pytest.raises(FileFormatError, match="'gravity' is a top-level key, but it stands "
+                                              "under \\[part\\]"):
+        parse_scene("[part]\nlength = 1.0\nbending_stiffness = 1.0\ngravity = [0, -9.81]\n",
+                    "x.toml")
 
 
 def test_a_diameter_given_in_millimetres_is_refused_with_the_units():
