@@ -212,6 +212,17 @@ def test_random_cantilevers_are_always_identified(ei, tip, off):
 # --- the files ---------------------------------------------------------------------------
 
 
+def test_greenhill_buckling_angle_gives_the_torsional_stiffness():
+    """A straight length between clamps (one sliding along the axis) turned until it
+    buckles: Greenhill's clamped-clamped moment M L / EI = 2.8606 pi, so the angle
+    13.48 rad (the file's) means GJ = EI / 1.5 (the 3D rod at 100 elements, O(h^2))."""
+    test, _ = load_test(EXAMPLES / "cable_greenhill.toml")
+    result = identify(test)
+    assert result.value("torsional_stiffness") == pytest.approx(0.02 / 1.5, rel=2e-3)
+    assert result.fitted[0].rms < 1e-6
+    assert result.dof == 0 and "from the stated uncertainties alone" in result.notes[0]
+
+
 @pytest.mark.parametrize(("name", "truth"), [
     ("cable_shape", {"bending_stiffness": 0.021}),
     ("cable_tip_loads", {"bending_stiffness": 0.021, "mass_per_length": 0.052}),

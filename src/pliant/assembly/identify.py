@@ -43,6 +43,7 @@ from pliant.core.measurement import (
     StiffnessTest,
     ThreePointBending,
     Twist,
+    TwistBuckling,
 )
 from pliant.core.part import Part
 from pliant.core.problem import Problem
@@ -196,10 +197,10 @@ def identify(test: StiffnessTest, *, solver: Any = None, time_budget: float = 12
                              "by their uncertainty: give each [[measured]] one")
     m_eff = sum(model.dof for model in models)
     dof = m_eff - len(names)
-    if dof < 1:
+    if dof < 0 or (dof == 0 and not weighted):
         raise InputError("measured", f"too few measured values: {m_eff} for {len(names)} "
                          "unknown(s); an interval needs at least one more (measure more "
-                         "points or loads)")
+                         "points or loads), or as many with their uncertainties")
     state = {"solves": 0, "last": x0}
 
     def part_at(x: np.ndarray) -> Part:
@@ -263,12 +264,21 @@ def identify(test: StiffnessTest, *, solver: Any = None, time_budget: float = 12
     J = jacobian(x)
     _check_identifiable(names, J, models, weighted, "at the fitted values")
     rss = float(r @ r)
-    s2 = rss / dof
+    notes = []
+    if dof == 0:  # as many values as unknowns: the interval is the uncertainties' alone
+        from scipy.stats import norm  # noqa: PLC0415
+
+        s2 = 1.0
+        q = float(norm.ppf(0.5 + 0.5 * test.confidence))
+        notes.append("as many measured values as unknowns: the intervals come from the "
+                     "stated uncertainties alone (nothing checks them)")
+    else:
+        from scipy.stats import t as student  # noqa: PLC0415
+
+        s2 = rss / dof
+        q = float(student.ppf(0.5 + 0.5 * test.confidence, dof))
     cov = s2 * np.linalg.inv(J.T @ J)
     se = np.sqrt(np.diag(cov))
-    from scipy.stats import t as student  # noqa: PLC0415
-
-    q = float(student.ppf(0.5 + 0.5 * test.confidence, dof))
     values = np.exp(x)
     estimates = tuple(
         Estimate(n, float(v), float(v * math.exp(-q * e)), float(v * math.exp(q * e)),
@@ -277,7 +287,6 @@ def identify(test: StiffnessTest, *, solver: Any = None, time_budget: float = 12
     correlation = cov / np.outer(se, se)
     part = part_at(x)
     fitted = tuple(model.fitted(part) for model in models)
-    notes = []
     if weighted and dof >= 3:
         from scipy.stats import chi2  # noqa: PLC0415
 
@@ -340,6 +349,8 @@ def _model_for(m: Measurement, index: int, test: StiffnessTest, solver: Any):
         return _BendingModel(m, label, test.problem)
     if isinstance(m, Twist):
         return _TwistModel(m, label, test.problem, solver)
+    if isinstance(m, TwistBuckling):
+        return _BucklingModel(m, label, test.problem, solver)
     raise InputError(label, f"unknown measurement {type(m).__name__}")
 
 
@@ -672,3 +683,112 @@ class _TwistModel:
         return Fitted(self.m.name, "twist", "angle [rad]", "moment [N m]", self.m.angle,
                       self.m.moment, model,
                       float(np.sqrt(np.mean((model - self.m.moment) ** 2))), "N m")
+
+
+class _BucklingModel:
+    """The clamp turned about its axis until the part's equilibrium loses stability (the
+    smallest eigenvalue of the constrained Hessian crosses zero: Greenhill's buckle of a
+    straight length, the snap of a loop) or its branch ends (a fold)."""
+
+    def __init__(self, m: TwistBuckling, label: str, problem: Problem, solver: Any) -> None:
+        if problem.dimension != 3:
+            raise InputError(label, "a twist buckles in 3D: give the test 3D conditions")
+        try:
+            self.index = next(i for i, c in enumerate(problem.conditions)
+                              if c.name == m.condition)
+        except StopIteration:
+            raise InputError(f"{label}.condition", f"no condition named {m.condition!r}; "
+                             "known: " + ", ".join(c.name for c in problem.conditions)) from None
+        c = problem.conditions[self.index]
+        if c.tangent is None or c.normal is None:
+            raise InputError(f"{label}.condition", f"{m.condition!r} must hold the part's "
+                             "axis and twist (tangent and normal) to be turned about its axis")
+        if not m.angle > 0.0:
+            raise InputError(f"{label}.angle", "give the critical angle in rad, positive (the "
+                             "turn's sense is about the clamp's tangent)")
+        self.m, self.label, self.problem, self.solver = m, label, problem, solver
+        self.dof = 1
+        self.scale = m.angle
+        self.step = min(math.pi / 8.0, m.angle / 16.0)
+        self.below: tuple[float, Any] | None = None  # the last stable pose under the angle
+        self.solves = 0
+
+    def _turned(self, part: Part, phi: float) -> Problem:
+        c = self.problem.conditions[self.index]
+        t, n = np.array(c.tangent), np.array(c.normal)
+        normal = n * math.cos(phi) + np.cross(t, n) * math.sin(phi)
+        conditions = list(self.problem.conditions)
+        conditions[self.index] = replace(c, normal=tuple(float(v) for v in normal))
+        return replace(self.problem, part=part, conditions=tuple(conditions))
+
+    def _at(self, part: Part, phi: float, warm: Any):
+        """(equilibrium, smallest eigenvalue) at phi, or None past a fold."""
+        from pliant.models.rod3d.solver import solve  # noqa: PLC0415
+
+        self.solves += 1
+        try:
+            eq = solve(self._turned(part, phi), warm_start=warm, solver=self.solver)
+        except ConvergenceError:
+            return None
+        from pliant.core.equilibrium import WARM_START_LOST  # noqa: PLC0415
+
+        if WARM_START_LOST in eq.notes:
+            return None  # the branch ended: it jumped
+        stable, eigen = eq.stability
+        if stable is None:
+            raise InputError(self.label, "the test's loads are not conservative (a follower "
+                             "load or a dead moment): stability is undecided")
+        return eq, float(eigen)
+
+    def critical(self, part: Part) -> float:
+        self.solves = 0
+        h = self.step
+        if self.below is None:
+            phi, found = 0.0, self._at(part, 0.0, None)
+        else:
+            phi, warm = self.below
+            found = self._at(part, phi, warm)
+            while found is not None and found[1] <= 0.0 and phi > 0.0:  # back under it
+                phi = max(0.0, phi - h)
+                found = self._at(part, phi, found[0])
+        if found is None or found[1] <= 0.0:
+            raise IdentificationError(f"{self.label}: the part is not stable at "
+                                      f"{phi:.3g} rad: it cannot be turned from there")
+        low, low_eq = phi, found
+        while True:  # step on until the eigenvalue crosses zero or the branch ends
+            if low > 20.0 * self.m.angle:
+                raise IdentificationError(f"{self.label}: no buckle up to {low:.3g} rad "
+                                          f"(20 times the measured {self.m.angle:.3g} rad)")
+            nxt = self._at(part, low + h, low_eq[0])
+            if nxt is None or nxt[1] <= 0.0:
+                break
+            low, low_eq = low + h, nxt
+        high, high_eq = low + h, nxt
+        for _ in range(40):  # secant on the eigenvalue where both ends have one, else halves
+            if high - low < 1e-9 * self.m.angle:
+                break
+            if high_eq is not None:
+                mid = low + (high - low) * low_eq[1] / (low_eq[1] - high_eq[1])
+                mid = min(max(mid, low + 0.05 * (high - low)), high - 0.05 * (high - low))
+            else:
+                mid = 0.5 * (low + high)
+            probe = self._at(part, mid, low_eq[0])
+            if probe is not None and probe[1] > 0.0:
+                low, low_eq = mid, probe
+                if high_eq is not None and abs(probe[1]) < 1e-10 * abs(high_eq[1] - probe[1]):
+                    break
+            else:
+                high, high_eq = mid, probe
+        self.below = (low, low_eq[0])
+        if high_eq is None:
+            return 0.5 * (low + high)
+        return low + (high - low) * low_eq[1] / (low_eq[1] - high_eq[1])
+
+    def residual(self, part: Part) -> np.ndarray:
+        return np.array([self.critical(part) - self.m.angle])
+
+    def fitted(self, part: Part) -> Fitted:
+        model = self.critical(part)
+        return Fitted(self.m.name, "twist buckling", "measurement", "critical angle [rad]",
+                      np.array([0.0]), np.array([self.m.angle]), np.array([model]),
+                      abs(model - self.m.angle), "rad")

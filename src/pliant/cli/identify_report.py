@@ -35,8 +35,12 @@ def print_identification(result, console: Console | None = None) -> None:
         pairs = [f"{names[i]} / {names[j]} {result.correlation[i, j]:+.2f}"
                  for i in range(len(names)) for j in range(i + 1, len(names))]
         console.print("correlation: " + "; ".join(pairs))
-    scale = (f"the scatter is {result.scale:.2f} times the stated uncertainties"
-             if result.weighted else "weighed alike (no uncertainties given)")
+    if result.dof == 0:
+        scale = "the intervals from the stated uncertainties alone"
+    elif result.weighted:
+        scale = f"the scatter is {result.scale:.2f} times the stated uncertainties"
+    else:
+        scale = "weighed alike (no uncertainties given)"
     console.print(f"{result.dof} degrees of freedom; {scale}; {result.solves} solves in "
                   f"{result.seconds:.2f} s")
     for note in result.notes:

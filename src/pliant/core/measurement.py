@@ -76,7 +76,20 @@ class Twist:
     unit: str = "N m"
 
 
-Measurement = Shape | Deflection | ThreePointBending | Twist
+@dataclass(frozen=True, eq=False)
+class TwistBuckling:
+    """The angle ``angle`` [rad] by which the condition ``condition`` (a clamp) was turned
+    about its own axis when the part, held as the test's conditions hold it (a straight
+    length between chucks, a loop), buckled or snapped out of shape."""
+
+    condition: str
+    angle: float
+    uncertainty: float | None = None  # [rad]
+    name: str = "twist buckling"
+    unit: str = "rad"
+
+
+Measurement = Shape | Deflection | ThreePointBending | Twist | TwistBuckling
 
 
 @dataclass(frozen=True, eq=False)

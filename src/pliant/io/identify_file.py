@@ -5,7 +5,8 @@
 unknowns = ["bending_stiffness"]     # any of bending_stiffness, bending_stiffness_2,
                                      # torsional_stiffness, mass_per_length
 [[measured]]
-kind = "shape"                       # shape, deflection, three_point_bending, twist
+kind = "shape"                       # shape, deflection, three_point_bending, twist,
+                                     # twist_buckling
 points = "loop_shape.csv"            # columns x, y[, z], each header with its unit
 uncertainty = 0.5e-3                 # one standard deviation, SI (m here)
 ```
@@ -27,7 +28,14 @@ from typing import Literal
 import numpy as np
 from pydantic import Field, ValidationError
 
-from pliant.core.measurement import Deflection, Shape, StiffnessTest, ThreePointBending, Twist
+from pliant.core.measurement import (
+    Deflection,
+    Shape,
+    StiffnessTest,
+    ThreePointBending,
+    Twist,
+    TwistBuckling,
+)
 from pliant.errors import FileFormatError, InputError, PliantError
 from pliant.io.problem_file import SolverModel, _Strict, read_text, scene_from_data
 from pliant.io.tomlfile import field_path, read_toml
@@ -61,7 +69,7 @@ class IdentifyModel(_Strict):
 class MeasuredModel(_Strict):
     """[[measured]]: one measurement (see the README's stiffness tests)."""
 
-    kind: Literal["shape", "deflection", "three_point_bending", "twist"]
+    kind: Literal["shape", "deflection", "three_point_bending", "twist", "twist_buckling"]
     name: str = ""
     points: str | list[list[float]] | None = Field(
         None, description="a CSV file, or rows [[x, y(, z)], ...] in m (shape)")
@@ -72,6 +80,8 @@ class MeasuredModel(_Strict):
     s: float | None = Field(None, ge=0, description="the measured station [m]")
     span: float | None = Field(None, gt=0, description="between the supports [m]")
     length: float | None = Field(None, gt=0, description="between the chucks [m]")
+    angle: float | None = Field(None, gt=0, description="the critical turn [rad] "
+                                "(twist_buckling)")
     source: str = ""
 
 
@@ -201,6 +211,11 @@ def _build(m: MeasuredModel, index: int, problem, base: Path | None):
         cols = _data(m, "data", base, label)
         return ThreePointBending(m.span, cols["displacement"], cols["load"], m.uncertainty,
                                  name)
+    if m.kind == "twist_buckling":
+        if m.condition is None or m.angle is None:
+            raise InputError(label, "a twist_buckling names the turned clamp (condition) and "
+                             "the angle [rad] at which the part buckled")
+        return TwistBuckling(m.condition, m.angle, m.uncertainty, name)
     cols = _data(m, "data", base, label)
     return Twist(m.length or problem.part.length, cols["angle"], cols["moment"],
                  m.uncertainty, name)
