@@ -63,9 +63,25 @@ def print_summary(eq: Any, seconds: float, console: Console | None = None) -> No
     moment, at = eq.max_moment()
     console.print(f"max |M| = {_fmt(moment, 'N m')} at s = {at:.4g} m")
     console.print(_bend_radius_line(eq))
+    console.print(_stability_line(eq))
     console.print(f"elastic energy = {_fmt(eq.energy, 'J')}")
     for note in eq.notes:
         console.print(f"note: {note}")
+
+
+def _stability_line(eq: Any) -> str:
+    """The stability verdict in words, with the smallest eigenvalue."""
+    verdict = eq.verdict
+    if verdict == "undecided":
+        why = ("follower loads" if eq.problem.dimension == 2
+               else "follower loads or dead moments")
+        return f"stability: not decided by a static test ({why} make it non-conservative)"
+    eigen = eq.stability[1]
+    word = {"stable": "stable", "unstable": "[red]UNSTABLE[/red] (it would snap)",
+            "neutral": "[yellow]neutral[/yellow] (a mode that costs no energy: the part "
+                       "can drift along a family of equilibria)"}[verdict]
+    what = "Hessian" if eq.problem.dimension == 3 else "second variation"
+    return f"stability: {word}; smallest eigenvalue of the constrained {what} {eigen:.4g} N m"
 
 
 def _bend_radius_line(eq: Any) -> str:
@@ -105,14 +121,7 @@ def _summary_3d(eq: Any, seconds: float, console: Console) -> None:
                   f"{_fmt(float(abs(eq.torque).max()), 'N m')}")
     console.print(_bend_radius_line(eq))
     print_contacts(eq, console)
-    stable, eigen = eq.stability
-    if stable is None:
-        console.print("stability: not decided by a static test (follower loads or dead "
-                      "moments make the problem non-conservative)")
-    else:
-        word = "stable" if stable else "[red]UNSTABLE[/red] (it would snap)"
-        console.print(f"stability: {word}; smallest eigenvalue of the constrained "
-                      f"Hessian {eigen:.4g} N m")
+    console.print(_stability_line(eq))
     console.print(f"elastic energy = {_fmt(eq.energy, 'J')}")
     for note in eq.notes:
         console.print(f"note: {note}")

@@ -26,6 +26,21 @@ WARM_START_LOST = ("the warm start could not be followed to this problem; solved
                    "rest state instead")
 
 
+# The smallest eigenvalue below which an equilibrium is neutral, relative to EI / L: the
+# solvers' own accuracy (a mode a symmetry makes free comes out near 1e-12).
+NEUTRAL = 1e-8
+
+
+def stability_verdict(stability: tuple[bool | None, float | None], part) -> str:
+    """The word for (stable, smallest eigenvalue [N m])."""
+    stable, eigen = stability
+    if stable is None or eigen is None:
+        return "undecided"
+    if abs(eigen) <= NEUTRAL * part.bending_stiffness / part.length:
+        return "neutral"
+    return "stable" if stable else "unstable"
+
+
 @dataclass(frozen=True)
 class StationLoad:
     """The load a condition applies to the part at its station.
@@ -92,10 +107,31 @@ class Equilibrium:
     sampler: Callable[[], Samples] = field(repr=False)
     notes: tuple[str, ...] = ()
     state: Any = field(default=None, repr=False)
+    stability_check: Callable[[Any], tuple[bool | None, float | None]] | None = field(
+        default=None, repr=False)
 
     @cached_property
     def samples(self) -> Samples:
         return self.sampler()
+
+    @cached_property
+    def stability(self) -> tuple[bool | None, float | None]:
+        """(stable, smallest eigenvalue [N m] of the second variation on the variations
+        the conditions allow, in the metric int dtheta^2 ds / L); (None, None) with
+        follower loads (not conservative: a static test does not decide). Computed on
+        first access (``pliant.models.elastica2d.stability``)."""
+        if self.stability_check is None:
+            return None, None
+        return self.stability_check(self)
+
+    @property
+    def stable(self) -> bool | None:
+        return self.stability[0]
+
+    @property
+    def verdict(self) -> str:
+        """"stable", "neutral" (a mode that costs no energy), "unstable" or "undecided"."""
+        return stability_verdict(self.stability, self.problem.part)
 
     @property
     def s(self) -> np.ndarray:
@@ -188,12 +224,15 @@ class Equilibrium:
             "energy": self.energy,
             "max_moment": list(self.max_moment()),
             "min_bend_radius": list(self.min_bend_radius()),
+            "stable": self.stability[0],
+            "smallest_eigenvalue": self.stability[1],
+            "stability": self.verdict,
             "residual": self.residual,
             "iterations": self.iterations,
             "steps": self.steps,
             "notes": list(self.notes),
             "units": {"length": "m", "force": "N", "moment": "N m", "angle": "rad",
-                      "energy": "J"},
+                      "energy": "J", "smallest_eigenvalue": "N m"},
         }
 
 
@@ -310,6 +349,13 @@ class Equilibrium3D:
         return self.stability[0]
 
     @property
+    def verdict(self) -> str:
+        """"stable", "neutral" (a mode that costs no energy: the part can move along a
+        family of equilibria, such as a round strip turning about its chord), "unstable"
+        or "undecided" (non-conservative loads)."""
+        return stability_verdict(self.stability, self.problem.part)
+
+    @property
     def reactions(self) -> dict[str, StationLoad]:
         return {k: v for k, v in self.loads.items() if v.is_reaction}
 
@@ -376,6 +422,7 @@ class Equilibrium3D:
             "min_bend_radius": list(self.min_bend_radius()),
             "stable": stable,
             "smallest_eigenvalue": eigen,
+            "stability": self.verdict,
             "residual": self.residual,
             "iterations": self.iterations,
             "steps": self.steps,

@@ -35,6 +35,7 @@ from pliant.core.equilibrium import WARM_START_LOST, Equilibrium, Samples, Stati
 from pliant.core.problem import Problem
 from pliant.errors import ConvergenceError
 from pliant.models.elastica2d import kernels
+from pliant.models.elastica2d.stability import stability
 from pliant.models.elastica2d.lowering import (
     NODE_SPAN,
     PRESCRIBED,
@@ -477,7 +478,8 @@ def _solve(problem: Problem, warm_start: Equilibrium | None, solver: ShootingSol
     sampler = _Sampler(low, point.z, max(point.mesh.density, solver.samples))
     return Equilibrium(problem=problem, residual=point.residual, iterations=run.iterations,
                        steps=run.steps, sampler=sampler, notes=tuple(run.notes),
-                       state=_WarmState(low, point.z, point.jac, point.mesh))
+                       state=_WarmState(low, point.z, point.jac, point.mesh),
+                       stability_check=stability)
 
 
 def _renode(run: _Run, point: _Point) -> _Point:

@@ -37,6 +37,7 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from pliant.core.equilibrium import (
+    NEUTRAL,
     NO_CONTACTS,
     WARM_START_LOST,
     Contacts,
@@ -936,7 +937,8 @@ def _stability(run: _Run, state: State, seed: np.ndarray | None = None,
             return _stability_dense(run, state)
     if found is not None:
         found[:] = [vector]
-    return value > 1e-9, value * rod.moment_scale  # EI / L
+    # Neutral (zero to the solver's accuracy: a free family) is not unstable.
+    return value > -NEUTRAL, value * rod.moment_scale  # EI / L
 
 
 def _stability_arpack(ab, piv, n, kl, ku, primal, weight, c, size):
@@ -977,8 +979,7 @@ def _stability_dense(run: _Run, state: State) -> tuple[bool, float]:
     smallest = float(eigh(0.5 * (reduced + reduced.T), 0.5 * (metric + metric.T),
                           eigvals_only=True, subset_by_index=(0, 0))[0])
     scale = rod.moment_scale  # EI / L
-    return smallest > 1e-9 * max(1.0, float(np.abs(reduced).max()) / float(
-        np.abs(metric).max())), smallest * scale
+    return smallest > -NEUTRAL, smallest * scale
 
 
 def _qmul(a, b):

@@ -1,0 +1,104 @@
+"""Stability of a 2D equilibrium: the second variation of its potential energy on the
+variations its conditions allow.
+
+For dead loads (point forces, couples, self-weight; a couple's potential -M theta is
+linear, so dead moments are conservative in the plane) the second variation about an
+equilibrium theta(s) with internal force n(s) is
+
+    Q(dtheta) = int EI dtheta'^2 ds + int N dtheta^2 ds,   N = n . t (tension positive),
+
+on the variations dtheta that keep every prescribed position (int over the part before
+the station of (-sin theta, cos theta) dtheta ds = 0, plus the first end's own shift where
+its position is free) and every prescribed angle (dtheta = 0 there). The load term is
+the dead loads' -F . r differentiated twice, summed over everything beyond s: by
+equilibrium that sum is the internal force (reactions included, as Lagrange multipliers).
+
+It is discretised with element angles on a grid whose nodes include every station; the
+smallest eigenvalue of Q on the constraints' null space, in the metric int dtheta^2 ds / L,
+is returned in N m (for a cantilever under an axial dead load P: L (EI (pi / 2L)^2 - P)).
+Positive: stable; negative: unstable; zero to 1e-8 EI / L: neutral (a mode that costs
+no energy). Follower loads are not conservative: stability is undecided.
+"""
+
+from __future__ import annotations
+
+import itertools
+import math
+
+import numpy as np
+
+from pliant.core.equilibrium import NEUTRAL
+
+ELEMENTS = 240  # about this many elements over the part: the eigenvalue's error is O(h^2)
+
+
+def stability(eq) -> tuple[bool | None, float | None]:
+    """(stable, smallest eigenvalue [N m]); (None, None) with follower loads. A neutral
+    equilibrium (see ``NEUTRAL``) counts as stable: nothing makes it move."""
+    value = smallest_eigenvalue(eq)
+    if value is None:
+        return None, None
+    scale = eq.problem.part.bending_stiffness / eq.problem.part.length
+    return value > -NEUTRAL * scale, value
+
+
+def smallest_eigenvalue(eq) -> float | None:
+    from scipy.linalg import eigh, null_space  # noqa: PLC0415 (heavy; on demand)
+
+    problem = eq.problem
+    if any(st.follower_load != (0.0, 0.0) for st in problem.stations):
+        return None
+    part = problem.part
+    L, EI = part.length, part.bending_stiffness
+    knots = sorted({0.0, L, *(min(max(st.s, 0.0), L) for st in problem.stations)})
+    nodes = [np.array([0.0])]
+    for a, b in itertools.pairwise(knots):
+        if b - a <= 1e-12 * L:
+            continue
+        count = max(2, math.ceil(ELEMENTS * (b - a) / L))
+        nodes.append(np.linspace(a, b, count + 1)[1:])
+    s = np.concatenate(nodes)
+    h = np.diff(s)
+    mid = 0.5 * (s[:-1] + s[1:])
+    m = len(h)
+    theta = np.interp(mid, eq.s, eq.angle)
+    tangent = np.column_stack([np.cos(theta), np.sin(theta)])
+    force = np.column_stack([np.interp(mid, eq.s, eq.internal_force[:, k]) for k in range(2)])
+    axial = np.einsum("ij,ij->i", force, tangent)
+    fixed_angle = {float(st.s) for st in problem.stations if st.prescribed[2]}
+
+    def held(x: float) -> bool:
+        return any(abs(x - f) <= 1e-12 * L for f in fixed_angle)
+
+    # unknowns: the element angles, then the first end's shift (dx0, dy0)
+    Q = np.zeros((m + 2, m + 2))
+    Q[np.arange(m), np.arange(m)] += h * axial
+    for j in range(m + 1):  # node j between elements j - 1 and j
+        if held(float(s[j])):  # each side bends from the held angle over half an element
+            if j > 0:
+                Q[j - 1, j - 1] += EI / h[j - 1] * 2.0
+            if j < m:
+                Q[j, j] += EI / h[j] * 2.0
+        elif 0 < j < m:
+            k = EI / (0.5 * (h[j - 1] + h[j]))
+            Q[j - 1, j - 1] += k
+            Q[j, j] += k
+            Q[j - 1, j] -= k
+            Q[j, j - 1] -= k
+    rows = []
+    normal = np.column_stack([-tangent[:, 1], tangent[:, 0]])
+    for st in problem.stations:
+        before = mid < st.s
+        for axis in (0, 1):
+            if st.prescribed[axis]:
+                row = np.zeros(m + 2)
+                row[:m] = np.where(before, h * normal[:, axis], 0.0)
+                row[m + axis] = 1.0
+                rows.append(row)
+    A = np.array(rows) if rows else np.zeros((0, m + 2))
+    Z = null_space(A) if rows else np.eye(m + 2)
+    metric = np.concatenate([h / L, [0.0, 0.0]])
+    reduced = Z.T @ Q @ Z
+    weight = Z.T @ (metric[:, None] * Z)
+    return float(eigh(0.5 * (reduced + reduced.T), 0.5 * (weight + weight.T),
+                      eigvals_only=True, subset_by_index=(0, 0))[0])

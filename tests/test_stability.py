@@ -1,0 +1,67 @@
+"""Stability verdicts: the 2D second variation against Euler's columns (closed forms, and
+its convergence order), and the neutral verdict of a free family in 3D."""
+
+from __future__ import annotations
+
+import math
+
+import pytest
+
+import pliant as pl
+from pliant.models.elastica2d import stability as planar
+
+
+def column(P: float, end: str) -> pl.Problem:
+    """A straight column (L = 1 m, EI = 1 N m^2) pushed along its axis by P at s = L."""
+    part = pl.Part(1.0, 1.0)
+    if end == "free":  # clamped-free: lambda = L (EI (pi / 2L)^2 - P)
+        conditions = (pl.clamp(0.0), pl.push(1.0, (-P, 0.0)))
+    elif end == "clamped":  # clamped-clamped, sliding along x: EI (2 pi / L)^2
+        conditions = (pl.clamp(0.0), pl.Condition(s=1.0, name="end", position=(None, 0.0),
+                                                  force=(-P, None), angle=0.0))
+    else:  # pinned-pinned, sliding along x: EI (pi / L)^2
+        conditions = (pl.pin(0.0), pl.Condition(s=1.0, name="end", position=(None, 0.0),
+                                                force=(-P, None)))
+    return pl.Problem(part, conditions)
+
+
+@pytest.mark.parametrize(("end", "k"), [("free", math.pi / 2), ("clamped", 2 * math.pi),
+                                        ("pinned", math.pi)])
+def test_euler_columns_lose_stability_at_their_critical_loads(end, k):
+    for fraction in (0.5, 1.2):
+        P = fraction * k * k
+        eq = pl.solve(column(P, end))
+        assert abs(eq.position[:, 1]).max() < 1e-12  # the straight branch
+        stable, eigen = eq.stability
+        assert eigen == pytest.approx(k * k - P, rel=2e-4, abs=2e-4 * k * k)
+        assert stable is (fraction < 1.0)
+        assert eq.verdict == ("stable" if fraction < 1.0 else "unstable")
+
+
+def test_the_planar_eigenvalue_converges_at_second_order(monkeypatch):
+    eq = pl.solve(column(10.0, "clamped"))
+    exact = (2 * math.pi) ** 2 - 10.0
+    errors = []
+    for elements in (30, 60, 120):
+        monkeypatch.setattr(planar, "ELEMENTS", elements)
+        errors.append(abs(planar.smallest_eigenvalue(eq) - exact))
+    assert errors[0] / errors[1] == pytest.approx(4.0, rel=0.1)
+    assert errors[1] / errors[2] == pytest.approx(4.0, rel=0.1)
+
+
+def test_follower_loads_leave_the_planar_verdict_undecided():
+    eq = pl.solve(pl.Problem(pl.Part(1.0, 1.0),
+                             (pl.clamp(0.0), pl.push(1.0, (0.0, 2.0), follower=True))))
+    assert eq.stability == (None, None) and eq.verdict == "undecided"
+    assert eq.to_dict()["stability"] == "undecided"
+
+
+def test_a_round_clamped_strip_is_neutral_about_its_chord_and_an_oval_one_stable():
+    """Ends clamped along their chord: an isotropic rod's buckled arch turns about the
+    chord at no cost (its frames counter-twist uniformly), so the verdict is neutral, not
+    unstable; a section stiffer about one axis picks its plane (stable)."""
+    ends = (pl.clamp(0.0, (0.0, 0.0, 0.0)), pl.clamp(1.0, (0.8, 0.0, 0.0), name="end"))
+    round_ = pl.solve(pl.Problem(pl.Part(1.0, 1.0), ends))
+    assert round_.verdict == "neutral" and round_.stable is True
+    oval = pl.solve(pl.Problem(pl.Part(1.0, 1.0, bending_stiffness_2=1.5), ends))
+    assert oval.verdict == "stable" and oval.stability[1] > 1.0
