@@ -112,9 +112,13 @@ def test_trace_stops_at_a_snap_through_with_the_last_good_state():
                                  pl.clamp(1.0, position=(0.9, 0.0), angle=turn, name="end")))
 
     turns = np.linspace(0.0, 1.0, 101)[1:]
+    # The branch that bows to the left (the lower of the two at a turn of -0.01 rad; at
+    # +0.01 the lower bows right, and turning on from there does not snap).
+    left = pl.solve(problem(-0.01))
+    assert left.position[50, 1] > 0.05
     seen = []
     with pytest.raises(ConvergenceError) as err:
-        for eq in pl.trace([problem(a) for a in turns]):
+        for eq in pl.trace([problem(a) for a in turns], start=left):
             seen.append(eq)
     assert "fold" in str(err.value)
     assert err.value.last_good is seen[-1]
@@ -123,7 +127,7 @@ def test_trace_stops_at_a_snap_through_with_the_last_good_state():
     slope = np.abs(np.diff(mid) / np.diff(turns[:len(seen)]))
     assert slope[-1] > 10 * slope[0]
     # Turned the other way, the strip follows smoothly.
-    *_, last = pl.trace([problem(-a) for a in turns])
+    *_, last = pl.trace([problem(-a) for a in turns], start=left)
     assert last.residual < 1e-9
 
 

@@ -374,11 +374,13 @@ def test_trace_stops_at_a_snap_through_with_the_last_good_state():
     last good equilibrium instead of jumping to the snapped shape; on the way the
     smallest eigenvalue of the constrained Hessian falls toward zero, as it must at a
     fold, and the mid-span's sensitivity to the turn grows. Turned the other way, the
-    strip follows smoothly."""
+    strip follows smoothly. It starts bowed up: the lower of the two flatwise branches at
+    a turn of -0.01 rad (at +0.01 the lower bows down, and turning on does not snap)."""
     turns = np.linspace(0.0, 1.0, 101)[1:]
+    up = rod3d.solve(strip_turned(-0.01))
     seen = []
     with pytest.raises(ConvergenceError) as err:
-        for eq in rod3d.trace([strip_turned(a) for a in turns]):
+        for eq in rod3d.trace([strip_turned(a) for a in turns], start=up):
             seen.append(eq)
     assert "fold" in str(err.value)
     assert err.value.last_good is seen[-1]
@@ -390,7 +392,7 @@ def test_trace_stops_at_a_snap_through_with_the_last_good_state():
     assert slope[-1] > 10 * slope[0]
     first, last = seen[0].stability, seen[-1].stability
     assert first[0] and last[0] and last[1] < 0.3 * first[1]
-    *_, other = rod3d.trace([strip_turned(-a) for a in turns])
+    *_, other = rod3d.trace([strip_turned(-a) for a in turns], start=up)
     assert other.residual < 1e-9 and other.stable
 
 
@@ -423,8 +425,9 @@ def test_past_a_fold_the_part_snaps_and_settles():
     near 0.57) that is the strip bowed the other way: the equilibrium a cold solve finds
     on the other side, stable."""
     turns = np.linspace(0.0, 1.0, 101)[1:]
-    with pytest.raises(ConvergenceError) as err:
-        for _ in rod3d.trace([strip_turned(a) for a in turns]):
+    with pytest.raises(ConvergenceError) as err:  # from the branch bowed up (see above)
+        for _ in rod3d.trace([strip_turned(a) for a in turns],
+                             start=rod3d.solve(strip_turned(-0.01))):
             pass
     last = err.value.last_good
     run = _Run(last.state.rod.retarget(strip_turned(0.8), 100), rod3d.RodSolver())

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import math
 
+import numpy as np
 import pytest
 
 import pliant as pl
@@ -65,3 +66,40 @@ def test_a_round_clamped_strip_is_neutral_about_its_chord_and_an_oval_one_stable
     assert round_.verdict == "neutral" and round_.stable is True
     oval = pl.solve(pl.Problem(pl.Part(1.0, 1.0, bending_stiffness_2=1.5), ends))
     assert oval.verdict == "stable" and oval.stability[1] > 1.0
+
+
+def test_a_singular_start_returns_the_lower_of_the_two_bow_sides():
+    """Tip held at (0.333, -0.002) m at -1.106 rad: the side the target moves to leads to
+    a stable equilibrium of 45.14 J, the other side to a stable one of 20.86 J. The answer
+    is the lower; both are checked by an independent shooting (solve_ivp and fsolve from
+    the answer's own clamp reaction, and from its mirror for the other side)."""
+    from scipy.integrate import solve_ivp
+    from scipy.optimize import fsolve
+
+    X, Y, A = 0.333, -0.002, -1.106
+    eq = pl.solve(pl.Problem(pl.Part(1.0, 1.0),
+                             (pl.clamp(0.0), pl.grip(1.0, (X, Y), angle=A, name="hand"))))
+    note = next(n for n in eq.notes if "singular start" in n)
+
+    def shoot(u):
+        nx, ny, m0 = u  # the internal force (constant: no weight) and the clamp's moment
+
+        def rhs(_s, z):
+            return [math.cos(z[2]), math.sin(z[2]), z[3],
+                    -(math.cos(z[2]) * ny - math.sin(z[2]) * nx), 0.5 * z[3] ** 2]
+
+        end = solve_ivp(rhs, (0.0, 1.0), [0.0, 0.0, 0.0, m0, 0.0], rtol=1e-10,
+                        atol=1e-12).y[:, -1]
+        return [end[0] - X, end[1] - Y, end[2] - A], end[4]
+
+    clamp = eq.loads["clamp"]
+    answer = [-clamp.force[0], -clamp.force[1], -clamp.moment]  # n(0) = -reaction
+    u = fsolve(lambda v: shoot(v)[0], answer, xtol=1e-12)
+    assert np.allclose(u, answer, rtol=1e-6, atol=1e-6)
+    assert shoot(u)[1] == pytest.approx(eq.energy, rel=1e-7)
+    other = fsolve(lambda v: shoot(v)[0], [-75.0, -13.6, -13.8], xtol=1e-12)
+    residual, other_energy = shoot(other)
+    assert max(map(abs, residual)) < 1e-9
+    assert eq.energy < 0.5 * other_energy
+    assert f"{other_energy:.6g} J and is stable" in note
+    assert eq.verdict == "stable"

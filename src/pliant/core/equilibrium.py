@@ -41,6 +41,29 @@ def stability_verdict(stability: tuple[bool | None, float | None], part) -> str:
     return "stable" if stable else "unstable"
 
 
+def potential_energy(eq) -> float:
+    """The elastic energy plus the potential of the dead loads [J]: the part's weight and
+    the applied forces (and, in 2D, the applied couples, -M theta). Of two stable
+    equilibria of one problem, the lower is where a real part is likelier to settle; a
+    held component's reaction does no work (its position is fixed), so the same targets
+    add the same constant to every branch. Meaningless with follower loads."""
+    problem = eq.problem
+    s = np.asarray(eq.s)
+    r = np.asarray(eq.position)
+    g = np.asarray(problem.gravity, dtype=float)
+    total = float(eq.energy) - problem.part.mass_per_length * float(
+        np.trapezoid(r @ g, s))
+    dim = problem.dimension
+    for ld in eq.loads.values():
+        at = np.array([np.interp(ld.s, s, r[:, k]) for k in range(dim)])
+        for k in range(dim):
+            if not ld.prescribed[k]:
+                total -= float(ld.force[k]) * float(at[k])
+        if dim == 2 and not ld.prescribed[2]:
+            total -= float(ld.moment) * float(np.interp(ld.s, s, eq.angle))
+    return total
+
+
 @dataclass(frozen=True)
 class StationLoad:
     """The load a condition applies to the part at its station.

@@ -31,11 +31,17 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from pliant.core.equilibrium import WARM_START_LOST, Equilibrium, Samples, StationLoad
+from pliant.core.equilibrium import (
+    NEUTRAL,
+    WARM_START_LOST,
+    Equilibrium,
+    Samples,
+    StationLoad,
+    potential_energy,
+)
 from pliant.core.problem import Problem
 from pliant.errors import ConvergenceError
 from pliant.models.elastica2d import kernels
-from pliant.models.elastica2d.stability import stability
 from pliant.models.elastica2d.lowering import (
     NODE_SPAN,
     PRESCRIBED,
@@ -45,6 +51,7 @@ from pliant.models.elastica2d.lowering import (
     load_wavenumber,
     lower,
 )
+from pliant.models.elastica2d.stability import smallest_eigenvalue, stability
 
 
 @dataclass(frozen=True)
@@ -123,6 +130,7 @@ class _Point:
 
 _EMPTY_JAC = np.zeros((0, 0))
 _BRANCH_NOTE = "the unloaded part was a singular start"
+JUDGE_ELEMENTS = 60  # the grid on which the two bow sides' stability is compared
 _REASONS = {
     kernels.SINGULAR: "the Jacobian became singular (a fold or bifurcation: the branch "
                       "ends or turns back here)",
@@ -222,7 +230,7 @@ class _Run:
         either side), the whole route runs on a bowed part, bowed toward the side the
         targets moved to, and a last leg removes the bow at the problem.
         """
-        low, opts = self.low, self.solver
+        low = self.low
         mesh = self.first_mesh()
         rest, z = low.rest(mesh)
         try:
@@ -230,7 +238,53 @@ class _Run:
         except _Stalled as stall:
             if not stall.singular_start:
                 raise
-        side = low.lateral_side(rest)
+        pushed = low.lateral_side(rest)
+        found = [(pushed, self.bowed(pushed, legs, mesh))]
+        if np.any(low.target.fol):  # no potential to compare the sides by
+            self.notes.append(
+                f"{_BRANCH_NOTE} (a bifurcation: it can buckle to either side); pliant took "
+                f"the branch that bows to the {'left' if pushed > 0 else 'right'} of its "
+                "chord, the side its targets and loads push it to; another equilibrium may "
+                "exist on the other side")
+            return found[0][1]
+        try:  # the other side too: keep the lower stable equilibrium, say what else exists
+            found.append((-pushed, self.bowed(-pushed, legs, mesh)))
+        except _Stalled as stall:
+            if stall.budget:
+                raise
+        energies = [self.energy(point) for _, point in found]
+        twins = len(found) == 2 and abs(energies[1] - energies[0]) <= 1e-9 * abs(energies[0])
+        judged = [(side, point, energy, self.stable(point) if len(found) == 2 and not twins
+                   else None) for (side, point), energy in zip(found, energies)]
+        best = judged[0]  # the side the targets push to, unless the other is better:
+        for other in judged[1:]:  # stable (or neutral) first, then the lower energy
+            if (other[3] is not False) > (best[3] is not False) or (
+                    (other[3] is not False) == (best[3] is not False)
+                    and other[2] < best[2] - 1e-9 * abs(best[2]) - 1e-300):
+                best = other
+        word = {True: "stable", False: "unstable", None: "stability undecided"}
+        took = (f"{_BRANCH_NOTE} (a bifurcation: it can buckle to either side); pliant took "
+                f"the branch that bows to the {'left' if best[0] > 0 else 'right'} of its "
+                f"chord (potential energy {best[2]:.6g} J, {word[best[3]]})")
+        if len(judged) == 1:
+            self.notes.append(took + "; the route to the other side found no equilibrium")
+            return best[1]
+        other = next(j for j in judged if j is not best)
+        if abs(other[2] - best[2]) <= 1e-9 * abs(best[2]):
+            took = took.replace(", stability undecided)", ")")
+            took += "; its mirror twin bows to the other side with the same energy"
+        else:
+            took += (f"; the other side's equilibrium has {other[2]:.6g} J and is "
+                     f"{word[other[3]]}")
+        self.notes.append(took)
+        return best[1]
+
+    def bowed(self, side: float, legs: Callable[[Arrays], list[Arrays]],
+              mesh: Mesh) -> _Point:
+        """The route on a part bowed to ``side`` (+1 left of its chord, -1 right), with a
+        last leg that removes the bow at the problem."""
+        low, opts = self.low, self.solver
+        rest, _ = low.rest(mesh)
         ends = low.chord()
         span = (0.0, 1.0)
         if ends is not None:
@@ -246,13 +300,24 @@ class _Run:
         bow = side * min(opts.bow_max, max(opts.bow_min, amplitude))
         rest, z = low.rest(mesh, bow, span)
         targets = [leg.with_bow(bow, span) for leg in legs(rest)] + [low.target]
-        point = self.through(rest, targets, z, mesh)
-        self.notes.append(
-            f"{_BRANCH_NOTE} (a bifurcation: it can buckle to either side); pliant took "
-            f"the branch that bows to the {'left' if bow > 0 else 'right'} of its chord, the "
-            "side its targets and loads push it to; another equilibrium may exist on the "
-            "other side")
-        return point
+        return self.through(rest, targets, z, mesh)
+
+    def _equilibrium(self, point: _Point) -> Equilibrium:
+        return Equilibrium(problem=self.low.problem, residual=point.residual, iterations=0,
+                           steps=0, sampler=_Sampler(self.low, point.z, max(
+                               point.mesh.density, self.solver.samples)))
+
+    def energy(self, point: _Point) -> float:
+        """The potential energy [J] of a point reached (elastic, weight, dead loads)."""
+        return potential_energy(self._equilibrium(point))
+
+    def stable(self, point: _Point) -> bool | None:
+        """Whether a point reached is stable, on a coarse grid (the sign is what counts;
+        the answer's own verdict is computed finely when asked for)."""
+        value = smallest_eigenvalue(self._equilibrium(point), JUDGE_ELEMENTS)
+        part = self.low.problem.part
+        return None if value is None else value > -NEUTRAL * (
+            part.bending_stiffness / part.length)
 
     def through(self, start: Arrays, targets: list[Arrays], z: np.ndarray,
                 mesh: Mesh) -> _Point:

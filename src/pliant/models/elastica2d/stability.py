@@ -42,7 +42,10 @@ def stability(eq) -> tuple[bool | None, float | None]:
     return value > -NEUTRAL * scale, value
 
 
-def smallest_eigenvalue(eq) -> float | None:
+def smallest_eigenvalue(eq, elements: int | None = None) -> float | None:
+    """The smallest eigenvalue [N m] (see the module), None with follower loads;
+    ``elements`` about how many (default ``ELEMENTS``; fewer for a quick verdict: the
+    dense algebra costs their cube)."""
     from scipy.linalg import eigh, null_space  # noqa: PLC0415 (heavy; on demand)
 
     problem = eq.problem
@@ -55,7 +58,7 @@ def smallest_eigenvalue(eq) -> float | None:
     for a, b in itertools.pairwise(knots):
         if b - a <= 1e-12 * L:
             continue
-        count = max(2, math.ceil(ELEMENTS * (b - a) / L))
+        count = max(2, math.ceil((elements or ELEMENTS) * (b - a) / L))
         nodes.append(np.linspace(a, b, count + 1)[1:])
     s = np.concatenate(nodes)
     h = np.diff(s)

@@ -44,6 +44,7 @@ from pliant.core.equilibrium import (
     Equilibrium3D,
     Samples3D,
     StationLoad,
+    potential_energy,
 )
 from pliant.core.problem import Problem
 from pliant.errors import ConvergenceError, IllPosedProblemError, InputError
@@ -356,6 +357,7 @@ class _Run:
         # the opposite side, then the two across.
         best: _Stalled | None = None
         unstable: tuple[State, np.ndarray, np.ndarray] | None = None
+        stable: list[tuple[State, np.ndarray, np.ndarray, float]] = []
         sides = []
         for bow_side in (side, -side, across, -across):
             # Bending about chord x side turns the tangent toward the side; in the rest
@@ -380,12 +382,34 @@ class _Run:
                 continue
             # An unstable branch is not where a real part settles: try the other sides
             # for a stable one (for conservative loads, where stability is defined).
-            if _conservative(self) and not _stability(self, found)[0]:
+            if not _conservative(self):
+                self._bow_note(bow_side, "where its targets and loads push it" if bow_side
+                               is side else "as the side its targets and loads push it to "
+                               "gives no branch")
+                return found
+            if not _stability(self, found)[0]:
                 if unstable is None:
                     unstable = (found, bow_side, self.gauge_quat)
                 continue
-            why = ("where its targets and loads push it" if bow_side is side else
-                   "as the side its targets and loads push it to gives no stable branch")
+            stable.append((found, bow_side, self.gauge_quat,
+                           potential_energy(_probe(self, found))))
+            if len(stable) == 2:
+                break
+        if stable:
+            # Of the first two stable branches, the lower potential energy; the side the
+            # targets push to keeps a tie (mirror twins).
+            first = stable[0]
+            best = first
+            if len(stable) == 2 and stable[1][3] < first[3] - 1e-9 * abs(first[3]) - 1e-300:
+                best = stable[1]
+            found, bow_side, self.gauge_quat, energy = best
+            if best is first and first[1] is side:
+                why = "where its targets and loads push it"
+            elif best is first:
+                why = "as the side its targets and loads push it to gives no stable branch"
+            else:
+                why = (f"whose potential energy {energy:.6g} J is below the "
+                       f"{first[3]:.6g} J of the side its targets and loads push it to")
             self._bow_note(bow_side, why)
             return found
         if unstable is not None:
@@ -756,6 +780,13 @@ def _build(run: _Run, state: State, seed: np.ndarray | None = None) -> Equilibri
         state=warm,
         stability_check=(lambda: _stability(run, state, seed, warm.mode))
         if _conservative(run, state) else None)
+
+
+def _probe(run: _Run, state: State) -> Equilibrium3D:
+    """A state reached as an equilibrium to measure (not the answer: no notes, no
+    stability)."""
+    return Equilibrium3D(problem=run.rod.problem, residual=0.0, iterations=0, steps=0,
+                         sampler=_Sampler(run, state))
 
 
 @dataclass(frozen=True, eq=False)
