@@ -150,6 +150,27 @@ def manipulation(steps: int, repeat: int) -> None:
     print(f"  ratio     : {t_bvp / t_pl:.0f}x")
 
 
+def enumeration(repeat: int) -> None:
+    """equilibria() on the paper's case 3 (the issue's target: 50 ms) and on a tip held
+    near the clamp's axis, where the two bow sides differ."""
+    from pliant.core.equilibrium import potential_energy  # noqa: PLC0415
+    from pliant.models.elastica2d import equilibria  # noqa: PLC0415
+
+    near = pl.Problem(pl.Part(1.0, 1.0), (pl.clamp(0.0), pl.grip(1.0, (0.333, -0.002),
+                                                                  angle=-1.106)))
+    print("\nequilibria(problem): every route and bow side, distinct, best first")
+    for name, problem in (("paper case 3", load_problem(ROOT / "examples/paper/case3.toml")),
+                          ("tip near the clamp's axis", near)):
+        found = equilibria(problem)
+        times = []
+        for _ in range(repeat):
+            start = time.perf_counter()
+            equilibria(problem)
+            times.append(time.perf_counter() - start)
+        listed = ", ".join(f"{potential_energy(e):.5g} J {e.verdict}" for e in found)
+        print(f"  {name:28s} {statistics.median(times) * 1e3:7.1f} ms: {listed}")
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--repeat", type=int, default=50)
@@ -159,6 +180,7 @@ def main() -> None:
           f"{os.cpu_count()} cpus\n")
     cold(args.repeat)
     manipulation(args.steps, max(3, args.repeat // 10))
+    enumeration(max(3, args.repeat // 5))
 
 
 if __name__ == "__main__":

@@ -103,3 +103,31 @@ def test_a_singular_start_returns_the_lower_of_the_two_bow_sides():
     assert eq.energy < 0.5 * other_energy
     assert f"{other_energy:.6g} J and is stable" in note
     assert eq.verdict == "stable"
+
+
+def test_equilibria_lists_what_the_routes_reach_the_answer_first(capsys):
+    from pliant.cli.app import _all_equilibria
+    from pliant.core.equilibrium import potential_energy
+    from pliant.models.elastica2d import equilibria
+
+    problem = pl.Problem(pl.Part(1.0, 1.0), (pl.clamp(0.0),
+                                             pl.grip(1.0, (0.333, -0.002), angle=-1.106,
+                                                     name="hand")))
+    found = equilibria(problem)
+    answer = pl.solve(problem)
+    assert len(found) >= 2
+    assert np.abs(found[0].position[-1] - answer.position[-1]).max() < 1e-8
+    assert found[0].energy == pytest.approx(answer.energy, rel=1e-9)
+    energies = [potential_energy(e) for e in found if e.verdict != "unstable"]
+    assert energies == sorted(energies)
+    for eq in found:  # each a distinct equilibrium of the problem
+        assert eq.residual < 1e-9
+        assert np.abs(eq.position[-1] - (0.333, -0.002)).max() < 1e-8
+    shapes = [e.position[len(e.position) // 2] for e in found]
+    assert all(np.abs(a - b).max() > 1e-3 for i, a in enumerate(shapes) for b in shapes[:i])
+    _all_equilibria(problem, as_json=True)
+    import json
+
+    listed = json.loads(capsys.readouterr().out)["equilibria"]
+    assert [e["stability"] for e in listed][:2] == ["stable", "stable"]
+    assert listed[0]["potential_energy"] == pytest.approx(answer.energy, rel=1e-9)

@@ -79,6 +79,9 @@ def solve(
     elements: Annotated[int | None, typer.Option(help="3D: about how many elements "
                                                       "(default: the file's \\[solver], or 100)")]
     = None,
+    all_: Annotated[bool, typer.Option("--all", help="2D: list every equilibrium the "
+                                                     "routes reach, with its energy and "
+                                                     "stability")] = False,
 ) -> None:
     """Solve a problem file (2D or 3D): shape, internal forces, reactions."""
     from pliant.cli.report import (  # noqa: PLC0415
@@ -92,6 +95,9 @@ def solve(
     scene = _load_scene(file)
     problem = scene.problem
     _first_run_note()
+    if all_:
+        _all_equilibria(problem, json)
+        return
     eq, seconds = timed_solve(problem, elements or scene.solver.elements)
     report = None
     if problem.obstacles:
@@ -117,6 +123,59 @@ def solve(
         if not json:
             note = "" if problem.part.outer_diameter else " (display radius: no outer_diameter)"
             typer.echo(f"mesh written to {mesh}, radius {part_radius(eq):.4g} m{note}")
+
+
+def _all_equilibria(problem, as_json: bool) -> None:
+    """``pliant solve --all``: the equilibria the 2D routes reach, best first."""
+    import time  # noqa: PLC0415
+
+    if problem.dimension != 2:
+        raise PliantError("--all: enumerating equilibria is 2D for now; solve the 3D "
+                          "problem without it (its note says which bow side it took)")
+    from pliant.core.equilibrium import potential_energy  # noqa: PLC0415
+    from pliant.models.elastica2d import equilibria  # noqa: PLC0415
+
+    start = time.perf_counter()
+    found = equilibria(problem)
+    seconds = time.perf_counter() - start
+    if as_json:
+        import json as _json  # noqa: PLC0415
+
+        from pliant.io.jsontext import finite  # noqa: PLC0415
+
+        typer.echo(_json.dumps(finite({"schema_version": 1, "seconds": seconds, "equilibria": [
+            {**eq.to_dict(), "potential_energy": potential_energy(eq)} for eq in found]})))
+        return
+    from rich.console import Console  # noqa: PLC0415
+    from rich.table import Table  # noqa: PLC0415
+
+    if not found:
+        raise PliantError("no equilibrium: no route reached one (see pliant solve for why)")
+    table = Table(title=f"{problem.name or 'problem'}: {len(found)} equilibria found in "
+                        f"{seconds:.2f} s; the first is pliant's answer",
+                  title_justify="left")
+    for col in ("#", "potential\n[J]", "elastic\n[J]", "stability", "eigenvalue\n[N m]",
+                "bows", "max |M|\n[N m]"):
+        table.add_column(col, justify="left" if col in ("stability", "bows") else "right")
+    for i, eq in enumerate(found, 1):
+        table.add_row(str(i), f"{potential_energy(eq):.6g}", f"{eq.energy:.6g}", eq.verdict,
+                      f"{eq.stability[1]:.4g}" if eq.stability[1] is not None else "-",
+                      _side(eq), f"{eq.max_moment()[0]:.4g}")
+    Console().print(table)
+
+
+def _side(eq) -> str:
+    """Which side of the chord between its ends the part's middle lies on (looking from
+    the first end to the last)."""
+    import numpy as np  # noqa: PLC0415
+
+    a, b = eq.position[0], eq.position[-1]
+    mid = eq.position[len(eq.position) // 2]
+    chord = b - a
+    cross = chord[0] * (mid[1] - a[1]) - chord[1] * (mid[0] - a[0])
+    if abs(cross) <= 1e-9 * max(float(np.dot(chord, chord)), 1e-300):
+        return "neither side"
+    return "left" if cross > 0 else "right"
 
 
 @app.command()

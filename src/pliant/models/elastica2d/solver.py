@@ -27,7 +27,8 @@ from __future__ import annotations
 import math
 import time
 from collections.abc import Callable, Iterable, Iterator
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
+from functools import cmp_to_key
 
 import numpy as np
 
@@ -147,6 +148,7 @@ class _Run:
     steps: int = 0
     notes: list[str] = field(default_factory=list)
     deadline: float = 0.0
+    reached: list = field(default_factory=list)  # every point the last route reached
 
     def __post_init__(self) -> None:
         self.deadline = time.perf_counter() + self.solver.time_budget
@@ -234,7 +236,9 @@ class _Run:
         mesh = self.first_mesh()
         rest, z = low.rest(mesh)
         try:
-            return self.through(rest, legs(rest), z, mesh)
+            point = self.through(rest, legs(rest), z, mesh)
+            self.reached = [point]
+            return point
         except _Stalled as stall:
             if not stall.singular_start:
                 raise
@@ -246,6 +250,7 @@ class _Run:
                 f"the branch that bows to the {'left' if pushed > 0 else 'right'} of its "
                 "chord, the side its targets and loads push it to; another equilibrium may "
                 "exist on the other side")
+            self.reached = [found[0][1]]
             return found[0][1]
         try:  # the other side too: keep the lower stable equilibrium, say what else exists
             found.append((-pushed, self.bowed(-pushed, legs, mesh)))
@@ -268,6 +273,7 @@ class _Run:
                 f"chord (potential energy {best[2]:.6g} J, {word[best[3]]})")
         if len(judged) == 1:
             self.notes.append(took + "; the route to the other side found no equilibrium")
+            self.reached = [best[1]]
             return best[1]
         other = next(j for j in judged if j is not best)
         if abs(other[2] - best[2]) <= 1e-9 * abs(best[2]):
@@ -277,6 +283,7 @@ class _Run:
             took += (f"; the other side's equilibrium has {other[2]:.6g} J and is "
                      f"{word[other[3]]}")
         self.notes.append(took)
+        self.reached = [best[1]] + [j[1] for j in judged if j is not best]
         return best[1]
 
     def bowed(self, side: float, legs: Callable[[Arrays], list[Arrays]],
@@ -538,13 +545,75 @@ def _solve(problem: Problem, warm_start: Equilibrium | None, solver: ShootingSol
             f"(relative residual {stall.residual:.2e}); try smaller steps or check "
             "that the targets can be reached",
             residual=stall.residual, progress=stall.t, last_good=warm_start) from None
+    return _answer(run, point, problem, solver)
+
+
+def _answer(run: _Run, point: _Point, problem: Problem, solver: ShootingSolver,
+            notes: tuple[str, ...] | None = None) -> Equilibrium:
     point = _renode(run, point)
     low = run.low
     sampler = _Sampler(low, point.z, max(point.mesh.density, solver.samples))
     return Equilibrium(problem=problem, residual=point.residual, iterations=run.iterations,
-                       steps=run.steps, sampler=sampler, notes=tuple(run.notes),
+                       steps=run.steps, sampler=sampler,
+                       notes=tuple(run.notes) if notes is None else notes,
                        state=_WarmState(low, point.z, point.jac, point.mesh),
                        stability_check=stability)
+
+
+def equilibria(problem: Problem, *, solver: ShootingSolver | None = None,
+               budget: float = 5.0) -> list[Equilibrium]:
+    """The distinct equilibria of a 2D problem that pliant's routes reach from the
+    unloaded part within ``budget`` seconds: each route of a cold solve (straight, more
+    restart nodes, positions first, a swing round the first support) and, from a singular
+    start, each bow side. Stable (and neutral) ones first, then unstable, each group by
+    potential energy (``pliant.core.equilibrium.potential_energy``); the first is what
+    ``solve`` would choose among them. Empty when no route reaches one."""
+    solver = solver or ShootingSolver()
+    deadline = time.perf_counter() + budget
+    nodes = len(lower(problem).nodes) + 1
+    found: list[Equilibrium] = []
+    for count, name in ((nodes, "straight"), (4 * nodes, "straight"),
+                        (nodes, "two_stage"), (nodes, "swing")):
+        left = deadline - time.perf_counter()
+        if left <= 0.0:
+            break
+        run = _Run(lower(problem, nodes=count), replace(solver, time_budget=left))
+        try:
+            run.route(getattr(run, name))
+        except _Stalled:
+            continue
+        low = run.low
+        for point in run.reached:
+            run.low = low  # each point's unknowns are those of the route's lowering
+            try:
+                eq = _answer(run, run.polish(point), problem, solver, notes=(
+                    f"reached by the {name.replace('_', ' ')} route",))
+            except _Stalled:
+                continue
+            if not any(_same(eq, other) for other in found):
+                found.append(eq)
+    energy = {id(e): potential_energy(e) for e in found}
+
+    def order(a: Equilibrium, b: Equilibrium) -> int:
+        ua, ub = a.verdict == "unstable", b.verdict == "unstable"
+        if ua != ub:
+            return 1 if ua else -1
+        ea, eb = energy[id(a)], energy[id(b)]
+        if abs(ea - eb) <= 1e-9 * max(abs(ea), abs(eb)):
+            return 0  # twins keep the order the routes reached them in (solve's first)
+        return -1 if ea < eb else 1
+
+    found.sort(key=cmp_to_key(order))
+    return found
+
+
+def _same(a: Equilibrium, b: Equilibrium) -> bool:
+    """One equilibrium reached twice: the same shape to 1e-6 of the part's length."""
+    L = a.problem.part.length
+    s = np.linspace(0.0, L, 41)
+    pa = np.column_stack([np.interp(s, a.s, a.position[:, k]) for k in range(2)])
+    pb = np.column_stack([np.interp(s, b.s, b.position[:, k]) for k in range(2)])
+    return float(np.abs(pa - pb).max()) <= 1e-6 * L
 
 
 def _renode(run: _Run, point: _Point) -> _Point:
