@@ -5,8 +5,6 @@ from __future__ import annotations
 
 import json
 import math
-import subprocess
-import sys
 from dataclasses import replace
 from pathlib import Path
 
@@ -313,13 +311,16 @@ def test_a_bending_curve_that_goes_back_is_refused(tmp_path):
 
 
 def test_cli_writes_the_fit_and_a_part_entry_that_a_scene_reads(tmp_path):
-    out = subprocess.run([sys.executable, "-m", "pliant.cli.app", "identify",
-                          str(EXAMPLES / "cable_tip_loads.toml"), "--json",
-                          str(tmp_path / "fit.json"), "--part", str(tmp_path / "part.toml"),
-                          "--plot", str(tmp_path / "fit.png")],
-                         capture_output=True, text=True, timeout=300, check=False)
-    assert out.returncode == 0, out.stderr
-    assert "bending_stiffness" in out.stdout and "95% intervals" in out.stdout
+    from typer.testing import CliRunner
+
+    from pliant.cli.app import app
+
+    out = CliRunner().invoke(app, ["identify", str(EXAMPLES / "cable_tip_loads.toml"),
+                                   "--json", str(tmp_path / "fit.json"), "--part",
+                                   str(tmp_path / "part.toml"), "--plot",
+                                   str(tmp_path / "fit.png")])
+    assert out.exit_code == 0, out.output
+    assert "bending_stiffness" in out.output and "95% intervals" in out.output
     fit = json.loads((tmp_path / "fit.json").read_text())
     assert fit["schema_version"] == 1
     by_name = {e["name"]: e for e in fit["estimates"]}
