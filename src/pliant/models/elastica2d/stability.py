@@ -68,26 +68,25 @@ def smallest_eigenvalue(eq, elements: int | None = None) -> float | None:
     tangent = np.column_stack([np.cos(theta), np.sin(theta)])
     force = np.column_stack([np.interp(mid, eq.s, eq.internal_force[:, k]) for k in range(2)])
     axial = np.einsum("ij,ij->i", force, tangent)
-    fixed_angle = {float(st.s) for st in problem.stations if st.prescribed[2]}
-
-    def held(x: float) -> bool:
-        return any(abs(x - f) <= 1e-12 * L for f in fixed_angle)
+    fixed = np.array([st.s for st in problem.stations if st.prescribed[2]], dtype=float)
+    held = (np.abs(s[:, None] - fixed[None, :]).min(axis=1) <= 1e-12 * L if fixed.size
+            else np.zeros(len(s), dtype=bool))
 
     # unknowns: the element angles, then the first end's shift (dx0, dy0)
     Q = np.zeros((m + 2, m + 2))
-    Q[np.arange(m), np.arange(m)] += h * axial
-    for j in range(m + 1):  # node j between elements j - 1 and j
-        if held(float(s[j])):  # each side bends from the held angle over half an element
-            if j > 0:
-                Q[j - 1, j - 1] += EI / h[j - 1] * 2.0
-            if j < m:
-                Q[j, j] += EI / h[j] * 2.0
-        elif 0 < j < m:
-            k = EI / (0.5 * (h[j - 1] + h[j]))
-            Q[j - 1, j - 1] += k
-            Q[j, j] += k
-            Q[j - 1, j] -= k
-            Q[j, j - 1] -= k
+    diagonal = h * axial
+    # each side of a held node bends from the held angle over half an element
+    diagonal[:-1] += np.where(held[1:-1], 2.0 * EI / h[:-1], 0.0)  # node j = e + 1
+    diagonal[1:] += np.where(held[1:-1], 2.0 * EI / h[1:], 0.0)    # node j = e
+    diagonal[0] += 2.0 * EI / h[0] if held[0] else 0.0
+    diagonal[-1] += 2.0 * EI / h[-1] if held[-1] else 0.0
+    k = np.where(held[1:-1], 0.0, EI / (0.5 * (h[:-1] + h[1:])))  # interior free nodes
+    diagonal[:-1] += k
+    diagonal[1:] += k
+    idx = np.arange(m)
+    Q[idx, idx] = diagonal
+    Q[idx[:-1], idx[1:]] = -k
+    Q[idx[1:], idx[:-1]] = -k
     rows = []
     normal = np.column_stack([-tangent[:, 1], tangent[:, 0]])
     for st in problem.stations:
