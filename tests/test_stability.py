@@ -62,10 +62,14 @@ def test_a_round_clamped_strip_is_neutral_about_its_chord_and_an_oval_one_stable
     chord at no cost (its frames counter-twist uniformly), so the verdict is neutral, not
     unstable; a section stiffer about one axis picks its plane (stable)."""
     ends = (pl.clamp(0.0, (0.0, 0.0, 0.0)), pl.clamp(1.0, (0.8, 0.0, 0.0), name="end"))
+    from pliant.models.rod3d.solver import describe_mode
+
     round_ = pl.solve(pl.Problem(pl.Part(1.0, 1.0), ends))
     assert round_.verdict == "neutral" and round_.stable is True
+    assert describe_mode(round_) == "a turn of the whole part about the line through its held ends"
     oval = pl.solve(pl.Problem(pl.Part(1.0, 1.0, bending_stiffness_2=1.5), ends))
     assert oval.verdict == "stable" and oval.stability[1] > 1.0
+    assert describe_mode(oval) == "a change of shape"
 
 
 def test_a_singular_start_returns_the_lower_of_the_two_bow_sides():

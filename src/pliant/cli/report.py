@@ -81,6 +81,10 @@ def _stability_line(eq: Any) -> str:
             "neutral": "[yellow]neutral[/yellow] (a mode that costs no energy: the part "
                        "can drift along a family of equilibria)"}[verdict]
     what = "Hessian" if eq.problem.dimension == 3 else "second variation"
+    if verdict == "neutral" and eq.problem.dimension == 3:
+        from pliant.models.rod3d.solver import describe_mode  # noqa: PLC0415
+
+        word += f"; its free mode: {describe_mode(eq)}"
     return f"stability: {word}; smallest eigenvalue of the constrained {what} {eigen:.4g} N m"
 
 
@@ -129,6 +133,10 @@ def _summary_3d(eq: Any, seconds: float, console: Console) -> None:
 
 def print_json(eq: Any, seconds: float, interference: Any = None) -> None:
     data = eq.to_dict()
+    if eq.problem.dimension == 3 and eq.verdict == "neutral":
+        from pliant.models.rod3d.solver import describe_mode  # noqa: PLC0415
+
+        data["neutral_mode"] = describe_mode(eq)
     data["solve_seconds"] = seconds
     if interference is not None:
         data["interference"] = interference.to_dict()

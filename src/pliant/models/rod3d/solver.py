@@ -972,6 +972,41 @@ def _stability(run: _Run, state: State, seed: np.ndarray | None = None,
     return value > -NEUTRAL, value * rod.moment_scale  # EI / L
 
 
+def describe_mode(eq: Equilibrium3D) -> str:
+    """The softest mode of an equilibrium in words (for a neutral one: what it can do at
+    no cost): a turn of the whole part about the line through its held ends, a twist of
+    its sections with no change of shape, or a change of shape."""
+    eq.stability  # noqa: B018 (the test fills the mode)
+    warm = eq.state
+    if not isinstance(warm, _WarmState) or not warm.mode:
+        return "a mode of the discrete rod"
+    rod = warm.rod
+    primal, _ = _metric(rod)
+    order = np.flatnonzero(primal)
+    vector = np.asarray(warm.mode[0])
+    if vector.shape != order.shape:
+        return "a mode of the discrete rod"
+    at = np.searchsorted(order, rod.ix[:, None] + np.arange(3))
+    moved = vector[at]  # node displacements (units of L)
+    turned = np.delete(vector, at.ravel())
+    if np.linalg.norm(moved) < 1e-3 * np.linalg.norm(turned):
+        return "a twist of its sections with no change of shape"
+    X = warm.state[0]
+    held = [i for i in range(len(X)) if np.linalg.norm(moved[i]) < 1e-6 * np.abs(
+        moved).max()]
+    if len(held) >= 2:
+        a, b = X[held[0]], X[held[-1]]
+        chord = (b - a) / max(float(np.linalg.norm(b - a)), 1e-300)
+        arm = X - a
+        # moved = omega x arm, with omega along the chord: a turn about it
+        rotation = np.cross(chord[None, :], arm)
+        scale = float(np.sum(rotation * moved) / max(float(np.sum(rotation * rotation)),
+                                                     1e-300))
+        if np.linalg.norm(moved - scale * rotation) < 1e-2 * np.linalg.norm(moved):
+            return "a turn of the whole part about the line through its held ends"
+    return "a change of shape"
+
+
 def _stability_arpack(ab, piv, n, kl, ku, primal, weight, c, size):
     """The same eigenvalue by ARPACK (the fallback where the kernel's Lanczos did not
     converge): (value, vector), or (None, None)."""
