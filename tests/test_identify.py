@@ -260,12 +260,7 @@ def test_bad_tables_are_refused_by_name(text, message):
         parse_table(text, "shape", "t.csv")
 
 
-BASE = """
-gravity = [0.0, -9.81]
-[part]
-length = 0.5
-bending_stiffness = 0.05
-mass_per_length = 0.05
+CLAMP = """
 [[condition]]
 name = "clamp"
 s = 0.0
@@ -273,6 +268,13 @@ x = 0.0
 y = 0.0
 angle = 0.0
 """
+BASE = """
+gravity = [0.0, -9.81]
+[part]
+length = 0.5
+bending_stiffness = 0.05
+mass_per_length = 0.05
+""" + CLAMP
 
 
 IDENTIFY = '[identify]\nunknowns = ["bending_stiffness"]\n'
@@ -352,13 +354,7 @@ inner_diameter = 0.02
 material = "EPDM"
 kind = "reinforced hose"
 {extra}
-[[condition]]
-name = "clamp"
-s = 0.0
-x = 0.0
-y = 0.0
-angle = 0.0
-"""
+""" + CLAMP
 
 
 def test_a_reinforced_hose_stiffened_only_by_its_rubber_is_warned_about():

@@ -201,7 +201,8 @@ def identify(test: StiffnessTest, *, solver: Any = None, time_budget: float = 12
         raise InputError("measured", f"too few measured values: {m_eff} for {len(names)} "
                          "unknown(s); an interval needs at least one more (measure more "
                          "points or loads), or as many with their uncertainties")
-    state = {"solves": 0, "last": x0}
+    # the last values whose residual was computed, with it (errors name them)
+    state = {"solves": 0, "at": (x0, None)}
 
     def part_at(x: np.ndarray) -> Part:
         values = dict(zip(names, np.exp(x).tolist()))
@@ -210,7 +211,7 @@ def identify(test: StiffnessTest, *, solver: Any = None, time_budget: float = 12
     def residual(x: np.ndarray) -> np.ndarray:
         if time.perf_counter() - started > time_budget:
             raise IdentificationError(f"the fit ran past its {time_budget:g} s budget at "
-                                      + _values(names, x), _named(names, state["last"]))
+                                      + _values(names, x), _named(names, state["at"][0]))
         part = part_at(x)
         out = []
         for model, sigma in zip(models, sigmas):
@@ -220,10 +221,9 @@ def identify(test: StiffnessTest, *, solver: Any = None, time_budget: float = 12
                 raise IdentificationError(
                     f"{model.label}: the model found no equilibrium at {_values(names, x)} "
                     f"({err}); give a first guess closer to the part in [part]",
-                    _named(names, state["last"])) from None
+                    _named(names, state["at"][0])) from None
             out.append(r / sigma if sigma else r)
             state["solves"] += model.solves
-        state["last"] = x
         state["at"] = (x.copy(), np.concatenate(out))
         return state["at"][1]
 
@@ -244,7 +244,7 @@ def identify(test: StiffnessTest, *, solver: Any = None, time_budget: float = 12
     def _latest(x: np.ndarray) -> np.ndarray:
         """The residual at x: least squares asks for the Jacobian where it just was."""
         at, r = state["at"]
-        return r if np.array_equal(at, x) else residual(x)
+        return r if r is not None and np.array_equal(at, x) else residual(x)
 
     _check_identifiable(names, jacobian(x0), models, weighted, "at the first guess")
     from scipy.optimize import least_squares  # noqa: PLC0415
@@ -442,6 +442,15 @@ def _at(s_query: float, s: np.ndarray, position: np.ndarray, tangent: np.ndarray
                     tangent[seg + 1][None], np.array([h]), t)[0][0]
 
 
+def _condition_index(problem: Problem, name: str, label: str) -> int:
+    """Where the condition a measurement names stands in the problem's conditions."""
+    for i, c in enumerate(problem.conditions):
+        if c.name == name:
+            return i
+    raise InputError(f"{label}.condition", f"no condition named {name!r}; known: "
+                     + ", ".join(c.name for c in problem.conditions))
+
+
 class _ShapeModel:
     def __init__(self, m: Shape, label: str, problem: Problem, solver: Any) -> None:
         if m.points.ndim != 2 or m.points.shape[1] != problem.dimension:
@@ -479,12 +488,7 @@ class _ShapeModel:
 
 class _DeflectionModel:
     def __init__(self, m: Deflection, label: str, problem: Problem, solver: Any) -> None:
-        try:
-            self.index = next(i for i, c in enumerate(problem.conditions)
-                              if c.name == m.condition)
-        except StopIteration:
-            raise InputError(f"{label}.condition", f"no condition named {m.condition!r}; "
-                             "known: " + ", ".join(c.name for c in problem.conditions)) from None
+        self.index = _condition_index(problem, m.condition, label)
         c = problem.conditions[self.index]
         d = problem.dimension
         if len(m.direction) != d or m.position.shape[1] != d:
@@ -693,12 +697,7 @@ class _BucklingModel:
     def __init__(self, m: TwistBuckling, label: str, problem: Problem, solver: Any) -> None:
         if problem.dimension != 3:
             raise InputError(label, "a twist buckles in 3D: give the test 3D conditions")
-        try:
-            self.index = next(i for i, c in enumerate(problem.conditions)
-                              if c.name == m.condition)
-        except StopIteration:
-            raise InputError(f"{label}.condition", f"no condition named {m.condition!r}; "
-                             "known: " + ", ".join(c.name for c in problem.conditions)) from None
+        self.index = _condition_index(problem, m.condition, label)
         c = problem.conditions[self.index]
         if c.tangent is None or c.normal is None:
             raise InputError(f"{label}.condition", f"{m.condition!r} must hold the part's "

@@ -33,7 +33,6 @@ from functools import cmp_to_key
 import numpy as np
 
 from pliant.core.equilibrium import (
-    NEUTRAL,
     WARM_START_LOST,
     Equilibrium,
     Samples,
@@ -52,7 +51,7 @@ from pliant.models.elastica2d.lowering import (
     load_wavenumber,
     lower,
 )
-from pliant.models.elastica2d.stability import smallest_eigenvalue, stability
+from pliant.models.elastica2d.stability import stability
 
 
 @dataclass(frozen=True)
@@ -276,7 +275,7 @@ class _Run:
             self.reached = [best[1]]
             return best[1]
         other = next(j for j in judged if j is not best)
-        if abs(other[2] - best[2]) <= 1e-9 * abs(best[2]):
+        if twins:
             took = took.replace(", stability undecided)", ")")
             took += "; its mirror twin bows to the other side with the same energy"
         else:
@@ -321,10 +320,7 @@ class _Run:
     def stable(self, point: _Point) -> bool | None:
         """Whether a point reached is stable, on a coarse grid (the sign is what counts;
         the answer's own verdict is computed finely when asked for)."""
-        value = smallest_eigenvalue(self._equilibrium(point), JUDGE_ELEMENTS)
-        part = self.low.problem.part
-        return None if value is None else value > -NEUTRAL * (
-            part.bending_stiffness / part.length)
+        return stability(self._equilibrium(point), JUDGE_ELEMENTS)[0]
 
     def through(self, start: Arrays, targets: list[Arrays], z: np.ndarray,
                 mesh: Mesh) -> _Point:

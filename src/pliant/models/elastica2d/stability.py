@@ -32,10 +32,11 @@ from pliant.core.equilibrium import NEUTRAL
 ELEMENTS = 240  # about this many elements over the part: the eigenvalue's error is O(h^2)
 
 
-def stability(eq) -> tuple[bool | None, float | None]:
+def stability(eq, elements: int | None = None) -> tuple[bool | None, float | None]:
     """(stable, smallest eigenvalue [N m]); (None, None) with follower loads. A neutral
-    equilibrium (see ``NEUTRAL``) counts as stable: nothing makes it move."""
-    value = smallest_eigenvalue(eq)
+    equilibrium (see ``NEUTRAL``) counts as stable: nothing makes it move. ``elements``
+    as in ``smallest_eigenvalue``."""
+    value = smallest_eigenvalue(eq, elements)
     if value is None:
         return None, None
     scale = eq.problem.part.bending_stiffness / eq.problem.part.length
