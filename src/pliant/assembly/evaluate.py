@@ -516,6 +516,7 @@ def _part_checks(scene: Any, run: PathRun, rules: Rules, kind: PartKind | None,
     checks += _bend_checks(run, part, kind, rules, scene, grips, port)
     checks += _kink_checks(run, part, kind, rules)
     checks += _twist_checks(run, part, kind, rules, settings, scene, grips)
+    checks += _stretch_checks(run, part, rules)
     checks.append(_stability_check(run))
     checks += _interference_checks(run, scene)
     checks += _contact_checks(run, settings)
@@ -670,6 +671,31 @@ def _twist_checks(run: PathRun, part: Any, kind: PartKind | None, rules: Rules,
                          "the user's torsion rating" if limit else "no torsion rating given",
                          "user" if limit else "computed",
                          note="" if limit else "give [evaluation] max_twist_rate to judge it")]
+
+
+def _stretch_checks(run: PathRun, part: Any, rules: Rules) -> list[Check]:
+    """An extensible part's largest axial strain [%] at each step, against the strain it
+    tolerates (red) and that over the rules' margin (yellow); none for an inextensible
+    part."""
+    if part.axial_stiffness is None:
+        return []
+    strains, where = [], []
+    for eq in run.equilibria:
+        strain = np.abs(eq.axial_strain)
+        i = int(np.argmax(strain))
+        strains.append(100.0 * float(strain[i]))
+        s = np.asarray(eq.s)
+        where.append(float(s[i] if len(s) == len(strain) else 0.5 * (s[i] + s[i + 1])))
+    allowed = part.max_axial_strain
+    if allowed is None:
+        return [series_check("axial strain", "largest axial strain (stretch)", "damage",
+                             strains, "%", "above", None, None, "the accurate model",
+                             "computed", where=where,
+                             note="give [part] max_axial_strain to judge it")]
+    red = 100.0 * allowed
+    return [series_check("axial strain", "largest axial strain (stretch)", "damage", strains,
+                         "%", "above", red / rules.stretch_margin, red, rules.stretch.source,
+                         rules.stretch.provenance, where=where)]
 
 
 def _stability_check(run: PathRun) -> Check:

@@ -11,6 +11,7 @@ import numpy as np
 from rich.console import Console
 from rich.table import Table
 
+from pliant.core.equilibrium import stretch_summary
 from pliant.core.problem import Problem
 from pliant.io.jsontext import finite
 
@@ -63,6 +64,7 @@ def print_summary(eq: Any, seconds: float, console: Console | None = None) -> No
     moment, at = eq.max_moment()
     console.print(f"max |M| = {_fmt(moment, 'N m')} at s = {at:.4g} m")
     console.print(_bend_radius_line(eq))
+    _print_stretch(eq, console)
     console.print(_stability_line(eq))
     console.print(f"elastic energy = {_fmt(eq.energy, 'J')}")
     for note in eq.notes:
@@ -86,6 +88,23 @@ def _stability_line(eq: Any) -> str:
 
         word += f"; its free mode: {describe_mode(eq)}"
     return f"stability: {word}; smallest eigenvalue of the constrained {what} {eigen:.4g} N m"
+
+
+def _print_stretch(eq: Any, console: Console) -> None:
+    """An extensible part's elongation and largest axial force and strain, against the
+    strain it tolerates."""
+    stretch = stretch_summary(eq)
+    if stretch is None:
+        return
+    strain = stretch["max_axial_strain"]
+    line = (f"stretch: {stretch['elongation'] * 1e3:+.4g} mm longer; largest axial force "
+            f"{_fmt(stretch['max_axial_force'], 'N')} (strain {strain * 100:.3g} %) at s = "
+            f"{stretch['at']:.4g} m")
+    allowed = eq.problem.part.max_axial_strain
+    if allowed is not None:
+        verdict = "[red]above[/red]" if abs(strain) > allowed else "within"
+        line += f" ({verdict} the part's allowed {allowed * 100:g} %)"
+    console.print(line)
 
 
 def _bend_radius_line(eq: Any) -> str:
@@ -124,6 +143,7 @@ def _summary_3d(eq: Any, seconds: float, console: Console) -> None:
     console.print(f"max |M| = {_fmt(moment, 'N m')} at s = {at:.4g} m; max |torque| = "
                   f"{_fmt(float(abs(eq.torque).max()), 'N m')}")
     console.print(_bend_radius_line(eq))
+    _print_stretch(eq, console)
     print_contacts(eq, console)
     console.print(_stability_line(eq))
     console.print(f"elastic energy = {_fmt(eq.energy, 'J')}")

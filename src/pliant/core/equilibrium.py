@@ -41,6 +41,27 @@ def stability_verdict(stability: tuple[bool | None, float | None], part) -> str:
     return "stable" if stable else "unstable"
 
 
+def _strain(part, axial: np.ndarray) -> np.ndarray:
+    if part.axial_stiffness is None:
+        return np.zeros_like(axial)
+    return axial / part.axial_stiffness
+
+
+def stretch_summary(eq) -> dict[str, Any] | None:
+    """What pulling did to an extensible part: elongation [m], the largest axial force
+    [N] and strain [-] and where (s [m]); None for an inextensible part."""
+    part = eq.problem.part
+    if part.axial_stiffness is None:
+        return None
+    force = np.asarray(eq.axial_force)
+    i = int(np.argmax(np.abs(force)))
+    s = np.asarray(eq.s)
+    at = float(s[i] if len(s) == len(force) else 0.5 * (s[i] + s[i + 1]))
+    return {"elongation": eq.elongation, "max_axial_force": float(force[i]),
+            "max_axial_strain": float(force[i] / part.axial_stiffness), "at": at,
+            "axial_stiffness": part.axial_stiffness}
+
+
 def potential_energy(eq) -> float:
     """The elastic energy plus the potential of the dead loads [J]: the part's weight and
     the applied forces (and, in 2D, the applied couples, -M theta). Of two stable
@@ -200,6 +221,16 @@ class Equilibrium:
         return self.internal_force[:, 0] * c + self.internal_force[:, 1] * s
 
     @property
+    def axial_strain(self) -> np.ndarray:
+        """N / EA [-] along the part (zeros for an inextensible one)."""
+        return _strain(self.problem.part, self.axial_force)
+
+    @property
+    def elongation(self) -> float:
+        """How much longer the part is than unloaded [m]: the integral of N / EA."""
+        return float(np.trapezoid(self.axial_strain, self.s))
+
+    @property
     def shear_force(self) -> np.ndarray:
         """Q [N], along the left normal nu = (-sin theta, cos theta)."""
         c, s = np.cos(self.angle), np.sin(self.angle)
@@ -247,6 +278,7 @@ class Equilibrium:
             "energy": self.energy,
             "max_moment": list(self.max_moment()),
             "min_bend_radius": list(self.min_bend_radius()),
+            "stretch": stretch_summary(self),
             "stable": self.stability[0],
             "smallest_eigenvalue": self.stability[1],
             "stability": self.verdict,
@@ -404,6 +436,17 @@ class Equilibrium3D:
         return np.einsum("ij,ij->i", self.internal_force, d3)
 
     @property
+    def axial_strain(self) -> np.ndarray:
+        """(N,) N / EA [-] per element (zeros for an inextensible part)."""
+        return _strain(self.problem.part, self.axial_force)
+
+    @property
+    def elongation(self) -> float:
+        """How much longer the part is than unloaded [m]: its elements' strains times
+        their unloaded lengths."""
+        return float(self.axial_strain @ np.diff(self.s))
+
+    @property
     def curvature(self) -> np.ndarray:
         """(N+1,) [1/m], the bending curvature |kappa| at the nodes (twist excluded)."""
         part = self.problem.part
@@ -443,6 +486,7 @@ class Equilibrium3D:
             "energy": self.energy,
             "max_moment": list(self.max_moment()),
             "min_bend_radius": list(self.min_bend_radius()),
+            "stretch": stretch_summary(self),
             "stable": stable,
             "smallest_eigenvalue": eigen,
             "stability": self.verdict,

@@ -75,6 +75,11 @@ class Part:
     kind : str or None, what the part is for the A/D evaluation's damage rules ("coolant
         hose", "thin-walled tube", "wire", ...: the rules table's kinds)
     poisson_ratio : float or None, of the wall's material (the kink rule of thin tubes)
+    axial_stiffness : float [N] or None, EA: the part stretches by the axial strain N / EA
+        (both accurate models); None is an inextensible part, the limit EA -> infinity.
+        A cable's EA is far below its copper's (strands and lay); give a measured one.
+    max_axial_strain : float or None, the axial strain the part tolerates (the damage
+        rule of a part pulled taut)
 
     The material frame (d1, d2, d3) is right-handed with d3 the tangent; a 2D problem is
     the 3D one in the plane z = 0 with d1 = +z, so that bending there is about d1.
@@ -94,6 +99,8 @@ class Part:
     rest_twist: float | tuple[tuple[float, float], ...] = 0.0
     kind: str | None = None
     poisson_ratio: float | None = None
+    axial_stiffness: float | None = None
+    max_axial_strain: float | None = None
     rest_knots: tuple[tuple[float, float], ...] = field(init=False, repr=False)
     rest_knots_2: tuple[tuple[float, float], ...] = field(init=False, repr=False)
     twist_knots: tuple[tuple[float, float], ...] = field(init=False, repr=False)
@@ -119,6 +126,18 @@ class Part:
         if self.min_bend_radius is not None:
             set_(self, "min_bend_radius",
                  _positive("min_bend_radius", self.min_bend_radius, "m"))
+        if self.axial_stiffness is not None:
+            set_(self, "axial_stiffness", _positive("axial_stiffness", self.axial_stiffness, "N"))
+            slenderness = self.bending_stiffness / (self.axial_stiffness * self.length**2)
+            if slenderness > 1e-2:
+                raise InputError("axial_stiffness",
+                                 f"EA = {self.axial_stiffness:g} N makes the part as short "
+                                 f"and thick as a block (EI / (EA L^2) = {slenderness:.3g}, "
+                                 "a hose or cable is below 1e-4): check its unit (N) and the "
+                                 "length")
+        if self.max_axial_strain is not None:
+            set_(self, "max_axial_strain",
+                 _positive("max_axial_strain", self.max_axial_strain, "(a strain, 0.01 = 1 %)"))
         if self.bending_stiffness_2 is not None:
             set_(self, "bending_stiffness_2",
                  _positive("bending_stiffness_2", self.bending_stiffness_2, "N m^2"))
@@ -159,10 +178,11 @@ class Part:
 
     @classmethod
     def tube(cls, length: float, outer_diameter: float, material: Material,
-             inner_diameter: float = 0.0, **kwargs) -> Part:
+             inner_diameter: float = 0.0, extensible: bool = False, **kwargs) -> Part:
         """A part with a circular (hollow) section of a given material.
 
-        EI = E pi (D^4 - d^4) / 64, GJ = G pi (D^4 - d^4) / 32, mass = rho pi (D^2 - d^2) / 4.
+        EI = E pi (D^4 - d^4) / 64, GJ = G pi (D^4 - d^4) / 32, mass = rho pi (D^2 - d^2) / 4,
+        and with ``extensible`` EA = E pi (D^2 - d^2) / 4.
         """
         outer = _positive("outer_diameter", outer_diameter, "m")
         inner = _non_negative("inner_diameter", inner_diameter, "m")
@@ -173,6 +193,8 @@ class Part:
         area = math.pi * (outer**2 - inner**2) / 4.0
         assert material.shear_modulus is not None
         kwargs.setdefault("poisson_ratio", material.poisson_ratio)
+        if extensible:
+            kwargs.setdefault("axial_stiffness", material.youngs_modulus * area)
         return cls(length=length,
                    bending_stiffness=material.youngs_modulus * second_moment,
                    torsional_stiffness=material.shear_modulus * 2.0 * second_moment,

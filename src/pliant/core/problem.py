@@ -222,7 +222,10 @@ class Problem:
                 "position at two stations")
 
     def _check_reach(self) -> None:
-        """Prescribed positions must be closer than the part between them is long."""
+        """Prescribed positions must be closer than the part between them is long (an
+        extensible part: than it is long stretched by MAX_STRETCH)."""
+        extensible = self.part.axial_stiffness is not None
+        reach = 1.0 + MAX_STRETCH if extensible else 1.0 - 1e-9
         located = [st for st in self.stations if self._located(st)]
         for i, a in enumerate(located):
             for b in located[i + 1:]:
@@ -232,14 +235,22 @@ class Problem:
                     continue
                 gap = math.hypot(*(self._coordinate(b, k) - self._coordinate(a, k)
                                    for k in both))  # no overflow at 1e160 m
-                if gap >= arc * (1.0 - 1e-9):
+                if gap >= arc * reach:
                     what = ("distance" if len(both) == self.dimension
                             else "-".join("xyz"[k] for k in both) + "-distance")
+                    why = (f"stretched by {MAX_STRETCH:.0%}, beyond which a linear axial "
+                           "stiffness does not hold" if extensible else
+                           "(the part is inextensible; give its axial_stiffness EA [N] to "
+                           "let it stretch)")
                     raise UnreachableTargetError(
                         f"{b.owner[both[0]]}.position",
                         f"the {what} {gap:.6g} m from {a.owner[both[0]]!r} reaches or exceeds "
-                        f"the {arc:.6g} m of part between them; bring the target closer "
-                        "(the part is inextensible)")
+                        f"the {arc * max(reach, 1.0):.6g} m of part between them"
+                        f"{' ' + why if extensible else ''}; bring the target closer"
+                        f"{'' if extensible else ' ' + why}")
+
+
+MAX_STRETCH = 0.1  # the largest chord strain an extensible part is asked to take
 
 
 def _named(c: Condition, index: int) -> Condition:

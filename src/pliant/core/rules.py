@@ -95,6 +95,8 @@ class Rules:
     twist_yellow: float
     twist_red: float
     twist: Sourced
+    stretch_margin: float = 1.25
+    stretch: Sourced = Sourced("", "engineering choice")
     origin: str = "bundled"
 
     def kind(self, name: str | None, field: str = "part.kind") -> PartKind | None:

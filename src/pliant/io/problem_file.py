@@ -96,6 +96,11 @@ class PartModel(_Strict):
                              "(coolant hose, thin-walled tube, wire, ...)")
     poisson_ratio: float | None = Field(None, gt=-1, le=0.5, description="of the wall "
                                         "(default: the material's)")
+    axial_stiffness: float | Literal["material"] | None = Field(
+        None, description="EA [N], or \"material\" for E times the section's area; "
+        "not given: inextensible")
+    max_axial_strain: float | None = Field(None, gt=0, description="the axial strain the "
+                                           "part tolerates (0.01 = 1 %)")
 
     @model_validator(mode="after")
     def _stiffness_given(self) -> PartModel:
@@ -105,6 +110,9 @@ class PartModel(_Strict):
                              "youngs_modulus)")
         if self.material is not None and self.outer_diameter is None:
             raise ValueError("a material needs outer_diameter [m] to make a section")
+        if self.axial_stiffness == "material" and self.material is None:
+            raise ValueError("axial_stiffness = \"material\" needs a material and "
+                             "outer_diameter [m]; or give EA in N")
         if self.outer_diameter is not None and self.outer_diameter > 0.5 * self.length:
             raise ValueError(f"outer_diameter {self.outer_diameter:g} m is more than half the "
                              f"part's length ({self.length:g} m): no hose or cable is that "
@@ -119,7 +127,10 @@ class PartModel(_Strict):
                   "rest_curvature_2": knots(self.rest_curvature_2),
                   "rest_twist": knots(self.rest_twist),
                   "bending_stiffness_2": self.bending_stiffness_2,
-                  "min_bend_radius": self.min_bend_radius, "kind": self.kind}
+                  "min_bend_radius": self.min_bend_radius, "kind": self.kind,
+                  "max_axial_strain": self.max_axial_strain}
+        if isinstance(self.axial_stiffness, float):
+            common["axial_stiffness"] = self.axial_stiffness
         if self.poisson_ratio is not None:
             common["poisson_ratio"] = self.poisson_ratio
         if self.material is not None:
@@ -131,7 +142,8 @@ class PartModel(_Strict):
             else:
                 material = Material(**self.material.model_dump())
             part = Part.tube(self.length, self.outer_diameter, material,
-                             inner_diameter=self.inner_diameter, **common)
+                             inner_diameter=self.inner_diameter,
+                             extensible=self.axial_stiffness == "material", **common)
             # Measured values, when also given, win over the section's.
             overrides: dict[str, Any] = {}
             for key in ("bending_stiffness", "torsional_stiffness", "mass_per_length"):
@@ -759,7 +771,7 @@ def dump_problem(problem: Problem, description: str = "") -> str:
               f"bending_stiffness = {_num(part.bending_stiffness)}",
               f"mass_per_length = {_num(part.mass_per_length)}"]
     for key in ("torsional_stiffness", "bending_stiffness_2", "min_bend_radius",
-                "poisson_ratio"):
+                "poisson_ratio", "axial_stiffness", "max_axial_strain"):
         value = getattr(part, key)
         if value is not None:
             lines.append(f"{key} = {_num(value)}")

@@ -125,6 +125,16 @@ class TwistModel(_Strict):
     source: str = Field(min_length=1)
 
 
+class StretchModel(_Strict):
+    margin: float = Field(ge=1, description="yellow above the allowed strain / margin")
+    source: str = Field(min_length=1)
+
+
+_STRETCH = StretchModel(margin=1.25, source=(
+    "the part's max_axial_strain (its datasheet or a pull test) is red; yellow within 80 % "
+    "of it, an engineering choice for model and parameter uncertainty"))
+
+
 class RulesFile(_Strict):
     schema_: int = Field(alias="schema", ge=1, le=1)
     zones: ZonesModel
@@ -135,6 +145,7 @@ class RulesFile(_Strict):
     bend: BendModel
     kink: KinkModel
     twist: TwistModel
+    stretch: StretchModel = _STRETCH  # optional: tables written before it still load
 
     @model_validator(mode="after")
     def _consistent(self) -> RulesFile:
@@ -174,7 +185,9 @@ class RulesFile(_Strict):
             kink_yellow=self.kink.yellow, kink_red=self.kink.red,
             kink_min_ratio=self.kink.min_ratio, kink=Sourced(self.kink.source, "derived"),
             twist_yellow=self.twist.yellow, twist_red=self.twist.red,
-            twist=Sourced(self.twist.source, "standard"), origin=origin)
+            twist=Sourced(self.twist.source, "standard"),
+            stretch_margin=self.stretch.margin,
+            stretch=Sourced(self.stretch.source, "engineering choice"), origin=origin)
 
 
 def parse_rules(text: str, source: str = "<string>") -> Rules:

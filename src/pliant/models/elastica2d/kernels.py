@@ -9,15 +9,19 @@ where (x, y) is the neutral line, theta the tangent angle from +x, n = (nx, ny) 
 internal force in the global frame and m the bending moment, both exerted by the part
 beyond s on the part before s, and e the accumulated elastic energy. The paper's
 H = [x, y, theta, N, Q, M] follows from N = n . t and Q = n . nu with t = (cos theta,
-sin theta) and nu = (-sin theta, cos theta). The equations (Kirchhoff, inextensible,
-unshearable) are
+sin theta) and nu = (-sin theta, cos theta). The equations (Kirchhoff, unshearable) are
 
-    x' = cos theta,  y' = sin theta,  theta' = kappa0(s) + m,
-    n' = -f,  m' = -(t x n) = -(cos theta ny - sin theta nx),  e' = m^2 / 2,
+    x' = lam cos theta,  y' = lam sin theta,  theta' = kappa0(s) + m,
+    n' = -f,  m' = -lam (t x n) = -lam (cos theta ny - sin theta nx),
+    e' = m^2 / 2 + c N^2 / 2,   lam = 1 + c N,
 
-with f the distributed dead load (self-weight). A station k applies a point force P_k
-and a point moment C_k to the part, so that n(s_k-) = n(s_k+) + P_k and
-m(s_k-) = m(s_k+) + C_k, with n(0-) = 0 and n(1+) = 0 at the two ends. Each of the three
+with f the distributed dead load (self-weight) and s the arc length of the unloaded
+part. c = EI / (EA L^2) is the axial compliance: the part stretches by the axial strain
+N / EA (Reissner's extensible elastica, unshearable); c = 0 is the inextensible part
+(the paper's equations), the limit EA -> infinity of the same equations.
+
+A station k applies a point force P_k and a point moment C_k to the part, so that
+n(s_k-) = n(s_k+) + P_k and m(s_k-) = m(s_k+) + C_k, with n(0-) = 0 and n(1+) = 0 at the two ends. Each of the three
 pairs (x, Px), (y, Py), (theta, C) of a station is either prescribed (the position or
 angle is given, the load is an unknown reaction) or applied (the load is given).
 
@@ -145,6 +149,7 @@ def _integrate(y, Y, lo, hi, s0, s1, nsteps, prm, kappa0, kappa1, K, KY, traj, t
     gx = prm[0]
     gy = prm[1]
     bow = prm[2]
+    comp = prm[5]
     if s0 < prm[3] - 1e-12 or s1 > prm[4] + 1e-12:
         bow = 0.0
     span = prm[4] - prm[3]
@@ -180,12 +185,22 @@ def _integrate(y, Y, lo, hi, s0, s1, nsteps, prm, kappa0, kappa1, K, KY, traj, t
             if bow != 0.0:
                 kappa += bow * math.cos(2.0 * math.pi * (si - prm[3]) / span)
             K[i, 0] = kappa
-            K[i, 1] = -(ct * ny - st * nx)
+            shear = ct * ny - st * nx
             bi = b[i]
-            if bi != 0.0:
-                dx += bi * ct
-                dy += bi * st
-                de += bi * 0.5 * m * m
+            if comp == 0.0:
+                K[i, 1] = -shear
+                if bi != 0.0:
+                    dx += bi * ct
+                    dy += bi * st
+                    de += bi * 0.5 * m * m
+            else:
+                axial = ct * nx + st * ny
+                lam = 1.0 + comp * axial
+                K[i, 1] = -lam * shear
+                if bi != 0.0:
+                    dx += bi * lam * ct
+                    dy += bi * lam * st
+                    de += bi * 0.5 * (m * m + comp * axial * axial)
             if want_jac:
                 dm_dth = st * ny + ct * nx
                 for q in range(lo, hi):
@@ -197,10 +212,19 @@ def _integrate(y, Y, lo, hi, s0, s1, nsteps, prm, kappa0, kappa1, K, KY, traj, t
                             yth += w * KY[j, 0, q]
                             ym += w * KY[j, 1, q]
                     KY[i, 0, q] = ym
-                    KY[i, 1, q] = dm_dth * yth + st * Y[3, q] - ct * Y[4, q]
-                    if bi != 0.0:
-                        Y[0, q] += h * bi * (-st * yth)
-                        Y[1, q] += h * bi * (ct * yth)
+                    if comp == 0.0:
+                        KY[i, 1, q] = dm_dth * yth + st * Y[3, q] - ct * Y[4, q]
+                        if bi != 0.0:
+                            Y[0, q] += h * bi * (-st * yth)
+                            Y[1, q] += h * bi * (ct * yth)
+                    else:
+                        # dN = Q dtheta + t . dn, and lam = 1 + c N
+                        dlam = comp * (shear * yth + ct * Y[3, q] + st * Y[4, q])
+                        KY[i, 1, q] = (lam * (dm_dth * yth + st * Y[3, q] - ct * Y[4, q])
+                                       - dlam * shear)
+                        if bi != 0.0:
+                            Y[0, q] += h * bi * (dlam * ct - lam * st * yth)
+                            Y[1, q] += h * bi * (dlam * st + lam * ct * yth)
         for i in range(nst):
             w = h * b[i]
             if w != 0.0:
@@ -233,9 +257,10 @@ def shoot(z, st_s, st_kind, st_val, st_fol, st_col, seg_steps, seg_lo, seg_hi, p
           st_kappa, want_jac, traj):
     """Integrate from s = 0 to 1 with unknowns z; return (residual, Jacobian, stats).
 
-    prm : (5,) float, [fx, fy, bow, a, b]: the distributed dead load (fx, fy) per unit
-        length, and a rest-curvature imperfection bow * cos(2 pi (s - a) / (b - a)) on
-        [a, b] that the solver adds, then removes, to leave a singular (symmetric) start
+    prm : (6,) float, [fx, fy, bow, a, b, c]: the distributed dead load (fx, fy) per unit
+        length, a rest-curvature imperfection bow * cos(2 pi (s - a) / (b - a)) on
+        [a, b] that the solver adds, then removes, to leave a singular (symmetric) start,
+        and the axial compliance c = EI / (EA L^2) (0: inextensible)
     st_kappa : (nst,) float, the rest curvature at the stations (linear in between)
     seg_lo, seg_hi : (nst - 1,) int, the sensitivity columns live on each segment
     stats : (2,) float, max|theta'| and max|n| over the step ends: the wavenumber

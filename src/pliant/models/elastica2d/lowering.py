@@ -34,7 +34,7 @@ class Arrays:
 
     val: np.ndarray  # (nst, 3): prescribed kinematics or applied dead loads
     fol: np.ndarray  # (nst, 2): follower loads (tangential, normal)
-    prm: np.ndarray  # (5,): fx, fy, bow, bow from, bow to
+    prm: np.ndarray  # (6,): fx, fy, bow, bow from, bow to, axial compliance
 
     def lerp(self, other: Arrays, t: float) -> Arrays:
         return Arrays(self.val + t * (other.val - self.val),
@@ -155,7 +155,7 @@ class Lowered:
         """The homotopy's start: (arrays, unknowns) of the unloaded, placed part,
         integrated on the mesh the homotopy will use, so that it is an exact start
         (see ``kernels.rest_state``)."""
-        prm = np.array([0.0, 0.0, bow, span[0], span[1]])
+        prm = np.array([0.0, 0.0, bow, span[0], span[1], self.target.prm[5]])
         val, z = kernels.rest_state(self.st_s, self.st_kind, self.target.val, self.st_col,
                                     self.st_kappa, mesh.steps, prm, self.nz)
         return Arrays(val, np.zeros_like(self.target.fol), prm), z
@@ -243,6 +243,14 @@ def distributed_load(problem: Problem) -> tuple[float, float]:
     return scale * problem.gravity[0], scale * problem.gravity[1]
 
 
+def axial_compliance(part) -> float:
+    """EI / (EA L^2): the axial strain per unit dimensionless force; 0 when the part is
+    inextensible (no axial stiffness given)."""
+    if part.axial_stiffness is None:
+        return 0.0
+    return part.bending_stiffness / (part.axial_stiffness * part.length**2)
+
+
 def load_wavenumber(problem: Problem) -> float:
     """A priori wavenumber (dimensionless) of the applied loads: sqrt of the total force
     plus the total moment and the largest rest curvature."""
@@ -323,12 +331,13 @@ def lower(problem: Problem, nodes: int | None = None) -> Lowered:
         if k < nst - 1:
             seg_lo[k] = lo
             seg_hi[k] = col
-    prm = np.array([*distributed_load(problem), 0.0, 0.0, 1.0])
+    prm = np.array([*distributed_load(problem), 0.0, 0.0, 1.0, axial_compliance(part)])
     if part.straight_at_rest:
         st_kappa = np.zeros(nst)
     else:
         st_kappa = np.array([part.rest_curvature_at(s * length) * length for s in st_s])
-    key = (length, stiffness, st_s.tobytes(), st_kind.tobytes(), st_kappa.tobytes())
+    key = (length, stiffness, part.axial_stiffness, st_s.tobytes(), st_kind.tobytes(),
+           st_kappa.tobytes())
     node_index = np.nonzero(st_kind[:, 0] == NODE)[0]
     cuts = [0.0] + [float(st_s[k]) for k in node_index] + [1.0]
     return Lowered(problem=problem, length=length, stiffness=stiffness, st_s=st_s,

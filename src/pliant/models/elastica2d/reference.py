@@ -7,7 +7,8 @@ stations becomes one block of states per segment, each mapped onto tau in [0, 1]
 by continuity of (x, y, theta) and the jump of (n, m) at every station.
 
 Per block, h = [x, y, theta, nx, ny, m] in the dimensionless variables of ``lowering``;
-with sigma_k the segment's length, dh/dtau = sigma_k * f(h, s).
+with sigma_k the segment's length, dh/dtau = sigma_k * f(h, s), f written here anew from
+the extensible elastica's equations (the kernels' docstring), so that it checks them.
 """
 
 from __future__ import annotations
@@ -64,6 +65,7 @@ def solve_reference(problem: Problem, guess: object | None = None, *, tol: float
     nblk = nst - 1
     sigma = np.diff(low.st_s)
     fx, fy = low.target.prm[0], low.target.prm[1]
+    comp = low.target.prm[5]  # EI / (EA L^2): the stretch lam = 1 + comp N
     val, fol, kind = low.target.val, low.target.fol, low.st_kind
 
     def fun(tau, y):
@@ -72,12 +74,13 @@ def solve_reference(problem: Problem, guess: object | None = None, *, tol: float
             h = y[6 * k:6 * k + 6]
             s = low.st_s[k] + sigma[k] * tau
             c, sn = np.cos(h[2]), np.sin(h[2])
-            out[6 * k + 0] = sigma[k] * c
-            out[6 * k + 1] = sigma[k] * sn
+            lam = 1.0 + comp * (c * h[3] + sn * h[4])
+            out[6 * k + 0] = sigma[k] * lam * c
+            out[6 * k + 1] = sigma[k] * lam * sn
             out[6 * k + 2] = sigma[k] * (_curvature(low, k, s) + h[5])
             out[6 * k + 3] = -sigma[k] * fx
             out[6 * k + 4] = -sigma[k] * fy
-            out[6 * k + 5] = -sigma[k] * (c * h[4] - sn * h[3])
+            out[6 * k + 5] = -sigma[k] * lam * (c * h[4] - sn * h[3])
         return out
 
     def fun_jac(tau, y):
@@ -86,13 +89,19 @@ def solve_reference(problem: Problem, guess: object | None = None, *, tol: float
         for k in range(nblk):
             h = y[6 * k:6 * k + 6]
             c, sn = np.cos(h[2]), np.sin(h[2])
-            o = 6 * k
-            jac[o + 0, o + 2] = -sigma[k] * sn
-            jac[o + 1, o + 2] = sigma[k] * c
-            jac[o + 2, o + 5] = sigma[k]
-            jac[o + 5, o + 2] = sigma[k] * (sn * h[4] + c * h[3])
-            jac[o + 5, o + 3] = sigma[k] * sn
-            jac[o + 5, o + 4] = -sigma[k] * c
+            axial, shear = c * h[3] + sn * h[4], c * h[4] - sn * h[3]
+            lam = 1.0 + comp * axial
+            o, sg = 6 * k, sigma[k]
+            jac[o + 0, o + 2] = sg * (comp * shear * c - lam * sn)
+            jac[o + 0, o + 3] = sg * comp * c * c
+            jac[o + 0, o + 4] = sg * comp * sn * c
+            jac[o + 1, o + 2] = sg * (comp * shear * sn + lam * c)
+            jac[o + 1, o + 3] = sg * comp * c * sn
+            jac[o + 1, o + 4] = sg * comp * sn * sn
+            jac[o + 2, o + 5] = sg
+            jac[o + 5, o + 2] = sg * (lam * axial - comp * shear * shear)
+            jac[o + 5, o + 3] = -sg * (comp * c * shear - lam * sn)
+            jac[o + 5, o + 4] = -sg * (comp * sn * shear + lam * c)
         return jac
 
     def follower(k, theta):

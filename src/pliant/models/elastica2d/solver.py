@@ -25,7 +25,6 @@ The route, for a problem with no warm start:
 from __future__ import annotations
 
 import math
-import time
 from collections.abc import Callable, Iterable, Iterator
 from dataclasses import dataclass, field, replace
 from functools import cmp_to_key
@@ -41,6 +40,7 @@ from pliant.core.equilibrium import (
 )
 from pliant.core.problem import Problem
 from pliant.errors import ConvergenceError
+from pliant.models import clock
 from pliant.models.elastica2d import kernels
 from pliant.models.elastica2d.lowering import (
     NODE_SPAN,
@@ -150,7 +150,7 @@ class _Run:
     reached: list = field(default_factory=list)  # every point the last route reached
 
     def __post_init__(self) -> None:
-        self.deadline = time.perf_counter() + self.solver.time_budget
+        self.deadline = clock.now() + self.solver.time_budget
 
     def newton(self, z0: np.ndarray, arrays: Arrays, mesh: Mesh, *, strict: bool,
                tol: float, jac0: np.ndarray = _EMPTY_JAC):
@@ -171,7 +171,7 @@ class _Run:
         """Continuation from (start, z0), an exact solution, to end (see
         ``kernels.follow``)."""
         opts, low = self.solver, self.low
-        if time.perf_counter() > self.deadline:
+        if clock.now() > self.deadline:
             raise _Stalled(0.0, z0, math.inf,
                            f"the time budget of {opts.time_budget} s ran out", budget=True)
         options = np.array([opts.tolerance, max(opts.tolerance, opts.loose_tolerance),
@@ -234,18 +234,32 @@ class _Run:
         low = self.low
         mesh = self.first_mesh()
         rest, z = low.rest(mesh)
+        straight = None
         try:
             point = self.through(rest, legs(rest), z, mesh)
-            self.reached = [point]
-            return point
+            # An extensible part's start is not singular: its chord shortens by
+            # compression, and the route stays on the straight branch past buckling.
+            if low.target.prm[5] == 0.0 or np.any(low.target.fol) or self.stable(point):
+                self.reached = [point]
+                return point
+            straight = point
         except _Stalled as stall:
             if not stall.singular_start:
                 raise
+        why = _BRANCH_NOTE if straight is None else (
+            f"{_BRANCH_NOTE} for the inextensible part; this one shortens, and its straight "
+            "equilibrium is unstable")
         pushed = low.lateral_side(rest)
-        found = [(pushed, self.bowed(pushed, legs, mesh))]
+        try:
+            found = [(pushed, self.bowed(pushed, legs, mesh))]
+        except _Stalled:
+            if straight is None:
+                raise
+            self.reached = [straight]
+            return straight
         if np.any(low.target.fol):  # no potential to compare the sides by
             self.notes.append(
-                f"{_BRANCH_NOTE} (a bifurcation: it can buckle to either side); pliant took "
+                f"{why} (a bifurcation: it can buckle to either side); pliant took "
                 f"the branch that bows to the {'left' if pushed > 0 else 'right'} of its "
                 "chord, the side its targets and loads push it to; another equilibrium may "
                 "exist on the other side")
@@ -267,7 +281,7 @@ class _Run:
                     and other[2] < best[2] - 1e-9 * abs(best[2]) - 1e-300):
                 best = other
         word = {True: "stable", False: "unstable", None: "stability undecided"}
-        took = (f"{_BRANCH_NOTE} (a bifurcation: it can buckle to either side); pliant took "
+        took = (f"{why} (a bifurcation: it can buckle to either side); pliant took "
                 f"the branch that bows to the {'left' if best[0] > 0 else 'right'} of its "
                 f"chord (potential energy {best[2]:.6g} J, {word[best[3]]})")
         if len(judged) == 1:
@@ -565,12 +579,12 @@ def equilibria(problem: Problem, *, solver: ShootingSolver | None = None,
     potential energy (``pliant.core.equilibrium.potential_energy``); the first is what
     ``solve`` would choose among them. Empty when no route reaches one."""
     solver = solver or ShootingSolver()
-    deadline = time.perf_counter() + budget
+    deadline = clock.now() + budget
     nodes = len(lower(problem).nodes) + 1
     found: list[Equilibrium] = []
     for count, name in ((nodes, "straight"), (4 * nodes, "straight"),
                         (nodes, "two_stage"), (nodes, "swing")):
-        left = deadline - time.perf_counter()
+        left = deadline - clock.now()
         if left <= 0.0:
             break
         run = _Run(lower(problem, nodes=count), replace(solver, time_budget=left))

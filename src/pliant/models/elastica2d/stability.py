@@ -18,6 +18,15 @@ smallest eigenvalue of Q on the constraints' null space, in the metric int dthet
 is returned in N m (for a cantilever under an axial dead load P: L (EI (pi / 2L)^2 - P)).
 Positive: stable; negative: unstable; zero to 1e-8 EI / L: neutral (a mode that costs
 no energy). Follower loads are not conservative: stability is undecided.
+
+An extensible part (axial stiffness EA, axial strain eps = N / EA, r' = (1 + eps) t) has
+the element stretches deps as unknowns too:
+
+    Q = int EI dtheta'^2 + EA deps^2 + (1 + eps) N dtheta^2 - 2 Q_s deps dtheta ds,
+
+Q_s = n . nu the shear force, and a prescribed position constrains
+int (1 + eps) nu dtheta + t deps ds. The stretches take the same metric as the angles (the
+sign of the smallest eigenvalue, which is what decides, does not depend on the metric).
 """
 
 from __future__ import annotations
@@ -69,13 +78,19 @@ def smallest_eigenvalue(eq, elements: int | None = None) -> float | None:
     tangent = np.column_stack([np.cos(theta), np.sin(theta)])
     force = np.column_stack([np.interp(mid, eq.s, eq.internal_force[:, k]) for k in range(2)])
     axial = np.einsum("ij,ij->i", force, tangent)
+    normal = np.column_stack([-tangent[:, 1], tangent[:, 0]])
+    ea = part.axial_stiffness
+    stretch = 1.0 if ea is None else 1.0 + axial / ea
     fixed = np.array([st.s for st in problem.stations if st.prescribed[2]], dtype=float)
     held = (np.abs(s[:, None] - fixed[None, :]).min(axis=1) <= 1e-12 * L if fixed.size
             else np.zeros(len(s), dtype=bool))
 
-    # unknowns: the element angles, then the first end's shift (dx0, dy0)
-    Q = np.zeros((m + 2, m + 2))
-    diagonal = h * axial
+    # unknowns: the element angles, the element stretches (extensible), then the first
+    # end's shift (dx0, dy0)
+    w = m if ea is not None else 0
+    n = m + w + 2
+    Q = np.zeros((n, n))
+    diagonal = h * axial * stretch
     # each side of a held node bends from the held angle over half an element
     diagonal[:-1] += np.where(held[1:-1], 2.0 * EI / h[:-1], 0.0)  # node j = e + 1
     diagonal[1:] += np.where(held[1:-1], 2.0 * EI / h[1:], 0.0)    # node j = e
@@ -88,19 +103,24 @@ def smallest_eigenvalue(eq, elements: int | None = None) -> float | None:
     Q[idx, idx] = diagonal
     Q[idx[:-1], idx[1:]] = -k
     Q[idx[1:], idx[:-1]] = -k
+    if w:
+        shear = np.einsum("ij,ij->i", force, normal)
+        Q[m + idx, m + idx] = h * ea
+        Q[idx, m + idx] = Q[m + idx, idx] = -h * shear
     rows = []
-    normal = np.column_stack([-tangent[:, 1], tangent[:, 0]])
     for st in problem.stations:
         before = mid < st.s
         for axis in (0, 1):
             if st.prescribed[axis]:
-                row = np.zeros(m + 2)
-                row[:m] = np.where(before, h * normal[:, axis], 0.0)
-                row[m + axis] = 1.0
+                row = np.zeros(n)
+                row[:m] = np.where(before, h * stretch * normal[:, axis], 0.0)
+                if w:
+                    row[m:m + w] = np.where(before, h * tangent[:, axis], 0.0)
+                row[m + w + axis] = 1.0
                 rows.append(row)
-    A = np.array(rows) if rows else np.zeros((0, m + 2))
-    Z = null_space(A) if rows else np.eye(m + 2)
-    metric = np.concatenate([h / L, [0.0, 0.0]])
+    A = np.array(rows) if rows else np.zeros((0, n))
+    Z = null_space(A) if rows else np.eye(n)
+    metric = np.concatenate([h / L, h[:w] / L, [0.0, 0.0]])
     reduced = Z.T @ Q @ Z
     weight = Z.T @ (metric[:, None] * Z)
     return float(eigh(0.5 * (reduced + reduced.T), 0.5 * (weight + weight.T),

@@ -16,6 +16,11 @@ made inextensible and unshearable by constraints:
 - constraints c_e = x_e+1 - x_e - h_e R(q_e) e3 = 0 (inextensible, unshearable); their
   multipliers lambda_e are the internal forces n (the force the part beyond exerts on the
   part before, as in 2D); station constraints' multipliers are the reactions.
+- an extensible part (axial compliance C = 1 / EA, K[3] here) relaxes them to
+  c_e - h_e C N_e d3 = 0, N_e = lambda_e . d3: the element stretches by the axial strain
+  C N_e. That is the stationarity of the mixed Lagrangian with the complementary energy
+  -(h_e C / 2) N_e^2 added (so the Jacobian stays symmetric), and C = 0 is the
+  inextensible rod exactly.
 
 The unknowns are node positions, frame rotation increments theta (material, q <- q exp
 (theta)), element multipliers and station multipliers. The KKT residual is
@@ -183,21 +188,48 @@ def assemble(X, Q, lam, nu, h, elem_frame, joint_hh, joint_k0, K, fnode,
     for i in range(X.shape[0]):
         for c in range(3):
             R[ix[i] + c] -= fnode[i, c]
-    # Elements: inextensibility constraints c = x_e+1 - x_e - h R e3.
+    # Elements: inextensibility constraints c = x_e+1 - x_e - h R e3 (with stretch:
+    # c - h C N d3).
+    comp = K[3]
     for e in range(N):
         f = elem_frame[e]
         _rot_into(Q[f], Rm)
         row = ilam[e]
         he = h[e]
+        mu0, mu1, mu2 = _tmul(Rm, lam[e, 0], lam[e, 1], lam[e, 2])
+        stretch = 1.0 + comp * mu2
         for c in range(3):
-            R[row + c] = X[e + 1, c] - X[e, c] - he * Rm[c, 2]
+            R[row + c] = X[e + 1, c] - X[e, c] - he * stretch * Rm[c, 2]
             R[ix[e] + c] -= lam[e, c]
             R[ix[e + 1] + c] += lam[e, c]
-        mu0, mu1, mu2 = _tmul(Rm, lam[e, 0], lam[e, 1], lam[e, 2])
-        # (dc/dtheta)^T lambda = -h e3 x mu
+        # (dc/dtheta)^T lambda = -h e3 x mu (times the stretch)
         t = ith[f]
-        R[t] += he * mu1
-        R[t + 1] -= he * mu0
+        R[t] += he * stretch * mu1
+        R[t + 1] -= he * stretch * mu0
+        if comp != 0.0:
+            energy += 0.5 * he * comp * mu2 * mu2
+        if want_jac and comp != 0.0:
+            hc = he * comp
+            for a in range(3):
+                for b in range(3):
+                    H[a, b] = -hc * Rm[a, 2] * Rm[b, 2]  # dR_lambda / dlambda
+            _add_block(ab, kl, ku, row, row, H)
+            for c in range(3):  # dR_lambda / dtheta and its transpose
+                d0 = hc * (mu1 * Rm[c, 2] + mu2 * Rm[c, 1])
+                d1 = -hc * (mu0 * Rm[c, 2] + mu2 * Rm[c, 0])
+                ab[t, kv + row + c - t] += d0
+                ab[t + 1, kv + row + c - t - 1] += d1
+                ab[row + c, kv + t - row - c] += d0
+                ab[row + c, kv + t + 1 - row - c] += d1
+            for a in range(3):
+                for b in range(3):
+                    H[a, b] = 0.0
+            _sym_e3(H, mu0, mu1, mu2, -hc * mu2)
+            H[0, 0] -= hc * mu1 * mu1
+            H[0, 1] += hc * mu1 * mu0
+            H[1, 0] += hc * mu0 * mu1
+            H[1, 1] -= hc * mu0 * mu0
+            _add_block(ab, kl, ku, t, t, H)
         if want_jac:
             for c in range(3):
                 ab[ix[e + 1] + c, kv + row - ix[e + 1]] += 1.0

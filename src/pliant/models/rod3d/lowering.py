@@ -164,7 +164,7 @@ class Rod:
     frame_s: np.ndarray  # (F,) where each frame sits
     elem_frame: np.ndarray  # (N,) the frame of each element
     joint_hh: np.ndarray  # (J,) cell length of each joint (J = F - 1)
-    K: np.ndarray  # (3,) EI1, EI2, GJ by EI1
+    K: np.ndarray  # (4,) EI1, EI2, GJ by EI1, and the axial compliance EI1 / (EA L^2)
     stations: tuple[Station3D, ...]
     st_node: np.ndarray
     st_frame: np.ndarray
@@ -398,7 +398,9 @@ def lower(problem: Problem, elements: int = 100) -> Rod:
     part = problem.part
     L = part.length
     EI1 = part.bending_stiffness
-    K = np.array(part.stiffnesses) / EI1
+    # (EI1, EI2, GJ) / EI1 and the axial compliance EI1 / (EA L^2) (0: inextensible)
+    EA = part.axial_stiffness
+    K = np.array([*part.stiffnesses, 0.0 if EA is None else EI1 * EI1 / (EA * L**2)]) / EI1
     stations = problem.stations
     breaks = sorted({0.0, 1.0} | {st.s / L for st in stations}
                     | {k / L for k in part.knot_positions})

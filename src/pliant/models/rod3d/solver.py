@@ -30,7 +30,6 @@ Lagrangian on the tangent space of the constraints, in the metric of the part's 
 from __future__ import annotations
 
 import math
-import time
 from collections.abc import Callable, Iterable, Iterator
 from dataclasses import dataclass, field, replace
 
@@ -48,6 +47,7 @@ from pliant.core.equilibrium import (
 )
 from pliant.core.problem import Problem
 from pliant.errors import ConvergenceError, IllPosedProblemError, InputError
+from pliant.models import clock
 from pliant.models.banded import dense
 from pliant.models.rod3d import kernels
 from pliant.models.rod3d.kernels import AXIS, FULL
@@ -129,9 +129,10 @@ class _Run:
     stall: _Stalled | None = None  # why the last follow from a warm start stopped
     # Friction's reference (see kernels.contact_terms): none yet, so no friction.
     friction: tuple = ()
+    branch_note: str = _BRANCH_NOTE  # how a note on the buckling side begins
 
     def __post_init__(self) -> None:
-        self.deadline = time.perf_counter() + self.solver.time_budget
+        self.deadline = clock.now() + self.solver.time_budget
         K = self.rod.probe_elem.shape[0]
         self.friction = (np.zeros(max(len(self.rod.problem.obstacles), 1)), np.zeros((K, 3)),
                          np.zeros((K, 2, 3)))
@@ -263,7 +264,7 @@ class _Run:
                 raise _Stalled(t, math.inf, f"the continuation budget of {opts.max_steps} "
                                "steps ran out", budget=True, state=state,
                                gauge=self.gauge_quat.copy())
-            if time.perf_counter() > self.deadline:
+            if clock.now() > self.deadline:
                 raise _Stalled(t, math.inf, f"the time budget of {opts.time_budget} s ran "
                                "out", budget=True, state=state, gauge=self.gauge_quat.copy())
             # No step may raise the loads' wavenumber sqrt(t F) + t C by more than wave_step.
@@ -323,7 +324,7 @@ class _Run:
                 del self.notes[said:]  # what a failed route found does not hold
                 if best is None or stall.t > best.t:
                     best = stall
-                if stall.budget and time.perf_counter() > self.deadline:
+                if stall.budget and clock.now() > self.deadline:
                     break
         assert best is not None
         if best.budget:
@@ -338,11 +339,21 @@ class _Run:
         rod, opts = self.rod, self.solver
         rest, state = rod.rest()
         self.gauge_quat = state[1][max(rod.gauge_frame, 0)].copy()
+        straight: tuple[State, np.ndarray] | None = None
         try:
-            return self.through(rest, legs(rest), state)
+            found = self.through(rest, legs(rest), state)
+            # An extensible part's start is not singular: its chord shortens by
+            # compression, and the route stays on the straight branch past buckling.
+            if rod.K[3] == 0.0 or not _conservative(self, found) or _stability(
+                    self, found)[0]:
+                return found
+            straight = (found, self.gauge_quat)
         except _Stalled as stall:
             if not stall.singular_start:
                 raise
+        self.branch_note = _BRANCH_NOTE if straight is None else (
+            f"{_BRANCH_NOTE} for the inextensible part; this one shortens, and its straight "
+            "equilibrium is unstable")
         side, chord, (a, b) = _bow_direction(rod, rest, state)
         # A bow b cos(2 pi u) over a span w shortens its chord by w (b w)^2 / 16 pi^2; make
         # that most of what the targets ask, as in 2D.
@@ -416,12 +427,17 @@ class _Run:
             found, bow_side, self.gauge_quat = unstable
             self._bow_note(bow_side, "the only branch found, and it is unstable")
             return found
+        if straight is not None:
+            found, self.gauge_quat = straight
+            self.notes.append("the straight equilibrium of this compressed part is unstable, "
+                              "and no route to a buckled one converged")
+            return found
         assert best is not None
         raise best
 
     def _bow_note(self, side: np.ndarray, why: str) -> None:
         self.notes.append(
-            f"{_BRANCH_NOTE} (a bifurcation: it can buckle to any side); pliant took the "
+            f"{self.branch_note} (a bifurcation: it can buckle to any side); pliant took the "
             f"branch that bows toward {np.round(side, 3).tolist()}, {why}; other equilibria "
             "may exist")
 
@@ -548,7 +564,7 @@ class _Run:
         sigma = float((np.abs(ab[primal, kl + ku]) / shift_of[primal]).max())
         ceiling = 1e8 * max(sigma, 1.0)
         for _ in range(max_steps):
-            if time.perf_counter() > self.deadline or sigma > ceiling:
+            if clock.now() > self.deadline or sigma > ceiling:
                 return None  # out of time, or no step short enough: it cannot settle
             ab[:, kl + ku] += sigma * shift_of
             du, ok = self.solve_linear(ab, -R)
@@ -934,7 +950,7 @@ def _stability(run: _Run, state: State, seed: np.ndarray | None = None,
                                       rod.K, rod.node_frame)
     force = float(np.abs(lam).max(initial=0.0))
     moment = float(np.abs(moments).max(initial=0.0))
-    c = 2.0 * (1.0 + force + moment**2 / (2.0 * float(rod.K.min())))
+    c = 2.0 * (1.0 + force + moment**2 / (2.0 * float(rod.K[:3].min())))
     primal, weight = _metric(rod)
     _, ab, _ = run.residual(state, rod.target, want_jac=True)
     n, kl, ku = rod.n, rod.kl, rod.ku
