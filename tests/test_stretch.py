@@ -5,6 +5,7 @@ column, targets beyond the part's length, and near-taut grips under refinement."
 from __future__ import annotations
 
 import math
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -218,3 +219,23 @@ def test_the_evaluation_judges_the_strain_against_what_the_part_tolerates():
         zones.append(check.zone)
     assert zones == [Zone.GREEN, Zone.YELLOW, Zone.RED]
     assert _stretch_checks(SimpleNamespace(equilibria=[eq]), pl.Part(L, 1.0), rules) == []
+
+
+def test_the_short_cable_example_reports_the_pull_and_the_strain_over_its_limit():
+    import json
+
+    from typer.testing import CliRunner
+
+    from pliant.cli.app import app
+
+    file = str(Path(__file__).resolve().parents[1] / "examples" / "cables" / "short_cable.toml")
+    out = CliRunner().invoke(app, ["solve", file, "--json"])
+    assert out.exit_code == 0, out.output
+    data = json.loads(out.output[out.output.index("{"):])
+    stretch = data["stretch"]
+    # 3 mm short of 0.6 m with EA = 60 kN: the straight bar's pull is 300 N; the sag
+    # under its own weight at that tension changes it by far less than 1 %
+    assert stretch["elongation"] == pytest.approx(0.003, rel=1e-3)
+    assert stretch["max_axial_force"] == pytest.approx(6e4 * 0.003 / 0.6, rel=1e-3)
+    text = CliRunner().invoke(app, ["solve", file]).output
+    assert "stretch: +3.001 mm longer" in text and "above the part's allowed 0.4 %" in text

@@ -21,9 +21,10 @@ N / EA (Reissner's extensible elastica, unshearable); c = 0 is the inextensible 
 (the paper's equations), the limit EA -> infinity of the same equations.
 
 A station k applies a point force P_k and a point moment C_k to the part, so that
-n(s_k-) = n(s_k+) + P_k and m(s_k-) = m(s_k+) + C_k, with n(0-) = 0 and n(1+) = 0 at the two ends. Each of the three
-pairs (x, Px), (y, Py), (theta, C) of a station is either prescribed (the position or
-angle is given, the load is an unknown reaction) or applied (the load is given).
+n(s_k-) = n(s_k+) + P_k and m(s_k-) = m(s_k+) + C_k, with n(0-) = 0 and n(1+) = 0 at the
+two ends. Each of the three pairs (x, Px), (y, Py), (theta, C) of a station is either
+prescribed (the position or angle is given, the load is an unknown reaction) or applied
+(the load is given).
 
 The unknowns z are, at s = 0, for each pair the unknown half (reaction or position), and
 at every later station one reaction per prescribed component. The residuals are the
