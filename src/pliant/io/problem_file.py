@@ -336,6 +336,63 @@ def _read_mesh(name: str | None, base: Path | None) -> tuple[np.ndarray, np.ndar
     return np.asarray(mesh.vertices, dtype=float), np.asarray(mesh.faces, dtype=np.int64)
 
 
+class CadModel(_Strict):
+    """[[cad]]: obstacles from a CAD assembly (STEP, or glTF, OBJ, ...): one per solid,
+    named by its product, or all merged into one."""
+
+    file: str = Field(description="STEP (.step, .stp), glTF, OBJ, PLY or STL, relative to "
+                                  "this file")
+    units: str | None = Field(None, description="the file's length unit (mm, cm, m, in) "
+                              "where it declares none (STL, OBJ, PLY); a STEP file's own is "
+                              "used")
+    tolerance: float = Field(1e-4, gt=0, le=0.01, description="the tessellation's chord "
+                             "error [m] (STEP)")
+    keep: list[str] = Field(default_factory=list, description="name patterns of the "
+                            "solids to take (default: all), shell-style: \"bolt*\"")
+    drop: list[str] = Field(default_factory=list, description="name patterns to leave out")
+    merge: bool = Field(False, description="one obstacle of all the solids taken, named "
+                        "by name")
+    name: str | None = Field(None, description="the merged obstacle's name, or a prefix "
+                             "\"name/\" for each solid's")
+    position: Vec3 = Field((0.0, 0.0, 0.0), description="where the file's origin goes [m]")
+    rotation: tuple[Vec3, Vec3, Vec3] | None = None
+    resolution: int = Field(64, ge=8, le=512, description="distance grid cells")
+    friction: float = Field(0.0, ge=0, le=5)
+    note: str = ""
+
+    @model_validator(mode="after")
+    def _merged_named(self) -> CadModel:
+        if self.merge and not self.name:
+            raise ValueError("merge = true needs the obstacle's name")
+        return self
+
+    def build(self, base: Path | None) -> list[Any]:
+        from pliant.io.cad import read_assembly  # noqa: PLC0415 (trimesh, cascadio)
+        from pliant.scene.distance import Obstacle  # noqa: PLC0415
+
+        path = _referenced(self.file, base, "CAD")
+        solids = read_assembly(path, units=self.units, tolerance=self.tolerance,
+                               keep=self.keep, drop=self.drop)
+        rotation = None if self.rotation is None else np.array(self.rotation, dtype=float)
+        if self.merge:
+            offsets = np.cumsum([0] + [len(s.vertices) for s in solids[:-1]])
+            vertices = np.concatenate([s.vertices for s in solids])
+            faces = np.concatenate([s.faces + o for s, o in zip(solids, offsets)])
+            pieces = [(self.name, vertices, faces)]
+        else:
+            prefix = f"{self.name}/" if self.name else ""
+            pieces = [(prefix + s.name, s.vertices, s.faces) for s in solids]
+        out = []
+        for name, vertices, faces in pieces:
+            try:
+                obstacle = Obstacle.from_mesh(name, vertices, faces, self.position, rotation,
+                                              self.resolution)
+            except ValueError as err:
+                raise ValueError(f"{err} (the solid {name!r} of {path.name})") from None
+            out.append(obstacle.with_friction(self.friction))
+        return out
+
+
 class AssembledModel(_Strict):
     """[[assembled]]: a flexible part already fitted, in its clamps: its own problem file
     (3D, relative to this one) is solved once and its tube becomes an obstacle."""
@@ -484,6 +541,7 @@ class ProblemFile(_Strict):
     solver: SolverModel = Field(default_factory=SolverModel)
     condition: list[ConditionModel] = Field(default_factory=list)
     obstacle: list[ObstacleModel] = Field(default_factory=list)
+    cad: list[CadModel] = Field(default_factory=list)
     assembled: list[AssembledModel] = Field(default_factory=list)
     port: list[PortModel] = Field(default_factory=list)
     clip: list[ClipModel] = Field(default_factory=list)
@@ -495,7 +553,8 @@ class ProblemFile(_Strict):
     @property
     def dimension(self) -> int:
         three = (self.gravity is not None and len(self.gravity) == 3) or any(
-            c.is_3d for c in self.condition) or bool(self.obstacle or self.clip or self.assembled)
+            c.is_3d for c in self.condition) or bool(self.obstacle or self.clip or self.assembled
+                                                     or self.cad)
         return 3 if three else 2
 
     def build(self, base: Path | None = None, nested: bool = False) -> Problem:
@@ -534,6 +593,16 @@ class ProblemFile(_Strict):
                 obstacles.append(o.build(base))
             except ValueError as err:
                 raise InputError(f"obstacle[{i}]", str(err)) from None
+        for i, c in enumerate(self.cad):
+            try:
+                obstacles.extend(c.build(base))
+            except InputError as err:
+                message = str(err).removeprefix(f"{err.field}: ")
+                raise InputError(f"cad[{i}].{err.field}", message) from None
+            except FileFormatError as err:
+                raise FileFormatError(f"cad[{i}]: {err}") from None
+            except ValueError as err:
+                raise InputError(f"cad[{i}]", str(err)) from None
         for i, a in enumerate([] if nested else self.assembled):
             try:
                 obstacles.append(a.build(base))
@@ -662,6 +731,7 @@ def _unknown_key(loc: tuple) -> str:
     names = [x for x in loc if isinstance(x, str)]
     key = names[-1]
     tables = {"part": PartModel, "condition": ConditionModel, "obstacle": ObstacleModel,
+              "cad": CadModel,
               "assembled": AssembledModel, "port": PortModel, "clip": ClipModel,
               "path": PathModel, "evaluation": EvaluationModel, "solver": SolverModel,
               "plan": PlanModel, "part.material": MaterialModel,

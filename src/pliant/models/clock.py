@@ -37,7 +37,7 @@ class _CompileTimer(event.Listener):
 
 
 _TIMER = _CompileTimer()
-event.install_listener("numba:compile", _TIMER)
+event.register("numba:compile", _TIMER)
 
 
 def now() -> float:

@@ -1,0 +1,139 @@
+"""Scenes from CAD: a committed STEP assembly in millimetres (examples/cad, written by its
+make_bracket_step.py with OpenCASCADE) read into named obstacles in metres."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from pliant.errors import FileFormatError, InputError
+from pliant.io.cad import read_assembly
+from pliant.io.problem_file import load_scene, parse_scene
+
+CAD = Path(__file__).resolve().parents[1] / "examples" / "cad"
+STEP = CAD / "bracket_assembly.step"
+# what make_bracket_step.py built, in metres
+BOUNDS = {
+    "bracket": [[0.100, -0.020, 0.000], [0.220, 0.020, 0.010]],
+    "manifold": [[-0.025, -0.100, 0.035], [0.025, 0.100, 0.085]],
+    "bolt": [[0.127, -0.003, 0.010], [0.133, 0.003, 0.040]],
+    "bolt_1": [[0.187, -0.003, 0.010], [0.193, 0.003, 0.040]],
+}
+
+
+@pytest.fixture(scope="module")
+def solids():
+    return {s.name: s for s in read_assembly(STEP, tolerance=1e-4)}
+
+
+def test_the_assembly_gives_each_instance_named_and_placed_in_metres(solids):
+    assert set(solids) == set(BOUNDS)
+    for name, bounds in BOUNDS.items():
+        # a tessellated round face lies inside its circle: its box within the tolerance
+        assert np.allclose(solids[name].bounds, bounds, atol=1e-4), name
+
+
+def test_the_tessellation_keeps_within_its_chord_tolerance(solids):
+    for tolerance in (1e-4, 1e-3):
+        tube = next(s for s in read_assembly(STEP, tolerance=tolerance)
+                    if s.name == "manifold")
+        side = tube.vertices[tube.faces]
+        lateral = np.ptp(side[:, :, 1], axis=1) > 1e-6  # faces along the axis (y)
+        radius = np.hypot(side[lateral, :, 0], side[lateral, :, 2] - 0.06)
+        assert np.allclose(radius, 0.025, atol=1e-9)  # vertices on the surface
+        centres = side[lateral].mean(axis=1)
+        sag = 0.025 - np.hypot(centres[:, 0], centres[:, 2] - 0.06)
+        # a triangle's centroid lies 2/3 of the chord's sag in at most
+        assert 0.0 < sag.max() <= tolerance
+    coarse = next(s for s in read_assembly(STEP, tolerance=1e-3) if s.name == "manifold")
+    assert len(coarse.faces) < len(solids["manifold"].faces)
+
+
+def test_name_patterns_keep_and_drop_solids():
+    names = {s.name for s in read_assembly(STEP, keep=["bolt*"])}
+    assert names == {"bolt", "bolt_1"}
+    names = {s.name for s in read_assembly(STEP, drop=["BOLT*"])}  # patterns are case-blind
+    assert names == {"bracket", "manifold"}
+    with pytest.raises(InputError, match="its solids: .*manifold"):
+        read_assembly(STEP, keep=["exhaust*"])
+
+
+def test_a_broken_step_file_is_a_typed_error_naming_it(tmp_path, capfd):
+    bad = tmp_path / "truncated.step"
+    bad.write_bytes(STEP.read_bytes()[:3000])
+    with pytest.raises(FileFormatError, match="truncated.step"):
+        read_assembly(bad)
+    out, err = capfd.readouterr()
+    assert "StepFile" not in out + err  # OpenCASCADE's own chatter is kept off the terminal
+    with pytest.raises(FileFormatError, match="no such CAD file"):
+        read_assembly(tmp_path / "missing.step")
+    with pytest.raises(InputError, match="declares its own unit"):
+        read_assembly(STEP, units="mm")
+
+
+def test_a_mesh_without_units_takes_the_scenes(tmp_path):
+    import trimesh
+
+    plate = trimesh.creation.box(extents=(120.0, 40.0, 10.0))  # millimetres, centred
+    plate.export(tmp_path / "plate.stl")
+    (solid,) = read_assembly(tmp_path / "plate.stl", units="mm")
+    assert np.allclose(solid.bounds, [[-0.06, -0.02, -0.005], [0.06, 0.02, 0.005]])
+    with pytest.raises(InputError, match="unknown unit 'furlong'"):
+        read_assembly(tmp_path / "plate.stl", units="furlong")
+
+
+SCENE = """
+name = "cad"
+gravity = [0.0, 0.0, -9.81]
+
+[part]
+length = 0.3
+bending_stiffness = 0.01
+
+[[condition]]
+name = "clamp"
+s = 0.0
+x = -0.1
+y = 0.0
+z = 0.2
+tangent = [1.0, 0.0, 0.0]
+
+[[cad]]
+file = "bracket_assembly.step"
+"""
+
+
+def test_a_scene_imports_the_solids_as_obstacles_or_one_merged():
+    problem = parse_scene(SCENE, "scene", CAD).problem
+    obstacles = {o.name: o for o in problem.obstacles}
+    assert set(obstacles) == set(BOUNDS)
+    # above the bracket's flat top, between the bolts: 10 mm from the top face
+    from pliant.scene.distance import DistanceField
+
+    field = DistanceField(list(problem.obstacles))
+    distance = field.query(np.array([[0.16, 0.0, 0.02]]))[0]
+    assert distance == pytest.approx(0.010, abs=1e-9)
+    merged = parse_scene(SCENE + 'merge = true\nname = "bay"\nkeep = ["b*"]\n', "scene",
+                         CAD).problem.obstacles
+    assert [o.name for o in merged] == ["bay"]
+    assert np.allclose(merged[0].mesh.bounds, [[0.1, -0.02, 0.0], [0.22, 0.02, 0.04]],
+                       atol=1e-4)
+    with pytest.raises(FileFormatError, match=r"scene: cad\[0\].keep: no solid"):
+        parse_scene(SCENE + 'keep = ["nothing"]\n', "scene", CAD)
+    with pytest.raises(FileFormatError, match=r"cad\[0\].*merge = true needs"):
+        parse_scene(SCENE + "merge = true\n", "scene", CAD)
+
+
+def test_the_cad_example_rests_its_cable_on_the_far_bolt():
+    from pliant.models import rod3d
+
+    scene = load_scene(CAD / "cable_over_bracket.toml")
+    eq = rod3d.solve(scene.problem, solver=rod3d.RodSolver(elements=scene.solver.elements))
+    touched = eq.contacts.by_obstacle()
+    assert set(touched) == {"bolt_1"}
+    weight = 0.45 * 0.08 * 9.81
+    total = sum(ld.force for ld in eq.reactions.values()) + sum(touched.values())
+    assert np.allclose(total, [0.0, 0.0, weight], atol=1e-8)  # balance with the contact
+    assert eq.stable
