@@ -52,9 +52,15 @@ def _first_run_note() -> None:
 
 def _load_scene(file: Path):
     """The scene file, its warnings said on stderr (a valid file may still mislead)."""
+    from rich.console import Console  # noqa: PLC0415
+
     from pliant.io.problem_file import load_scene  # noqa: PLC0415
 
-    scene = load_scene(file)
+    # A CAD assembly of millions of triangles takes seconds to tessellate and to build
+    # its distance structures: say what is going on (on a terminal only).
+    with Console(stderr=True).status(f"reading {file.name} (CAD and meshes: tessellating "
+                                     "and building distance structures)…"):
+        scene = load_scene(file)
     for warning in scene.warnings:
         typer.echo(f"warning: {warning}", err=True)
     return scene

@@ -285,7 +285,8 @@ def shoot(z, st_s, st_kind, st_val, st_fol, st_col, seg_steps, seg_lo, seg_hi, p
             y[i] = z[i]
             y[3 + i] = -st_val[0, i]
             Y[i, i] = 1.0
-    _apply_follower(0, y, Y, 0, 3, st_fol, want_jac)
+    first = nstations * 0  # runtime ints, not literals (see newton)
+    _apply_follower(first, y, Y, first, first + 3, st_fol, want_jac)
     nst = _B.shape[0]
     K = np.empty((nst, 2))
     KY = np.zeros((nst, 2, nz))
@@ -440,6 +441,9 @@ def newton(z0, jac0, st_s, st_kind, st_val, st_fol, st_col, seg_steps, seg_lo, s
     """
     empty = np.zeros((0, NSTATE))
     nz = z0.shape[0]
+    # Runtime flags, not the literals True and False: numba compiles a callee once more
+    # for each literal it is called with (three versions of shoot, seven of _integrate).
+    yes, no = nz >= 0, nz < 0
     z = z0.copy()
     fresh = jac0.shape[0] != nz
     res, jac, stats = shoot(z, st_s, st_kind, st_val, st_fol, st_col, seg_steps, seg_lo,
@@ -460,7 +464,7 @@ def newton(z0, jac0, st_s, st_kind, st_val, st_fol, st_col, seg_steps, seg_lo, s
             if fresh:
                 return z, r, it, SINGULAR, jac, stats, 1.0
             res, jac, stats = shoot(z, st_s, st_kind, st_val, st_fol, st_col, seg_steps,
-                                    seg_lo, seg_hi, prm, st_kappa, True, empty)
+                                    seg_lo, seg_hi, prm, st_kappa, yes, empty)
             fresh = True
             continue
         t = 1.0
@@ -468,7 +472,7 @@ def newton(z0, jac0, st_s, st_kind, st_val, st_fol, st_col, seg_steps, seg_lo, s
         for _ in range(40):
             zt = z + t * dz
             rt_vec, _, st = shoot(zt, st_s, st_kind, st_val, st_fol, st_col, seg_steps,
-                                  seg_lo, seg_hi, prm, st_kappa, False, empty)
+                                  seg_lo, seg_hi, prm, st_kappa, no, empty)
             rt = max_abs(rt_vec)
             if it == 1 or not math.isfinite(rt):
                 theta = rt / r if math.isfinite(rt) else 1e3
@@ -486,7 +490,7 @@ def newton(z0, jac0, st_s, st_kind, st_val, st_fol, st_col, seg_steps, seg_lo, s
                 return z, r, it, NOT_CONTRACTING, jac, stats, max(theta, rt / r)
             # A stale Jacobian may be to blame: refresh it and try again from z.
             res, jac, stats = shoot(z, st_s, st_kind, st_val, st_fol, st_col, seg_steps,
-                                    seg_lo, seg_hi, prm, st_kappa, True, empty)
+                                    seg_lo, seg_hi, prm, st_kappa, yes, empty)
             fresh = True
             continue
         # Round-off floor: a step this small cannot lower the residual any further.
@@ -502,7 +506,7 @@ def newton(z0, jac0, st_s, st_kind, st_val, st_fol, st_col, seg_steps, seg_lo, s
             return z, r, it, CONVERGED, jac, stats, theta
         if slow and r > tol:
             res, jac, stats = shoot(z, st_s, st_kind, st_val, st_fol, st_col, seg_steps,
-                                    seg_lo, seg_hi, prm, st_kappa, True, empty)
+                                    seg_lo, seg_hi, prm, st_kappa, yes, empty)
             fresh = True
         else:
             fresh = False
@@ -632,10 +636,11 @@ def follow(z0, jac0, density, st_s, st_kind, st_col, seg_lo, seg_hi, st_kappa,
     # The tangent dz/dt = -J^-1 dG/dt at the start, for a first-order first predictor
     # (dG/dt by a forward difference: G(z0, 0) = 0 at the exact start).
     empty = np.zeros((0, NSTATE))
+    yes = z0.shape[0] >= 0  # a runtime True (see newton)
     eps = 1e-7
     _lerp_into(val, fol, prm, val0, fol0, prm0, val1, fol1, prm1, eps)
     g_eps, j_eps, _ = shoot(z, st_s, st_kind, val, fol, st_col, seg_steps, seg_lo, seg_hi,
-                            prm, st_kappa, True, empty)
+                            prm, st_kappa, yes, empty)
     tangent, ok = lu_solve(j_eps, -g_eps / eps)
     if not ok:
         return z, jac, density, stats, r, STALLED, SINGULAR, t, iterations, steps, 0
@@ -686,7 +691,7 @@ def follow(z0, jac0, density, st_s, st_kind, st_col, seg_lo, seg_hi, st_kappa,
             new_sign = det_sign(jn)
             if new_sign != sign:
                 _, fresh_jac, _ = shoot(zn, st_s, st_kind, val, fol, st_col, seg_steps, seg_lo,
-                                        seg_hi, prm, st_kappa, True, empty)
+                                        seg_hi, prm, st_kappa, yes, empty)
                 new_sign = det_sign(fresh_jac)
                 if new_sign != sign:
                     if dt > 1e3 * min_step:
@@ -748,9 +753,10 @@ def rest_state(st_s, st_kind, st_val, st_col, st_kappa, seg_steps, prm, nz):
     KY = np.zeros((_B.shape[0], 2, 0))
     stats = np.zeros(2)
     empty = np.zeros((0, NSTATE))
+    none = nst * 0  # runtime values, not literals (see newton)
     for k in range(nst - 1):
-        _integrate(y, Y, 0, 0, st_s[k], st_s[k + 1], seg_steps[k], prm, st_kappa[k],
-                   st_kappa[k + 1], K, KY, empty, 0, False, stats)
+        _integrate(y, Y, none, none, st_s[k], st_s[k + 1], seg_steps[k], prm, st_kappa[k],
+                   st_kappa[k + 1], K, KY, empty, none, nst < 0, stats)
         shape[k + 1, 0] = y[0]
         shape[k + 1, 1] = y[1]
         shape[k + 1, 2] = y[2]

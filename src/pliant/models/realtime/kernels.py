@@ -200,9 +200,10 @@ def newton(X, mu, lam, alpha, gam, bar_i, bar_j, q, l0sq, p, g_start, g_val, con
     """Newton with backtracking on the largest residual entry from (X, mu, lam, alpha,
     gam); a full step that changes which curve points touch is taken as the active-set
     update. Returns (X, mu, lam, alpha, gam, residual, iterations, status)."""
+    yes = n_unknowns >= 0  # a runtime True: a literal would compile assemble once more
     R, ab = assemble(X, mu, lam, alpha, gam, bar_i, bar_j, q, l0sq, p, g_start, g_val,
                      con_row, con_c, con_rhs, con_alpha, ix, imu, icon, ialpha, c_start,
-                     c_val, igam, contact, field, n_unknowns, kl, ku, keep, True)
+                     c_val, igam, contact, field, n_unknowns, kl, ku, keep, yes)
     r = max_abs(R)
     it = 0
     switches = 0
@@ -228,7 +229,7 @@ def newton(X, mu, lam, alpha, gam, bar_i, bar_j, q, l0sq, p, g_start, g_val, con
             Rn, abn = assemble(Xn, mun, lamn, alphan, gamn, bar_i, bar_j, q, l0sq, p,
                                g_start, g_val, con_row, con_c, con_rhs, con_alpha, ix, imu,
                                icon, ialpha, c_start, c_val, igam, contact, field,
-                               n_unknowns, kl, ku, keep, True)
+                               n_unknowns, kl, ku, keep, yes)
             rn = max_abs(Rn)
             if rn < r or rn <= tol:
                 accepted = True

@@ -540,10 +540,13 @@ def newton(X, Q, lam, nu, h, elem_frame, joint_hh, joint_k0, K, fnode, st_node, 
     contraction <= 0: damped Newton with backtracking on the residual's largest entry.
     Returns (X, Q, lam, nu, residual, iterations, status, energy).
     """
+    # Runtime flags, not the literals True and False: numba compiles a callee once more
+    # for each literal it is called with.
+    yes, no = n >= 0, n < 0
     R, ab, energy = assemble(X, Q, lam, nu, h, elem_frame, joint_hh, joint_k0, K, fnode,
                              st_node, st_frame, st_pos_mask, st_pos, st_kind, st_axis_b,
                              st_quat, st_moment, st_ffollow, st_mfollow, gauge_frame,
-                             gauge_quat, ix, ith, ilam, inu, nu_off, igauge, n, kl, ku, True)
+                             gauge_quat, ix, ith, ilam, inu, nu_off, igauge, n, kl, ku, yes)
     r = max_abs(R)
     if not math.isfinite(r):
         return X, Q, lam, nu, r, 0, NOT_FINITE, energy
@@ -566,7 +569,7 @@ def newton(X, Q, lam, nu, h, elem_frame, joint_hh, joint_k0, K, fnode, st_node, 
                                  fnode, st_node, st_frame, st_pos_mask, st_pos, st_kind,
                                  st_axis_b, st_quat, st_moment, st_ffollow, st_mfollow,
                                  gauge_frame, gauge_quat, ix, ith, ilam, inu, nu_off,
-                                 igauge, n, kl, ku, False)
+                                 igauge, n, kl, ku, no)
             rn = max_abs(Rn)
             if contraction > 0.0:
                 accepted = rn <= contraction * r or rn <= tol
@@ -588,7 +591,7 @@ def newton(X, Q, lam, nu, h, elem_frame, joint_hh, joint_k0, K, fnode, st_node, 
                                      fnode, st_node, st_frame, st_pos_mask, st_pos, st_kind,
                                      st_axis_b, st_quat, st_moment, st_ffollow, st_mfollow,
                                      gauge_frame, gauge_quat, ix, ith, ilam, inu, nu_off,
-                                     igauge, n, kl, ku, True)
+                                     igauge, n, kl, ku, yes)
             piv, ok = band_lu(ab, kl, ku)
             if not ok:
                 return X, Q, lam, nu, r, it, SINGULAR, energy
@@ -892,13 +895,14 @@ def _contact_residual(X, Q, lam, nu, gam, h, elem_frame, joint_hh, joint_k0, K, 
                       ilam, inu, nu_off, igauge, n, kl, ku, probe_elem, probe_a, iprobe,
                       contact, field, slot, fric):
     """The KKT residual and Jacobian with the contact terms; (R, ab, energy, active)."""
+    yes = n >= 0  # a runtime True (see newton)
     R, ab, energy = assemble(X, Q, lam, nu, h, elem_frame, joint_hh, joint_k0, K, fnode,
                              st_node, st_frame, st_pos_mask, st_pos, st_kind, st_axis_b,
                              st_quat, st_moment, st_ffollow, st_mfollow, gauge_frame,
-                             gauge_quat, ix, ith, ilam, inu, nu_off, igauge, n, kl, ku, True)
+                             gauge_quat, ix, ith, ilam, inu, nu_off, igauge, n, kl, ku, yes)
     L, radius, offset, band, scale = contact
     active = contact_terms(X, gam, probe_elem, probe_a, iprobe, ix, L, radius, offset, band,
-                           scale, field, R, ab, kl, ku, True, slot, fric)[3]
+                           scale, field, R, ab, kl, ku, yes, slot, fric)[3]
     return R, ab, energy, active
 
 
