@@ -34,3 +34,20 @@ def zoo() -> dict[str, pl.Problem]:
         unit, (pl.clamp(0.0, angle=0.4), pl.push(0.4, moment=-2.0, name="twist"),
                pl.push(1.0, force=(1.0, 4.0), follower=True, name="tip")))
     return problems
+
+
+def cli(*args: str):
+    """Run ``pliant ARGS`` in this process (the subprocess path, with its start-up and
+    one-line errors, is tested in test_cli.py): (returncode, stdout, stderr) like
+    subprocess.run's result, without a new interpreter's seconds of imports."""
+    from types import SimpleNamespace
+
+    from typer.testing import CliRunner
+
+    from pliant.cli.app import app
+
+    result = CliRunner().invoke(app, [str(a) for a in args])
+    if result.exception is not None and not isinstance(result.exception, SystemExit):
+        raise result.exception
+    return SimpleNamespace(returncode=result.exit_code, stdout=result.stdout,
+                           stderr=result.stderr)

@@ -137,3 +137,16 @@ def test_the_cad_example_rests_its_cable_on_the_far_bolt():
     total = sum(ld.force for ld in eq.reactions.values()) + sum(touched.values())
     assert np.allclose(total, [0.0, 0.0, weight], atol=1e-8)  # balance with the contact
     assert eq.stable
+
+
+def test_large_meshes_are_drawn_decimated_and_close_to_the_exact_surface():
+    import trimesh
+
+    from pliant.io.mesh_export import display_mesh
+
+    sphere = trimesh.creation.icosphere(subdivisions=5, radius=0.3)  # 20,480 triangles
+    drawn = display_mesh(sphere, max_faces=2000)
+    assert len(drawn.faces) <= 2000 < len(sphere.faces)
+    radius = np.linalg.norm(drawn.vertices, axis=1)
+    assert np.abs(radius - 0.3).max() < 0.003  # within 1 % of the surface it stands for
+    assert display_mesh(sphere, max_faces=30000) is sphere  # small enough: as it is

@@ -10,7 +10,7 @@ from pathlib import Path
 
 import pytest
 
-from .helpers import EXAMPLES
+from .helpers import EXAMPLES, cli
 
 PLIANT = [sys.executable, "-m", "pliant.cli.app"]
 
@@ -103,7 +103,7 @@ def test_the_paper_cases_solve_and_plot(tmp_path, case):
 def test_solve_3d_with_plot_and_meshes(tmp_path):
     import trimesh
 
-    out = run("solve", str(EXAMPLES / "hoses" / "hose3d.toml"), "--plot",
+    out = cli("solve", str(EXAMPLES / "hoses" / "hose3d.toml"), "--plot",
               str(tmp_path / "hose.png"), "--mesh", str(tmp_path / "hose.glb"),
               "--elements", "40")
     assert out.returncode == 0, out.stderr
@@ -114,7 +114,7 @@ def test_solve_3d_with_plot_and_meshes(tmp_path):
     assert mesh.is_watertight
     # The tube's volume: the hose's section times its length, within the polygon's loss.
     assert mesh.volume == pytest.approx(math.pi * 0.01**2 * 1.0, rel=0.03)
-    out = run("solve", str(EXAMPLES / "hoses" / "hose3d.toml"), "--mesh",
+    out = cli("solve", str(EXAMPLES / "hoses" / "hose3d.toml"), "--mesh",
               str(tmp_path / "hose.stl"), "--json", "--elements", "40")
     assert out.returncode == 0, out.stderr
     data = json.loads(out.stdout)
@@ -124,7 +124,7 @@ def test_solve_3d_with_plot_and_meshes(tmp_path):
 
 def test_plan_writes_the_planned_scene_and_its_evaluation(tmp_path):
     scene = EXAMPLES / "scenes" / "hose_past_post.toml"
-    out = run("plan", str(scene), "--out", str(tmp_path), "--attempts", "1")
+    out = cli("plan", str(scene), "--out", str(tmp_path), "--attempts", "1")
     assert out.returncode == 0, out.stderr  # planned, and the evaluation passes
     assert "found a path in" in out.stdout and "FITS" in out.stdout
     planned = tmp_path / "hose_past_post-planned.toml"

@@ -32,6 +32,8 @@ from pliant.io.evaluation_file import EvaluationReport, evaluation_json, write_c
 from pliant.io.problem_file import parse_scene
 from pliant.io.rules_file import bundled_rules, parse_rules
 
+from .helpers import cli
+
 RULES_TEXT = (Path(__file__).resolve().parents[1] / "src" / "pliant" / "data"
               / "rules.toml").read_text()
 G = 9.81
@@ -377,13 +379,13 @@ def _cli(*args):
 def test_pliant_evaluate_exits_1_when_the_operation_fails_and_0_when_it_passes(tmp_path):
     bad = tmp_path / "bad.toml"
     bad.write_text(_arc_scene("rubber hose", 0.19))
-    out = _cli("evaluate", str(bad), "--json", str(tmp_path / "bad.json"))
+    out = cli("evaluate", str(bad), "--json", str(tmp_path / "bad.json"))
     assert out.returncode == 1, out.stderr
     assert "DOES NOT FIT" in out.stdout
     assert json.loads((tmp_path / "bad.json").read_text())["verdict"]["passes"] is False
     good = tmp_path / "good.toml"
     good.write_text(_arc_scene("wire", 0.19))
-    assert _cli("evaluate", str(good)).returncode == 0
+    assert cli("evaluate", str(good)).returncode == 0
     unknown = tmp_path / "unknown.toml"
     unknown.write_text(_arc_scene("garden hose", 0.19))
     out = _cli("evaluate", str(unknown))

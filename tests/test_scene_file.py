@@ -22,7 +22,7 @@ from pliant.io.materials import library, material
 from pliant.io.problem_file import load_scene, parse_scene
 from pliant.scene.distance import BOX, CYLINDER, HALFSPACE, MESH, SPHERE
 
-from .helpers import EXAMPLES
+from .helpers import EXAMPLES, cli
 
 BAY = EXAMPLES / "scenes" / "engine_bay.toml"
 
@@ -230,7 +230,7 @@ def _cli(*args):
 
 
 def test_demo_follows_the_bundled_scene_and_writes_its_report(tmp_path):
-    out = _cli("demo", "--out", str(tmp_path / "demo"))
+    out = cli("demo", "--out", str(tmp_path / "demo"))
     assert out.returncode == 0, out.stderr
     assert "followed to its end" in out.stdout and "exhaust manifold" in out.stdout
     assert "FITS with one hand" in out.stdout

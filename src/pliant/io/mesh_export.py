@@ -49,6 +49,18 @@ def export_mesh(eq, path: str | Path, sides: int = 24) -> Path:
                         "the mesh")
 
 
+DISPLAY_FACES = 60_000  # per obstacle in the browser: a CAD part's millions would stall it
+
+
+def display_mesh(mesh, max_faces: int = DISPLAY_FACES):
+    """The mesh to draw: above ``max_faces`` triangles, decimated by quadric error
+    (fast-simplification, through trimesh). For the eye only: contact, clearances and
+    exports keep the exact mesh."""
+    if len(mesh.faces) <= max_faces:
+        return mesh
+    return mesh.simplify_quadric_decimation(face_count=int(max_faces))
+
+
 def obstacle_mesh(obstacle, halfspace_size: float = 2.0):
     """A trimesh of an obstacle in the world frame (a half-space as a square slab of
     ``halfspace_size`` [m] and 1 cm thick under its plane), for viewers and exports."""

@@ -267,11 +267,11 @@ class ViewerState:
         problem = self.session.problem
         part = problem.part
         if self._meshes is None:
-            from pliant.io.mesh_export import obstacle_mesh  # noqa: PLC0415
+            from pliant.io.mesh_export import display_mesh, obstacle_mesh  # noqa: PLC0415
 
             self._meshes = []
             for obstacle in problem.obstacles:
-                mesh = obstacle_mesh(obstacle)
+                mesh = display_mesh(obstacle_mesh(obstacle))
                 self._meshes.append(P.ObstacleMesh(
                     name=obstacle.name,
                     vertices=np.round(mesh.vertices, 6).tolist(),
