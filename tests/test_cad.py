@@ -82,6 +82,27 @@ def test_a_mesh_without_units_takes_the_scenes(tmp_path):
     assert np.allclose(solid.bounds, [[-0.06, -0.02, -0.005], [0.06, 0.02, 0.005]])
     with pytest.raises(InputError, match="unknown unit 'furlong'"):
         read_assembly(tmp_path / "plate.stl", units="furlong")
+    # a scene's units: those of the files it reads; its own numbers stay SI
+    scene = SCENE.replace('[[cad]]\nfile = "bracket_assembly.step"\n', "")
+    scene = 'units = "mm"\n' + scene + PLATES
+    obstacles = parse_scene(scene, "scene", tmp_path).problem.obstacles
+    assert [o.name for o in obstacles] == ["from mesh", "from cad/plate"]
+    for o, z in zip(obstacles, (-0.5, 0.0)):
+        lo, hi = o.mesh.bounds + o.translation
+        assert np.allclose([lo, hi], [[-0.06, -0.02, z - 0.005], [0.06, 0.02, z + 0.005]])
+
+
+PLATES = """
+[[cad]]
+file = "plate.stl"
+name = "from cad"
+
+[[obstacle]]
+name = "from mesh"
+shape = "mesh"
+file = "plate.stl"
+position = [0.0, 0.0, -0.5]
+"""
 
 
 SCENE = """

@@ -109,7 +109,8 @@ def read_assembly(path: Path, *, units: str | None = None, tolerance: float = TO
             f"{' (' + said + ')' if said else ''}"
             f"{'' if step else f': {err}'}; export it again as STEP (AP203, AP214 or "
             "AP242), or as glTF") from None
-    solids = _solids(scene, scale)
+    solids = [s if s.name != path.name else Solid(path.stem, s.vertices, s.faces)
+              for s in _solids(scene, scale)]  # a mesh file's one solid: its file's stem
     if not solids:
         raise FileFormatError(f"{path}: holds no solid with triangles")
     chosen = [s for s in solids if _wanted(s.name, keep, drop)]

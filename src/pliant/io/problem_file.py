@@ -251,7 +251,8 @@ class ObstacleModel(_Strict):
     length: float | None = Field(None, gt=0, description="cylinder [m]")
     file: str | None = Field(None, description="mesh: STL, OBJ, PLY, glTF, relative to "
                                                "this file")
-    scale: float = Field(1.0, gt=0, description="mesh: its units in m (0.001 for mm)")
+    scale: float | None = Field(None, gt=0, description="mesh: its units in m (0.001 for "
+                                "mm); default the scene's units, else 1")
     resolution: int = Field(64, ge=8, le=512, description="mesh: distance grid cells")
     friction: float = Field(0.0, ge=0, le=5, description="Coulomb's coefficient between "
                                                           "the obstacle and the part")
@@ -270,10 +271,10 @@ class ObstacleModel(_Strict):
             raise ValueError("size: every side must be > 0 [m]")
         return self
 
-    def build(self, base: Path | None) -> Any:
-        return self._shape(base).with_friction(self.friction)
+    def build(self, base: Path | None, units: str | None = None) -> Any:
+        return self._shape(base, units).with_friction(self.friction)
 
-    def _shape(self, base: Path | None) -> Any:
+    def _shape(self, base: Path | None, units: str | None = None) -> Any:
         from pliant.scene.distance import Obstacle, _frame_with_z  # noqa: PLC0415
 
         rotation = None
@@ -295,7 +296,13 @@ class ObstacleModel(_Strict):
             return Obstacle.halfspace(self.name, self.position, normal)
         try:
             vertices, faces = _read_mesh(self.file, base)
-            return Obstacle.from_mesh(self.name, vertices * self.scale, faces, self.position,
+            if self.scale is not None:
+                scale = self.scale
+            else:
+                from pliant.io.cad import unit_scale  # noqa: PLC0415
+
+                scale = unit_scale(units, "units") if units else 1.0
+            return Obstacle.from_mesh(self.name, vertices * scale, faces, self.position,
                                       rotation, self.resolution)
         except ValueError as err:
             raise ValueError(f"{err} (the obstacle {self.name!r})") from None
@@ -366,12 +373,17 @@ class CadModel(_Strict):
             raise ValueError("merge = true needs the obstacle's name")
         return self
 
-    def build(self, base: Path | None) -> list[Any]:
-        from pliant.io.cad import read_assembly  # noqa: PLC0415 (trimesh, cascadio)
+    def build(self, base: Path | None, units: str | None = None) -> list[Any]:
+        """The obstacles; ``units`` the scene's, for a file that declares none."""
+        from pliant.io.cad import STEP_SUFFIXES, read_assembly  # noqa: PLC0415 (cascadio)
         from pliant.scene.distance import Obstacle  # noqa: PLC0415
 
         path = _referenced(self.file, base, "CAD")
-        solids = read_assembly(path, units=self.units, tolerance=self.tolerance,
+        if self.units is None and path.suffix.lower() not in STEP_SUFFIXES:
+            units = units or None
+        else:
+            units = self.units
+        solids = read_assembly(path, units=units, tolerance=self.tolerance,
                                keep=self.keep, drop=self.drop)
         rotation = None if self.rotation is None else np.array(self.rotation, dtype=float)
         if self.merge:
@@ -547,6 +559,9 @@ class ProblemFile(_Strict):
     clip: list[ClipModel] = Field(default_factory=list)
     path: PathModel | None = None
     margin: float = Field(0.0, ge=0, description="clearance wanted round obstacles [m]")
+    units: str | None = Field(None, description="the length unit of the CAD and mesh files "
+                              "the scene reads, where they declare none (mm, cm, m, in); "
+                              "the numbers in this file stay SI")
     evaluation: EvaluationModel = Field(default_factory=EvaluationModel)
     plan: PlanModel = Field(default_factory=PlanModel)
 
@@ -590,12 +605,12 @@ class ProblemFile(_Strict):
         obstacles = []
         for i, o in enumerate(self.obstacle):
             try:
-                obstacles.append(o.build(base))
+                obstacles.append(o.build(base, self.units))
             except ValueError as err:
                 raise InputError(f"obstacle[{i}]", str(err)) from None
         for i, c in enumerate(self.cad):
             try:
-                obstacles.extend(c.build(base))
+                obstacles.extend(c.build(base, self.units))
             except InputError as err:
                 message = str(err).removeprefix(f"{err.field}: ")
                 raise InputError(f"cad[{i}].{err.field}", message) from None
