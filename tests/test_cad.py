@@ -171,3 +171,31 @@ def test_large_meshes_are_drawn_decimated_and_close_to_the_exact_surface():
     radius = np.linalg.norm(drawn.vertices, axis=1)
     assert np.abs(radius - 0.3).max() < 0.003  # within 1 % of the surface it stands for
     assert display_mesh(sphere, max_faces=30000) is sphere  # small enough: as it is
+
+
+def test_ports_and_clips_take_their_place_from_named_solids():
+    text = SCENE.replace("length = 0.3", "length = 0.6") + """
+[[port]]
+name = "stub"
+solid = "bolt"
+axis = [0.0, 0.0, 1.0]
+
+[[clip]]
+name = "clip"
+s = 0.45
+solid = "bolt_1"
+axis = [1.0, 0.0, 0.0]
+"""
+    scene = parse_scene(text, "scene", CAD)
+    # the bolt's top face (z = 40 mm) at its axis; the other bolt's box centre
+    assert np.allclose(scene.ports["stub"].position, [0.130, 0.0, 0.040], atol=1e-9)
+    clip = scene.problem.condition("clip")
+    assert np.allclose(clip.position, [0.190, 0.0, 0.025], atol=1e-9)
+    # they hold the part: no longer obstacles to it
+    assert {o.name for o in scene.problem.obstacles} == {"bracket", "manifold"}
+    with pytest.raises(FileFormatError, match=r"port\[0\].solid: no mesh obstacle named "
+                                              r"'nut'; there are bolt, bolt_1"):
+        parse_scene(text.replace('solid = "bolt"', 'solid = "nut"'), "scene", CAD)
+    with pytest.raises(FileFormatError, match="give position"):
+        parse_scene(text.replace('solid = "bolt"', 'solid = "bolt"\nposition = [0, 0, 0]'),
+                    "scene", CAD)

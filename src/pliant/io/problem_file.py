@@ -443,9 +443,39 @@ class PortModel(_Strict):
     opposite: it arrives)."""
 
     name: str
-    position: Vec3 = Field(description="[m]")
+    position: Vec3 | None = Field(None, description="[m]; or solid")
+    solid: str | None = Field(None, description="a CAD solid (an obstacle's name) that is "
+                              "the port: its end face along the axis is the position, and "
+                              "it is no obstacle to the part it holds")
     axis: Vec3 = Field(description="the direction the part leaves the port along")
     note: str = ""
+
+    @model_validator(mode="after")
+    def _placed(self) -> PortModel:
+        if (self.position is None) == (self.solid is None):
+            raise ValueError("give position [m] or solid (the name of a CAD solid), one")
+        return self
+
+
+def _solid_vertices(obstacles: dict[str, Any], name: str) -> np.ndarray:
+    """The world vertices of the mesh obstacle ``name`` (a solid of a [[cad]] import)."""
+    obstacle = obstacles.get(name)
+    if obstacle is None or obstacle.mesh is None:
+        known = sorted(k for k, o in obstacles.items() if o.mesh is not None)
+        raise ValueError(f"solid: no mesh obstacle named {name!r}; there are "
+                         f"{', '.join(known[:20]) or 'none'}{' ...' if len(known) > 20 else ''}")
+    return obstacle.mesh.tri.reshape(-1, 3) @ obstacle.rotation.T + obstacle.translation
+
+
+def _end_face_centre(vertices: np.ndarray, axis: Vec3) -> tuple[float, float, float]:
+    """The centre of a solid's face farthest along ``axis`` (a port stub's mouth): the
+    middle of the box of its vertices on that face."""
+    a = np.asarray(axis, dtype=float)
+    a = a / np.linalg.norm(a)
+    along = vertices @ a
+    extent = float(np.ptp(vertices, axis=0).max())
+    face = vertices[along >= along.max() - 1e-6 * extent]
+    return tuple(float(x) for x in 0.5 * (face.min(axis=0) + face.max(axis=0)))
 
 
 class ClipModel(_Strict):
@@ -454,10 +484,18 @@ class ClipModel(_Strict):
 
     name: str
     s: float = Field(description="arc length [m]")
-    position: Vec3 = Field(description="[m]")
+    position: Vec3 | None = Field(None, description="[m]; or solid")
+    solid: str | None = Field(None, description="a CAD solid that is the clip: the centre "
+                              "of its box is the position, and it is no obstacle to the part")
     axis: Vec3 = Field(description="the part's direction through the clip")
     normal: Vec3 | None = None
     note: str = ""
+
+    @model_validator(mode="after")
+    def _placed(self) -> ClipModel:
+        if (self.position is None) == (self.solid is None):
+            raise ValueError("give position [m] or solid (the name of a CAD solid), one")
+        return self
 
     def build(self) -> Condition:
         return Condition(s=self.s, name=self.name, position=self.position,
@@ -577,6 +615,8 @@ class ProblemFile(_Strict):
         [[assembled]] parts: one level only."""
         part = self.part.build()
         dimension = self.dimension
+        obstacles = self._obstacles(base, nested)
+        obstacles = self._place_on_solids(obstacles)
         ports = {p.name: p for p in self.port}
         conditions = []
         for i, c in enumerate(self.condition):
@@ -602,6 +642,12 @@ class ProblemFile(_Strict):
                 conditions.append(clip.build())
             except ValueError as err:
                 raise InputError(f"clip[{i}]", str(err).removeprefix("Value error, ")) from None
+        if dimension == 2 and obstacles:
+            raise InputError("obstacle", "obstacles are 3D: give gravity as [gx, gy, gz]")
+        return Problem(part, tuple(conditions), self.gravity, self.name,
+                       obstacles=tuple(obstacles))
+
+    def _obstacles(self, base: Path | None, nested: bool) -> list[Any]:
         obstacles = []
         for i, o in enumerate(self.obstacle):
             try:
@@ -626,10 +672,31 @@ class ProblemFile(_Strict):
         names = [o.name for o in obstacles]
         if len(set(names)) != len(names):
             raise InputError("obstacle", "two obstacles share a name; name each one apart")
-        if dimension == 2 and obstacles:
-            raise InputError("obstacle", "obstacles are 3D: give gravity as [gx, gy, gz]")
-        return Problem(part, tuple(conditions), self.gravity, self.name,
-                       obstacles=tuple(obstacles))
+        return obstacles
+
+    def _place_on_solids(self, obstacles: list[Any]) -> list[Any]:
+        """Ports and clips given by a solid take their position from it (this model's
+        lists are updated in place, for everything that reads them later), and those
+        solids leave the obstacles: they hold the part."""
+        by_name = {o.name: o for o in obstacles}
+        used: set[str] = set()
+        for table, rows in (("port", self.port), ("clip", self.clip)):
+            for i, row in enumerate(rows):
+                if row.solid is None:
+                    continue
+                try:
+                    vertices = _solid_vertices(by_name, row.solid)
+                except ValueError as err:
+                    raise InputError(f"{table}[{i}].solid", str(err).removeprefix(
+                        "solid: ")) from None
+                if table == "port":
+                    at = _end_face_centre(vertices, row.axis)
+                else:
+                    at = tuple(float(x) for x in 0.5 * (vertices.min(axis=0)
+                                                         + vertices.max(axis=0)))
+                rows[i] = row.model_copy(update={"position": at})
+                used.add(row.solid)
+        return [o for o in obstacles if o.name not in used]
 
     def manipulation(self, problem: Problem) -> list[Problem]:
         """The problems along the [path]: its grip carried through the waypoints."""
