@@ -24,7 +24,8 @@ app = typer.Typer(
     pretty_exceptions_enable=False,
 )
 
-EXAMPLES = Path(__file__).resolve().parents[3] / "examples"  # the repository (editable install)
+# The bundled default scene, package data (examples/scenes/ links to it in a checkout).
+DEMO = Path(__file__).resolve().parents[1] / "data" / "demo" / "engine_bay.toml"
 
 
 def _version(value: bool) -> None:
@@ -563,7 +564,7 @@ def demo(
     """The main job on the bundled default scene: the evaluation of an oil line carried
     round an engine bay's exhaust manifold onto its port (examples/scenes/engine_bay.toml),
     with its HTML report, JSON and CSV."""
-    scene = EXAMPLES / "scenes" / "engine_bay.toml"
+    scene = DEMO
     if not scene.is_file():
         raise PliantError(f"the bundled scene is missing: {scene}")
     stem = scene.stem
@@ -594,7 +595,7 @@ def view(
     from pliant.viewer.state import ViewerState  # noqa: PLC0415
 
     elements = _elements(elements)
-    scene = scene or EXAMPLES / "scenes" / "engine_bay.toml"
+    scene = scene or DEMO
     server = Server(scene, host=host, port=port, elements=elements, envelope=envelope)
     typer.echo(f"checking {scene.name} and loading the solvers…")
     ViewerState(server.scene, server.root, live=False, elements=elements).close()

@@ -2,8 +2,8 @@
 websocket connection (each browser tab its own), on loopback unless told otherwise.
 
 Files served: the page (``static/``, part of the package) and three.js and the WebXR
-emulator from the npm packages the set-up installed (``web/node_modules``); every other
-path is refused. The scene, its meshes and saved sessions are read from the scene's folder
+emulator (copied into a wheel at build time; in a checkout, from ``web/node_modules``);
+every other path is refused. The scene, its meshes and saved sessions are read from the scene's folder
 only (``state.inside``). A cross-site page cannot drive a session: the websocket's Origin
 must be the server's own address.
 """
@@ -28,10 +28,17 @@ log = logging.getLogger("pliant.viewer")
 
 
 def node_modules() -> Path:
-    """Where the set-up installed the page's npm packages (``PLIANT_WEB_MODULES`` to
-    override; by default the repository's ``web/node_modules``)."""
+    """Where the page's npm packages are: ``PLIANT_WEB_MODULES`` when set, else those a
+    wheel carries (``viewer/vendor``, copied at build time by setup.py), else the
+    repository's ``web/node_modules`` (a development install)."""
     env = os.environ.get("PLIANT_WEB_MODULES")
-    path = Path(env) if env else Path(__file__).resolve().parents[3] / "web" / "node_modules"
+    bundled = Path(__file__).resolve().parent / "vendor"
+    if env:
+        path = Path(env)
+    elif (bundled / "three" / "build" / "three.module.js").is_file():
+        path = bundled
+    else:
+        path = Path(__file__).resolve().parents[3] / "web" / "node_modules"
     if not (path / "three" / "build" / "three.module.js").is_file():
         raise PliantError(f"three.js is not installed in {path}: run `npm ci --prefix web` "
                           "in the repository (the README's first command does)")
