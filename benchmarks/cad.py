@@ -9,8 +9,8 @@ and curved kind of mesh a CAD export gives), each tool runs in its own process s
 its peak memory is its own:
 
 - pliant: ``Obstacle.from_mesh`` (pseudonormals, box tree, signed distance grid) from an
-  empty cache, and again with its grid read from the disk cache (the same file loaded
-  a second time), and ``DistanceField.query`` of 200 points near the surface (exact
+  empty cache, and again from the disk cache (the same file loaded a second time: the
+  grid, and for a large mesh the tree and pseudonormals, read back), and ``DistanceField.query`` of 200 points near the surface (exact
   there), then of the same points again (warm);
 - libigl: ``AABB.init`` and ``AABB.squared_distance`` (unsigned), and
   ``signed_distance`` with pseudonormals (its tree built inside each call);
@@ -75,7 +75,7 @@ def one(tool: str, million: float, n: int) -> dict:
         field = DistanceField([Obstacle.from_mesh("mesh", V, F)])
         out["build"] = time.perf_counter() - start
         start = time.perf_counter()
-        Obstacle.from_mesh("mesh", V, F)  # the same file again: its grid from the cache
+        Obstacle.from_mesh("mesh", V, F)  # the same file again: read from the cache
         out["rebuild"] = time.perf_counter() - start
         band = 0.05 * RADIUS
         start = time.perf_counter()
@@ -151,7 +151,7 @@ def main() -> None:
                     f"{r['first'] * 1e3:8.2f} ms, warm {r['warm'] * 1e3:8.3f} ms, peak "
                     f"{r['peak_mb']:6.0f} MB")
             if "rebuild" in r:
-                line += f" (again, its grid from the disk cache: {r['rebuild']:.2f} s)"
+                line += f" (again, from the disk cache: {r['rebuild']:.2f} s)"
             if "error" in r:
                 line += f", |error| {r['error']:.1e} m"
             if "signed_call" in r:

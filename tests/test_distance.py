@@ -203,6 +203,22 @@ def test_open_meshes_are_shells_and_grids_are_cached(tmp_path):
     assert np.array_equal(first.g_values, third.g_values)
 
 
+def test_a_large_meshs_tree_and_pseudonormals_are_cached_too(tmp_path, monkeypatch):
+    monkeypatch.setattr(distance, "LARGE_MESH", 100)  # this sphere counts as large
+    mesh = SHAPES["icosphere"]
+    first = distance.prepare_mesh(mesh.vertices, mesh.faces)
+    (stored,) = (tmp_path / "cache" / "mesh").glob("*.npz")
+    build = distance.build_bvh
+    monkeypatch.setattr(distance, "build_bvh", None)  # a second load must not build
+    again = distance.prepare_mesh(mesh.vertices, mesh.faces)
+    assert np.array_equal(first.pseudo, again.pseudo) and again.solid == first.solid
+    assert all(np.array_equal(a, b) for a, b in zip(first.bvh, again.bvh))
+    stored.write_bytes(b"not an archive")  # a broken cache is rebuilt, not trusted
+    monkeypatch.setattr(distance, "build_bvh", build)
+    rebuilt = distance.prepare_mesh(mesh.vertices, mesh.faces)
+    assert all(np.array_equal(a, b) for a, b in zip(first.bvh, rebuilt.bvh))
+
+
 def _rotation(axis, angle):
     axis = np.asarray(axis, float) / np.linalg.norm(axis)
     k = np.array([[0, -axis[2], axis[1]], [axis[2], 0, -axis[0]], [-axis[1], axis[0], 0]])

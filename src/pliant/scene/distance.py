@@ -619,13 +619,22 @@ def check_mesh(vertices: np.ndarray, faces: np.ndarray) -> None:
 def prepare_mesh(vertices: np.ndarray, faces: np.ndarray, resolution: int = 64,
                  cache: bool = True) -> MeshData:
     """Pseudonormals, box tree and signed distance grid of a mesh (the grid cached on
-    disk under the hash of the mesh and the resolution)."""
+    disk under the hash of the mesh and the resolution; for a mesh of LARGE_MESH
+    triangles or more, the pseudonormals and the tree too)."""
     vertices = np.ascontiguousarray(vertices, dtype=float)
     faces = np.ascontiguousarray(faces, dtype=np.int64)
     check_mesh(vertices, faces)
     tri = np.ascontiguousarray(vertices[faces])
-    pseudo, solid = _pseudonormals(vertices, faces)
-    bvh = build_bvh(tri)
+    digest = hashlib.sha256(vertices.tobytes() + faces.tobytes()).hexdigest()[:32]
+    structure = cache_dir() / "mesh" / f"{digest}-{GRID_VERSION}.npz"
+    large = cache and faces.shape[0] >= LARGE_MESH
+    pseudo, solid, bvh = _load_structure(structure, faces.shape[0]) if large else (
+        None, False, ())
+    if pseudo is None:
+        pseudo, solid = _pseudonormals(vertices, faces)
+        bvh = build_bvh(tri)
+        if large:
+            _save_structure(structure, pseudo, solid, bvh)
     lo, hi = vertices.min(axis=0), vertices.max(axis=0)
     extent = max(float((hi - lo).max()), 1e-9)
     # Distance grid: a margin of a tenth of the extent round the mesh.
@@ -648,6 +657,36 @@ def prepare_mesh(vertices: np.ndarray, faces: np.ndarray, resolution: int = 64,
         if cache:
             _save_grid(path, values)
     return MeshData(tri, pseudo, solid, bvh, values, g_origin, g_size, g_dims)
+
+
+LARGE_MESH = 100_000  # triangles from which the tree and pseudonormals are cached too
+_TREE = ("order", "lo", "hi", "left", "right", "start", "count")
+
+
+def _load_structure(path: Path, triangles: int) -> tuple[np.ndarray | None, bool, tuple]:
+    """A large mesh's pseudonormals, closedness and box tree from the disk cache (a CAD
+    part loaded again: seconds saved), or (None, False, ()) when absent or unreadable."""
+    try:
+        with np.load(path) as data:
+            pseudo = np.ascontiguousarray(data["pseudo"])
+            solid = bool(data["solid"])
+            bvh = tuple(np.ascontiguousarray(data[k]) for k in _TREE)
+    except (OSError, ValueError, KeyError):
+        return None, False, ()
+    if pseudo.shape != (triangles, 7, 3) or bvh[0].shape != (triangles,):
+        return None, False, ()
+    return pseudo, solid, bvh
+
+
+def _save_structure(path: Path, pseudo: np.ndarray, solid: bool, bvh: tuple) -> None:
+    """Best effort, written whole or not at all (a temporary file, then a rename)."""
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        tmp = path.with_name(f"{path.stem}.{os.getpid()}.tmp.npz")
+        np.savez(tmp, pseudo=pseudo, solid=np.array(solid), **dict(zip(_TREE, bvh)))
+        os.replace(tmp, path)
+    except OSError:
+        pass
 
 
 def _save_grid(path: Path, values: np.ndarray) -> None:
