@@ -199,3 +199,15 @@ axis = [1.0, 0.0, 0.0]
     with pytest.raises(FileFormatError, match="give position"):
         parse_scene(text.replace('solid = "bolt"', 'solid = "bolt"\nposition = [0, 0, 0]'),
                     "scene", CAD)
+
+
+def test_reading_an_assembly_says_how_far_it_got():
+    from pliant.io.progress import listening
+
+    said: list[str] = []
+    with listening(said.append):
+        parse_scene(SCENE, "scene", CAD)
+    assert said[0] == "bracket_assembly.step: reading and tessellating"
+    assert said[-1].startswith("bracket_assembly.step: distance structures of solid 4 of 4")
+    parse_scene(SCENE, "scene", CAD)  # nobody listening: nothing said, nothing fails
+    assert len(said) == 5

@@ -158,3 +158,26 @@ def test_version_answers_at_once():
     from pliant import __version__
 
     assert out.returncode == 0 and out.stdout.strip() == f"pliant {__version__}"
+
+
+def test_ctrl_c_inside_a_compiled_kernel_is_interrupted_not_a_traceback(monkeypatch, capsys):
+    import pliant.cli.app as cli_app
+
+    def kernel_interrupted():
+        try:
+            raise KeyboardInterrupt
+        except KeyboardInterrupt as interrupt:  # what CPython raises from a kernel's return
+            raise SystemError("newton_contact returned a result with an exception set") \
+                from interrupt
+
+    monkeypatch.setattr(cli_app, "app", kernel_interrupted)
+    with pytest.raises(SystemExit) as stop:
+        cli_app.main()
+    assert stop.value.code == 130 and capsys.readouterr().err == "interrupted\n"
+
+    def broken():
+        raise SystemError("a real one")
+
+    monkeypatch.setattr(cli_app, "app", broken)
+    with pytest.raises(SystemError, match="a real one"):  # not hidden
+        cli_app.main()

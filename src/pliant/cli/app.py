@@ -59,8 +59,10 @@ def _load_scene(file: Path):
 
     # A CAD assembly of millions of triangles takes seconds to tessellate and to build
     # its distance structures: say what is going on (on a terminal only).
-    with Console(stderr=True).status(f"reading {file.name} (CAD and meshes: tessellating "
-                                     "and building distance structures)…"):
+    from pliant.io.progress import listening  # noqa: PLC0415
+
+    with Console(stderr=True).status(f"reading {file.name}…") as status, listening(
+            lambda text: status.update(f"reading {file.name}: {text}…")):
         scene = load_scene(file)
     for warning in scene.warnings:
         typer.echo(f"warning: {warning}", err=True)
@@ -616,6 +618,13 @@ def main() -> None:
     except KeyboardInterrupt:
         typer.echo("interrupted", err=True)
         sys.exit(130)
+    except SystemError as err:
+        # Ctrl+C that lands while a compiled kernel hands back its result comes out as
+        # "returned a result with an exception set", caused by the KeyboardInterrupt.
+        if isinstance(err.__cause__ or err.__context__, KeyboardInterrupt):
+            typer.echo("interrupted", err=True)
+            sys.exit(130)
+        raise
 
 
 if __name__ == "__main__":

@@ -379,6 +379,9 @@ class CadModel(_Strict):
         from pliant.scene.distance import Obstacle  # noqa: PLC0415
 
         path = _referenced(self.file, base, "CAD")
+        from pliant.io.progress import say  # noqa: PLC0415
+
+        say(f"{path.name}: reading and tessellating")
         if self.units is None and path.suffix.lower() not in STEP_SUFFIXES:
             units = units or None
         else:
@@ -394,8 +397,12 @@ class CadModel(_Strict):
         else:
             prefix = f"{self.name}/" if self.name else ""
             pieces = [(prefix + s.name, s.vertices, s.faces) for s in solids]
+        from pliant.io.progress import say  # noqa: PLC0415
+
         out = []
-        for name, vertices, faces in pieces:
+        for k, (name, vertices, faces) in enumerate(pieces):
+            say(f"{path.name}: distance structures of solid {k + 1} of {len(pieces)} "
+                f"({name}, {len(faces):,} triangles)")
             try:
                 obstacle = Obstacle.from_mesh(name, vertices, faces, self.position, rotation,
                                               self.resolution)
