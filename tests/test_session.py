@@ -101,7 +101,10 @@ def test_recordings_round_trip_and_reject_bad_files(tmp_path):
 def test_live_frames_are_not_blocked_by_accurate_solves():
     """Live, the accurate model runs in a worker process: with every accurate solve
     taking tens of milliseconds (3D, 400 elements) and one almost always running, no
-    frame waits for one (frame times measured by the session's own clock)."""
+    frame waits for one (frame times measured by the session's own clock). A frame that
+    waited would take about half a solve or more, and so would most of them; the 90th
+    percentile is judged, not the slowest frame, which one descheduling of this process
+    by the operating system (on a loaded 2-core machine) can stretch to 10 ms."""
     events = carried(3, 300)
     with Session(PROBLEM_3D, live=True, elements=400, control_points=30) as session:
         frames = [session.apply(event) for event in events]
@@ -109,10 +112,10 @@ def test_live_frames_are_not_blocked_by_accurate_solves():
         final = session.poll()
     solves = [r for r in session.solves[1:] if r.ok]
     assert len(solves) >= 3
-    slowest_solve = min(r.solve_seconds for r in solves)
+    fastest_solve = min(r.solve_seconds for r in solves)
     overlapped = [f for f in frames if f.pending]
     assert len(overlapped) > len(frames) / 2
-    assert max(f.seconds for f in overlapped) < 0.5 * slowest_solve
+    assert np.percentile([f.seconds for f in overlapped], 90) < 0.25 * fastest_solve
     assert final.accurate.index > frames[len(frames) // 2].index
 
 
