@@ -106,3 +106,45 @@ def test_everyday_loadings_always_converge(fx, fy, moment, follower, weight):
     eq = solve(problem)
     assert eq.residual <= 1e-9
     assert np.isclose(eq.tip[0], eq.position[-1, 0])
+
+
+_STRETCH_RUNS = {"tried": 0, "converged": 0}
+
+
+@settings(max_examples=40, deadline=None, derandomize=True,
+          suppress_health_check=[HealthCheck.too_slow])
+@given(fx=st.floats(-40, 40), fy=st.floats(-40, 40), weight=st.floats(0.0, 20.0),
+       slenderness=st.floats(-6.0, -2.5), reach=st.floats(-1.0, 1.0),
+       held=st.booleans())
+def test_extensible_parts_converge_and_meet_the_re_integrated_ode(fx, fy, weight,
+                                                                  slenderness, reach, held):
+    """Random extensible parts (EI / EA L^2 from 1e-6 to 3e-3): a clamped part under a
+    tip load and its weight, or held at its tip at about its length (a cable pulled
+    taut). Each answer is re-integrated with solve_ivp from its own samples (the
+    extensible ODE) and must meet it; at least 95 % converge (the floor is checked by the
+    next test). Before the homotopy started soft, 6 of these 40 failed (stiff parts held
+    taut: tensions of hundreds to thousands of EI / L^2)."""
+    from pliant.models.elastica2d.reference import equilibrium_error
+
+    part = pl.Part(length=1.0, bending_stiffness=1.0, mass_per_length=weight / 9.81,
+                   axial_stiffness=10.0 ** -slenderness)
+    if held:
+        tip = pl.grip(1.0, position=(1.0 + 0.01 * reach, 0.1 * fy / 40.0), name="tip")
+    else:
+        tip = pl.push(1.0, force=(fx, fy), name="tip")
+    problem = pl.Problem(part, (pl.clamp(0.0), tip), gravity=(0.0, -9.81))
+    _STRETCH_RUNS["tried"] += 1
+    try:
+        eq = solve(problem)
+    except ConvergenceError as err:
+        assert "no equilibrium" in str(err)
+        return
+    _STRETCH_RUNS["converged"] += 1
+    assert eq.residual <= 1e-9
+    assert equilibrium_error(eq) <= 1e-7
+
+
+def test_extensible_parts_converge_at_least_95_percent_of_the_time():
+    if _STRETCH_RUNS["tried"] == 0:  # run alone: run the property test first
+        test_extensible_parts_converge_and_meet_the_re_integrated_ode()
+    assert _STRETCH_RUNS["converged"] >= 0.95 * _STRETCH_RUNS["tried"]

@@ -155,7 +155,10 @@ class Lowered:
         """The homotopy's start: (arrays, unknowns) of the unloaded, placed part,
         integrated on the mesh the homotopy will use, so that it is an exact start
         (see ``kernels.rest_state``)."""
-        prm = np.array([0.0, 0.0, bow, span[0], span[1], self.target.prm[5]])
+        # An extensible part starts soft (EA at most 1e3 EI / L^2) and stiffens along the
+        # homotopy: a stiff part pulled taut from its straight rest state is a stiff path.
+        comp = self.target.prm[5]
+        prm = np.array([0.0, 0.0, bow, span[0], span[1], max(comp, SOFT) if comp else 0.0])
         val, z = kernels.rest_state(self.st_s, self.st_kind, self.target.val, self.st_col,
                                     self.st_kappa, mesh.steps, prm, self.nz)
         return Arrays(val, np.zeros_like(self.target.fol), prm), z
@@ -241,6 +244,9 @@ def distributed_load(problem: Problem) -> tuple[float, float]:
     part = problem.part
     scale = part.mass_per_length * part.length**3 / part.bending_stiffness
     return scale * problem.gravity[0], scale * problem.gravity[1]
+
+
+SOFT = 1e-3  # the axial compliance EI / (EA L^2) an extensible part's homotopy starts at
 
 
 def axial_compliance(part) -> float:

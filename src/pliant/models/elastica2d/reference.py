@@ -246,8 +246,8 @@ def equilibrium_error(eq) -> float:
     fuzz benchmark's and the tests' independent check), relative: lengths by L, forces
     by EI / L^2, moments by EI / L.
 
-    The ODE x' = cos theta, y' = sin theta, theta' = kappa0 + M / EI, n' = -q,
-    M' = -(t x n) is integrated again by solve_ivp (DOP853, rtol 1e-11) from each
+    The ODE x' = lam cos theta, y' = lam sin theta, theta' = kappa0 + M / EI, n' = -q,
+    M' = -lam (t x n), lam = 1 + N / EA (1 for an inextensible part) is integrated again by solve_ivp (DOP853, rtol 1e-11) from each
     returned sample to the next (one long shot from s = 0 would lose its digits on a
     floppy, heavy part), each condition's load (reactions included) is the jump
     n(s+) = n(s-) - F, M(s+) = M(s-) - M_load at its station with nothing before s = 0
@@ -261,10 +261,13 @@ def equilibrium_error(eq) -> float:
     q = part.mass_per_length * np.array(problem.gravity, float)
     scale = np.array([L, L, 1.0, EI / L**2, EI / L**2, EI / L])
 
+    compliance = 0.0 if part.axial_stiffness is None else 1.0 / part.axial_stiffness
+
     def rhs(s, h):
         t = (math.cos(h[2]), math.sin(h[2]))
-        return [t[0], t[1], part.rest_curvature_at(s) + h[5] / EI, -q[0], -q[1],
-                -(t[0] * h[4] - t[1] * h[3])]
+        stretch = 1.0 + compliance * (t[0] * h[3] + t[1] * h[4])  # 1 + N / EA
+        return [stretch * t[0], stretch * t[1], part.rest_curvature_at(s) + h[5] / EI,
+                -q[0], -q[1], -stretch * (t[0] * h[4] - t[1] * h[3])]
 
     s = eq.s
     H = np.column_stack([eq.position, eq.angle, eq.internal_force, eq.bending_moment])
