@@ -41,7 +41,7 @@ from pliant.assembly.checks import (
     zone_of,
 )
 from pliant.assembly.path import PathRun, StepRecord, follow_path
-from pliant.core.equilibrium import WARM_START_LOST
+from pliant.core.equilibrium import WARM_START_LOST, stretch_summary
 from pliant.core.rules import Capacity, EvaluationSettings, PartKind, Rules
 from pliant.errors import InputError
 
@@ -679,13 +679,9 @@ def _stretch_checks(run: PathRun, part: Any, rules: Rules) -> list[Check]:
     part."""
     if part.axial_stiffness is None:
         return []
-    strains, where = [], []
-    for eq in run.equilibria:
-        strain = np.abs(eq.axial_strain)
-        i = int(np.argmax(strain))
-        strains.append(100.0 * float(strain[i]))
-        s = np.asarray(eq.s)
-        where.append(float(s[i] if len(s) == len(strain) else 0.5 * (s[i] + s[i + 1])))
+    summaries = [stretch_summary(eq) for eq in run.equilibria]
+    strains = [100.0 * abs(x["max_axial_strain"]) for x in summaries]
+    where = [x["at"] for x in summaries]
     allowed = part.max_axial_strain
     if allowed is None:
         return [series_check("axial strain", "largest axial strain (stretch)", "damage",

@@ -382,9 +382,8 @@ class CadModel(_Strict):
         from pliant.io.progress import say  # noqa: PLC0415
 
         say(f"{path.name}: reading and tessellating")
-        if self.units is None and path.suffix.lower() not in STEP_SUFFIXES:
-            units = units or None
-        else:
+        # the table's own unit, else the scene's, except for STEP: it declares its own
+        if self.units is not None or path.suffix.lower() in STEP_SUFFIXES:
             units = self.units
         solids = read_assembly(path, units=units, tolerance=self.tolerance,
                                keep=self.keep, drop=self.drop)

@@ -641,9 +641,7 @@ def prepare_mesh(vertices: np.ndarray, faces: np.ndarray, resolution: int = 64,
     g_size = extent * 1.2 / (resolution - 1)
     g_origin = lo - 0.1 * extent
     g_dims = np.ceil((hi - lo + 0.2 * extent) / g_size).astype(np.int64) + 1
-    key = hashlib.sha256(vertices.tobytes() + faces.tobytes()
-                         + f"{resolution}:{GRID_VERSION}".encode()).hexdigest()[:32]
-    path = cache_dir() / "sdf" / f"{key}.npy"
+    path = cache_dir() / "sdf" / f"{digest}-{resolution}-{GRID_VERSION}.npy"
     values = None
     if cache and path.is_file():
         try:

@@ -208,46 +208,37 @@ def assemble(X, Q, lam, nu, h, elem_frame, joint_hh, joint_k0, K, fnode,
         R[t + 1] -= he * stretch * mu0
         if comp != 0.0:
             energy += 0.5 * he * comp * mu2 * mu2
-        if want_jac and comp != 0.0:
-            hc = he * comp
-            for a in range(3):
-                for b in range(3):
-                    H[a, b] = -hc * Rm[a, 2] * Rm[b, 2]  # dR_lambda / dlambda
-            _add_block(ab, kl, ku, row, row, H)
-            for c in range(3):  # dR_lambda / dtheta and its transpose
-                d0 = hc * (mu1 * Rm[c, 2] + mu2 * Rm[c, 1])
-                d1 = -hc * (mu0 * Rm[c, 2] + mu2 * Rm[c, 0])
-                ab[t, kv + row + c - t] += d0
-                ab[t + 1, kv + row + c - t - 1] += d1
-                ab[row + c, kv + t - row - c] += d0
-                ab[row + c, kv + t + 1 - row - c] += d1
-            for a in range(3):
-                for b in range(3):
-                    H[a, b] = 0.0
-            _sym_e3(H, mu0, mu1, mu2, -hc * mu2)
-            H[0, 0] -= hc * mu1 * mu1
-            H[0, 1] += hc * mu1 * mu0
-            H[1, 0] += hc * mu0 * mu1
-            H[1, 1] -= hc * mu0 * mu0
-            _add_block(ab, kl, ku, t, t, H)
         if want_jac:
             for c in range(3):
                 ab[ix[e + 1] + c, kv + row - ix[e + 1]] += 1.0
                 ab[ix[e] + c, kv + row - ix[e]] -= 1.0
                 ab[row + c, kv + ix[e + 1] - row] += 1.0
                 ab[row + c, kv + ix[e] - row] -= 1.0
-            # dc/dtheta = h R [e3]x: columns h (R[:,1], -R[:,0], 0)
+            hc = he * comp
+            if comp != 0.0:
+                for a in range(3):
+                    for b in range(3):
+                        H[a, b] = -hc * Rm[a, 2] * Rm[b, 2]  # dR_lambda / dlambda
+                _add_block(ab, kl, ku, row, row, H)
+            # dR_lambda/dtheta = h R [e3]x (1 + C N) plus h C d3 (dN/dtheta)^T: columns
+            # h (1 + C N) (R[:,1], -R[:,0], 0) + h C (mu1, -mu0, 0) d3; and its transpose
             for c in range(3):
-                d0 = he * Rm[c, 1]
-                d1 = -he * Rm[c, 0]
+                d0 = he * stretch * Rm[c, 1] + hc * mu1 * Rm[c, 2]
+                d1 = -(he * stretch * Rm[c, 0] + hc * mu0 * Rm[c, 2])
                 ab[t, kv + row + c - t] += d0
                 ab[t + 1, kv + row + c - t - 1] += d1
                 ab[row + c, kv + t - row - c] += d0
                 ab[row + c, kv + t + 1 - row - c] += d1
+            # d2/dtheta2 of -h (N + C N^2 / 2): -h (1 + C N) d2N - h C dN dN^T
             for a in range(3):
                 for b in range(3):
                     H[a, b] = 0.0
-            _sym_e3(H, mu0, mu1, mu2, -he)
+            _sym_e3(H, mu0, mu1, mu2, -he * stretch)
+            if comp != 0.0:
+                H[0, 0] -= hc * mu1 * mu1
+                H[0, 1] += hc * mu1 * mu0
+                H[1, 0] += hc * mu0 * mu1
+                H[1, 1] -= hc * mu0 * mu0
             _add_block(ab, kl, ku, t, t, H)
     # Joints: bending and twisting energy (hh/2) e^T K e, e = (2/hh) Im(conj(p) q) - k0.
     for j in range(joint_hh.shape[0]):
