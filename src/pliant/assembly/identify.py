@@ -502,19 +502,22 @@ class _DeflectionModel:
         if not 0.0 <= m.s <= problem.part.length:
             raise InputError(f"{label}.s", f"s = {m.s} m lies outside the part")
         self.m, self.label, self.problem, self.solver = m, label, problem, solver
-        self.order = np.argsort(m.load, kind="stable")
         self.mask = ~np.isnan(m.position)
         self.dof = int(self.mask.sum())
         self.scale = float(np.nanmax(np.abs(m.position))) or 1.0
-        self.warm: list = [None] * len(m.load)
-        self.solves = len(m.load)
+        # A relative table is read against the pose under no load: solved first, as
+        # load 0, and subtracted (a table's own zero row then fits by construction).
+        self.loads = np.concatenate([[0.0], m.load]) if m.relative else m.load
+        self.order = np.argsort(self.loads, kind="stable")
+        self.warm: list = [None] * len(self.loads)
+        self.solves = len(self.loads)
 
     def _positions(self, part: Part) -> np.ndarray:
         c = self.problem.conditions[self.index]
-        out = np.empty_like(self.m.position)
+        out = np.empty((len(self.loads), self.m.position.shape[1]))
         previous = None
         for i in self.order:  # loads in order: each warm-starts the next
-            force = tuple(float(v) for v in self.m.load[i] * self.m.direction)
+            force = tuple(float(v) for v in self.loads[i] * self.m.direction)
             conditions = list(self.problem.conditions)
             conditions[self.index] = replace(c, force=force)
             problem = Problem(part, tuple(conditions), self.problem.gravity,
@@ -524,18 +527,20 @@ class _DeflectionModel:
                 self.warm[i] = eq
             previous = eq
             out[i] = _at(self.m.s, *_curve(eq))
-        return out
+        return out[1:] - out[0] if self.m.relative else out
 
     def residual(self, part: Part) -> np.ndarray:
         return (self._positions(part) - self.m.position)[self.mask]
 
     def fitted(self, part: Part) -> Fitted:
         model = self._positions(part)
-        axis = int(np.argmax(np.nansum(np.abs(self.m.position - self.m.position[
-            int(np.argmin(np.abs(self.m.load)))]), axis=0)))
+        zero = 0.0 if self.m.relative else self.m.position[int(np.argmin(np.abs(
+            self.m.load)))]
+        axis = int(np.argmax(np.nansum(np.abs(self.m.position - zero), axis=0)))
         off = (model - self.m.position)[self.mask]
+        what = f"{'displacement ' if self.m.relative else ''}{'xyz'[axis]}"
         return Fitted(self.m.name, "deflection", "load [N]",
-                      f"{'xyz'[axis]} at s = {self.m.s:g} m [m]", self.m.load,
+                      f"{what} at s = {self.m.s:g} m [m]", self.m.load,
                       self.m.position[:, axis], model[:, axis],
                       float(np.sqrt(np.mean(off ** 2))), "m")
 

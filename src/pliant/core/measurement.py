@@ -36,7 +36,9 @@ class Shape:
 class Deflection:
     """The position of the station ``s`` [m] under each of several loads applied by the
     condition ``condition`` along ``direction``: ``load`` (n,) [N], ``position`` (n, d) [m]
-    with NaN where a coordinate was not measured (a dial gauge reads one)."""
+    with NaN where a coordinate was not measured (a dial gauge reads one). ``relative``:
+    the positions are displacements from the pose under no load from the condition (a
+    gauge zeroed before the first weight is hung, the part's own weight already on it)."""
 
     condition: str
     direction: np.ndarray
@@ -46,6 +48,7 @@ class Deflection:
     uncertainty: float | None = None  # [m]
     name: str = "deflection"
     unit: str = "m"
+    relative: bool = False
 
 
 @dataclass(frozen=True, eq=False)

@@ -78,6 +78,8 @@ class MeasuredModel(_Strict):
     condition: str | None = Field(None, description="the loaded condition (deflection)")
     direction: list[float] | None = Field(None, description="the load's direction")
     s: float | None = Field(None, ge=0, description="the measured station [m]")
+    relative: bool = Field(False, description="deflection: the table gives displacements "
+                           "from the unloaded pose (a gauge zeroed before loading)")
     span: float | None = Field(None, gt=0, description="between the supports [m]")
     length: float | None = Field(None, gt=0, description="between the chucks [m]")
     angle: float | None = Field(None, gt=0, description="the critical turn [rad] "
@@ -165,6 +167,9 @@ def _build(m: MeasuredModel, index: int, problem, base: Path | None):
     label = f"measured[{index}]"
     name = m.name or f"{m.kind.replace('_', ' ')} {index + 1}"
     dim = problem.dimension
+    if m.relative and m.kind != "deflection":
+        raise InputError(f"{label}.relative", "only a deflection's table gives displacements "
+                         "from the unloaded pose; remove relative")
     if m.kind == "shape":
         cols = _data(m, "points", base, label)
         if dim == 3 and "z" not in cols:
@@ -204,7 +209,7 @@ def _build(m: MeasuredModel, index: int, problem, base: Path | None):
         rows = len(cols["load"])
         position = np.column_stack([cols.get(k, np.full(rows, math.nan)) for k in "xyz"[:dim]])
         return Deflection(m.condition, direction / norm, c.s if m.s is None else m.s,
-                          cols["load"], position, m.uncertainty, name)
+                          cols["load"], position, m.uncertainty, name, relative=m.relative)
     if m.kind == "three_point_bending":
         if m.span is None:
             raise InputError(f"{label}.span", "give the distance between the supports [m]")
