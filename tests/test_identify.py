@@ -180,6 +180,27 @@ def test_a_gauge_zeroed_under_the_parts_weight_reads_displacements():
     assert result.fitted[0].y_label.startswith("displacement ")
 
 
+def test_the_tested_curvature_range_is_the_largest_bend_the_test_reached():
+    """A deflection test's largest curvature is at the clamp, M / EI = F x_tip / EI for a
+    weightless part under a dead vertical load (any deflection); a shallow three-point
+    bend's is under the ram, 3 delta / a^2 with a the half span."""
+    part = pl.Part(0.5, 0.021)
+    loads = np.array([0.05, 0.1, 0.2])
+    tips = np.array([pl.solve(pl.Problem(part, (pl.clamp(0.0), pl.push(
+        0.5, (0.0, -f), name="tip")))).position[-1] for f in loads])
+    test = StiffnessTest(pl.Problem(replace(part, bending_stiffness=0.05), (
+        pl.clamp(0.0), pl.push(0.5, (0.0, -0.1), name="tip"))), ("bending_stiffness",),
+        (Deflection("tip", np.array([0.0, -1.0]), 0.5, loads, tips),))
+    result = identify(test)
+    assert result.curvature == pytest.approx(0.2 * tips[-1, 0] / 0.021, rel=1e-6)
+    assert "bend radius" in result.part_table()
+    delta = np.array([1e-4, 2e-4])
+    loads = 0.021 * 48.0 * delta / 0.2 ** 3
+    bend = StiffnessTest(pl.Problem(replace(part, bending_stiffness=0.05), (pl.clamp(
+        0.0),)), ("bending_stiffness",), (ThreePointBending(0.2, delta, loads),))
+    assert identify(bend).curvature == pytest.approx(3.0 * 2e-4 / 0.1 ** 2, rel=1e-3)
+
+
 def test_published_measurements_of_a_cantilever_the_pazy_wing():
     """Measured data (examples/identify/measured: the Pazy wing's spar under tip masses,
     Avin et al. 2022, from the AePW3 repository): one stiffness fits eleven loads up to

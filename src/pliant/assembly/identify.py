@@ -107,6 +107,8 @@ class Fitted:
     rms: float
     unit: str
     curve: np.ndarray | None = None
+    curvature: float = math.nan  # [1/m] the largest bending curvature the fitted model
+    # reaches in this measurement: the range the identified stiffness was tested over
 
 
 @dataclass(frozen=True, eq=False)
@@ -130,6 +132,15 @@ class Identification:
     def value(self, name: str) -> float:
         return next(e.value for e in self.estimates if e.name == name)
 
+    @property
+    def curvature(self) -> float:
+        """The largest bending curvature [1/m] any measurement reached at the fitted
+        values (NaN for twist tests alone): a stiffness holds over the range it was
+        tested in, which matters for rubber and stranded parts whose moment is not
+        linear in the curvature."""
+        values = [f.curvature for f in self.fitted if not math.isnan(f.curvature)]
+        return max(values) if values else math.nan
+
     def to_dict(self) -> dict[str, Any]:
         return {
             "test": self.test.name, "confidence": self.test.confidence,
@@ -137,12 +148,15 @@ class Identification:
             "correlation": self.correlation.tolist(),
             "fit": [{"name": f.name, "kind": f.kind, "rms": f.rms, "unit": f.unit,
                      "x_label": f.x_label, "y_label": f.y_label, "x": f.x.tolist(),
-                     "measured": f.measured.tolist(), "model": f.model.tolist()}
+                     "measured": f.measured.tolist(), "model": f.model.tolist(),
+                     "max_curvature": _finite(f.curvature)}
                     for f in self.fitted],
+            "max_curvature": _finite(self.curvature),
             "degrees_of_freedom": self.dof, "residual_scale": self.scale,
             "weighted": self.weighted, "solves": self.solves, "seconds": self.seconds,
             "notes": list(self.notes),
-            "units": {**{e.name: e.unit for e in self.estimates}, "seconds": "s"},
+            "units": {**{e.name: e.unit for e in self.estimates}, "seconds": "s",
+                      "max_curvature": "1/m"},
         }
 
     def part_table(self) -> str:
@@ -159,7 +173,15 @@ class Identification:
             lines.append(f"# {e.name}: identified, {self.test.confidence:.0%} interval "
                          f"{e.low:.4g} to {e.high:.4g} {e.unit}"
                          + (f" ({self.test.name})" if self.test.name else ""))
+        if not math.isnan(self.curvature) and self.curvature > 0.0:
+            lines.append(f"# tested over bending curvatures up to {self.curvature:.4g} 1/m "
+                         f"(bend radius {1.0 / self.curvature:.4g} m)")
         return "\n".join(lines) + "\n"
+
+
+def _finite(value: float) -> float | None:
+    """JSON has no NaN: a value not measured is null."""
+    return None if math.isnan(value) else value
 
 
 def first_guess(part: Part, name: str) -> float:
@@ -479,11 +501,13 @@ class _ShapeModel:
         return (nearest - self.m.points).ravel()
 
     def fitted(self, part: Part) -> Fitted:
-        s, position, tangent = _curve(self._eq(part))
+        eq = self._eq(part)
+        s, position, tangent = _curve(eq)
         nearest, at = project(self.m.points, s, position, tangent)
         off = np.linalg.norm(nearest - self.m.points, axis=1)
         return Fitted(self.m.name, "shape", "s [m]", "offset [m]", at, self.m.points,
-                      nearest, float(np.sqrt(np.mean(off ** 2))), "m", curve=position)
+                      nearest, float(np.sqrt(np.mean(off ** 2))), "m", curve=position,
+                      curvature=float(np.abs(eq.curvature).max()))
 
 
 class _DeflectionModel:
@@ -515,6 +539,7 @@ class _DeflectionModel:
     def _positions(self, part: Part) -> np.ndarray:
         c = self.problem.conditions[self.index]
         out = np.empty((len(self.loads), self.m.position.shape[1]))
+        self.curvature = 0.0
         previous = None
         for i in self.order:  # loads in order: each warm-starts the next
             force = tuple(float(v) for v in self.loads[i] * self.m.direction)
@@ -527,6 +552,7 @@ class _DeflectionModel:
                 self.warm[i] = eq
             previous = eq
             out[i] = _at(self.m.s, *_curve(eq))
+            self.curvature = max(self.curvature, float(np.abs(eq.curvature).max()))
         return out[1:] - out[0] if self.m.relative else out
 
     def residual(self, part: Part) -> np.ndarray:
@@ -542,7 +568,7 @@ class _DeflectionModel:
         return Fitted(self.m.name, "deflection", "load [N]",
                       f"{what} at s = {self.m.s:g} m [m]", self.m.load,
                       self.m.position[:, axis], model[:, axis],
-                      float(np.sqrt(np.mean(off ** 2))), "m")
+                      float(np.sqrt(np.mean(off ** 2))), "m", curvature=self.curvature)
 
 
 class _BendingModel:
@@ -560,6 +586,7 @@ class _BendingModel:
         self.dof = len(m.load)
         self.scale = float(np.abs(m.load).max()) or 1.0
         self.unit_load: np.ndarray | None = None
+        self.curvature = math.nan
         self.solves = 0
 
     def _unit(self) -> np.ndarray:
@@ -568,10 +595,11 @@ class _BendingModel:
             part = self.problem.part
             half = 0.5 * part.length
             a = 0.5 * self.m.span
-            loads = []
-            for delta in self.m.displacement:
-                loads.append(2.0 * _support_force(half, a, float(delta), self.label))
-            self.unit_load = np.array(loads)
+            contacts = [_support_contact(half, a, float(delta), self.label)
+                        for delta in self.m.displacement]
+            self.unit_load = 2.0 * np.array([force for force, _ in contacts])
+            # the curvature under the ram is geometric: the same for any stiffness
+            self.curvature = max(kappa for _, kappa in contacts)
         return self.unit_load
 
     def residual(self, part: Part) -> np.ndarray:
@@ -581,11 +609,17 @@ class _BendingModel:
         model = part.bending_stiffness * self._unit()
         return Fitted(self.m.name, "three-point bending", "displacement [m]", "load [N]",
                       self.m.displacement, self.m.load, model,
-                      float(np.sqrt(np.mean((model - self.m.load) ** 2))), "N")
+                      float(np.sqrt(np.mean((model - self.m.load) ** 2))), "N",
+                      curvature=self.curvature)
 
 
 def _support_force(half: float, a: float, delta: float, label: str) -> float:
-    """The vertical force [N] a frictionless support ``a`` from the middle and ``delta``
+    """The vertical force [N] of ``_support_contact``."""
+    return _support_contact(half, a, delta, label)[0]
+
+
+def _support_contact(half: float, a: float, delta: float, label: str) -> tuple[float, float]:
+    """(force, curvature under the ram [1/m]); the vertical force [N] a frictionless support ``a`` from the middle and ``delta``
     above it applies to a half part of length ``half`` and unit stiffness, clamped level
     at the middle. Up to the contact the half part is a cantilever of length l loaded at
     its tip by the support's force, normal to it (a normal follower force F); beyond, it is
@@ -597,36 +631,36 @@ def _support_force(half: float, a: float, delta: float, label: str) -> float:
     from pliant.models.dispatch import solve  # noqa: PLC0415
 
     unit = Part(1.0, 1.0)
-    cache: dict[float, tuple[float, float, float]] = {}
+    cache: dict[float, tuple[float, float, float, float]] = {}
 
-    def tip(beta: float) -> tuple[float, float, float]:
+    def tip(beta: float) -> tuple[float, float, float, float]:
         if beta not in cache:
             eq = solve(Problem(unit, (clamp(0.0, (0.0, 0.0), 0.0, "middle"),
                                       push(1.0, (0.0, beta), follower=True, name="support"))))
             x, y = eq.position[-1]
-            cache[beta] = (float(x), float(y), float(eq.angle[-1]))
+            cache[beta] = (float(x), float(y), float(eq.angle[-1]), float(eq.curvature[0]))
         return cache[beta]
 
     def gap(beta: float) -> float:
-        x, y, _ = tip(beta)
+        x, y, _, _ = tip(beta)
         return math.atan2(y, x) - math.atan2(delta, a)
 
     low, high = 0.0, 3.0 * delta / a  # Y / X = beta / 3 for small beta
     while gap(high) < 0.0:
-        x, _, _ = tip(high)
+        x, _, _, _ = tip(high)
         if x <= 0.0 or a / x > half or high > 1e3:
             raise InputError(f"{label}.data", f"at a displacement of {delta * 1e3:.4g} mm the "
                              f"part ({2 * half} m) slides off its supports {2 * a} m apart: "
                              "drop those rows or use a longer specimen")
         low, high = high, 2.0 * high
     beta = brentq(gap, low, high, xtol=1e-14, rtol=1e-13)
-    x, _, angle = tip(beta)
+    x, _, angle, kappa = tip(beta)
     length = a / x
     if length > half:
         raise InputError(f"{label}.data", f"at a displacement of {delta * 1e3:.4g} mm the part "
                          f"({2 * half} m) slides off its supports {2 * a} m apart: drop those "
                          "rows or use a longer specimen")
-    return beta / length ** 2 * math.cos(angle)
+    return beta / length ** 2 * math.cos(angle), abs(kappa) / length
 
 
 class _TwistModel:

@@ -25,11 +25,15 @@ def print_identification(result, console: Console | None = None) -> None:
                       f"{half:.1%}", f"{e.first_guess:.3g}")
     console.print(table)
     fits = Table(title="fit", title_justify="left")
-    for col in ("measurement", "kind", "points", "rms residual"):
+    for col in ("measurement", "kind", "points", "rms residual", "bend radius down to"):
         fits.add_column(col, justify="left" if col in ("measurement", "kind") else "right")
     for f in result.fitted:
-        fits.add_row(f.name, f.kind, str(len(f.x)), _size(f.rms, f.unit))
+        fits.add_row(f.name, f.kind, str(len(f.x)), _size(f.rms, f.unit), _radius(f.curvature))
     console.print(fits)
+    if result.curvature > 0.0:
+        console.print(f"tested over bending curvatures up to {result.curvature:.3g} 1/m "
+                      f"(bend radius {_radius(result.curvature)}): the values hold in that "
+                      "range; a part bent tighter in use may be stiffer or softer")
     if len(result.estimates) > 1:
         names = [e.name for e in result.estimates]
         pairs = [f"{names[i]} / {names[j]} {result.correlation[i, j]:+.2f}"
@@ -45,6 +49,13 @@ def print_identification(result, console: Console | None = None) -> None:
                   f"{result.seconds:.2f} s")
     for note in result.notes:
         console.print(f"[yellow]note:[/yellow] {note}")
+
+
+def _radius(curvature: float) -> str:
+    """A curvature as the bend radius it means ('-' where none was measured)."""
+    if not curvature > 0.0:
+        return "-"
+    return _size(1.0 / curvature, "m")
 
 
 def _size(value: float, unit: str) -> str:
