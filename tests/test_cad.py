@@ -211,3 +211,47 @@ def test_reading_an_assembly_says_how_far_it_got():
     assert said[-1].startswith("bracket_assembly.step: distance structures of solid 4 of 4")
     parse_scene(SCENE, "scene", CAD)  # nobody listening: nothing said, nothing fails
     assert len(said) == 5
+
+
+class _Recorder:
+    """A progress listener that keeps everything it is told."""
+
+    def __init__(self) -> None:
+        self.said: list[str] = []
+        self.totals: list[float] = []
+        self.done: list[float] = []
+        self.stops = 0
+
+    def say(self, text: str) -> None:
+        self.said.append(text)
+
+    def start(self, total: float) -> None:
+        self.totals.append(total)
+
+    def update(self, done: float) -> None:
+        self.done.append(done)
+
+    def stop(self) -> None:
+        self.stops += 1
+
+
+def test_the_progress_bar_runs_over_the_assemblys_triangles_once():
+    """One task for the whole assembly (the solids' builds only advance it), counted in
+    triangles, never backwards, ending at its total; a lone mesh gets a task of its own."""
+    from pliant.io.progress import listening
+    from pliant.scene.distance import prepare_mesh
+
+    bar = _Recorder()
+    with listening(bar):
+        problem = parse_scene(SCENE, "scene", CAD).problem
+    triangles = sum(len(o.mesh.tri) for o in problem.obstacles)
+    assert bar.totals == [triangles] and bar.stops == 1
+    assert np.all(np.diff(bar.done) >= 0.0)
+    assert bar.done[-1] == pytest.approx(triangles, rel=1e-12)
+    assert len(bar.done) >= 4 * len(problem.obstacles)  # each solid's steps move it
+    lone = _Recorder()
+    mesh = problem.obstacles[0].mesh
+    flat = mesh.tri.reshape(-1, 3)
+    with listening(lone):
+        prepare_mesh(flat, np.arange(len(flat)).reshape(-1, 3), 16, cache=False)
+    assert lone.totals == [len(mesh.tri)] and lone.done[-1] == pytest.approx(len(mesh.tri))

@@ -51,6 +51,47 @@ def _first_run_note() -> None:
         typer.echo("compiling the solvers (first run only, about a minute)…", err=True)
 
 
+class _ReadingBar:
+    """``pliant.io.progress``'s listener on the terminal: what is being read, and for the
+    distance structures a bar over the triangles with the time left (rich's estimate
+    from the rate so far); a spinner while the amount is not known (tessellating)."""
+
+    def __init__(self, name: str, console) -> None:
+        from rich.progress import (  # noqa: PLC0415
+            BarColumn,
+            Progress,
+            SpinnerColumn,
+            TaskProgressColumn,
+            TextColumn,
+            TimeRemainingColumn,
+        )
+
+        self.name = name
+        self.bar = Progress(SpinnerColumn(), TextColumn("{task.description}"), BarColumn(),
+                            TaskProgressColumn(), TimeRemainingColumn(), console=console,
+                            transient=True)
+        self.task = self.bar.add_task(f"reading {name}…", total=None)
+
+    def __enter__(self) -> _ReadingBar:
+        self.bar.start()
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.bar.stop()
+
+    def say(self, text: str) -> None:
+        self.bar.update(self.task, description=f"reading {self.name}: {text}")
+
+    def start(self, total: float) -> None:
+        self.bar.reset(self.task, total=total)
+
+    def update(self, done: float) -> None:
+        self.bar.update(self.task, completed=done)
+
+    def stop(self) -> None:
+        self.bar.reset(self.task, total=None)
+
+
 def _load_scene(file: Path):
     """The scene file, its warnings said on stderr (a valid file may still mislead)."""
     from rich.console import Console  # noqa: PLC0415
@@ -58,11 +99,10 @@ def _load_scene(file: Path):
     from pliant.io.problem_file import load_scene  # noqa: PLC0415
 
     # A CAD assembly of millions of triangles takes seconds to tessellate and to build
-    # its distance structures: say what is going on (on a terminal only).
+    # its distance structures: a bar with the time left (on a terminal only).
     from pliant.io.progress import listening  # noqa: PLC0415
 
-    with Console(stderr=True).status(f"reading {file.name}…") as status, listening(
-            lambda text: status.update(f"reading {file.name}: {text}…")):
+    with _ReadingBar(file.name, Console(stderr=True)) as bar, listening(bar):
         scene = load_scene(file)
     for warning in scene.warnings:
         typer.echo(f"warning: {warning}", err=True)

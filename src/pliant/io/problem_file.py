@@ -38,6 +38,7 @@ from pliant.core.planning import PlanSettings
 from pliant.core.problem import Problem
 from pliant.core.rules import EvaluationSettings
 from pliant.errors import FileFormatError, InputError, PliantError
+from pliant.io import progress
 from pliant.io.tomlfile import field_path, read_toml
 
 
@@ -302,6 +303,7 @@ class ObstacleModel(_Strict):
                 from pliant.io.cad import unit_scale  # noqa: PLC0415
 
                 scale = unit_scale(units, "units") if units else 1.0
+            progress.say(f"{self.name}: distance structures ({len(faces):,} triangles)")
             return Obstacle.from_mesh(self.name, vertices * scale, faces, self.position,
                                       rotation, self.resolution)
         except ValueError as err:
@@ -324,6 +326,7 @@ def _read_mesh(name: str | None, base: Path | None) -> tuple[np.ndarray, np.ndar
     import trimesh  # noqa: PLC0415
 
     path = _referenced(name, base, "mesh")
+    progress.say(f"{path.name}: reading")
     try:
         mesh = trimesh.load(path, force="mesh", process=False)
     except Exception as err:  # trimesh raises many kinds on a bad file
@@ -379,9 +382,7 @@ class CadModel(_Strict):
         from pliant.scene.distance import Obstacle  # noqa: PLC0415
 
         path = _referenced(self.file, base, "CAD")
-        from pliant.io.progress import say  # noqa: PLC0415
-
-        say(f"{path.name}: reading and tessellating")
+        progress.say(f"{path.name}: reading and tessellating")
         # the table's own unit, else the scene's, except for STEP: it declares its own
         if self.units is not None or path.suffix.lower() in STEP_SUFFIXES:
             units = self.units
@@ -396,18 +397,18 @@ class CadModel(_Strict):
         else:
             prefix = f"{self.name}/" if self.name else ""
             pieces = [(prefix + s.name, s.vertices, s.faces) for s in solids]
-        from pliant.io.progress import say  # noqa: PLC0415
-
         out = []
-        for k, (name, vertices, faces) in enumerate(pieces):
-            say(f"{path.name}: distance structures of solid {k + 1} of {len(pieces)} "
-                f"({name}, {len(faces):,} triangles)")
-            try:
-                obstacle = Obstacle.from_mesh(name, vertices, faces, self.position, rotation,
-                                              self.resolution)
-            except ValueError as err:
-                raise ValueError(f"{err} (the solid {name!r} of {path.name})") from None
-            out.append(obstacle.with_friction(self.friction))
+        # one bar over the whole assembly, in triangles: each solid's build advances it
+        with progress.work(sum(len(faces) for _, _, faces in pieces)):
+            for k, (name, vertices, faces) in enumerate(pieces):
+                progress.say(f"{path.name}: distance structures of solid {k + 1} of "
+                             f"{len(pieces)} ({name}, {len(faces):,} triangles)")
+                try:
+                    obstacle = Obstacle.from_mesh(name, vertices, faces, self.position,
+                                                  rotation, self.resolution)
+                except ValueError as err:
+                    raise ValueError(f"{err} (the solid {name!r} of {path.name})") from None
+                out.append(obstacle.with_friction(self.friction))
         return out
 
 

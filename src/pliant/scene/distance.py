@@ -28,6 +28,8 @@ from pathlib import Path
 import numpy as np
 from numba import njit
 
+from pliant.io import progress
+
 SPHERE, BOX, CYLINDER, HALFSPACE, MESH = 0, 1, 2, 3, 4
 GRID_VERSION = 2
 # How far a grid value may be from the truth, in cells: sqrt(3) beyond the exact band
@@ -620,41 +622,59 @@ def prepare_mesh(vertices: np.ndarray, faces: np.ndarray, resolution: int = 64,
                  cache: bool = True) -> MeshData:
     """Pseudonormals, box tree and signed distance grid of a mesh (the grid cached on
     disk under the hash of the mesh and the resolution; for a mesh of LARGE_MESH
-    triangles or more, the pseudonormals and the tree too)."""
-    vertices = np.ascontiguousarray(vertices, dtype=float)
-    faces = np.ascontiguousarray(faces, dtype=np.int64)
-    check_mesh(vertices, faces)
-    tri = np.ascontiguousarray(vertices[faces])
-    digest = hashlib.sha256(vertices.tobytes() + faces.tobytes()).hexdigest()[:32]
-    structure = cache_dir() / "mesh" / f"{digest}-{GRID_VERSION}.npz"
-    large = cache and faces.shape[0] >= LARGE_MESH
-    pseudo, solid, bvh = _load_structure(structure, faces.shape[0]) if large else (
-        None, False, ())
-    if pseudo is None:
-        pseudo, solid = _pseudonormals(vertices, faces)
-        bvh = build_bvh(tri)
-        if large:
-            _save_structure(structure, pseudo, solid, bvh)
-    lo, hi = vertices.min(axis=0), vertices.max(axis=0)
-    extent = max(float((hi - lo).max()), 1e-9)
-    # Distance grid: a margin of a tenth of the extent round the mesh.
-    g_size = extent * 1.2 / (resolution - 1)
-    g_origin = lo - 0.1 * extent
-    g_dims = np.ceil((hi - lo + 0.2 * extent) / g_size).astype(np.int64) + 1
-    path = cache_dir() / "sdf" / f"{digest}-{resolution}-{GRID_VERSION}.npy"
-    values = None
-    if cache and path.is_file():
-        try:
-            values = np.load(path)
-            if values.shape != (int(np.prod(g_dims)),):
+    triangles or more, the pseudonormals and the tree too). Its progress is reported in
+    triangles (``pliant.io.progress``), each step by its share of the build."""
+    triangles = int(np.shape(faces)[0]) if np.ndim(faces) == 2 else 0
+    with progress.work(triangles):
+        def done(share: float) -> None:
+            progress.advance(share * triangles)
+
+        vertices = np.ascontiguousarray(vertices, dtype=float)
+        faces = np.ascontiguousarray(faces, dtype=np.int64)
+        check_mesh(vertices, faces)
+        tri = np.ascontiguousarray(vertices[faces])
+        digest = hashlib.sha256(vertices.tobytes() + faces.tobytes()).hexdigest()[:32]
+        done(_SHARE["check"])
+        structure = cache_dir() / "mesh" / f"{digest}-{GRID_VERSION}.npz"
+        large = cache and faces.shape[0] >= LARGE_MESH
+        pseudo, solid, bvh = _load_structure(structure, faces.shape[0]) if large else (
+            None, False, ())
+        if pseudo is None:
+            pseudo, solid = _pseudonormals(vertices, faces)
+            done(_SHARE["pseudonormals"])
+            bvh = build_bvh(tri)
+            done(_SHARE["tree"])
+            if large:
+                _save_structure(structure, pseudo, solid, bvh)
+        else:
+            done(_SHARE["pseudonormals"] + _SHARE["tree"])
+        done(_SHARE["save"])
+        lo, hi = vertices.min(axis=0), vertices.max(axis=0)
+        extent = max(float((hi - lo).max()), 1e-9)
+        # Distance grid: a margin of a tenth of the extent round the mesh.
+        g_size = extent * 1.2 / (resolution - 1)
+        g_origin = lo - 0.1 * extent
+        g_dims = np.ceil((hi - lo + 0.2 * extent) / g_size).astype(np.int64) + 1
+        path = cache_dir() / "sdf" / f"{digest}-{resolution}-{GRID_VERSION}.npy"
+        values = None
+        if cache and path.is_file():
+            try:
+                values = np.load(path)
+                if values.shape != (int(np.prod(g_dims)),):
+                    values = None
+            except (OSError, ValueError):
                 values = None
-        except (OSError, ValueError):
-            values = None
-    if values is None:
-        values = _fill_grid(g_origin, g_size, g_dims, tri, pseudo, solid, bvh)
-        if cache:
-            _save_grid(path, values)
+        if values is None:
+            values = _fill_grid(g_origin, g_size, g_dims, tri, pseudo, solid, bvh)
+            if cache:
+                _save_grid(path, values)
+        done(_SHARE["grid"])
     return MeshData(tri, pseudo, solid, bvh, values, g_origin, g_size, g_dims)
+
+
+# Each step's share of a large mesh's build, measured at 1.3 M triangles (check and hash
+# 0.4 s, pseudonormals 0.8 s, tree 0.75 s, writing them 0.8 s, the grid 0.9 s).
+_SHARE = {"check": 0.1, "pseudonormals": 0.22, "tree": 0.2, "save": 0.2, "grid": 0.28}
 
 
 LARGE_MESH = 100_000  # triangles from which the tree and pseudonormals are cached too
