@@ -173,6 +173,18 @@ def test_large_meshes_are_drawn_decimated_and_close_to_the_exact_surface():
     assert display_mesh(sphere, max_faces=30000) is sphere  # small enough: as it is
 
 
+def test_a_scenes_display_budget_is_shared_in_proportion_and_keeps_small_parts():
+    from pliant.io.mesh_export import DISPLAY_FLOOR, display_budgets
+
+    assert display_budgets([1000, 2000, 3000]) == [1000, 2000, 3000]  # fits: all of it
+    counts = [2_000_000, 500_000, 50_000, 3000, 300] + [40_000] * 100
+    drawn = display_budgets(counts, budget=200_000)
+    assert sum(drawn) <= 200_000
+    assert drawn[4] == 300 and drawn[3] >= DISPLAY_FLOOR  # a bolt stays a bolt
+    assert drawn[0] >= drawn[1] >= drawn[2] >= drawn[5]  # the big give up detail first
+    assert sum(drawn) > 0.95 * 200_000  # and the budget is used, not wasted
+
+
 def test_ports_and_clips_take_their_place_from_named_solids():
     text = SCENE.replace("length = 0.3", "length = 0.6") + """
 [[port]]

@@ -586,3 +586,31 @@ steps = {steps}
             c = scene.path[j].condition("hand")
             np.testing.assert_allclose(play.positions[k], c.position, atol=1e-9)
             np.testing.assert_allclose(play.tangents[k], c.tangent, atol=1e-9)
+
+
+def test_the_page_draws_the_obstacles_within_the_display_budget(folder):
+    """Two mesh parts of 20,480 triangles each: drawn whole by default, within a
+    10,000-triangle budget each at half (in proportion), close to its surface."""
+    import trimesh
+
+    for k, x in enumerate((0.3, -0.3)):
+        ball = trimesh.creation.icosphere(subdivisions=5, radius=0.05)
+        ball.apply_translation([x, 0.3, 0.0])
+        ball.export(folder / f"ball{k}.stl")
+    text = SCENE + "".join(f'\n[[obstacle]]\nname = "ball {k}"\nshape = "mesh"\n'
+                           f'file = "ball{k}.stl"\n' for k in range(2))
+    (folder / "balls.toml").write_text(text)
+    drawn = {}
+    for budget in (None, 10_000):
+        viewer = ViewerState(Path("balls.toml"), folder, live=False, display=budget)
+        try:
+            scene = by_type(viewer.handle(msg(type="hello")), "scene")[0]
+        finally:
+            viewer.close()
+        drawn[budget] = {o.name: o for o in scene.obstacles}
+    assert [len(drawn[None][f"ball {k}"].faces) for k in range(2)] == [20_480, 20_480]
+    for k, x in enumerate((0.3, -0.3)):
+        ball = drawn[10_000][f"ball {k}"]
+        assert 4_000 <= len(ball.faces) <= 5_000
+        radius = np.linalg.norm(np.array(ball.vertices) - [x, 0.3, 0.0], axis=1)
+        assert np.abs(radius - 0.05).max() < 5e-4

@@ -629,6 +629,11 @@ def view(
     envelope: Annotated[Path | None, typer.Option(help="show a variation study's tolerance "
                                                        "envelope (its folder or "
                                                        "envelope.glb)")] = None,
+    triangles: Annotated[int | None, typer.Option(help="how many triangles the page draws "
+                                                       "of the obstacles at most (default "
+                                                       "400000; decimated for the eye, "
+                                                       "contact keeps the exact meshes); "
+                                                       "lower it for a slow GPU")] = None,
 ) -> None:
     """The interactive environment in the browser: drag the part's grips (mouse or VR
     controllers), see its shape, the force and moment each hand must apply, what it
@@ -637,8 +642,11 @@ def view(
     from pliant.viewer.state import ViewerState  # noqa: PLC0415
 
     elements = _elements(elements)
+    if triangles is not None and not 1_000 <= triangles <= 50_000_000:
+        raise PliantError(f"--triangles: must be from 1000 to 50000000, got {triangles}")
     scene = scene or DEMO
-    server = Server(scene, host=host, port=port, elements=elements, envelope=envelope)
+    server = Server(scene, host=host, port=port, elements=elements, envelope=envelope,
+                    display=triangles)
     typer.echo(f"checking {scene.name} and loading the solvers…")
     ViewerState(server.scene, server.root, live=False, elements=elements).close()
     if host not in ("127.0.0.1", "localhost", "::1"):

@@ -50,6 +50,31 @@ def export_mesh(eq, path: str | Path, sides: int = 24) -> Path:
 
 
 DISPLAY_FACES = 60_000  # per obstacle in the browser: a CAD part's millions would stall it
+DISPLAY_BUDGET = 400_000  # the whole scene's: a vehicle assembly's hundreds of parts
+DISPLAY_FLOOR = 500  # a part is never drawn with fewer (a bolt stays a bolt)
+
+
+def display_budgets(faces: list[int], budget: int | None = None,
+                    per_part: int | None = None) -> list[int]:
+    """How many triangles to draw of each of the scene's meshes (``faces`` their
+    counts): all of a scene that fits ``budget``; else each part a share in proportion
+    to its count (never above ``per_part``, never below ``DISPLAY_FLOOR`` or its own),
+    so that the big parts give up detail first and the sum stays near the budget."""
+    budget = DISPLAY_BUDGET if budget is None else budget
+    per_part = DISPLAY_FACES if per_part is None else per_part
+    want = [min(n, per_part) for n in faces]
+    if sum(want) <= budget:
+        return want
+    # the largest scale whose allotment fits: bisection on the share of each part
+    low, high = 0.0, 1.0
+    for _ in range(60):
+        mid = 0.5 * (low + high)
+        if sum(min(w, max(DISPLAY_FLOOR, int(mid * n))) for w, n in zip(want, faces)) \
+                <= budget:
+            low = mid
+        else:
+            high = mid
+    return [min(w, max(DISPLAY_FLOOR, int(low * n))) for w, n in zip(want, faces)]
 
 
 def display_mesh(mesh, max_faces: int = DISPLAY_FACES):

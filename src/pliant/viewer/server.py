@@ -53,7 +53,8 @@ class Server:
 
     def __init__(self, scene: Path, *, host: str = "127.0.0.1", port: int = 8765,
                  root: Path | None = None, live: bool = True,
-                 elements: int | None = None, envelope: Path | None = None) -> None:
+                 elements: int | None = None, envelope: Path | None = None,
+                 display: int | None = None) -> None:
         scene = Path(scene).resolve()
         if not scene.is_file():
             raise InputError("scene", f"{scene} is not a file; give a scene file (TOML)")
@@ -61,6 +62,7 @@ class Server:
         self.scene = scene.relative_to(self.root)
         self.host, self.port = host, port
         self.live, self.elements = live, elements
+        self.display = display  # the scene's display budget [triangles]; None: the default
         self.envelopes = []
         if envelope is not None:
             from pliant.viewer.state import load_envelope  # noqa: PLC0415
@@ -166,7 +168,7 @@ class Server:
         try:
             state = await asyncio.to_thread(ViewerState, self.scene, self.root,
                                             live=self.live, elements=self.elements,
-                                            envelopes=self.envelopes)
+                                            envelopes=self.envelopes, display=self.display)
         except PliantError as err:
             await ws.send(P.dump(P.ServerError(message=f"the scene cannot be opened: {err}")))
             await ws.close()

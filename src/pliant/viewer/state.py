@@ -50,8 +50,10 @@ class ViewerState:
 
     def __init__(self, scene_path: Path, root: Path, *, live: bool = True,
                  elements: int | None = None,
-                 envelopes: list[P.ObstacleMesh] | None = None) -> None:
+                 envelopes: list[P.ObstacleMesh] | None = None,
+                 display: int | None = None) -> None:
         self.root = root.resolve()
+        self.display = display  # triangles the page draws of the obstacles (None: default)
         self.live = live
         self.elements = elements
         self.envelopes = list(envelopes or [])
@@ -267,11 +269,17 @@ class ViewerState:
         problem = self.session.problem
         part = problem.part
         if self._meshes is None:
-            from pliant.io.mesh_export import display_mesh, obstacle_mesh  # noqa: PLC0415
+            from pliant.io.mesh_export import (  # noqa: PLC0415
+                display_budgets,
+                display_mesh,
+                obstacle_mesh,
+            )
 
             self._meshes = []
-            for obstacle in problem.obstacles:
-                mesh = display_mesh(obstacle_mesh(obstacle))
+            exact = [obstacle_mesh(obstacle) for obstacle in problem.obstacles]
+            budgets = display_budgets([len(m.faces) for m in exact], self.display)
+            for obstacle, whole, budget in zip(problem.obstacles, exact, budgets):
+                mesh = display_mesh(whole, budget)
                 self._meshes.append(P.ObstacleMesh(
                     name=obstacle.name,
                     vertices=np.round(mesh.vertices, 6).tolist(),
