@@ -9,7 +9,9 @@ the cable of the bundled engine bay's size, is served by ``pliant view``'s serve
 drawn by Debian's chromium, headless, with software WebGL (SwiftShader: no GPU here).
 For each scene it prints the triangles drawn, the time from
 opening the page to the first drawn frame with the accurate answer, and the frame rate
-while nothing moves (the page's own render loop, counted over ``--seconds``).
+while nothing moves (the page's own render loop, counted over ``--seconds``); and, without
+the browser, how long the live worker takes to answer a moved hand (the scene's
+obstacles are sent to it once).
 
 Four scenes: the bundled engine bay; the large scene as pliant draws it (decimated to
 the default display budget), and with ``pliant view --triangles 100000``; and the same
@@ -98,6 +100,33 @@ def measure(browser, scene: Path, seconds: float, display: int | None = None) ->
     return {"triangles": int(triangles), "first": first, "fps": frames / seconds}
 
 
+def live_round_trip(scene: Path, moves: int = 4) -> tuple[float, float]:
+    """(first, median later) seconds from sending a pose to the live worker to its
+    accurate answer, the hand moved 2 mm each time: what a drag waits for."""
+    import statistics
+    from dataclasses import replace
+
+    from pliant.io.problem_file import load_scene
+    from pliant.session.accurate import ProcessExecutor
+
+    problem = load_scene(scene).problem
+    hand = problem.conditions[-1].name
+    executor = ProcessExecutor(elements=60)
+    times = []
+    try:
+        for k in range(moves):
+            moved = problem.with_conditions(
+                replace(c, position=tuple(x + 0.002 * k for x in c.position))
+                if c.name == hand else c for c in problem.conditions)
+            start = time.perf_counter()
+            executor.submit(k, moved)
+            executor.wait(timeout=600)
+            times.append(time.perf_counter() - start)
+    finally:
+        executor.close()
+    return times[0], statistics.median(times[1:])
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--million", type=float, default=1.3)
@@ -125,6 +154,8 @@ def main() -> None:
         finally:
             mesh_export.DISPLAY_FACES = per_part
         browser.close()
+    live = {"engine bay (bundled)": live_round_trip(
+        ROOT / "examples" / "scenes" / "engine_bay.toml"), "large": live_round_trip(large)}
     shutil.rmtree(folder, ignore_errors=True)
     base = rows["engine bay (bundled)"]["fps"]
     print(f"{args.million:g} M triangles in {args.parts} parts; software WebGL, "
@@ -133,6 +164,9 @@ def main() -> None:
         print(f"  {name:26s} {r['triangles']:>9,} triangles drawn, first frame "
               f"{r['first']:6.1f} s, {r['fps']:5.1f} frames/s ({r['fps'] / base:.2f} of "
               "the engine bay's)")
+
+    for name, (first, later) in live.items():
+        print(f"  live solve round trip, {name}: first {first:.2f} s, then {later:.3f} s a move")
 
 
 if __name__ == "__main__":

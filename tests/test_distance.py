@@ -223,3 +223,18 @@ def _rotation(axis, angle):
     axis = np.asarray(axis, float) / np.linalg.norm(axis)
     k = np.array([[0, -axis[2], axis[1]], [axis[2], 0, -axis[0]], [-axis[1], axis[0], 0]])
     return np.eye(3) + np.sin(angle) * k + (1 - np.cos(angle)) * k @ k
+
+
+def test_a_scenes_field_is_packed_once_per_set_of_obstacles():
+    """field_of: the same obstacle objects give the same packed field (a CAD scene's
+    packing costs seconds); other objects, even equal in shape, a new one."""
+    from pliant.scene.distance import Obstacle, field_of
+
+    ball = Obstacle.sphere("ball", 0.1, (0.0, 0.0, 0.0))
+    box = Obstacle.box("box", (0.1, 0.1, 0.1), (0.5, 0.0, 0.0))
+    first = field_of((ball, box))
+    assert field_of([ball, box]) is first
+    assert field_of((box, ball)) is not first
+    other = field_of((Obstacle.sphere("ball", 0.1, (0.0, 0.0, 0.0)), box))
+    assert other is not first
+    assert np.allclose(other.query(np.array([[0.3, 0.0, 0.0]]))[0], 0.15)

@@ -140,3 +140,41 @@ def test_the_worker_sends_results_back_without_the_scene():
     assert result.problem is problem
     sent = len(pickle.dumps(replace(result, problem=None)))
     assert sent < 100_000 < len(pickle.dumps(result))
+
+
+def test_the_worker_is_sent_the_scenes_obstacles_once(monkeypatch):
+    """A request carries the obstacles only when they change (a CAD scene's are hundreds
+    of megabytes a solve otherwise); the answers are those of the solver in-process, and
+    a new set of obstacles is sent again."""
+    import pickle
+    from dataclasses import replace
+
+    from pliant.io.problem_file import load_scene
+    from pliant.session import accurate
+    from pliant.session.accurate import AccurateSolver, ProcessExecutor
+
+    problem = load_scene(EXAMPLES / "scenes" / "engine_bay.toml").problem
+    moved = problem.with_conditions(
+        replace(c, position=tuple(x + 0.01 for x in c.position)) if c.name == "hand" else c
+        for c in problem.conditions)
+    sizes: list[int] = []
+    write = accurate.write_message
+    monkeypatch.setattr(accurate, "write_message",
+                        lambda stream, m: (sizes.append(len(pickle.dumps(m))), write(stream, m)))
+    executor = ProcessExecutor(elements=30)
+    try:
+        answers = []
+        for k, p in enumerate((problem, moved, load_scene(EXAMPLES / "scenes" /
+                                                           "engine_bay.toml").problem)):
+            executor.submit(k, p)
+            answers.append(executor.wait(timeout=240))
+    finally:
+        executor.close()
+    assert sizes[1] < 20_000 < 1_000_000 < sizes[0]  # the second without its obstacles
+    assert sizes[2] > 1_000_000  # new obstacle objects: sent again
+    inline = AccurateSolver(elements=30)
+    for k, p in enumerate((problem, moved)):
+        here = inline.solve(k, p)
+        assert answers[k].ok and answers[k].problem is p
+        assert np.allclose(answers[k].position, here.position, atol=1e-9)
+        assert answers[k].contacts is not None or here.contacts is None

@@ -169,6 +169,7 @@ class ProcessExecutor:
         self._reader.start()
         self._busy = False
         self._submitted: tuple[int, Problem] | None = None
+        self._sent: tuple = ()  # the obstacles the worker holds
 
     def _read(self) -> None:
         stream = self._process.stdout
@@ -184,10 +185,17 @@ class ProcessExecutor:
 
     def submit(self, index: int, problem: Problem) -> None:
         self._submitted = (index, problem)
+        # The obstacles go to the worker once (a CAD scene's are hundreds of megabytes):
+        # while they are the same objects, a request carries the problem without them.
+        same = bool(problem.obstacles) and len(problem.obstacles) == len(self._sent) and all(
+            a is b for a, b in zip(problem.obstacles, self._sent))
         try:
-            write_message(self._process.stdin, (index, problem))
+            write_message(self._process.stdin, (index, replace(problem, obstacles=())
+                                                if same else problem, same))
+            self._sent = problem.obstacles
         except (OSError, ValueError):
             self._answers.put(None)  # the worker is gone: poll says so
+            self._sent = ()
         self._busy = True
 
     def _take(self, message) -> AccurateResult:

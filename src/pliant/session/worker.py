@@ -1,5 +1,5 @@
 """The accurate-model worker of a live session: ``python -m pliant.session.worker N``
-(N: the 3D resolution, 0 for the default). It reads (index, problem) messages on stdin
+(N: the 3D resolution, 0 for the default). It reads (index, problem, same obstacles) messages on stdin
 and writes ``AccurateResult``s on stdout, warm-starting each solve from the last."""
 
 from __future__ import annotations
@@ -18,11 +18,15 @@ def main() -> None:
     sys.stdout = sys.stderr
     requests = sys.stdin.buffer
     solver = AccurateSolver(elements=elements or None)
+    kept: tuple = ()  # the scene's obstacles, sent once (see ProcessExecutor.submit)
     while True:
         message = read_message(requests)
         if message is None:
             return
-        index, problem = message
+        index, problem, same = message
+        if same:
+            problem = replace(problem, obstacles=kept)
+        kept = problem.obstacles
         # The answer goes back without its problem: the session has it (it sent it), and
         # with a scene's obstacle grids it is a megabyte a solve.
         write_message(channel, replace(solver.solve(index, problem), problem=None))

@@ -211,10 +211,10 @@ class RealtimeModel:
     def _contact_rows(self) -> None:
         """The curve points held out of the obstacles (none without obstacles): their
         parameters, basis rows (4 nonzeros from c_start) and the kernel's constants."""
-        from pliant.scene.distance import DistanceField  # noqa: PLC0415
+        from pliant.scene.distance import field_of  # noqa: PLC0415
 
         obstacles = self.problem.obstacles
-        self.field = DistanceField(list(obstacles)).args
+        self.field = field_of(obstacles).args
         n = self.control_points
         width = DEGREE + 1
         m = 0

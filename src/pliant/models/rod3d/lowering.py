@@ -496,7 +496,7 @@ def lower(problem: Problem, elements: int = 100) -> Rod:
     iprobe = np.zeros(0, dtype=np.int64)
     obstacles = None
     if contact:
-        from pliant.scene.distance import DistanceField  # noqa: PLC0415
+        from pliant.scene.distance import field_of  # noqa: PLC0415
 
         first = start + node_cnt - probes_at * slot
         nodes = np.nonzero(node_probe)[0]
@@ -511,7 +511,7 @@ def lower(problem: Problem, elements: int = 100) -> Rod:
         for k in range(iprobe.shape[0]):
             e = probe_elem[k]
             width = max(width, abs(iprobe[k] + slot - 1 - ix[e]), abs(ix[e + 1] + 2 - iprobe[k]))
-        obstacles = DistanceField(list(problem.obstacles))
+        obstacles = field_of(problem.obstacles)
     target = Loads(*targets, joint_k0=rest_k0.copy())
     key = (L, EI1, tuple(K), s_node.tobytes(), st_pos_mask.tobytes(), st_kind.tobytes(),
            rest_k0.tobytes(), iprobe.shape[0], slot)

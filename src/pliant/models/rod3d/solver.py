@@ -768,10 +768,10 @@ def _held_inside(problem: Problem) -> None:
             if c.position and all(v is not None for v in c.position)]
     if not problem.obstacles or not held:
         return
-    from pliant.scene.distance import DistanceField  # noqa: PLC0415
+    from pliant.scene.distance import field_of  # noqa: PLC0415
 
     radius = problem.part.tube_radius
-    d, _, nearest = DistanceField(list(problem.obstacles)).query(
+    d, _, nearest = field_of(problem.obstacles).query(
         np.array([c.position for c in held]), band=radius + 1e-3)
     for c, gap, k in zip(held, d - radius, nearest):
         if gap < -1e-6:
