@@ -164,7 +164,6 @@ def main() -> None:
         print(f"  {name:26s} {r['triangles']:>9,} triangles drawn, first frame "
               f"{r['first']:6.1f} s, {r['fps']:5.1f} frames/s ({r['fps'] / base:.2f} of "
               "the engine bay's)")
-
     for name, (first, later) in live.items():
         print(f"  live solve round trip, {name}: first {first:.2f} s, then {later:.3f} s a move")
 
