@@ -238,3 +238,22 @@ def test_a_scenes_field_is_packed_once_per_set_of_obstacles():
     other = field_of((Obstacle.sphere("ball", 0.1, (0.0, 0.0, 0.0)), box))
     assert other is not first
     assert np.allclose(other.query(np.array([[0.3, 0.0, 0.0]]))[0], 0.15)
+
+
+def test_one_obstacles_distance_from_the_scenes_field_is_its_own():
+    """query_one(k): the k-th obstacle alone, from the scene's packed arrays (no copy),
+    equal to a field of that obstacle only, meshes included."""
+    import trimesh
+
+    from pliant.scene.distance import DistanceField, Obstacle
+
+    ball = trimesh.creation.icosphere(subdivisions=3, radius=0.1)
+    obstacles = [Obstacle.box("box", (0.2, 0.2, 0.2), (0.5, 0.0, 0.0)),
+                 Obstacle.from_mesh("ball", ball.vertices, ball.faces, (-0.4, 0.0, 0.0)),
+                 Obstacle.sphere("sphere", 0.05, (0.0, 0.4, 0.0))]
+    scene = DistanceField(obstacles)
+    points = np.random.default_rng(5).uniform(-0.6, 0.6, (200, 3))
+    for k, obstacle in enumerate(obstacles):
+        d, g = scene.query_one(k, points, band=0.05)
+        alone, g_alone, _ = DistanceField([obstacle]).query(points, band=0.05)
+        assert np.array_equal(d, alone) and np.array_equal(g, g_alone)

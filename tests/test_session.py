@@ -178,3 +178,35 @@ def test_the_worker_is_sent_the_scenes_obstacles_once(monkeypatch):
         assert answers[k].ok and answers[k].problem is p
         assert np.allclose(answers[k].position, here.position, atol=1e-9)
         assert answers[k].contacts is not None or here.contacts is None
+
+
+def test_a_worker_that_dies_is_started_again_and_the_pose_solved():
+    """A killed worker (the OOM killer, a user's kill) is replaced and the request in
+    flight sent to the new one: the session answers, it does not end. Closing while a
+    solve runs stops the worker at once."""
+    import os
+    import signal
+    import time
+
+    from pliant.session.accurate import AccurateSolver, ProcessExecutor
+
+    executor = ProcessExecutor(elements=30)
+    try:
+        first = executor.pid
+        executor.submit(1, PROBLEM_3D)
+        os.kill(first, signal.SIGKILL)
+        result = executor.wait(timeout=240)
+        assert result is not None and result.ok and result.index == 1
+        assert executor.restarts == 1 and executor.pid != first
+        here = AccurateSolver(elements=30).solve(1, PROBLEM_3D)
+        assert np.allclose(result.position, here.position, atol=1e-9)
+        executor.submit(2, PROBLEM_3D)  # the new worker goes on serving
+        assert executor.wait(timeout=240).ok
+        executor.submit(3, PROBLEM_3D)
+        worker = executor.pid
+        started = time.monotonic()
+    finally:
+        executor.close()
+    assert time.monotonic() - started < 5.0
+    with pytest.raises(ProcessLookupError):
+        os.kill(worker, 0)  # gone (and reaped)

@@ -7,6 +7,7 @@ from __future__ import annotations
 import json
 import math
 import os
+import time
 from pathlib import Path
 
 import numpy as np
@@ -614,3 +615,90 @@ def test_the_page_draws_the_obstacles_within_the_display_budget(folder):
         assert 4_000 <= len(ball.faces) <= 5_000
         radius = np.linalg.norm(np.array(ball.vertices) - [x, 0.3, 0.0], axis=1)
         assert np.abs(radius - 0.05).max() < 5e-4
+
+
+def test_past_its_bound_the_server_says_busy_and_frees_the_place_on_close(folder):
+    """At most ``sessions`` tabs at once (each has its own solver process): one more
+    is told so, by name of the option, and closed; a closed tab frees its place."""
+    from websockets.exceptions import ConnectionClosed
+
+    from pliant.viewer.server import Server
+
+    hello = json.dumps({"v": 1, "type": "hello"})
+    with Server(folder / "hose.toml", port=0, live=False, sessions=2) as server:
+        with connect(server) as a, connect(server) as b:
+            for ws in (a, b):
+                ws.send(hello)
+                receive(ws, "frame")
+            with connect(server) as c:
+                refused = json.loads(c.recv(timeout=60))
+                assert refused["type"] == "error" and "busy" in refused["message"]
+                assert "--sessions" in refused["message"]
+                with pytest.raises(ConnectionClosed):
+                    c.recv(timeout=60)
+                assert c.close_code == 1013
+        deadline = time.monotonic() + 30
+        while server.open_sessions and time.monotonic() < deadline:
+            time.sleep(0.05)
+        assert server.open_sessions == 0
+        with connect(server) as d:
+            d.send(hello)
+            receive(d, "frame")
+
+
+def _raw_websocket(port: int):
+    """A websocket client that sends but never reads: a socket with a small receive
+    buffer, the opening handshake by hand, and masked text frames."""
+    import os
+    import socket
+
+    sock = socket.socket(socket.AF_INET, socket.SOCK_STREAM)
+    sock.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, 4096)
+    sock.connect(("127.0.0.1", port))
+    sock.sendall((f"GET /ws HTTP/1.1\r\nHost: 127.0.0.1:{port}\r\nUpgrade: websocket\r\n"
+                  "Connection: Upgrade\r\nSec-WebSocket-Key: dGhlIHNhbXBsZSBub25jZQ==\r\n"
+                  "Sec-WebSocket-Version: 13\r\n\r\n").encode())
+    answer = b""
+    while b"\r\n\r\n" not in answer:
+        answer += sock.recv(1)
+    assert answer.startswith(b"HTTP/1.1 101")
+
+    def send(text: str) -> None:
+        payload = text.encode()
+        mask = os.urandom(4)
+        head = bytes([0x81]) + (bytes([0x80 | len(payload)]) if len(payload) < 126 else
+                                bytes([0x80 | 126]) + len(payload).to_bytes(2, "big"))
+        sock.sendall(head + mask + bytes(b ^ mask[i % 4] for i, b in enumerate(payload)))
+
+    return sock, send
+
+
+def test_a_client_that_never_reads_is_dropped_and_its_session_freed(folder, monkeypatch):
+    """A page that sends and never reads would hold its session (and in a live server
+    its solver process) forever: past the send timeout the server drops it and goes on
+    serving the others."""
+    import socket
+
+    from pliant.viewer import server as server_module
+    from pliant.viewer.server import Server
+
+    monkeypatch.setattr(server_module, "SEND_TIMEOUT", 1.0)
+    with Server(folder / "hose.toml", port=0, live=False, sessions=2) as server:
+        sock, send = _raw_websocket(server.port)
+        sock.settimeout(2.0)
+        try:
+            send(json.dumps({"v": 1, "type": "hello"}))
+            for k in range(20_000):  # each reply a frame of the whole part: kilobytes
+                send(json.dumps({"v": 1, "type": "move", "grip": "hand", "seq": k + 1,
+                                 "position": [0.55, 0.35 - 1e-5 * (k % 100), 0.15],
+                                 "tangent": [0, 1, 0]}))
+        except (TimeoutError, socket.timeout, OSError):
+            pass  # the server stopped reading it: its replies are piled up unread
+        deadline = time.monotonic() + 60
+        while (server.dropped == 0 or server.open_sessions) and time.monotonic() < deadline:
+            time.sleep(0.1)
+        assert server.dropped == 1 and server.open_sessions == 0
+        sock.close()
+        with connect(server) as other:  # the others are served on
+            other.send(json.dumps({"v": 1, "type": "hello"}))
+            receive(other, "frame")

@@ -634,6 +634,10 @@ def view(
                                                        "400000; decimated for the eye, "
                                                        "contact keeps the exact meshes); "
                                                        "lower it for a slow GPU")] = None,
+    sessions: Annotated[int | None, typer.Option(help="the most browser tabs served at once, "
+                                                      "each with its own solver process "
+                                                      "(default: the cores, at least 2)")]
+    = None,
 ) -> None:
     """The interactive environment in the browser: drag the part's grips (mouse or VR
     controllers), see its shape, the force and moment each hand must apply, what it
@@ -645,8 +649,10 @@ def view(
     if triangles is not None and not 1_000 <= triangles <= 50_000_000:
         raise PliantError(f"--triangles: must be from 1000 to 50000000, got {triangles}")
     scene = scene or DEMO
+    if sessions is not None and not 1 <= sessions <= 256:
+        raise PliantError(f"--sessions: must be from 1 to 256, got {sessions}")
     server = Server(scene, host=host, port=port, elements=elements, envelope=envelope,
-                    display=triangles)
+                    display=triangles, sessions=sessions)
     typer.echo(f"checking {scene.name} and loading the solvers…")
     ViewerState(server.scene, server.root, live=False, elements=elements).close()
     if host not in ("127.0.0.1", "localhost", "::1"):

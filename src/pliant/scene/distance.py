@@ -872,7 +872,7 @@ def _frame_with_z(normal) -> np.ndarray:
 
 
 _FIELDS: dict[tuple[int, ...], tuple[tuple[Obstacle, ...], DistanceField]] = {}
-_FIELDS_KEPT = 4  # scenes whose packed fields are kept (a session uses one)
+_FIELDS_KEPT = 8  # scenes whose packed fields are kept (a tab's session uses one)
 
 
 def field_of(obstacles) -> DistanceField:
@@ -947,3 +947,14 @@ class DistanceField:
             n = points.shape[0]
             return np.full(n, np.inf), np.zeros((n, 3)), np.full(n, -1, dtype=np.int64)
         return query_points(points, float(band), *self.args)
+
+    def query_one(self, k: int, points, band: float = 0.0
+                  ) -> tuple[np.ndarray, np.ndarray]:
+        """(signed distances (n,), unit gradients (n, 3)) of points (n, 3) [m] to the
+        ``k``-th obstacle alone: the packed arrays as they are, only the obstacle list
+        cut to it (no copy of a mesh)."""
+        points = np.ascontiguousarray(np.atleast_2d(points), dtype=float)
+        one = slice(k, k + 1)
+        args = tuple(a[one] for a in self.args[:5]) + self.args[5:]
+        d, g, _ = query_points(points, float(band), *args)
+        return d, g

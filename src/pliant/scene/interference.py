@@ -15,13 +15,12 @@ samples is cut into ``subdivide`` pieces) and the distances exact near the surfa
 from __future__ import annotations
 
 from dataclasses import dataclass
-from functools import lru_cache
 from typing import Any
 
 import numpy as np
 
 from pliant.errors import InputError
-from pliant.scene.distance import DistanceField, Obstacle
+from pliant.scene.distance import Obstacle, field_of
 
 
 @dataclass(frozen=True)
@@ -102,8 +101,9 @@ def of_curve(s: np.ndarray, points: np.ndarray, radius: float,
     ds = np.concatenate([ds, s[-1:]])
     band = radius + margin + 1e-3
     clearances, penetrations, too_close = [], [], []
-    for obstacle in obstacles:
-        d, _, _ = _field(obstacle).query(dense, band=band)
+    field = field_of(obstacles)
+    for k, obstacle in enumerate(obstacles):
+        d, _ = field.query_one(k, dense, band=band)
         gap = d - radius
         k = int(np.argmin(gap))
         clearances.append(Clearance(obstacle.name, float(gap[k]), float(ds[k]),
@@ -112,13 +112,6 @@ def of_curve(s: np.ndarray, points: np.ndarray, radius: float,
         too_close += _spans(obstacle.name, ds, gap, (gap >= -tolerance) & (gap < margin))
     return Interference(margin, tolerance, tuple(clearances), tuple(penetrations),
                         tuple(too_close))
-
-
-@lru_cache(maxsize=256)
-def _field(obstacle: Obstacle) -> DistanceField:
-    """One obstacle's distance field, built once: obstacles are immutable, and a path's
-    every step (a viewer's every frame) asks the same ones again."""
-    return DistanceField([obstacle])
 
 
 def of_equilibrium(eq: Any, obstacles: tuple[Obstacle, ...] | None = None, *,

@@ -156,26 +156,36 @@ class ProcessExecutor:
 
     def __init__(self, elements: int | None = None) -> None:
         import queue  # noqa: PLC0415
+
+        self.elements = elements
+        self._answers: queue.Queue = queue.Queue()
+        self._busy = False
+        self._submitted: tuple[int, Problem] | None = None
+        self._sent: tuple = ()  # the obstacles the worker holds
+        self.restarts = 0  # workers started again after one died
+        self._retried = False  # the request in flight was sent again to a new worker
+        self._start()
+
+    def _start(self) -> None:
+        """A worker process and the thread that reads its answers."""
         import subprocess  # noqa: PLC0415
         import sys  # noqa: PLC0415
         import threading  # noqa: PLC0415
 
         self._process = subprocess.Popen(
-            [sys.executable, "-m", "pliant.session.worker", str(elements or 0)],
+            [sys.executable, "-m", "pliant.session.worker", str(self.elements or 0)],
             stdin=subprocess.PIPE, stdout=subprocess.PIPE)
-        self._answers: queue.Queue = queue.Queue()
-        self._reader = threading.Thread(target=self._read, daemon=True,
-                                        name="pliant-accurate-reader")
+        self._sent = ()
+        self._reader = threading.Thread(target=self._read, args=(self._process, self._answers),
+                                        daemon=True, name="pliant-accurate-reader")
         self._reader.start()
-        self._busy = False
-        self._submitted: tuple[int, Problem] | None = None
-        self._sent: tuple = ()  # the obstacles the worker holds
 
-    def _read(self) -> None:
-        stream = self._process.stdout
+    @staticmethod
+    def _read(process, answers) -> None:
+        stream = process.stdout
         while True:
             message = read_message(stream)
-            self._answers.put(message)
+            answers.put((process, message))
             if message is None:
                 return
 
@@ -183,8 +193,18 @@ class ProcessExecutor:
     def busy(self) -> bool:
         return self._busy
 
+    @property
+    def pid(self) -> int:
+        """The worker process's id (tests, and a user looking at ``top``)."""
+        return self._process.pid
+
     def submit(self, index: int, problem: Problem) -> None:
         self._submitted = (index, problem)
+        self._retried = False
+        self._send(index, problem)
+        self._busy = True
+
+    def _send(self, index: int, problem: Problem) -> None:
         # The obstacles go to the worker once (a CAD scene's are hundreds of megabytes):
         # while they are the same objects, a request carries the problem without them.
         same = bool(problem.obstacles) and len(problem.obstacles) == len(self._sent) and all(
@@ -194,17 +214,30 @@ class ProcessExecutor:
                                                 if same else problem, same))
             self._sent = problem.obstacles
         except (OSError, ValueError):
-            self._answers.put(None)  # the worker is gone: poll says so
-            self._sent = ()
-        self._busy = True
+            self._sent = ()  # the worker is gone: its reader says so, and _take restarts it
 
-    def _take(self, message) -> AccurateResult:
-        self._busy = False
+    def _take(self, item) -> AccurateResult | None:
+        """The answer the reader queued, or None when the worker died under this request
+        and a new one is solving it (once: a request that kills two workers is answered
+        with the error)."""
+        process, message = item
+        if process is not self._process:
+            return None  # a dead worker's last word, after it was replaced
         index, problem = self._submitted or (0, None)
         if message is None:
+            process.wait()
+            _close_pipes(process)
+            self.restarts += 1
+            self._start()
+            if problem is not None and not self._retried:
+                self._retried = True
+                self._send(index, problem)
+                return None
+            self._busy = False
             return AccurateResult(index, problem, np.zeros(0), np.zeros((0, 0)), {},
-                                  error="the accurate worker process stopped; restart the "
-                                  "session")
+                                  error="the accurate worker process stopped twice on this "
+                                  "pose (it was started again): move the grip elsewhere")
+        self._busy = False
         if message.problem is None:  # sent back without it (see the worker)
             message = replace(message, problem=problem)
         return message
@@ -212,36 +245,60 @@ class ProcessExecutor:
     def poll(self) -> AccurateResult | None:
         import queue  # noqa: PLC0415
 
-        if not self._busy:
-            return None
-        try:
-            return self._take(self._answers.get_nowait())
-        except queue.Empty:
-            return None
+        while self._busy:
+            try:
+                item = self._answers.get_nowait()
+            except queue.Empty:
+                return None
+            result = self._take(item)
+            if result is not None:
+                return result
+        return None
 
     def wait(self, timeout: float | None = None) -> AccurateResult | None:
         import queue  # noqa: PLC0415
+        import time  # noqa: PLC0415
 
-        if not self._busy:
-            return None
-        try:
-            return self._take(self._answers.get(timeout=timeout))
-        except queue.Empty:
-            return None
+        end = None if timeout is None else time.monotonic() + timeout
+        while self._busy:
+            left = None if end is None else max(end - time.monotonic(), 0.0)
+            try:
+                item = self._answers.get(timeout=left)
+            except queue.Empty:
+                return None
+            result = self._take(item)
+            if result is not None:
+                return result
+        return None
 
     def close(self) -> None:
+        """Stop the worker: at once when it is solving (a tab closed mid-solve must not
+        leave it running on), else by the stop message."""
+        process = self._process
+        if self._busy:
+            process.kill()
+        else:
+            try:
+                write_message(process.stdin, None)
+                process.stdin.close()
+            except (OSError, ValueError):
+                pass
         try:
-            write_message(self._process.stdin, None)
-            self._process.stdin.close()
+            process.wait(timeout=2.0)
+        except Exception:  # noqa: BLE001 (it must end whatever happened)
+            process.kill()
+            process.wait()
+        _close_pipes(process)
+
+
+def _close_pipes(process) -> None:
+    """A finished worker's pipes, closed (their file descriptors are not left open)."""
+    for stream in (process.stdin, process.stdout):
+        try:
+            if stream is not None:
+                stream.close()
         except (OSError, ValueError):
             pass
-        try:
-            self._process.wait(timeout=2.0)
-        except Exception:  # noqa: BLE001 (it must end whatever happened)
-            self._process.kill()
-            self._process.wait()
-        if self._process.stdout is not None:
-            self._process.stdout.close()
 
 
 def write_message(stream, message) -> None:

@@ -23,6 +23,7 @@ from pliant.viewer import protocol as P
 from pliant.viewer.protocol import ProtocolError
 
 STATIC = Path(__file__).with_name("static")
+SEND_TIMEOUT = 15.0  # s a message may wait for a client that does not read; then it goes
 VENDOR = {"three": "three", "iwer": "iwer"}  # URL prefix under /vendor/ -> npm package
 log = logging.getLogger("pliant.viewer")
 
@@ -45,16 +46,22 @@ def node_modules() -> Path:
     return path
 
 
+class _Dropped(Exception):
+    """A client that stopped reading was disconnected."""
+
+
 class Server:
     """Serves ``scene`` (a file inside ``root``, its folder by default) on ``host:port``
     (port 0: any free one). ``live``: accurate solves in worker processes (else inline,
     deterministic); ``elements``: the 3D resolution (default: the scene's); ``envelope``:
-    a variation study's envelope.glb (or its folder), shown with the scene."""
+    a variation study's envelope.glb (or its folder), shown with the scene; ``display``:
+    the triangles drawn of the obstacles; ``sessions``: the most tabs served at once
+    (default: the cores, at least 2; one more is told the server is busy)."""
 
     def __init__(self, scene: Path, *, host: str = "127.0.0.1", port: int = 8765,
                  root: Path | None = None, live: bool = True,
                  elements: int | None = None, envelope: Path | None = None,
-                 display: int | None = None) -> None:
+                 display: int | None = None, sessions: int | None = None) -> None:
         scene = Path(scene).resolve()
         if not scene.is_file():
             raise InputError("scene", f"{scene} is not a file; give a scene file (TOML)")
@@ -63,6 +70,13 @@ class Server:
         self.host, self.port = host, port
         self.live, self.elements = live, elements
         self.display = display  # the scene's display budget [triangles]; None: the default
+        # Each tab's session has its own worker process (it keeps its warm start): at most
+        # this many at once, so that tabs cannot exhaust the machine's memory.
+        if sessions is not None and sessions < 1:
+            raise InputError("sessions", f"must be at least 1, got {sessions}")
+        self.sessions = sessions or max(2, os.cpu_count() or 2)
+        self.open_sessions = 0
+        self.dropped = 0  # clients dropped for not reading
         self.envelopes = []
         if envelope is not None:
             from pliant.viewer.state import load_envelope  # noqa: PLC0415
@@ -166,22 +180,47 @@ class Server:
 
         self.connections += 1
         try:
+            if self.open_sessions >= self.sessions:
+                await self._send(ws, P.dump(P.ServerError(
+                    message=f"busy: {self.open_sessions} sessions are open, the most this "
+                    "server runs at once; close another tab, or start pliant view with a "
+                    "larger --sessions")))
+                await ws.close(1013, "busy")
+                return
+            self.open_sessions += 1
+            try:
+                await self._session(ws)
+            finally:
+                self.open_sessions -= 1
+        except _Dropped:
+            pass
+
+    async def _session(self, ws) -> None:
+        from websockets.exceptions import ConnectionClosed  # noqa: PLC0415
+
+        from pliant.viewer.state import ViewerState  # noqa: PLC0415
+
+        try:
             state = await asyncio.to_thread(ViewerState, self.scene, self.root,
                                             live=self.live, elements=self.elements,
                                             envelopes=self.envelopes, display=self.display)
         except PliantError as err:
-            await ws.send(P.dump(P.ServerError(message=f"the scene cannot be opened: {err}")))
+            await self._send(ws, P.dump(P.ServerError(
+                message=f"the scene cannot be opened: {err}")))
             await ws.close()
             return
         lock = asyncio.Lock()
 
         async def pump() -> None:  # accurate results, as they arrive
-            while True:
-                await asyncio.sleep(0.03)
-                async with lock:
-                    messages = state.take_accurate()
-                for message in messages:
-                    await ws.send(P.dump(message))
+            try:
+                while True:
+                    await asyncio.sleep(0.03)
+                    async with lock:
+                        messages = state.take_accurate()
+                    for message in messages:
+                        await self._send(ws, P.dump(message))
+            except (ConnectionClosed, _Dropped):
+                pass  # the reading loop sees it too, and closes the session
 
         task = asyncio.create_task(pump())
         try:
@@ -189,12 +228,23 @@ class Server:
                 async with lock:
                     replies = await self._reply(state, raw)
                 for reply in replies:
-                    await ws.send(reply)
-        except ConnectionClosed:
+                    await self._send(ws, reply)
+        except (ConnectionClosed, _Dropped):
             pass
         finally:
             task.cancel()
             await asyncio.to_thread(state.close)
+
+    async def _send(self, ws, text: str) -> None:
+        """Send, or drop a client that has not read for ``SEND_TIMEOUT`` (its session and
+        worker are freed: it cannot hold them by never reading)."""
+        try:
+            await asyncio.wait_for(ws.send(text), SEND_TIMEOUT)
+        except TimeoutError:
+            self.dropped += 1
+            log.warning("dropped a client that did not read for %g s", SEND_TIMEOUT)
+            ws.transport.abort()
+            raise _Dropped from None
 
     async def _reply(self, state, raw) -> list[str]:
         try:
