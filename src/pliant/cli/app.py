@@ -67,17 +67,20 @@ class _ReadingBar:
         )
 
         self.name = name
+        self.shown = console.is_terminal  # a pipe or a file gets nothing (not even a newline)
         self.bar = Progress(SpinnerColumn(), TextColumn("{task.description}"), BarColumn(),
                             TaskProgressColumn(), TimeRemainingColumn(), console=console,
                             transient=True)
         self.task = self.bar.add_task(f"reading {name}…", total=None)
 
     def __enter__(self) -> _ReadingBar:
-        self.bar.start()
+        if self.shown:
+            self.bar.start()
         return self
 
     def __exit__(self, *exc) -> None:
-        self.bar.stop()
+        if self.shown:
+            self.bar.stop()
 
     def say(self, text: str) -> None:
         self.bar.update(self.task, description=f"reading {self.name}: {text}")
