@@ -5,6 +5,7 @@ the accurate model in its worker process as a user runs it."""
 from __future__ import annotations
 
 import io
+import math
 import shutil
 from pathlib import Path
 
@@ -109,6 +110,7 @@ def test_dragging_a_grip_moves_the_tube_and_shows_the_apis_force(page):
                            "!s.frame.pending; })()", timeout=120_000)
     shown = float(page.get_attribute("#grip-hand .force-value", "data-newton"))
     assert f"{shown:.3f} N" in page.inner_text("#grip-hand .force-value")
+    assert page.inner_text("#status") == "forces and verdict are for this pose"
     scene = load_scene(SCENE)
     from pliant.session.accurate import AccurateSolver
 
@@ -200,3 +202,47 @@ def test_the_page_plays_the_scenes_path_step_by_step(page):
     np.testing.assert_allclose(pose["tangent"], last.tangent, atol=1e-6)
     end = np.array(page.evaluate("window.pliant.state.frame.curve.at(-1)"))
     np.testing.assert_allclose(end, last.position, atol=1e-6)
+
+
+def test_the_view_reads_as_an_engineering_view(page):
+    """The task and the frame of reference are on the screen: a floor grid with its cell
+    said, the axis triad, standard views, the ports with their axes and names, the path,
+    each obstacle's name; the force and moment labels at their own arrow tips, apart; a
+    colour bar with its unit; plain words on how current the forces are; no VR button
+    where the browser has no VR, and no loading text once the part is there."""
+    page, server, _ = page
+    page.goto(server.url)
+    page.wait_for_function(LOADED, timeout=120_000)
+    page.wait_for_timeout(300)
+    assert page.evaluate("!!window.pliant.world.getObjectByName('floor')")
+    assert page.inner_text("#grid-cell") == "grid 100 mm"
+    for name in ("port oil filter", "port oil cooler", "path"):
+        assert page.evaluate(f"!!window.pliant.world.getObjectByName('{name}')"), name
+    labels = page.locator(".label.obstacle").all_inner_texts()
+    assert {"engine block", "exhaust manifold", "oil cooler"} <= set(labels)
+    assert "port: oil cooler" in page.locator(".label.port").all_inner_texts()
+    # Labels: each within a few pixels of its own arrow's tip, the two texts apart.
+    force, moment = (page.evaluate(f"window.pliant.arrowLabel('{k}')")
+                     for k in ("force", "moment"))
+    for label in (force, moment):  # on its arrow's line, just past the tip
+        (ax, ay), (tx, ty), (bx, by), (px, py) = ((label[k]["x"], label[k]["y"]) for k in
+                                                  ("anchor", "tip", "base", "at"))
+        assert math.hypot(ax - px, ay - py) < 2
+        assert math.hypot(ax - tx, ay - ty) < 0.1 * math.hypot(tx - bx, ty - by) + 2
+    a, b = force["text"], moment["text"]
+    assert (a["right"] <= b["left"] or b["right"] <= a["left"] or a["bottom"] <= b["top"]
+            or b["bottom"] <= a["top"])
+    # The triad: the three axis colours in the view's lower left corner.
+    view = page.locator("#view canvas").first
+    corner = image(view.screenshot())[-110:, :110]
+    for rgb in ((0.83, 0.18, 0.18), (0.22, 0.56, 0.24), (0.08, 0.40, 0.75)):
+        assert (np.abs(corner - rgb).sum(axis=2) < 0.25).sum() > 10, rgb
+    # Standard views look along the scene's axes, z up.
+    for name, direction in (("top", [0, 0, -1]), ("front", [0, 1, 0]), ("right", [-1, 0, 0])):
+        page.click(f"#view-{name}")
+        np.testing.assert_allclose(page.evaluate("window.pliant.viewDirection()"), direction,
+                                   atol=2e-3)
+    assert "N m" in page.inner_text("#colour-bar")
+    assert page.inner_text("#status") == "forces and verdict are for this pose"
+    assert page.locator("#VRButton").count() == 0
+    assert page.is_hidden("#loading")

@@ -234,11 +234,20 @@ class PathPlay(BaseModel):
 PATH_STEPS = 1000
 
 
+class Port(BaseModel):
+    """A scene's port: where an end goes [m] and the axis the part leaves it along."""
+
+    name: str
+    position: list[float]
+    axis: list[float]
+    note: str = ""
+
+
 class ServerScene(_Message):
     """The scene: its name, the part (length, radius [m]), the obstacles as triangle
-    meshes [m], the grips, the dimension (2D scenes lie in z = 0), and the tolerance
+    meshes [m], the grips, the dimension (2D scenes lie in z = 0), the tolerance
     envelopes of a variation study when the server was given one (``pliant view
-    --envelope``)."""
+    --envelope``), the [path] to play and the ports with their axes."""
 
     type: Literal["scene"] = "scene"
     name: str
@@ -250,6 +259,7 @@ class ServerScene(_Message):
     margin: float
     envelopes: list[ObstacleMesh] = []
     path: PathPlay | None = None
+    ports: list[Port] = []
 
 
 class ServerSaved(_Message):

@@ -290,7 +290,10 @@ class ViewerState:
             part={"name": part.name, "length": part.length, "radius": self.radius,
                   "min_bend_radius": part.min_bend_radius},
             obstacles=self._meshes, grips=self.grips(), margin=self.scene.margin,
-            envelopes=self.envelopes, path=self.path_play())
+            envelopes=self.envelopes, path=self.path_play(),
+            ports=[P.Port(name=name, position=[float(x) for x in port.position],
+                          axis=[float(x) for x in port.axis], note=port.note)
+                   for name, port in self.scene.ports.items() if port.position is not None])
 
     def path_play(self) -> P.PathPlay | None:
         """The scene's [path] as the grip's poses step by step (None without one)."""

@@ -35,16 +35,20 @@ container.appendChild(labels.domElement);
 
 const scene = new THREE.Scene();
 scene.background = new THREE.Color(0xe9edf1);
-scene.add(new THREE.HemisphereLight(0xffffff, 0x667788, 2.0));
+// The scene's frame is z up, and so is the view: the camera's up is +z, so that the
+// orbit, the move gizmo's axes (red x, green y, blue z) and the triad are the scene's.
+// Only in VR, whose frame is y up, does the world group turn (see sessionstart).
+const hemisphere = new THREE.HemisphereLight(0xffffff, 0x667788, 2.0);
+hemisphere.position.set(0, 0, 1);
+scene.add(hemisphere);
 const sun = new THREE.DirectionalLight(0xffffff, 1.5);
-sun.position.set(2, 4, 3);
+sun.position.set(2, -3, 4);
 scene.add(sun);
-// The scene's frame is z up; three.js's is y up: one group turns it.
 const world = new THREE.Group();
-world.rotation.x = -Math.PI / 2;
 scene.add(world);
 
 const camera = new THREE.PerspectiveCamera(45, 1, 0.01, 100);
+camera.up.set(0, 0, 1);
 const orbit = new OrbitControls(camera, renderer.domElement);
 orbit.enableDamping = false;
 const gizmo = new TransformControls(camera, renderer.domElement);
@@ -72,24 +76,40 @@ const envelopeGroup = new THREE.Group(); envelopeGroup.name = 'envelopes'; world
 const gripGroup = new THREE.Group(); world.add(gripGroup);
 const arrowGroup = new THREE.Group(); world.add(arrowGroup);
 const contactGroup = new THREE.Group(); world.add(contactGroup);
+// The task: the ports with their axes, the [path] the hand follows, the obstacles' names.
+const taskGroup = new THREE.Group(); taskGroup.name = 'task'; world.add(taskGroup);
+const PORT = 0x00838f;
 let tube = null, ghost = null;
 const OBSTACLE = 0x9aa3ad, TOO_CLOSE = 0xf9a825, INSIDE = 0xd32f2f;  // obstacle tints
+// The hand's force and moment: magenta and purple, apart from the gizmo's red, green
+// and blue axes and from the tube's colour map.
+const FORCE = 0xc2185b, MOMENT = 0x5e35b1;
 const tubeMaterial = new THREE.MeshStandardMaterial({ vertexColors: true, roughness: 0.5 });
 
 // -- the websocket ------------------------------------------------------------------------------
 const ws = new WebSocket(`ws://${location.host}/ws`);
 const send = (msg) => ws.send(JSON.stringify({ v: V, ...msg }));
-ws.onopen = () => { $('status').textContent = 'opening the scene…'; send({ type: 'hello' }); };
-ws.onclose = () => { $('status').textContent = 'disconnected from the server'; };
+ws.onopen = () => {
+  loading('opening the scene: reading its meshes and starting the solver…');
+  send({ type: 'hello' });
+};
+ws.onclose = () => { $('status').textContent = 'disconnected from the server'; loading('disconnected from the server'); };
+// What the view waits for, over it, until the part is there.
+function loading(text) {
+  const el = $('loading');
+  el.hidden = !text;
+  el.textContent = text || '';
+}
 ws.onmessage = (event) => {
   const msg = JSON.parse(event.data);
-  if (msg.type === 'scene') onScene(msg);
+  if (msg.type === 'scene') { onScene(msg); loading('solving the start pose…'); }
   else if (msg.type === 'frame') onFrame(msg);
   else if (msg.type === 'accurate') onAccurate(msg);
   else if (msg.type === 'saved') { state.saved = msg.name; note(`saved ${msg.name}`); }
   else if (msg.type === 'error') {
     state.errors.push(msg);
     note(`error${msg.field ? ` (${msg.field})` : ''}: ${msg.message}`, true);
+    if (!state.scene) loading(msg.message);
     state.inFlight = false;
   }
 };
@@ -119,6 +139,7 @@ function onScene(msg) {
       obstacleGroup.add(mesh);
     }
     drawEnvelopes(msg.envelopes || []);
+    drawTask(msg);
     frameCamera();
   }
   buildGrips(msg.grips);
@@ -185,6 +206,54 @@ function drawEnvelopes(envelopes) {
   $('envelope-row').hidden = envelopes.length === 0;
 }
 
+// Ports as a ring with the axis the part leaves along, the path as a dashed line through
+// the hand's poses, and each obstacle's name over it (grey; the clearance table's row
+// lights its obstacle up).
+function drawTask(msg) {
+  for (const child of [...taskGroup.children]) child.traverse((o) => { if (o.isCSS2DObject) o.element.remove(); });
+  taskGroup.clear();
+  const r = msg.part.radius, L = msg.part.length;
+  for (const port of msg.ports || []) {
+    const at = new THREE.Vector3(...port.position), axis = new THREE.Vector3(...port.axis).normalize();
+    const group = new THREE.Group();
+    group.name = `port ${port.name}`;
+    const ring = new THREE.Mesh(new THREE.TorusGeometry(2.2 * r, 0.35 * r, 8, 32),
+      new THREE.MeshBasicMaterial({ color: PORT }));
+    ring.position.copy(at);
+    ring.quaternion.setFromUnitVectors(Z, axis);
+    group.add(ring);
+    group.add(new THREE.ArrowHelper(axis, at, 0.12 * L, PORT, 0.03 * L, 0.015 * L));
+    group.add(label(at.clone().addScaledVector(axis, 0.13 * L), `port: ${port.name}`, 'port'));
+    taskGroup.add(group);
+  }
+  if (msg.path && msg.path.positions.length > 1) {
+    const points = msg.path.positions.map((p) => new THREE.Vector3(...p));
+    const line = new THREE.Line(new THREE.BufferGeometry().setFromPoints(points),
+      new THREE.LineDashedMaterial({ color: 0x2d6cdf, dashSize: 0.02 * L, gapSize: 0.012 * L }));
+    line.computeLineDistances();
+    line.name = 'path';
+    taskGroup.add(line);
+  }
+  for (const mesh of obstacleGroup.children) {
+    const box = new THREE.Box3().setFromObject(mesh);
+    const top = box.getCenter(new THREE.Vector3());
+    top.z = box.max.z;
+    taskGroup.add(label(top, mesh.name, 'obstacle'));
+  }
+}
+function label(at, text, kind) {
+  const div = document.createElement('div');
+  div.className = `label ${kind}`;
+  div.innerHTML = `<span>${esc(text)}</span>`;
+  const object = new CSS2DObject(div);
+  object.position.copy(at);
+  return object;
+}
+function highlight(name) {
+  for (const mesh of obstacleGroup.children) mesh.material.emissive.set(mesh.name === name ? 0x335577 : 0x000000);
+  state.highlighted = name;
+}
+
 function frameCamera() {
   const box = new THREE.Box3();
   for (const g of state.scene.grips) box.expandByPoint(new THREE.Vector3(...g.position));
@@ -193,12 +262,80 @@ function frameCamera() {
   if (box.isEmpty()) box.expandByPoint(new THREE.Vector3(state.scene.part.length, 0, 0));
   const centre = box.getCenter(new THREE.Vector3());
   const size = box.getSize(new THREE.Vector3()).length() || 1;
-  const target = world.localToWorld(centre.clone());
-  orbit.target.copy(target);
-  camera.position.copy(target).add(new THREE.Vector3(0.9, 0.6, 1.1).multiplyScalar(size));
+  state.view = { centre, size, box };
+  drawFloor(box);
+  setView('iso');
+}
+
+// Standard views, as CAD viewers have them: from a corner (iso), from above (top), from
+// the front (looking along +y) and from the right (looking along -x); the scene's z up.
+const VIEWS = {
+  iso: [0.9, -1.1, 0.6], top: [0, -1e-3, 1.4], front: [0, -1.4, 0], right: [1.4, 0, 0],
+};
+function setView(name) {
+  if (!state.view) return;
+  const { centre, size } = state.view;
+  orbit.target.copy(world.localToWorld(centre.clone()));
+  camera.position.copy(orbit.target).add(new THREE.Vector3(...VIEWS[name]).multiplyScalar(size));
   camera.near = size / 200; camera.far = size * 50;
   camera.updateProjectionMatrix();
   orbit.update();
+  state.viewName = name;
+}
+for (const name of Object.keys(VIEWS)) $(`view-${name}`).onclick = () => setView(name);
+
+// A floor grid under the scene (its cell a round length, said in the panel) and a
+// triad of the scene's axes in the corner: distances can be judged by eye.
+let floor = null;
+function drawFloor(box) {
+  if (floor) { world.remove(floor); floor.geometry.dispose(); floor.material.dispose(); }
+  const size = box.getSize(new THREE.Vector3());
+  const span = 1.4 * Math.max(size.x, size.y, 0.1);
+  const raw = span / 16, decade = 10 ** Math.floor(Math.log10(raw));
+  const cell = [1, 2, 5, 10].map((k) => k * decade).find((c) => c >= raw);
+  const cells = 2 * Math.ceil(span / cell / 2);
+  floor = new THREE.GridHelper(cells * cell, cells, 0x8a949e, 0xc3cad1);
+  floor.name = 'floor';
+  floor.rotation.x = Math.PI / 2;  // three's grid lies in x-z; the floor in x-y
+  const c = box.getCenter(new THREE.Vector3());
+  floor.position.set(Math.round(c.x / cell) * cell, Math.round(c.y / cell) * cell, box.min.z);
+  world.add(floor);
+  state.gridCell = cell;
+  $('grid-cell').textContent = `grid ${cell >= 1 ? `${cell} m` : `${+(cell * 1e3).toPrecision(3)} mm`}`;
+}
+const triad = new THREE.Scene();
+const triadCamera = new THREE.PerspectiveCamera(40, 1, 0.1, 10);
+triadCamera.up.set(0, 0, 1);
+for (const [axis, colour, text] of [[[1, 0, 0], 0xd32f2f, 'x'], [[0, 1, 0], 0x388e3c, 'y'], [[0, 0, 1], 0x1565c0, 'z']]) {
+  const dir = new THREE.Vector3(...axis);
+  triad.add(new THREE.ArrowHelper(dir, new THREE.Vector3(), 1, colour, 0.3, 0.15));
+  const canvas = document.createElement('canvas');
+  canvas.width = canvas.height = 64;
+  const g = canvas.getContext('2d');
+  g.fillStyle = `#${colour.toString(16).padStart(6, '0')}`;
+  g.font = 'bold 48px system-ui, sans-serif';
+  g.textAlign = 'center'; g.textBaseline = 'middle';
+  g.fillText(text, 32, 34);
+  const sprite = new THREE.Sprite(new THREE.SpriteMaterial({ map: new THREE.CanvasTexture(canvas) }));
+  sprite.position.copy(dir.multiplyScalar(1.35));
+  sprite.scale.setScalar(0.5);
+  triad.add(sprite);
+}
+const TRIAD = 96;  // px, in the view's lower left corner
+function drawTriad() {
+  if (renderer.xr.isPresenting) return;
+  triadCamera.position.copy(camera.position).sub(orbit.target).setLength(4.2);
+  triadCamera.lookAt(0, 0, 0);
+  const h = container.clientHeight;
+  renderer.autoClear = false;
+  renderer.clearDepth();
+  renderer.setScissorTest(true);
+  renderer.setScissor(8, 8, TRIAD, TRIAD);
+  renderer.setViewport(8, 8, TRIAD, TRIAD);
+  renderer.render(triad, triadCamera);
+  renderer.setScissorTest(false);
+  renderer.setViewport(0, 0, container.clientWidth, h);
+  renderer.autoClear = true;
 }
 
 const Z = new THREE.Vector3(0, 0, 1);
@@ -212,9 +349,12 @@ function buildGrips(grips) {
   for (const g of grips) {
     const movable = g.mode === 'position';
     const handle = new THREE.Mesh(
-      movable ? new THREE.SphereGeometry(Math.max(3 * r, 0.006), 20, 12)
-              : new THREE.BoxGeometry(4 * r, 4 * r, 4 * r),
-      new THREE.MeshStandardMaterial({ color: movable ? 0x2d6cdf : (g.mode === 'force' ? 0xc62828 : 0x555555) }));
+      movable ? new THREE.SphereGeometry(Math.max(1.6 * r, 0.004), 20, 12)
+              : new THREE.BoxGeometry(2.4 * r, 2.4 * r, 2.4 * r),
+      new THREE.MeshStandardMaterial({
+        color: movable ? 0x2d6cdf : (g.mode === 'force' ? FORCE : 0x555555),
+        transparent: movable, opacity: movable ? 0.55 : 1,
+      }));
     handle.position.set(...g.position);
     if (g.tangent) handle.quaternion.setFromUnitVectors(Z, new THREE.Vector3(...g.tangent).normalize());
     handle.userData = { grip: g, movable, holdsTangent: !!g.tangent };
@@ -319,13 +459,37 @@ function onFrame(msg) {
     flush();
   }
   drawTube(msg);
+  loading(null);
   const contacts = msg.contacts.map((p) => ({ point: p }));
   drawContacts(contacts.concat(state.accurate?.ok ? state.accurate.contacts : []));
   showClearance(msg.interference);
   showWarnings();
-  $('status').textContent = `real-time frame ${msg.index}: ${(msg.seconds * 1e3).toFixed(1)} ms` +
-    `${msg.converged ? '' : ' (not converged)'}; drift ${(msg.drift * 100).toFixed(1)} % L` +
-    `${msg.pending ? '; accurate solve running…' : ''}`;
+  showFreshness();
+  $('frame-details').textContent = `real-time frame ${msg.index}: ${(msg.seconds * 1e3).toFixed(1)} ms` +
+    `${msg.converged ? '' : ' (not converged)'}; the shape has drifted ${(msg.drift * 100).toFixed(1)} % ` +
+    'of the length from the last accurate one';
+}
+
+// Plain words on top, how current the forces are: up to date, being solved, or from an
+// earlier pose (the numbers then greyed), or failed here (the last good answer kept).
+function showFreshness() {
+  const frame = state.frame, acc = state.accurate;
+  let text, cls;
+  if (state.failed && (!acc || state.failed.index > acc.index)) {
+    text = 'no equilibrium at this pose: the forces shown are from the last pose that had one';
+    cls = 'failed';
+  } else if (!acc) {
+    text = 'the accurate model is solving the start pose…'; cls = 'stale';
+  } else if (frame && frame.pending) {
+    text = 'the accurate model is solving this pose…'; cls = 'stale';
+  } else if (frame && frame.index > acc.index && frame.drift > 0) {
+    text = 'the pose has moved since the forces were computed (Solve accurate to update)'; cls = 'stale';
+  } else {
+    text = 'forces and verdict are for this pose'; cls = 'fresh';
+  }
+  $('status').textContent = text;
+  $('status').className = `status ${cls}`;
+  document.body.dataset.results = cls;
 }
 
 function drawTube(frame) {
@@ -343,8 +507,28 @@ function drawTube(frame) {
   geometry.setAttribute('color', new THREE.BufferAttribute(colours, 3));
   if (tube) { tube.geometry.dispose(); tube.geometry = geometry; }
   else { tube = new THREE.Mesh(geometry, tubeMaterial); tube.name = 'tube'; world.add(tube); }
-  $('legend').textContent = values.legend;
+  showColourBar(values);
 }
+
+// The colour map's scale: a bar from 0 to the largest value, with its unit, or the
+// clearance's three colours with what each means.
+function showColourBar(values) {
+  const bar = $('colour-bar');
+  if (values.kind === 'clearance') {
+    bar.innerHTML = '<span class="swatch" style="background:#43a047"></span>clear ' +
+      '<span class="swatch" style="background:#f9a825"></span>nearer than the margin ' +
+      '<span class="swatch" style="background:#d32f2f"></span>inside';
+  } else {
+    const unit = values.kind === 'moment' ? 'N m' : '1/m';
+    const what = values.kind === 'moment' ? 'bending moment (accurate)' : 'curvature (real-time)';
+    const stops = [0, 0.25, 0.5, 0.75, 1].map((t) => `hsl(${(0.66 * (1 - t) * 360).toFixed(0)} 85% 50%)`);
+    bar.innerHTML = `<div class="gradient" style="background:linear-gradient(to right, ${stops.join(', ')})"></div>` +
+      `<div class="ticks"><span>0</span><span>${what}</span><span>${fmt(values.max)} ${unit}</span></div>`;
+  }
+  bar.dataset.max = values.max;
+  bar.dataset.kind = values.kind;
+}
+function fmt(x) { return x >= 100 ? x.toFixed(0) : x >= 1 ? x.toFixed(2) : x.toPrecision(2); }
 
 function colourValues(frame, segments) {
   const kind = $('colour').value;
@@ -395,6 +579,7 @@ function onAccurate(msg) {
     note(`accurate solve failed: ${msg.error} (the last good shape stays)`, true);
     state.failed = msg;
     showWarnings();
+    showFreshness();
     return;
   }
   state.accurate = msg;
@@ -402,14 +587,19 @@ function onAccurate(msg) {
   drawGhost(msg);
   drawLoads(msg);
   if (state.frame) drawTube(state.frame);
-  const lines = [`accurate solve (event ${msg.index}): ${(msg.solve_seconds * 1e3).toFixed(0)} ms, ` +
-    `${msg.iterations} iterations, residual ${msg.residual?.toExponential(1)}`];
-  if (msg.min_bend_radius !== null) lines.push(`tightest bend ${(msg.min_bend_radius * 1e3).toFixed(1)} mm at s = ${msg.min_bend_radius_s.toFixed(3)} m` +
-    (msg.allowed_bend_radius ? ` (minimum ${(msg.allowed_bend_radius * 1e3).toFixed(0)} mm)` : ''));
-  lines.push(msg.stable === false ? 'unstable' : msg.stable ? 'stable' : '');
+  const lines = [];
+  if (msg.min_bend_radius !== null) lines.push(`tightest bend ${(msg.min_bend_radius * 1e3).toFixed(1)} mm, ${msg.min_bend_radius_s.toFixed(3)} m along the part` +
+    (msg.allowed_bend_radius ? ` (its minimum: ${(msg.allowed_bend_radius * 1e3).toFixed(0)} mm)` : ''));
+  lines.push(msg.stable === false ? 'unstable: the part would snap into another shape'
+    : msg.stable ? 'stable: it stays in this shape' : '');
   $('shape').innerHTML = lines.filter(Boolean).map((l) => `<div>${esc(l)}</div>`).join('');
+  $('accurate-details').textContent = `accurate solve (event ${msg.index}): ${(msg.solve_seconds * 1e3).toFixed(0)} ms, ` +
+    `${msg.iterations} Newton iterations, residual ${msg.residual?.toExponential(1)}` +
+    (msg.smallest_eigenvalue !== null && msg.smallest_eigenvalue !== undefined
+      ? `; smallest eigenvalue ${msg.smallest_eigenvalue.toExponential(2)} N m` : '');
   showVerdict(msg.verdict);
   showWarnings();
+  showFreshness();
 }
 
 $('envelope').addEventListener('change', (e) => { envelopeGroup.visible = e.target.checked; });
@@ -448,8 +638,8 @@ function drawLoads(msg) {
     const F = new THREE.Vector3(...load.force), M = new THREE.Vector3(...load.moment);
     const at = new THREE.Vector3(...load.position);
     const f = F.length(), m = M.length();
-    if (f > 0) arrow(at, F, 0.12 * L * (1 + Math.log10(1 + f)), 0xc62828, `F = ${f.toFixed(2)} N`, 'force');
-    if (m > 0) arrow(at, M, 0.08 * L * (1 + Math.log10(1 + 100 * m)), 0x6a1b9a, `M = ${m.toFixed(3)} N m`, 'moment');
+    if (f > 0) arrow(at, F, 0.12 * L * (1 + Math.log10(1 + f)), FORCE, `F ${f.toFixed(2)} N`, 'force');
+    if (m > 0) arrow(at, M, 0.08 * L * (1 + Math.log10(1 + 100 * m)), MOMENT, `M ${m.toFixed(3)} N m`, 'moment');
     const pushed = handle.userData.grip.mode === 'force';
     if (pushed) {  // a pushed grip goes where the push takes the part
       handle.position.copy(at);
@@ -466,14 +656,20 @@ function drawLoads(msg) {
     }
   }
 }
+// A force is an arrow; a moment the engineering double-headed arrow along its axis
+// (right-hand rule). Each label sits just past its own tip (the arrow's local +y), the
+// force's above it and the moment's below, so that the two never cover each other.
 function arrow(at, dir, length, colour, text, kind) {
-  const helper = new THREE.ArrowHelper(dir.clone().normalize(), at, length, colour, 0.2 * length, 0.08 * length);
-  const div = document.createElement('div');
-  div.className = `label ${kind}`;
-  div.textContent = text;
-  const label = new CSS2DObject(div);
-  label.position.copy(dir.clone().normalize().multiplyScalar(length));
-  helper.add(label);
+  const head = 0.2 * length, width = 0.08 * length;
+  const helper = new THREE.ArrowHelper(dir.clone().normalize(), at, length, colour, head, width);
+  helper.name = kind;
+  if (kind === 'moment') {
+    const second = new THREE.Mesh(new THREE.ConeGeometry(0.5 * width, head, 12),
+      new THREE.MeshBasicMaterial({ color: colour }));
+    second.position.y = length - 1.6 * head;
+    helper.add(second);
+  }
+  helper.add(label(new THREE.Vector3(0, 1.04 * length, 0), text, kind));
   arrowGroup.add(helper);
 }
 
@@ -486,10 +682,15 @@ function showClearance(report) {
   }
   const rows = report.clearances.map((c) => {
     const cls = c.clearance < -0.01 * state.scene.part.radius ? 'bad' : c.clearance < report.margin ? 'near' : '';
-    return `<tr class="${cls}"><td>${esc(c.obstacle)}</td><td class="num">${(c.clearance * 1e3).toFixed(1)} mm</td>` +
-      `<td class="num">s ${c.s.toFixed(3)}</td></tr>`;
+    const on = c.obstacle === state.highlighted ? ' on' : '';
+    return `<tr class="${cls}${on}" data-obstacle="${esc(c.obstacle)}" title="show it in the view">` +
+      `<td>${esc(c.obstacle)}</td><td class="num">${(c.clearance * 1e3).toFixed(1)} mm</td>` +
+      `<td class="num">at s ${c.s.toFixed(3)} m</td></tr>`;
   });
   $('clearance').innerHTML = rows.length ? `<table>${rows.join('')}</table>` : '<span class="muted">no obstacles</span>';
+  for (const row of $('clearance').querySelectorAll('tr')) {
+    row.onclick = () => { const name = row.dataset.obstacle; highlight(state.highlighted === name ? null : name); };
+  }
 }
 
 function showWarnings() {
@@ -508,7 +709,13 @@ function showWarnings() {
 }
 
 // -- VR: controllers grab a grip (trigger), move it, let go ------------------------------------
-document.body.appendChild(VRButton.createButton(renderer));
+// The VR button only where the browser can enter VR (or the emulator is asked for): no
+// "VR NOT SUPPORTED" across the view of a desktop.
+if (navigator.xr) {
+  navigator.xr.isSessionSupported('immersive-vr').then((ok) => {
+    if (ok) document.body.appendChild(VRButton.createButton(renderer));
+  }).catch(() => {});
+}
 const hands = [0, 1].map((i) => {
   const controller = renderer.xr.getController(i);
   controller.userData.index = i;
@@ -549,18 +756,25 @@ function followHands() {
   }
 }
 renderer.xr.addEventListener('sessionstart', () => {
-  // Bring the scene in front of the user at table height.
+  // VR is y up: turn the z-up world, and bring it in front of the user at table height.
+  world.rotation.x = -Math.PI / 2;
+  world.updateMatrixWorld(true);
   const box = new THREE.Box3().expandByObject(world);
   const c = box.getCenter(new THREE.Vector3());
   world.position.add(new THREE.Vector3(-c.x, 1.0 - c.y, -0.6 - c.z));
   state.xr = true;
 });
-renderer.xr.addEventListener('sessionend', () => { world.position.set(0, 0, 0); state.xr = false; });
+renderer.xr.addEventListener('sessionend', () => {
+  world.position.set(0, 0, 0);
+  world.rotation.x = 0;
+  state.xr = false;
+});
 
 // -- the loop -----------------------------------------------------------------------------------
 renderer.setAnimationLoop(() => {
   followHands();
   renderer.render(scene, camera);
+  drawTriad();
   labels.render(scene, camera);
   state.rendered = (state.rendered || 0) + 1;
 });
@@ -589,4 +803,26 @@ window.pliant = {
     return { x: rect.left + (p.x + 1) / 2 * rect.width, y: rect.top + (1 - p.y) / 2 * rect.height };
   },
   worldOf(point) { return world.localToWorld(new THREE.Vector3(...point)).toArray(); },
+  setView,
+  // Where an arrow's tip and its label are on the screen (px), and the label's box.
+  arrowLabel(kind) {
+    const helper = arrowGroup.getObjectByName(kind);
+    if (!helper) return null;
+    const label = helper.children.find((o) => o.isCSS2DObject);
+    const rect = renderer.domElement.getBoundingClientRect();
+    const screen = (v) => {
+      const p = helper.localToWorld(v).project(camera);
+      return { x: rect.left + (p.x + 1) / 2 * rect.width, y: rect.top + (1 - p.y) / 2 * rect.height };
+    };
+    const el = label.element;
+    const box = el.getBoundingClientRect(), text = el.firstChild.getBoundingClientRect();
+    return {
+      tip: screen(new THREE.Vector3(0, label.position.y / 1.04, 0)),
+      base: screen(new THREE.Vector3()),
+      at: screen(label.position.clone()),
+      anchor: { x: box.left + box.width / 2, y: box.top + box.height / 2 },
+      text: { left: text.left, right: text.right, top: text.top, bottom: text.bottom },
+    };
+  },
+  viewDirection() { return camera.getWorldDirection(new THREE.Vector3()).toArray(); },
 };
