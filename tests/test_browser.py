@@ -246,3 +246,87 @@ def test_the_view_reads_as_an_engineering_view(page):
     assert page.inner_text("#status") == "forces and verdict are for this pose"
     assert page.locator("#VRButton").count() == 0
     assert page.is_hidden("#loading")
+
+
+TWO_HANDS = """
+name = "a hose in two hands"
+gravity = [0.0, 0.0, -9.81]
+
+[part]
+name = "hose"
+length = 0.8
+outer_diameter = 0.02
+bending_stiffness = 0.05
+mass_per_length = 0.3
+
+[[condition]]
+name = "left hand"
+s = 0.0
+x = 0.0
+y = 0.0
+z = 0.3
+tangent = [1.0, 0.0, 0.0]
+
+[[condition]]
+name = "right hand"
+s = 0.8
+x = 0.6
+y = 0.0
+z = 0.3
+tangent = [1.0, 0.0, 0.0]
+"""
+
+
+def test_two_vr_controllers_each_hold_their_own_grip_and_feel_its_force(browser, tmp_path):
+    """Two hands in VR (iwer): each trigger takes the grip nearest it (not the one the
+    other hand holds), both move at once and neither is starved (the part ends where
+    each hand put its end), and an accurate answer pulses each controller with its own
+    hand's force (full at 50 N)."""
+    from pliant.viewer.server import Server
+
+    (tmp_path / "two.toml").write_text(TWO_HANDS)
+    with Server(tmp_path / "two.toml", port=0, live=True) as server:
+        page = browser.new_page(viewport={"width": 1100, "height": 720})
+        page.goto(server.url + "?xr=emulate")
+        page.wait_for_function(LOADED, timeout=120_000)
+        page.click("#VRButton")
+        page.wait_for_function("window.pliant.state.xr === true", timeout=30_000)
+        device = "window.pliant.xrDevice.controllers"
+        start = {}
+        for side, grip in (("left", "left hand"), ("right", "right hand")):
+            at = page.evaluate(f"window.pliant.state.scene.grips.find(g => g.name === "
+                               f"'{grip}').position")
+            start[side] = np.array(at)
+            xr = page.evaluate("p => window.pliant.worldOf(p)", at)
+            page.evaluate(f"p => {device}.{side}.position.set(p[0], p[1], p[2])", xr)
+            page.wait_for_timeout(150)
+            page.evaluate(f"{device}.{side}.updateButtonValue('trigger', 1)")
+        page.wait_for_function("window.pliant.hands.filter(h => h.userData.held).length === 2")
+        held = page.evaluate("window.pliant.hands.map(h => h.userData.held.name)")
+        assert sorted(held) == ["left hand", "right hand"]
+        for k in range(1, 11):  # both at once: left 3 cm along -x, right 4 cm up (XR's y)
+            page.evaluate(f"""(() => {{
+                const l = {device}.left.position, r = {device}.right.position;
+                l.set(l.x - 0.003, l.y, l.z); r.set(r.x, r.y + 0.004, r.z); }})()""")
+            page.wait_for_timeout(60)
+        page.wait_for_function("!window.pliant.state.inFlight && !window.pliant.state.queued")
+        page.evaluate("document.getElementById('solve').click()")  # (iwer's canvas is over it)
+        page.wait_for_function("(() => { const s = window.pliant.state; return s.accurate && "
+                               "s.frame && s.accurate.index === s.frame.index && "
+                               "!s.frame.pending && s.haptics.length >= 2; })()",
+                               timeout=120_000)
+        curve = np.array(page.evaluate("window.pliant.state.frame.curve"))
+        np.testing.assert_allclose(curve[0], start["left"] + [-0.03, 0.0, 0.0], atol=1e-5)
+        np.testing.assert_allclose(curve[-1], start["right"] + [0.0, 0.0, 0.04], atol=1e-5)
+        accurate = page.evaluate("window.pliant.state.accurate")
+        pulses = page.evaluate("window.pliant.state.haptics")[-2:]
+        assert sorted(p["hand"] for p in pulses) == ["left", "right"]
+        for pulse in pulses:
+            load = next(x for x in accurate["loads"] if x["name"] == pulse["grip"])
+            force = float(np.linalg.norm(load["force"]))
+            assert force > 0.5  # a 0.8 m hose of 0.3 kg/m weighs 2.4 N
+            assert pulse["force"] == pytest.approx(force)
+            assert pulse["value"] == pytest.approx(min(force / 50.0, 1.0))
+        for side in ("left", "right"):
+            page.evaluate(f"{device}.{side}.updateButtonValue('trigger', 0)")
+        page.close()

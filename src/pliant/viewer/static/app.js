@@ -69,7 +69,7 @@ window.addEventListener('resize', resize);
 const state = {
   scene: null, frame: null, accurate: null, grips: new Map(), frames: 0, accurates: 0,
   errors: [], seq: 0, inFlight: false, queued: null, saved: null, sentAt: new Map(),
-  latency: [],
+  latency: [], haptics: [],
 };
 const obstacleGroup = new THREE.Group(); world.add(obstacleGroup);
 const envelopeGroup = new THREE.Group(); envelopeGroup.name = 'envelopes'; world.add(envelopeGroup);
@@ -406,13 +406,18 @@ function moved(handle) {
   g.position = pose.position;
   const el = document.querySelector(`#grip-${slug(g.name)} .pose`);
   if (el) el.textContent = `at (${pose.position.map((x) => x.toFixed(3)).join(', ')}) m`;
-  state.queued = pose;
+  // The latest pose of each grip waits its turn (two hands in VR move two grips at once:
+  // each is sent in turn, none starved); null when none waits.
+  if (!state.queued) state.queued = new Map();
+  state.queued.delete(g.name);
+  state.queued.set(g.name, pose);
   flush();
 }
-function flush() {  // one move in flight: the server always works on the latest pose
+function flush() {  // one move in flight: the server always works on the latest poses
   if (state.inFlight || !state.queued || ws.readyState !== 1) return;
-  const pose = state.queued;
-  state.queued = null;
+  const [name, pose] = state.queued.entries().next().value;
+  state.queued.delete(name);
+  if (state.queued.size === 0) state.queued = null;
   state.inFlight = true;
   state.lastPose = pose;
   state.seq += 1;
@@ -561,15 +566,24 @@ function colourOf(kind, value, max, c) {
   return c.setHSL(0.66 * (1 - t), 0.85, 0.5);
 }
 
+// Contact markers: one geometry and one material for all, the meshes kept and reused
+// frame after frame (made anew they would leak GPU buffers at display rate).
+const contactMaterial = new THREE.MeshBasicMaterial({ color: 0xe65100 });
+let contactGeometry = null;
 function drawContacts(contacts) {
-  contactGroup.clear();
   const r = state.scene.part.radius;
-  for (const ct of contacts) {
-    const dot = new THREE.Mesh(new THREE.SphereGeometry(1.3 * r, 10, 8),
-      new THREE.MeshBasicMaterial({ color: 0xe65100 }));
-    dot.position.set(...ct.point);
-    contactGroup.add(dot);
+  if (!contactGeometry || contactGeometry.parameters.radius !== 1.3 * r) {
+    if (contactGeometry) contactGeometry.dispose();
+    contactGeometry = new THREE.SphereGeometry(1.3 * r, 10, 8);
+    for (const dot of contactGroup.children) dot.geometry = contactGeometry;
   }
+  while (contactGroup.children.length < contacts.length) {
+    contactGroup.add(new THREE.Mesh(contactGeometry, contactMaterial));
+  }
+  contactGroup.children.forEach((dot, i) => {
+    dot.visible = i < contacts.length;
+    if (dot.visible) dot.position.set(...contacts[i].point);
+  });
 }
 
 // -- accurate results ----------------------------------------------------------------------------
@@ -584,6 +598,7 @@ function onAccurate(msg) {
   }
   state.accurate = msg;
   state.failed = null;
+  pulseHands(msg);
   drawGhost(msg);
   drawLoads(msg);
   if (state.frame) drawTube(state.frame);
@@ -719,17 +734,37 @@ if (navigator.xr) {
 const hands = [0, 1].map((i) => {
   const controller = renderer.xr.getController(i);
   controller.userData.index = i;
+  controller.addEventListener('connected', (e) => { controller.userData.source = e.data; });
+  controller.addEventListener('disconnected', () => { controller.userData.source = null; });
   controller.add(new THREE.Line(new THREE.BufferGeometry().setFromPoints([new THREE.Vector3(), new THREE.Vector3(0, 0, -0.1)])));
   scene.add(controller);
   controller.addEventListener('selectstart', () => grab(controller));
   controller.addEventListener('selectend', () => { controller.userData.held = null; });
   return controller;
 });
+// A controller holding a grip pulses with the force the hand must give there: full
+// strength at HAPTIC_FULL newtons (about the push a fitter gives with one hand, EN
+// 1005-3's range), in proportion below; each pulse is recorded (state.haptics).
+const HAPTIC_FULL = 50;  // N
+function pulseHands(msg) {
+  for (const controller of hands) {
+    const handle = controller.userData.held;
+    const actuator = controller.userData.source?.gamepad?.hapticActuators?.[0];
+    if (!handle || !actuator) continue;
+    const load = msg.loads.find((l) => l.name === handle.name);
+    if (!load) continue;
+    const force = Math.hypot(...load.force);
+    const value = Math.min(force / HAPTIC_FULL, 1);
+    actuator.pulse(value, 60);
+    state.haptics.push({ hand: controller.userData.source.handedness, grip: handle.name, force, value });
+  }
+}
 function grab(controller) {
   const here = controller.getWorldPosition(new THREE.Vector3());
   let best = null, bestD = 0.15;  // m: how near a hand must be to take a grip
+  const taken = new Set(hands.map((h) => h.userData.held).filter(Boolean));
   for (const handle of state.grips.values()) {
-    if (!handle.userData.movable) continue;
+    if (!handle.userData.movable || taken.has(handle)) continue;  // one hand a grip
     const d = handle.getWorldPosition(new THREE.Vector3()).distanceTo(here);
     if (d < bestD) { best = handle; bestD = d; }
   }
