@@ -255,12 +255,14 @@ def test_global_balance():
     assert np.abs(moment).max() < 1e-9
 
 
-def test_jacobian_matches_finite_differences():
+@pytest.mark.parametrize("curvature", [0.0, 0.5])
+def test_jacobian_matches_finite_differences(curvature):
     """The assembled KKT Jacobian against central differences of the residual, at a
     perturbed state, with every kind of condition and load (axis and full grips, dead
-    and follower forces and moments, the twist gauge)."""
+    and follower forces and moments), with the twist gauge (a round part straight at
+    rest) and without it (a rest curvature holds the twist)."""
     part = pl.Part(length=1.0, bending_stiffness=1.0, torsional_stiffness=0.7,
-                   mass_per_length=0.2, rest_curvature=0.5, rest_twist=0.3)
+                   mass_per_length=0.2, rest_curvature=curvature, rest_twist=0.3)
     problem = pl.Problem(part, (
         pl.Condition(s=0.0, name="pin", position=(0.0, 0.0, 0.0), tangent=(1, 0, 0)),
         pl.push(0.3, force=(0.2, 0.5, -0.3), moment=(0.1, 0.2, 0.3), name="dead"),
@@ -268,7 +270,7 @@ def test_jacobian_matches_finite_differences():
                 name="follower"),
         pl.grip(1.0, position=(0.7, 0.3, 0.2), name="hand")), gravity=(0.0, 0.0, -9.81))
     rod = lower(problem, elements=12)
-    assert rod.gauge_frame >= 0
+    assert (rod.gauge_frame >= 0) == (curvature == 0.0)
     run = _Run(rod, rod3d.RodSolver())
     _, state = rod.rest()
     run.gauge_quat = state[1][0].copy()
@@ -523,3 +525,34 @@ def test_a_hand_added_at_a_node_starts_warm_from_the_equilibrium_without_it():
     assert WARM_START_LOST not in moved.notes
     total = moved.loads["clamp"].force + moved.loads["hand"].force + (0.0, 0.0, 1.0)
     np.testing.assert_allclose(total, (0.0, 0.0, 0.8 * 0.3 * 9.81), atol=1e-9)
+
+
+def test_a_pre_curved_round_part_held_by_axes_takes_the_twist_of_least_energy():
+    """A round part with a rest curvature, held by position and axis at both ends: the
+    rest curvature is set in the section's frame, so the energy holds the twist (it was
+    refused as having a free twist). The answer is the least energy over the end's roll:
+    holding that end's section fully at the found roll gives the same shape with no
+    twisting moment, and rolled either way costs energy, with a twisting moment that
+    changes sign (on the same branch: a local minimum, and stable)."""
+    part = pl.Part(1.0, 1.0, torsional_stiffness=0.7, rest_curvature=((0.0, 2.0), (1.0, 2.0)))
+    rng = np.random.default_rng(0)
+    for _ in range(4):
+        end = np.array([0.6, 0.3, 0.1]) + rng.uniform(-0.1, 0.1, 3)
+        t = rng.normal(size=3)
+        b = pl.Condition(s=1.0, name="b", position=tuple(end), tangent=tuple(t / np.linalg.norm(t)))
+        a = pl.Condition(s=0.0, name="a", position=(0.0, 0.0, 0.0), tangent=(1.0, 0.0, 0.0))
+        eq = pl.solve(pl.Problem(part, (a, b)))
+        assert eq.stable
+        d1, d2 = eq.frames[0][:, 0], eq.frames[0][:, 1]
+        twist = []
+        for roll in (-0.05, 0.0, 0.05):
+            held = pl.Condition(s=0.0, name="a", position=(0.0, 0.0, 0.0), tangent=(1.0, 0.0, 0.0),
+                                normal=tuple(np.cos(roll) * d1 + np.sin(roll) * d2))
+            rolled = pl.solve(pl.Problem(part, (held, b)), warm_start=eq)  # its branch
+            twist.append(float(np.dot(rolled.loads["a"].moment, rolled.tangent[0])))
+            if roll == 0.0:
+                assert np.abs(rolled.position - eq.position).max() < 1e-8
+                assert abs(twist[-1]) < 1e-8 * np.linalg.norm(rolled.loads["a"].moment)
+            else:
+                assert rolled.energy > eq.energy + 1e-6
+        assert twist[0] * twist[2] < 0.0
