@@ -143,3 +143,28 @@ def test_files_that_are_not_text_too_deep_or_far_out_get_one_line_errors(tmp_pat
         load_problem(tmp_path / "deep.toml")
     with pytest.raises(UnreachableTargetError, match="reaches or exceeds"):
         pl.Problem(pl.Part(1.0, 1.0), (pl.clamp(0.0), pl.pin(1.0, position=(1e160, 0.0))))
+
+
+@pytest.mark.parametrize(("problem", "field"), [
+    (lambda pl: pl.Problem(pl.Part(1.0, 1.0), (pl.clamp(0.0), pl.push(
+        1.0, force=(0.0, 1e38), name="tip"))), "tip.force"),
+    (lambda pl: pl.Problem(pl.Part(1.0, 1e-300), (pl.clamp(0.0), pl.push(
+        1.0, force=(0.0, 1.0), name="tip"))), "part.bending_stiffness"),
+    (lambda pl: pl.Problem(pl.Part(1.0, 1.0), (pl.clamp(0.0), pl.push(
+        1.0, force=(0.0, 0.0), moment=1e12, name="tip"))), "tip.moment"),
+    (lambda pl: pl.Problem(pl.Part(1.0, 1.0, rest_curvature=1e12), (pl.clamp(0.0), pl.push(
+        1.0, force=(0.0, 0.0), name="tip"))), "part.rest_curvature"),
+    # a 10 m cable of EI 1e-4 pulled with 100 N: F L^2 / EI = 1e8 (it grew to 1 GB)
+    (lambda pl: pl.Problem(pl.Part(10.0, 1e-4), (pl.clamp(0.0), pl.push(
+        10.0, force=(100.0, 1.0), name="tip"))), "tip.force"),
+])
+def test_loads_far_past_bending_are_refused_at_once_by_name(problem, field):
+    """Loads that bend the part on a scale under a thousandth of its length (a unit slip
+    far more often than a part) are refused before any work, naming what does it; they
+    looped in the 2D set-up, one for minutes and a gigabyte."""
+    import pliant as pl
+    from pliant.errors import InputError
+
+    with pytest.raises(InputError, match="k L = ") as err:
+        pl.solve(problem(pl))
+    assert err.value.field == field

@@ -20,6 +20,7 @@ import numpy as np
 
 from pliant.core.equilibrium import Equilibrium
 from pliant.core.problem import Problem, Station
+from pliant.errors import InputError
 from pliant.models.elastica2d import kernels
 from pliant.models.elastica2d.kernels import APPLIED, NODE, PRESCRIBED
 
@@ -273,6 +274,43 @@ def load_wavenumber(problem: Problem) -> float:
             + curvature * length)
 
 
+MAX_WAVENUMBER = 1000.0  # k L: bending confined to layers of 1e-3 L; beyond, refused
+
+
+def check_wavenumber(problem: Problem) -> float:
+    """The loads' wavenumber (``load_wavenumber``), or an ``InputError`` naming what makes
+    it so large: past ``MAX_WAVENUMBER`` the part bends only in layers thinner than a
+    thousandth of its length (a string, not a beam), which the shooting would resolve
+    with more intervals than it can afford, and which is more often a unit slip (N for
+    kN, EI in N mm^2) than a real part."""
+    wave = load_wavenumber(problem)
+    if math.isfinite(wave) and wave <= MAX_WAVENUMBER:
+        return wave
+    part = problem.part
+    length, stiffness = part.length, part.bending_stiffness
+    terms = [(math.sqrt(part.mass_per_length * math.hypot(*problem.gravity) * length
+                        * length**2 / stiffness), "part.mass_per_length",
+              "the part's weight")]
+    for st in problem.stations:
+        name = "/".join(c.name for c in st.conditions) or f"s = {st.s:g} m"
+        force = math.hypot(st.dead_load[0], st.dead_load[1]) + math.hypot(*st.follower_load)
+        terms.append((math.sqrt(force * length**2 / stiffness), f"{name}.force",
+                      f"a force of {force:.3g} N"))
+        terms.append((abs(st.dead_load[2]) * length / stiffness, f"{name}.moment",
+                      f"a moment of {abs(st.dead_load[2]):.3g} N m"))
+    curvature = max(abs(k) for _, k in part.rest_knots)
+    terms.append((curvature * length, "part.rest_curvature",
+                  f"a rest curvature of {curvature:.3g} 1/m"))
+    size, field, what = max(terms, key=lambda t: t[0] if math.isfinite(t[0]) else math.inf)
+    if stiffness < 1e-12 or not math.isfinite(size):
+        field = "part.bending_stiffness"
+    raise InputError(field, f"{what} on a part of bending stiffness {stiffness:.3g} N m^2 and "
+                     f"length {length:.3g} m bends it on a scale of {1.0 / max(wave, 1e-300):.2g} "
+                     f"of its length (k L = {wave:.3g}, beyond {MAX_WAVENUMBER:g}): check "
+                     "the units (N, not kN; N m^2, not N mm^2); a part that slack is a string, "
+                     "outside what the accurate model resolves")
+
+
 def lower(problem: Problem, nodes: int | None = None) -> Lowered:
     """Lower a 2D problem into kernel arrays (dimensionless).
 
@@ -295,8 +333,9 @@ def lower(problem: Problem, nodes: int | None = None) -> Lowered:
     for s in extra:
         if not any(abs(s - t) <= 1e-12 for t, _, _ in stations):
             stations.append((s, None, False))
+    wave = check_wavenumber(problem)
     if nodes is None:
-        nodes = max(1, math.ceil(load_wavenumber(problem) / NODE_SPAN))
+        nodes = max(1, math.ceil(wave / NODE_SPAN))
     for i in range(1, nodes):
         s = i / nodes
         while any(abs(s - t) <= 1e-9 for t, _, _ in stations):
