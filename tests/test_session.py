@@ -210,3 +210,21 @@ def test_a_worker_that_dies_is_started_again_and_the_pose_solved():
     assert time.monotonic() - started < 5.0
     with pytest.raises(ProcessLookupError):
         os.kill(worker, 0)  # gone (and reaped)
+
+
+def test_a_recording_of_a_scene_keeps_its_obstacles(tmp_path):
+    """The engine bay (boxes, cylinders, a manifold mesh) recorded and read back: the
+    same obstacles, the mesh beside the recording, the same clearances (they used to be
+    dropped, so a replay ran through the engine)."""
+    from pliant.io.problem_file import load_scene
+    from pliant.scene.distance import DistanceField
+
+    problem = load_scene(EXAMPLES / "scenes" / "engine_bay.toml").problem
+    path = save_recording(tmp_path / "take.json", problem, [])
+    again, _ = load_recording(path)
+    assert [o.name for o in again.obstacles] == [o.name for o in problem.obstacles]
+    assert any((tmp_path / "take-meshes").glob("*.obj"))
+    points = np.random.default_rng(4).uniform(-0.2, 0.8, (300, 3))
+    before = DistanceField(list(problem.obstacles)).query(points, band=0.05)[0]
+    after = DistanceField(list(again.obstacles)).query(points, band=0.05)[0]
+    assert np.abs(before - after).max() < 1e-12

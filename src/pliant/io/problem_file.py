@@ -37,7 +37,7 @@ from pliant.core.part import Material, Part
 from pliant.core.planning import PlanSettings
 from pliant.core.problem import Problem
 from pliant.core.rules import EvaluationSettings
-from pliant.errors import FileFormatError, InputError, PliantError
+from pliant.errors import FileFormatError, InputError, OutputError, PliantError
 from pliant.io import progress
 from pliant.io.tomlfile import field_path, read_toml
 
@@ -918,8 +918,12 @@ def load_scene(path: str | Path) -> Scene:
     return parse_scene(read_text(path), str(path), path.parent)
 
 
-def dump_problem(problem: Problem, description: str = "") -> str:
-    """Write a problem as TOML text that ``parse_problem`` reads back."""
+def dump_problem(problem: Problem, description: str = "", meshes: Path | None = None,
+                 base: Path | None = None) -> str:
+    """Write a problem as TOML text that ``parse_problem`` reads back, obstacles
+    included. A mesh obstacle's mesh goes to a file in ``meshes`` (OBJ, every digit
+    kept), named in the text relative to ``base`` (the folder the text will be read
+    from; absolute without one); without ``meshes`` a mesh obstacle is an error."""
     part = problem.part
     lines = [f"name = {_toml(problem.name)}"]
     if description:
@@ -967,7 +971,52 @@ def dump_problem(problem: Problem, description: str = "") -> str:
         if c.moment is not None:
             moment = c.moment
             lines.append(f"moment = {_vec(moment) if isinstance(moment, tuple) else _num(moment)}")
+    for obstacle in problem.obstacles:
+        lines += ["", *_obstacle_lines(obstacle, meshes, base)]
     return "\n".join(lines) + "\n"
+
+
+def _obstacle_lines(obstacle, meshes: Path | None, base: Path | None) -> list[str]:
+    """An obstacle as an [[obstacle]] table (``dump_problem``)."""
+    from pliant.io.atomic import atomic_write  # noqa: PLC0415
+    from pliant.scene.distance import BOX, CYLINDER, HALFSPACE, SPHERE  # noqa: PLC0415
+
+    p, R = obstacle.param, obstacle.rotation
+    lines = ["[[obstacle]]", f"name = {_toml(obstacle.name)}",
+             f"position = {_vec(obstacle.translation)}"]
+    rotation = f"rotation = [{', '.join(_vec(row) for row in R)}]"
+    if obstacle.kind == SPHERE:
+        lines += ['shape = "sphere"', f"radius = {_num(p[0])}"]
+    elif obstacle.kind == BOX:
+        lines += ['shape = "box"', f"size = {_vec(2.0 * p[:3])}", rotation]
+    elif obstacle.kind == CYLINDER:
+        lines += ['shape = "cylinder"', f"radius = {_num(p[0])}", f"length = {_num(2.0 * p[1])}",
+                  rotation]
+    elif obstacle.kind == HALFSPACE:
+        lines += ['shape = "halfspace"', f"axis = {_vec(R[:, 2])}"]
+    else:
+        if meshes is None:
+            raise OutputError(f"the obstacle {obstacle.name!r} is a mesh: give a folder for "
+                              "its mesh file (meshes=...)")
+        mesh = obstacle.mesh
+        flat = mesh.tri.reshape(-1, 3)
+        vertices, faces = np.unique(flat, axis=0, return_inverse=True)
+        faces = faces.reshape(-1, 3)
+        stem = re.sub(r"[^A-Za-z0-9_-]+", "_", obstacle.name).strip("_") or "mesh"
+        path = Path(meshes) / f"{stem}.obj"
+        text = "".join(f"v {x!r} {y!r} {z!r}\n" for x, y, z in vertices.tolist()) + "".join(
+            f"f {a + 1} {b + 1} {c + 1}\n" for a, b, c in faces.tolist())
+        path.parent.mkdir(parents=True, exist_ok=True)
+        atomic_write(path, lambda handle: handle.write(text.encode()), "the mesh")
+        name = str(path.relative_to(base)) if base is not None and path.is_relative_to(
+            base) else str(path.resolve())
+        extent = float(np.ptp(flat, axis=0).max())
+        resolution = int(round(extent * 1.2 / mesh.g_size)) + 1
+        lines += ['shape = "mesh"', f"file = {_toml(name)}", "scale = 1.0",
+                  f"resolution = {resolution}", rotation]
+    if obstacle.friction:
+        lines.append(f"friction = {_num(obstacle.friction)}")
+    return lines
 
 
 def _vec(values) -> str:

@@ -20,7 +20,7 @@ from pydantic import BaseModel, ConfigDict, Field, ValidationError
 from pliant.core.problem import Problem
 from pliant.errors import FileFormatError
 from pliant.io.atomic import atomic_write
-from pliant.io.problem_file import dump_problem, parse_problem
+from pliant.io.problem_file import dump_problem, parse_scene
 from pliant.session.session import GripEvent
 
 Vec3 = tuple[float, float, float]
@@ -48,7 +48,11 @@ class _RecordingModel(BaseModel):
 
 def save_recording(path: str | Path, problem: Problem, events: list[GripEvent]) -> Path:
     """Write a recording (atomically)."""
-    data = {"format": "pliant-recording", "version": 1, "problem": dump_problem(problem),
+    path = Path(path)
+    # Mesh obstacles go beside it, in NAME-meshes/, named relative to its folder.
+    meshes = path.parent / f"{path.stem}-meshes"
+    data = {"format": "pliant-recording", "version": 1,
+            "problem": dump_problem(problem, meshes=meshes, base=path.parent),
             "events": [{k: v for k, v in {
                 "grip": e.grip, "t": e.t,
                 "position": None if e.position is None else list(e.position),
@@ -74,7 +78,7 @@ def load_recording(path: str | Path) -> tuple[Problem, list[GripEvent]]:
         first = err.errors()[0]
         where = ".".join(str(p) for p in first["loc"]) or "(top level)"
         raise FileFormatError(f"{path}: {where}: {first['msg']}") from None
-    problem = parse_problem(model.problem, f"{path} (its problem)")
+    problem = parse_scene(model.problem, f"{path} (its problem)", path.parent).problem
     events = [GripEvent(grip=e.grip, t=e.t,
                         position=None if e.position is None else tuple(e.position),
                         tangent=e.tangent, normal=e.normal, angle=e.angle)
