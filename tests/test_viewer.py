@@ -702,3 +702,26 @@ def test_a_client_that_never_reads_is_dropped_and_its_session_freed(folder, monk
         with connect(server) as other:  # the others are served on
             other.send(json.dumps({"v": 1, "type": "hello"}))
             receive(other, "frame")
+
+
+def test_the_bundled_scenes_sessions_are_saved_in_the_users_folder(tmp_path, monkeypatch):
+    """The bundled scene lives in the installed package: its sessions go to the user's
+    folder ($PLIANT_SESSIONS here), named after the scene's folder, and load from there;
+    the package is left as installed."""
+    from pliant.viewer.state import save_folder
+
+    demo = Path(__file__).resolve().parents[1] / "src" / "pliant" / "data" / "demo"
+    monkeypatch.setenv("PLIANT_SESSIONS", str(tmp_path))
+    assert save_folder(demo.resolve()) == (tmp_path / "demo").resolve()
+    before = sorted(os.listdir(demo))
+    viewer = ViewerState(Path("engine_bay.toml"), demo, live=False)
+    try:
+        viewer.handle(msg(type="hello"))
+        saved = viewer.handle(msg(type="save", name="trial"))[0]
+        assert Path(saved.folder) == (tmp_path / "demo").resolve()
+        assert json.loads((tmp_path / "demo" / "trial.json").read_text())["scene"] == (
+            "engine_bay.toml")
+        viewer.handle(msg(type="load", name="trial"))
+    finally:
+        viewer.close()
+    assert sorted(os.listdir(demo)) == before

@@ -265,6 +265,7 @@ class ServerScene(_Message):
 class ServerSaved(_Message):
     type: Literal["saved"] = "saved"
     name: str
+    folder: str = ""  # where it was written
 
 
 class ServerError(_Message):

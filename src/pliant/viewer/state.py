@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import json
 import math
+import os
 from pathlib import Path
 
 import numpy as np
@@ -29,6 +30,19 @@ class SessionFile(BaseModel):
     v: int = P.VERSION
     scene: str
     grips: list[P.Grip]
+
+
+def save_folder(root: Path) -> Path:
+    """Where a scene's sessions are saved: its own folder, unless that is the installed
+    package's (the bundled scene: writing there would change the installation) or not
+    writable; then ``$PLIANT_SESSIONS``, else ``~/.local/share/pliant/sessions``, in a
+    folder named after the scene's."""
+    package = Path(__file__).resolve().parents[1]
+    if not root.is_relative_to(package) and os.access(root, os.W_OK):
+        return root
+    base = os.environ.get("PLIANT_SESSIONS")
+    user = Path(base) if base else Path.home() / ".local" / "share" / "pliant" / "sessions"
+    return (user / root.name).resolve()
 
 
 def inside(root: Path, name: str, what: str) -> Path:
@@ -53,6 +67,7 @@ class ViewerState:
                  envelopes: list[P.ObstacleMesh] | None = None,
                  display: int | None = None) -> None:
         self.root = root.resolve()
+        self.saves = save_folder(self.root)
         self.display = display  # triangles the page draws of the obstacles (None: default)
         self.live = live
         self.elements = elements
@@ -202,16 +217,17 @@ class ViewerState:
     def save(self, name: str) -> P.ServerSaved:
         from pliant.io.atomic import atomic_write  # noqa: PLC0415
 
-        path = inside(self.root, f"{name}.json", "name")
+        path = inside(self.saves, f"{name}.json", "name")
         record = SessionFile(scene=str(self.path.relative_to(self.root)), grips=self.grips())
         text = json.dumps(finite(record.model_dump()), indent=1).encode()
+        path.parent.mkdir(parents=True, exist_ok=True)
         atomic_write(path, lambda h: h.write(text), "the session")
-        return P.ServerSaved(name=path.name)
+        return P.ServerSaved(name=path.name, folder=str(path.parent))
 
     def load(self, name: str) -> None:
-        path = inside(self.root, f"{name}.json", "name")
+        path = inside(self.saves, f"{name}.json", "name")
         if not path.is_file():
-            raise ProtocolError(f"no saved session {path.name} in {self.root}", "name")
+            raise ProtocolError(f"no saved session {path.name} in {self.saves}", "name")
         try:
             record = SessionFile.model_validate_json(path.read_bytes())
         except (ValidationError, OSError) as err:

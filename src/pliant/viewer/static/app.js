@@ -105,7 +105,7 @@ ws.onmessage = (event) => {
   if (msg.type === 'scene') { onScene(msg); loading('solving the start pose…'); }
   else if (msg.type === 'frame') onFrame(msg);
   else if (msg.type === 'accurate') onAccurate(msg);
-  else if (msg.type === 'saved') { state.saved = msg.name; note(`saved ${msg.name}`); }
+  else if (msg.type === 'saved') { state.saved = msg.name; note(`saved ${msg.name} in ${msg.folder}`); }
   else if (msg.type === 'error') {
     state.errors.push(msg);
     note(`error${msg.field ? ` (${msg.field})` : ''}: ${msg.message}`, true);
