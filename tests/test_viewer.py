@@ -725,3 +725,27 @@ def test_the_bundled_scenes_sessions_are_saved_in_the_users_folder(tmp_path, mon
     finally:
         viewer.close()
     assert sorted(os.listdir(demo)) == before
+
+
+def test_a_scene_whose_start_pose_fails_still_opens_with_the_reason(folder):
+    """The hand's start inside the drum: no equilibrium there, but the scene opens (the
+    obstacles, the grips, a real-time shape) with the reason; moving the hand out of
+    the drum brings the accurate answer."""
+    (folder / "bad.toml").write_text(SCENE.replace("x = 0.55\ny = 0.35\nz = 0.15",
+                                                   "x = 0.3\ny = -0.3\nz = 0.0"))
+    viewer = ViewerState(Path("bad.toml"), folder, live=False)
+    try:
+        replies = viewer.handle(msg(type="hello"))
+        scene = by_type(replies, "scene")[0]
+        assert [o.name for o in scene.obstacles] == ["drum"]
+        first = by_type(replies, "accurate")[0]
+        assert not first.ok and "start pose has no equilibrium" in first.error
+        assert "inside the obstacle 'drum'" in first.error
+        assert by_type(replies, "frame")
+        moved = viewer.handle(msg(type="move", grip="hand", seq=1,
+                                  position=[0.55, 0.35, 0.15], tangent=[0, 1, 0]))
+        answer = by_type(moved, "accurate")[-1]
+        assert answer.ok
+        np.testing.assert_allclose(answer.position[-1], [0.55, 0.35, 0.15], atol=1e-9)
+    finally:
+        viewer.close()

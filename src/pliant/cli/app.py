@@ -657,7 +657,11 @@ def view(
     server = Server(scene, host=host, port=port, elements=elements, envelope=envelope,
                     display=triangles, sessions=sessions)
     typer.echo(f"checking {scene.name} and loading the solvers…")
-    ViewerState(server.scene, server.root, live=False, elements=elements).close()
+    check = ViewerState(server.scene, server.root, live=False, elements=elements)
+    check.close()
+    if check.session.start_error:
+        typer.echo(f"warning: the start pose has no equilibrium ({check.session.start_error});"
+                   " the page opens: move the grips to a pose that has one", err=True)
     if host not in ("127.0.0.1", "localhost", "::1"):
         typer.echo(f"warning: listening on {host}: other machines can reach this server",
                    err=True)

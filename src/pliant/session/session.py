@@ -95,6 +95,8 @@ class Session:
     events: list[GripEvent] = field(default_factory=list, init=False)
     accurate: AccurateResult | None = field(default=None, init=False)
     solves: list[AccurateResult] = field(default_factory=list, init=False)
+    start_error: str | None = field(default=None, init=False)  # why the start pose has no
+    # equilibrium (the session opens all the same)
 
     def __post_init__(self) -> None:
         self.model = RealtimeModel(self.problem, control_points=self.control_points,
@@ -104,14 +106,18 @@ class Session:
         self._requested = False
         self._reference: np.ndarray | None = None  # the accurate shape at the curve's s
         self._start = time.perf_counter()
-        # The first accurate solve, waited for: the network starts from it.
+        # The first accurate solve, waited for: the network starts from it. When the
+        # start pose has no equilibrium the session still opens (the scene can be seen
+        # and its grips moved to a pose that has one): the failed result says why, and
+        # the network starts from its own shape until an accurate answer arrives.
         self._executor.submit(0, self.problem)
         first = self._executor.wait(timeout=None if not self.live else 600.0)
-        if first is None or not first.ok:
+        if first is None:
             self.close()
-            why = first.error if first is not None else "the accurate model did not answer"
-            raise ConvergenceError(f"the session cannot start: {why}", residual=float("nan"))
+            raise ConvergenceError("the session cannot start: the accurate model did not "
+                                   "answer", residual=float("nan"))
         self._publish(first)
+        self.start_error = None if first.ok else first.error
         self.model.frame(self.problem)  # loads the kernels now, not in the first frame
 
     # -- events ----------------------------------------------------------------------------

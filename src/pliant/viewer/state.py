@@ -328,7 +328,10 @@ class ViewerState:
 
     def accurate_message(self) -> P.ServerAccurate:
         if self.session.accurate is None:
-            return P.ServerAccurate(index=0, ok=False, error="no accurate solve yet")
+            why = getattr(self.session, "start_error", None)
+            return P.ServerAccurate(index=0, ok=False, error=(
+                f"the start pose has no equilibrium: {why}; move the grips to one that has"
+                if why else "no accurate solve yet"))
         return self._accurate(self.session.accurate)
 
     def _accurate(self, result) -> P.ServerAccurate:
