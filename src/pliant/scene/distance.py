@@ -22,6 +22,7 @@ from __future__ import annotations
 import hashlib
 import math
 import os
+import threading
 from dataclasses import dataclass, replace
 from pathlib import Path
 
@@ -873,6 +874,7 @@ def _frame_with_z(normal) -> np.ndarray:
 
 _FIELDS: dict[tuple[int, ...], tuple[tuple[Obstacle, ...], DistanceField]] = {}
 _FIELDS_KEPT = 8  # scenes whose packed fields are kept (a tab's session uses one)
+_FIELDS_LOCK = threading.Lock()
 
 
 def field_of(obstacles) -> DistanceField:
@@ -882,12 +884,14 @@ def field_of(obstacles) -> DistanceField:
     immutable), the few most recent kept."""
     obstacles = tuple(obstacles)
     key = tuple(id(o) for o in obstacles)
-    hit = _FIELDS.pop(key, None)
+    with _FIELDS_LOCK:  # the viewer's tabs open their scenes from threads
+        hit = _FIELDS.pop(key, None)
     if hit is None or any(a is not b for a, b in zip(hit[0], obstacles)):
         hit = (obstacles, DistanceField(list(obstacles)))
-    _FIELDS[key] = hit  # the most recent last
-    while len(_FIELDS) > _FIELDS_KEPT:
-        del _FIELDS[next(iter(_FIELDS))]
+    with _FIELDS_LOCK:
+        _FIELDS[key] = hit  # the most recent last
+        while len(_FIELDS) > _FIELDS_KEPT:
+            del _FIELDS[next(iter(_FIELDS))]
     return hit[1]
 
 

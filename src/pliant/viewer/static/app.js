@@ -550,10 +550,7 @@ function colourValues(frame, segments) {
     v.push(value);
     if (kind !== 'clearance') max = Math.max(max, value);
   }
-  const legend = kind === 'clearance' ? 'red: penetrates · amber: nearer than the margin · green: clear'
-    : kind === 'moment' && state.accurate?.ok ? `blue 0 → red ${max.toFixed(3)} N m (accurate)`
-    : `blue 0 → red ${max.toFixed(1)} 1/m (curvature)`;
-  return { kind: kind === 'moment' && !state.accurate?.ok ? 'curvature' : kind, v, max, legend };
+  return { kind: kind === 'moment' && !state.accurate?.ok ? 'curvature' : kind, v, max };
 }
 function clearanceAt(report, s) {
   for (const span of report.penetrations) if (s >= span.s_start && s <= span.s_end) return 2;
