@@ -257,3 +257,32 @@ def test_one_obstacles_distance_from_the_scenes_field_is_its_own():
         d, g = scene.query_one(k, points, band=0.05)
         alone, g_alone, _ = DistanceField([obstacle]).query(points, band=0.05)
         assert np.array_equal(d, alone) and np.array_equal(g, g_alone)
+
+
+def test_mesh_files_and_display_meshes_are_kept_by_content(tmp_path, monkeypatch):
+    """A mesh file is parsed once: read again, its vertices and faces come from the disk
+    cache (trimesh is not called); changed, it is parsed afresh. A display decimation is
+    kept the same way, per triangle count."""
+    import trimesh as tm
+
+    from pliant.io import problem_file
+    from pliant.io.mesh_export import display_mesh
+
+    ball = tm.creation.icosphere(subdivisions=4, radius=0.1)
+    path = tmp_path / "ball.stl"
+    ball.export(path)
+    vertices, faces = problem_file._read_mesh("ball.stl", tmp_path)
+    calls = []
+    real = tm.load
+    monkeypatch.setattr(tm, "load", lambda *a, **k: (calls.append(a), real(*a, **k))[1])
+    again = problem_file._read_mesh("ball.stl", tmp_path)
+    assert calls == [] and np.array_equal(again[0], vertices) and np.array_equal(
+        again[1], faces)
+    tm.creation.icosphere(subdivisions=3, radius=0.2).export(path)  # the file changes
+    changed = problem_file._read_mesh("ball.stl", tmp_path)
+    assert len(calls) == 1 and len(changed[1]) == 1280
+    drawn = display_mesh(ball, 1000)
+    kept = display_mesh(ball, 1000)
+    assert len(drawn.faces) <= 1000 and np.array_equal(kept.vertices, drawn.vertices)
+    assert np.array_equal(kept.faces, drawn.faces)
+    assert len(display_mesh(ball, 500).faces) <= 500  # another count, another entry

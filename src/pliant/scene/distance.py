@@ -30,6 +30,7 @@ import numpy as np
 from numba import njit
 
 from pliant.io import progress
+from pliant.io.cache import cache_dir
 
 SPHERE, BOX, CYLINDER, HALFSPACE, MESH = 0, 1, 2, 3, 4
 GRID_VERSION = 2
@@ -590,12 +591,6 @@ class MeshData:
     def bounds(self) -> np.ndarray:
         flat = self.tri.reshape(-1, 3)
         return np.array([flat.min(axis=0), flat.max(axis=0)])
-
-
-def cache_dir() -> Path:
-    """Where distance grids are kept: $PLIANT_CACHE, else ~/.cache/pliant."""
-    root = os.environ.get("PLIANT_CACHE")
-    return Path(root) if root else Path.home() / ".cache" / "pliant"
 
 
 def check_mesh(vertices: np.ndarray, faces: np.ndarray) -> None:
