@@ -100,6 +100,34 @@ def display_mesh(mesh, max_faces: int = DISPLAY_FACES):
     return drawn
 
 
+def triangles(obstacle) -> int:
+    """How many triangles an obstacle is drawn with, whole."""
+    if obstacle.mesh is not None:
+        return int(obstacle.mesh.tri.shape[0])
+    return len(obstacle_mesh(obstacle).faces)
+
+
+def display_obstacle(obstacle, max_faces: int = DISPLAY_FACES):
+    """``display_mesh`` of an obstacle in the world frame. A mesh obstacle's drawing is
+    kept in the disk cache under the hash of its triangles, its place and the count, so
+    that a CAD scene's next tab neither merges its vertices nor decimates it again."""
+    import trimesh  # noqa: PLC0415
+
+    from pliant.io import cache  # noqa: PLC0415
+
+    if obstacle.mesh is None:
+        return display_mesh(obstacle_mesh(obstacle), max_faces)
+    key = cache.digest(obstacle.mesh.tri.tobytes(), obstacle.rotation.tobytes(),
+                       obstacle.translation.tobytes(), str(int(max_faces)).encode())
+    kept = cache.load_arrays("drawn", key)
+    if kept is not None and set(kept) == {"vertices", "faces"}:
+        return trimesh.Trimesh(kept["vertices"], kept["faces"], process=False)
+    drawn = display_mesh(obstacle_mesh(obstacle), max_faces)
+    cache.save_arrays("drawn", key, vertices=np.asarray(drawn.vertices, dtype=float),
+                      faces=np.asarray(drawn.faces, dtype=np.int64))
+    return drawn
+
+
 def obstacle_mesh(obstacle, halfspace_size: float = 2.0):
     """A trimesh of an obstacle in the world frame (a half-space as a square slab of
     ``halfspace_size`` [m] and 1 cm thick under its plane), for viewers and exports."""
@@ -119,9 +147,8 @@ def obstacle_mesh(obstacle, halfspace_size: float = 2.0):
         mesh.apply_translation((0.0, 0.0, -0.005))
     elif obstacle.kind == MESH:
         tri = obstacle.mesh.tri
-        mesh = trimesh.Trimesh(vertices=tri.reshape(-1, 3),
+        mesh = trimesh.Trimesh(vertices=tri.reshape(-1, 3),  # merged as it is made
                                faces=np.arange(tri.shape[0] * 3).reshape(-1, 3))
-        mesh.merge_vertices()
     else:  # pragma: no cover (every kind is above)
         raise ValueError(f"unknown obstacle kind {obstacle.kind}")
     transform = np.eye(4)

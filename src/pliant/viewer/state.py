@@ -287,15 +287,14 @@ class ViewerState:
         if self._meshes is None:
             from pliant.io.mesh_export import (  # noqa: PLC0415
                 display_budgets,
-                display_mesh,
-                obstacle_mesh,
+                display_obstacle,
+                triangles,
             )
 
             self._meshes = []
-            exact = [obstacle_mesh(obstacle) for obstacle in problem.obstacles]
-            budgets = display_budgets([len(m.faces) for m in exact], self.display)
-            for obstacle, whole, budget in zip(problem.obstacles, exact, budgets):
-                mesh = display_mesh(whole, budget)
+            budgets = display_budgets([triangles(o) for o in problem.obstacles], self.display)
+            for obstacle, budget in zip(problem.obstacles, budgets):
+                mesh = display_obstacle(obstacle, budget)
                 self._meshes.append(P.ObstacleMesh(
                     name=obstacle.name,
                     vertices=np.round(mesh.vertices, 6).tolist(),
