@@ -16,6 +16,7 @@ import pliant as pl
 from pliant.errors import PliantError
 from pliant.models import rod3d
 from pliant.models.banded import dense
+from pliant.models.rod3d.kernels import COMPLIANCE
 from pliant.models.rod3d.lowering import lower
 from pliant.scene import Obstacle
 from pliant.scene.interference import of_equilibrium
@@ -262,7 +263,8 @@ def test_friction_slides_on_the_cone_and_sticks_inside_it():
         assert len(eq.contacts) == 1 and moved[0] > 5e-3
         assert friction == pytest.approx(-mu * normal, rel=1e-9)  # on the rim, backwards
         assert eq.contacts.friction[0, 1] == pytest.approx(0.0, abs=1e-12)
-        assert eq.position[-1, 2] == pytest.approx(-0.5, abs=1e-9)
+        # on the floor, by the contact's compliance (its gap per unit force, L = EI = 1)
+        assert eq.position[-1, 2] == pytest.approx(-0.5 - COMPLIANCE * normal, abs=1e-12)
     tip = _pushed_tip_2d((friction, normal))
     assert tip == pytest.approx([eq.position[-1, 0] - 0.03, -0.5], abs=1e-4)
     # Weight, clamp and floor balance.
@@ -335,3 +337,29 @@ def test_the_rest_shape_through_an_obstacle_is_measured_in_metres_on_a_2_m_part(
     eq = rod3d.solve(problem, solver=rod3d.RodSolver(elements=40))
     assert eq.residual < 1e-9
     assert of_equilibrium(eq).smallest.clearance > 0.0
+
+
+def test_a_hose_lying_along_a_floor_is_solved():
+    """A hose held a few centimetres over a floor at both ends lies along it: its
+    touching probes are dependent (a probe between two touching ones adds nothing), which
+    made the Jacobian singular in 29 of 30 such cases. With the contact's compliance
+    every one converges, in balance, lying on the floor by no more than the compliance
+    times its force."""
+    rng = np.random.default_rng(3)
+    floor = Obstacle.halfspace("floor", (0.0, 0.0, 0.0), (0.0, 0.0, 1.0))
+    for _ in range(4):
+        part = pl.Part(1.0, rng.uniform(0.01, 0.1), mass_per_length=rng.uniform(0.1, 0.5),
+                       outer_diameter=0.02)
+        z = 0.01 + rng.uniform(0.0, 0.05)
+        end = (rng.uniform(0.5, 0.9), rng.uniform(-0.2, 0.2), z)
+        eq = rod3d.solve(pl.Problem(part, (
+            pl.Condition(s=0.0, name="a", position=(0.0, 0.0, z), tangent=(1.0, 0.0, 0.0)),
+            pl.Condition(s=1.0, name="b", position=end, tangent=(1.0, 0.0, 0.0))),
+            gravity=(0.0, 0.0, -9.81), obstacles=(floor,)))
+        weight = 9.81 * part.mass_per_length * part.length
+        lying = eq.contacts.force[:, 2]
+        assert len(eq.contacts) >= 3 and lying.sum() > 0.2 * weight  # along the floor
+        total = (eq.contacts.force.sum(axis=0) + eq.loads["a"].force + eq.loads["b"].force)
+        assert total == pytest.approx([0.0, 0.0, weight], abs=1e-9)
+        deepest = eq.position[:, 2].min() - 0.01  # the tube's radius above the floor
+        assert -1e-6 < deepest <= 0.0

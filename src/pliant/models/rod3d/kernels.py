@@ -719,6 +719,9 @@ def rest_shape(h, elem_frame, joint_hh, joint_k0):
 
 
 # -- contact -------------------------------------------------------------------------------
+COMPLIANCE = 1e-9  # a contact's gap per unit normal force, dimensionless (see below)
+
+
 @njit(cache=True)
 def contact_terms(X, gam, probe_elem, probe_a, iprobe, ix, L, radius, offset, band, scale,
                   field, R, ab, kl, ku, want_jac, slot, fric):
@@ -767,9 +770,14 @@ def contact_terms(X, gam, probe_elem, probe_a, iprobe, ix, L, radius, offset, ba
         for c in range(3):
             R[ix[e] + c] -= w0 * lam * n[c]
             R[ix[e + 1] + c] -= w1 * lam * n[c]
-        touching = lam > scale * g
+        # A touching probe's row is g + COMPLIANCE lam = 0: a contact stiff to a part in
+        # 1e9 (of L per EI / L^2), which keeps the KKT matrix regular where the active
+        # probes are dependent (a part lying along a plane: a probe between two
+        # touching ones adds no new constraint) and changes no gap beyond 1e-9 L a unit.
+        soft = g + COMPLIANCE * lam
+        touching = lam > scale * soft
         active[k] = touching
-        R[ip] = scale * g if touching else lam
+        R[ip] = scale * soft if touching else lam
         if slot == 3:
             _friction_terms(gam, k, e, w0, w1, ip, ix, points[k] / L, lam,
                             mu_of[o] if o >= 0 else 0.0, ref[k], basis[k], scale, R, ab,
@@ -787,6 +795,7 @@ def contact_terms(X, gam, probe_elem, probe_a, iprobe, ix, L, radius, offset, ba
             for c in range(3):
                 _add(ab, kl, ku, ip, ix[e] + c, scale * w0 * n[c])
                 _add(ab, kl, ku, ip, ix[e + 1] + c, scale * w1 * n[c])
+            _add(ab, kl, ku, ip, ip, scale * COMPLIANCE)
         else:
             _add(ab, kl, ku, ip, ip, 1.0)
         if lam != 0.0:
