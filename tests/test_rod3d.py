@@ -556,3 +556,37 @@ def test_a_pre_curved_round_part_held_by_axes_takes_the_twist_of_least_energy():
             else:
                 assert rolled.energy > eq.energy + 1e-6
         assert twist[0] * twist[2] < 0.0
+
+
+def test_a_flat_part_between_two_pins_takes_the_roll_of_least_energy():
+    """A flat section held by position alone at both ends (pins) and loaded: straight at
+    rest it may roll freely, so every start was singular (0 of 24 random cases solved).
+    The solve holds the roll with a gauge and then releases it where the gauge holds no
+    moment: in balance, stable, and holding the end's section at that roll gives the same
+    shape with no reaction moment while rolling it either way costs energy."""
+    rng = np.random.default_rng(11)
+    for _ in range(3):
+        ei = rng.uniform(0.5, 2.0)
+        part = pl.Part(1.0, ei, bending_stiffness_2=ei * rng.uniform(2, 10),
+                       torsional_stiffness=ei * rng.uniform(0.3, 1.0),
+                       mass_per_length=rng.uniform(0.0, 0.5))
+        end = (rng.uniform(0.5, 0.95), rng.uniform(-0.2, 0.2), rng.uniform(-0.2, 0.2))
+        load = pl.push(0.5, force=tuple(rng.normal(size=3)), name="load")
+        b = pl.pin(1.0, position=end, name="b")
+        eq = pl.solve(pl.Problem(part, (pl.pin(0.0, position=(0.0, 0.0, 0.0), name="a"), b,
+                                        load), gravity=(0.0, 0.0, -9.81)))
+        assert eq.stable
+        weight = np.array([0.0, 0.0, -9.81 * part.mass_per_length])
+        total = sum(np.asarray(x.force) for x in eq.loads.values()) + weight
+        assert np.abs(total).max() < 1e-9
+        d1, d2, d3 = (eq.frames[0][:, k] for k in range(3))
+        for roll in (-0.05, 0.0, 0.05):
+            held = pl.Condition(s=0.0, name="a", position=(0.0, 0.0, 0.0), tangent=tuple(d3),
+                                normal=tuple(np.cos(roll) * d1 + np.sin(roll) * d2))
+            rolled = pl.solve(pl.Problem(part, (held, b, load), gravity=(0.0, 0.0, -9.81)),
+                              warm_start=eq)
+            if roll == 0.0:
+                assert np.abs(rolled.position - eq.position).max() < 1e-8
+                assert np.abs(rolled.loads["a"].moment).max() < 1e-7
+            else:
+                assert rolled.energy > eq.energy + 1e-9

@@ -437,9 +437,11 @@ def lower(problem: Problem, elements: int = 100) -> Rod:
     # An isotropic part that nothing holds in twist has a free twist: a gauge fixes it.
     # Not when it has a rest curvature: that is set in the section's frame, so turning
     # the sections about the line changes the energy, which then holds the twist.
+    # A flat section straight at rest has the same free roll at the start (the solver
+    # then releases the gauge: the loads set the roll, see solver._release_roll).
     holds_twist = any(st.normal is not None for st in stations)
     curved = bool(np.abs(rest_k0[:, :2]).max(initial=0.0) > 1e-6)  # kappa0 L: not round-off
-    gauge_frame = 0 if (not holds_twist and K[0] == K[1] and not curved) else -1
+    gauge_frame = 0 if (not holds_twist and not curved) else -1
     # Unknowns along s: per node its position, its station's multipliers and frame (and
     # the gauge), then the element starting there: frame and multiplier.
     nu_cnt = (st_pos_mask.sum(axis=1) + 2 * (st_kind == AXIS) + 3 * (st_kind == FULL)).astype(

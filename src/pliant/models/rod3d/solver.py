@@ -747,6 +747,8 @@ def _solve(problem: Problem, warm_start: Equilibrium3D | None, solver: RodSolver
                 run.notes.append(WARM_START_LOST)
         if state is None:
             state = run.cold()
+        if run.rod.gauge_frame >= 0 and run.rod.K[0] != run.rod.K[1]:
+            state = _release_roll(run, state)
     except _Stalled as stall:
         _held_inside(problem)  # the likeliest cause, named, where it is the cause
         raise ConvergenceError(
@@ -758,6 +760,64 @@ def _solve(problem: Problem, warm_start: Equilibrium3D | None, solver: RodSolver
     if warm_start is not None and isinstance(warm_start.state, _WarmState):
         seed = warm_start.state.mode[0] if warm_start.state.mode else None
     return _build(run, state, seed)
+
+
+def _release_roll(run: _Run, state: State) -> State:
+    """A flat section that nothing holds in twist, straight at rest: its start has a free
+    roll, so the solve ran with the twist gauge, which the loads must not lean on. Roll
+    the gauge about the part's axis until it holds no moment (a secant on its multiplier,
+    each point a Newton from the last), and keep the roll of least energy: where a root
+    is a maximum of the energy (the stiff axis bent), start again a quarter turn off."""
+    rod = run.rod
+    base = run.gauge_quat.copy()
+    loads = rod.target
+
+    def at(phi: float, start: State):
+        run.gauge_quat = _qmul(base, np.array([math.cos(0.5 * phi), 0.0, 0.0,
+                                               math.sin(0.5 * phi)]))
+        new, _, status, energy = run.newton(start, loads, strict=False)
+        return (new, float(new[3][-1]), energy) if status == kernels.CONVERGED else None
+
+    def root(phi: float, start: State):
+        first = at(phi, start)
+        if first is None:
+            return None
+        (s0, m0, e0), p0 = first, phi
+        if abs(m0) <= RELEASED:
+            return p0, s0, e0
+        p1 = p0 + 0.05
+        for _ in range(40):
+            trial = at(p1, s0)
+            if trial is None:
+                p1 = 0.5 * (p0 + p1)
+                continue
+            s1, m1, e1 = trial
+            if abs(m1) <= RELEASED:
+                return p1, s1, e1
+            step = -m1 * (p1 - p0) / (m1 - m0) if m1 != m0 else 0.05
+            p0, s0, m0 = p1, s1, m1
+            p1 = p1 + max(-0.5, min(0.5, step))
+        return None
+
+    found = root(0.0, state)
+    if found is not None:
+        phi, s, energy = found
+        lower = [at(phi + d, s) for d in (-0.05, 0.05)]
+        if any(x is not None and x[2] < energy for x in lower):  # a maximum: the other axis
+            other = root(phi + 0.5 * math.pi, s)
+            if other is not None and other[2] < energy:
+                found = other
+    if found is None:
+        run.gauge_quat = base
+        raise _Stalled(1.0, math.inf, "the roll of the flat section that nothing holds in "
+                       "twist could not be found; hold the section's orientation "
+                       "(tangent and normal) somewhere", state=state, gauge=base)
+    phi, s, _ = found
+    at(phi, s)  # the gauge where the root is, for the state and the warm starts after
+    return s
+
+
+RELEASED = 1e-10  # the gauge's multiplier (by EI / L) below which it holds nothing
 
 
 def _held_inside(problem: Problem) -> None:
