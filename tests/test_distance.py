@@ -261,12 +261,12 @@ def test_one_obstacles_distance_from_the_scenes_field_is_its_own():
 
 def test_mesh_files_and_display_meshes_are_kept_by_content(tmp_path, monkeypatch):
     """A mesh file is parsed once: read again, its vertices and faces come from the disk
-    cache (trimesh is not called); changed, it is parsed afresh. A display decimation is
-    kept the same way, per triangle count."""
+    cache (trimesh is not called); changed, it is parsed afresh. A mesh obstacle's
+    drawing is kept the same way, per triangle count (decimated once)."""
     import trimesh as tm
 
     from pliant.io import problem_file
-    from pliant.io.mesh_export import display_mesh
+    from pliant.io.mesh_export import display_obstacle
 
     ball = tm.creation.icosphere(subdivisions=4, radius=0.1)
     path = tmp_path / "ball.stl"
@@ -281,8 +281,14 @@ def test_mesh_files_and_display_meshes_are_kept_by_content(tmp_path, monkeypatch
     tm.creation.icosphere(subdivisions=3, radius=0.2).export(path)  # the file changes
     changed = problem_file._read_mesh("ball.stl", tmp_path)
     assert len(calls) == 1 and len(changed[1]) == 1280
-    drawn = display_mesh(ball, 1000)
-    kept = display_mesh(ball, 1000)
+    obstacle = Obstacle.from_mesh("ball", ball.vertices, ball.faces, (0.1, 0.0, 0.0))
+    decimated = []
+    simplify = tm.Trimesh.simplify_quadric_decimation
+    monkeypatch.setattr(tm.Trimesh, "simplify_quadric_decimation",
+                        lambda self, **k: (decimated.append(k), simplify(self, **k))[1])
+    drawn = display_obstacle(obstacle, 1000)
+    kept = display_obstacle(obstacle, 1000)
+    assert len(decimated) == 1  # the second drawing came from the disk cache
     assert len(drawn.faces) <= 1000 and np.array_equal(kept.vertices, drawn.vertices)
     assert np.array_equal(kept.faces, drawn.faces)
-    assert len(display_mesh(ball, 500).faces) <= 500  # another count, another entry
+    assert len(display_obstacle(obstacle, 500).faces) <= 500  # another count, another entry

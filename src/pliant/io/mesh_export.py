@@ -79,25 +79,12 @@ def display_budgets(faces: list[int], budget: int | None = None,
 
 def display_mesh(mesh, max_faces: int = DISPLAY_FACES):
     """The mesh to draw: above ``max_faces`` triangles, decimated by quadric error
-    (fast-simplification, through trimesh), kept in the disk cache under the hash of the
-    mesh and the count (each tab of a CAD scene would otherwise decimate it again). For
-    the eye only: contact, clearances and exports keep the exact mesh."""
-    import trimesh  # noqa: PLC0415
-
-    from pliant.io import cache  # noqa: PLC0415
-
+    (fast-simplification, through trimesh). For the eye only: contact, clearances and
+    exports keep the exact mesh (``display_obstacle`` keeps a drawing in the disk
+    cache)."""
     if len(mesh.faces) <= max_faces:
         return mesh
-    vertices = np.ascontiguousarray(mesh.vertices, dtype=float)
-    faces = np.ascontiguousarray(mesh.faces, dtype=np.int64)
-    key = cache.digest(vertices.tobytes(), faces.tobytes(), str(int(max_faces)).encode())
-    kept = cache.load_arrays("display", key)
-    if kept is not None and set(kept) == {"vertices", "faces"}:
-        return trimesh.Trimesh(kept["vertices"], kept["faces"], process=False)
-    drawn = mesh.simplify_quadric_decimation(face_count=int(max_faces))
-    cache.save_arrays("display", key, vertices=np.asarray(drawn.vertices, dtype=float),
-                      faces=np.asarray(drawn.faces, dtype=np.int64))
-    return drawn
+    return mesh.simplify_quadric_decimation(face_count=int(max_faces))
 
 
 def triangles(obstacle) -> int:

@@ -59,18 +59,14 @@ def say(text: str) -> None:
 
 
 @contextlib.contextmanager
-def work(total: float, text: str | None = None) -> Iterator[None]:
+def work(total: float) -> Iterator[None]:
     """A task of ``total`` units inside the block (``advance`` counts them); inside
     another task it only adds to that one."""
     listener = _LISTENER.get()
     if listener is None or _TASK.get() is not None or not total > 0:
-        if text is not None:
-            say(text)
         yield
         return
     token = _TASK.set(_Task(float(total)))
-    if text is not None:
-        listener.say(text)
     listener.start(float(total))
     try:
         yield

@@ -19,7 +19,6 @@ accurate and real-time kernels can query the whole scene inside numba.
 
 from __future__ import annotations
 
-import hashlib
 import math
 import os
 import threading
@@ -30,7 +29,7 @@ import numpy as np
 from numba import njit
 
 from pliant.io import progress
-from pliant.io.cache import cache_dir
+from pliant.io import cache as disk
 
 SPHERE, BOX, CYLINDER, HALFSPACE, MESH = 0, 1, 2, 3, 4
 GRID_VERSION = 2
@@ -629,9 +628,9 @@ def prepare_mesh(vertices: np.ndarray, faces: np.ndarray, resolution: int = 64,
         faces = np.ascontiguousarray(faces, dtype=np.int64)
         check_mesh(vertices, faces)
         tri = np.ascontiguousarray(vertices[faces])
-        digest = hashlib.sha256(vertices.tobytes() + faces.tobytes()).hexdigest()[:32]
+        digest = disk.digest(vertices.tobytes(), faces.tobytes())
         done(_SHARE["check"])
-        structure = cache_dir() / "mesh" / f"{digest}-{GRID_VERSION}.npz"
+        structure = f"{digest}-{GRID_VERSION}"
         large = cache and faces.shape[0] >= LARGE_MESH
         pseudo, solid, bvh = _load_structure(structure, faces.shape[0]) if large else (
             None, False, ())
@@ -651,7 +650,7 @@ def prepare_mesh(vertices: np.ndarray, faces: np.ndarray, resolution: int = 64,
         g_size = extent * 1.2 / (resolution - 1)
         g_origin = lo - 0.1 * extent
         g_dims = np.ceil((hi - lo + 0.2 * extent) / g_size).astype(np.int64) + 1
-        path = cache_dir() / "sdf" / f"{digest}-{resolution}-{GRID_VERSION}.npy"
+        path = disk.cache_dir() / "sdf" / f"{digest}-{resolution}-{GRID_VERSION}.npy"
         values = None
         if cache and path.is_file():
             try:
@@ -677,30 +676,22 @@ LARGE_MESH = 100_000  # triangles from which the tree and pseudonormals are cach
 _TREE = ("order", "lo", "hi", "left", "right", "start", "count")
 
 
-def _load_structure(path: Path, triangles: int) -> tuple[np.ndarray | None, bool, tuple]:
+def _load_structure(key: str, triangles: int) -> tuple[np.ndarray | None, bool, tuple]:
     """A large mesh's pseudonormals, closedness and box tree from the disk cache (a CAD
     part loaded again: seconds saved), or (None, False, ()) when absent or unreadable."""
-    try:
-        with np.load(path) as data:
-            pseudo = np.ascontiguousarray(data["pseudo"])
-            solid = bool(data["solid"])
-            bvh = tuple(np.ascontiguousarray(data[k]) for k in _TREE)
-    except (OSError, ValueError, KeyError):
+    data = disk.load_arrays("mesh", key)
+    if data is None or not {"pseudo", "solid", *_TREE} <= set(data):
         return None, False, ()
+    pseudo, bvh = data["pseudo"], tuple(data[k] for k in _TREE)
     if pseudo.shape != (triangles, 7, 3) or bvh[0].shape != (triangles,):
         return None, False, ()
-    return pseudo, solid, bvh
+    return pseudo, bool(data["solid"]), bvh
 
 
-def _save_structure(path: Path, pseudo: np.ndarray, solid: bool, bvh: tuple) -> None:
-    """Best effort, written whole or not at all (a temporary file, then a rename)."""
-    try:
-        path.parent.mkdir(parents=True, exist_ok=True)
-        tmp = path.with_name(f"{path.stem}.{os.getpid()}.tmp.npz")
-        np.savez(tmp, pseudo=pseudo, solid=np.array(solid), **dict(zip(_TREE, bvh)))
-        os.replace(tmp, path)
-    except OSError:
-        pass
+def _save_structure(key: str, pseudo: np.ndarray, solid: bool, bvh: tuple) -> None:
+    """Best effort, written whole or not at all (``pliant.io.cache``)."""
+    disk.save_arrays("mesh", key, pseudo=pseudo, solid=np.array(solid),
+                     **dict(zip(_TREE, bvh)))
 
 
 def _save_grid(path: Path, values: np.ndarray) -> None:

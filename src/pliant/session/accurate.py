@@ -243,17 +243,7 @@ class ProcessExecutor:
         return message
 
     def poll(self) -> AccurateResult | None:
-        import queue  # noqa: PLC0415
-
-        while self._busy:
-            try:
-                item = self._answers.get_nowait()
-            except queue.Empty:
-                return None
-            result = self._take(item)
-            if result is not None:
-                return result
-        return None
+        return self.wait(timeout=0.0)  # a queue's get with no time left never blocks
 
     def wait(self, timeout: float | None = None) -> AccurateResult | None:
         import queue  # noqa: PLC0415

@@ -671,6 +671,7 @@ function drawLoads(msg) {
 // A force is an arrow; a moment the engineering double-headed arrow along its axis
 // (right-hand rule). Each label sits just past its own tip (the arrow's local +y), the
 // force's above it and the moment's below, so that the two never cover each other.
+const LABEL_PAST = 1.04;  // where an arrow's label sits, in arrow lengths from its base
 function arrow(at, dir, length, colour, text, kind) {
   const head = 0.2 * length, width = 0.08 * length;
   const helper = new THREE.ArrowHelper(dir.clone().normalize(), at, length, colour, head, width);
@@ -681,7 +682,7 @@ function arrow(at, dir, length, colour, text, kind) {
     second.position.y = length - 1.6 * head;
     helper.add(second);
   }
-  helper.add(label(new THREE.Vector3(0, 1.04 * length, 0), text, kind));
+  helper.add(label(new THREE.Vector3(0, LABEL_PAST * length, 0), text, kind));
   arrowGroup.add(helper);
 }
 
@@ -849,7 +850,7 @@ window.pliant = {
     const el = label.element;
     const box = el.getBoundingClientRect(), text = el.firstChild.getBoundingClientRect();
     return {
-      tip: screen(new THREE.Vector3(0, label.position.y / 1.04, 0)),
+      tip: screen(new THREE.Vector3(0, label.position.y / LABEL_PAST, 0)),
       base: screen(new THREE.Vector3()),
       at: screen(label.position.clone()),
       anchor: { x: box.left + box.width / 2, y: box.top + box.height / 2 },
