@@ -313,23 +313,30 @@ def shoot(z, st_s, st_kind, st_val, st_fol, st_col, seg_steps, seg_lo, seg_hi, p
 
 @njit(cache=True)
 def lu_solve(A, rhs):
-    """Solve A x = rhs by Gaussian elimination with partial pivoting.
+    """Solve A x = rhs by Gaussian elimination with partial pivoting, each row first
+    scaled by its largest entry (row equilibration: the shooting Jacobian's rows are
+    conditions of very different sizes, a taut cable's axial stiffness beside a free
+    end's moment, and a pivot is only small against its own row's scale).
 
-    Returns (x, ok); ok is False when a pivot falls below 1e-13 of the largest entry,
+    Returns (x, ok); ok is False when a pivot falls below 1e-13 (the rows scaled to 1),
     which the caller reports as a singular Jacobian (a fold or bifurcation point, or an
     ill-posed problem).
     """
     n = rhs.shape[0]
     M = A.copy()
     x = rhs.copy()
-    scale = 0.0
     for i in range(n):
+        big = 0.0
         for j in range(n):
             v = abs(M[i, j])
-            if v > scale:
-                scale = v
-    if scale == 0.0 or not math.isfinite(scale):
-        return x, False
+            if v > big:
+                big = v
+        if big == 0.0 or not math.isfinite(big):
+            return x, False
+        for j in range(n):
+            M[i, j] /= big
+        x[i] /= big
+    scale = 1.0
     for col in range(n):
         piv = col
         best = abs(M[col, col])
@@ -487,6 +494,12 @@ def newton(z0, jac0, st_s, st_kind, st_val, st_fol, st_col, seg_steps, seg_lo, s
             t *= 0.5
         if not accepted:
             if fresh:
+                # At the round-off floor of a stiff problem (a taut cable: forces of
+                # thousands of EI / L^2 in the residual's terms) no step lowers the
+                # residual any more: the Newton step is then round-off itself.
+                size = 1.0 + max_abs(z)
+                if r <= 1e3 * tol * size and max_abs(dz) <= 1e-9 * size:
+                    return z, r, it, CONVERGED, jac, stats, theta
                 return z, r, it, NOT_CONTRACTING, jac, stats, max(theta, rt / r)
             # A stale Jacobian may be to blame: refresh it and try again from z.
             res, jac, stats = shoot(z, st_s, st_kind, st_val, st_fol, st_col, seg_steps,
@@ -652,6 +665,7 @@ def follow(z0, jac0, density, st_s, st_kind, st_col, seg_lo, seg_hi, st_kappa,
     # step is so short that the crossing is genuine; those are counted in ``crossings``.
     sign = det_sign(j_eps)
     crossings = 0
+    refining = False
     while steps < max_steps:
         # The cap on the step from the loads, then from the solution's own wavenumber
         # (which carries the unknown reactions too), extrapolated along the last step.
@@ -676,9 +690,12 @@ def follow(z0, jac0, density, st_s, st_kind, st_col, seg_lo, seg_hi, st_kappa,
             for q in range(nz):
                 predictor[q] += (t_next - t) * tangent[q]
         final = t_next >= 1.0
+        # Re-converging the end point on a finer mesh is no continuation step (the loads
+        # do not move: a shorter step cannot help): a damped Newton, not a corrector that
+        # must contract (a taut cable's first step there often does not).
         zn, rn, it, status, jn, st, theta = newton(
             predictor, jac, st_s, st_kind, val, fol, st_col, seg_steps, seg_lo, seg_hi, prm,
-            st_kappa, tol if final else loose, max_iter, contraction)
+            st_kappa, tol if final else loose, max_iter, 0.0 if refining else contraction)
         iterations += it
         if status == CONVERGED:
             # How far the corrector travelled from the prediction, each unknown relative
@@ -700,6 +717,7 @@ def follow(z0, jac0, density, st_s, st_kind, st_col, seg_lo, seg_hi, st_kappa,
                         crossings += 1
                         sign = new_sign
         if status == CONVERGED:
+            refining = False
             steps += 1
             k_prev = k_now
             k_now = math.sqrt(st[1])  # buckling modes follow the force, not the curvature
@@ -719,6 +737,7 @@ def follow(z0, jac0, density, st_s, st_kind, st_col, seg_lo, seg_hi, st_kappa,
                     t_prev = -1.0
                     t = 1.0 - 1e-12
                     dt = 1.0
+                    refining = True
                     continue
             if final:
                 return (z, jac, density, stats, r, CONVERGED, CONVERGED, t, iterations,
