@@ -372,6 +372,9 @@ class Equilibrium3D:
     state: Any = field(default=None, repr=False)
     stability_check: Callable[[], tuple[bool | None, float | None]] | None = field(
         default=None, repr=False)
+    # The flexible parts already fitted that this part touched, as they deformed: each
+    # the Equilibrium3D of its own problem, its clamps' reactions with the contact on it.
+    fitted: tuple[Equilibrium3D, ...] = field(default=(), repr=False)
 
     @cached_property
     def samples(self) -> Samples3D:

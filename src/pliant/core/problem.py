@@ -116,6 +116,44 @@ class Station3D:
         return tuple(o is not None for o in self.owner)
 
 
+# Contact between two parts (the accurate model's ``coupled``): walls flatten 10
+# micrometres per newton where two tubes press together (a contact stiffness of 1e5 N/m,
+# a hose wall's local ovalisation under a line load), and probes along the first part sit
+# close enough that the tubes cannot pass between two by more than PROBE_SAG of the sum
+# of their radii. A clearance report counts an overlap within both as touching.
+WALL_COMPLIANCE = 1e-5  # m/N
+PROBE_SAG = 0.01
+
+
+@dataclass(frozen=True, eq=False)
+class FittedPart:
+    """A flexible part already assembled, in its clamps and clips: its own problem, the
+    element count it is solved with, and its equilibrium there (untouched). A part being
+    fitted that touches it is solved together with it: it deforms, and its clamps feel
+    the contact (``pliant.models.rod3d.coupled``). It pickles without its equilibrium
+    (which holds the solver's closures), found again on first use."""
+
+    name: str
+    problem: Problem
+    elements: int
+    solved: object = field(default=None, repr=False)  # its Equilibrium3D, alone
+
+    @property
+    def equilibrium(self):
+        if self.solved is None:
+            from pliant.models import rod3d  # noqa: PLC0415 (core knows no model but here)
+
+            object.__setattr__(self, "solved", rod3d.solve(
+                self.problem, solver=rod3d.RodSolver(elements=self.elements)))
+        return self.solved
+
+    def __getstate__(self) -> dict:
+        return {**self.__dict__, "solved": None}
+
+    def __setstate__(self, state: dict) -> None:
+        self.__dict__.update(state)
+
+
 @dataclass(frozen=True)
 class Problem:
     """A flexible part, conditions at stations along it, and gravity [m/s^2].

@@ -434,9 +434,12 @@ class AssembledModel(_Strict):
     name: str
     file: str = Field(description="its problem file, relative to this file")
     elements: int = Field(60, ge=4, le=2000)
+    flexible: bool = Field(True, description="a part that touches it deforms it (they are "
+                           "solved together); false: its tube is a rigid obstacle")
     note: str = ""
 
     def build(self, base: Path | None) -> Any:
+        from pliant.core.problem import FittedPart  # noqa: PLC0415
         from pliant.core.tube import tube_mesh  # noqa: PLC0415
         from pliant.models import rod3d  # noqa: PLC0415
         from pliant.scene.distance import Obstacle  # noqa: PLC0415
@@ -456,7 +459,11 @@ class AssembledModel(_Strict):
         part = problem.part
         radius = 0.5 * part.outer_diameter if part.outer_diameter else 0.01 * part.length
         vertices, faces = tube_mesh(eq.position, radius, eq.frames, sides=16, caps=True)
-        return Obstacle.from_mesh(self.name, vertices, faces)
+        obstacle = Obstacle.from_mesh(self.name, vertices, faces)
+        if self.flexible:
+            obstacle = replace(obstacle, fitted=FittedPart(self.name, problem, self.elements,
+                                                           solved=eq))
+        return obstacle
 
 
 class PortModel(_Strict):

@@ -804,6 +804,9 @@ class Obstacle:
     param: np.ndarray
     mesh: MeshData | None = None
     friction: float = 0.0  # Coulomb's coefficient between it and the part
+    # A flexible part already fitted (pliant.core.problem.FittedPart) whose tube at rest
+    # this is: the accurate model solves it with the part that touches it.
+    fitted: object = None
 
     def with_friction(self, mu: float) -> Obstacle:
         """This obstacle with Coulomb friction ``mu`` (>= 0) against the part."""

@@ -19,6 +19,7 @@ from typing import Any
 
 import numpy as np
 
+from pliant.core.problem import PROBE_SAG, WALL_COMPLIANCE
 from pliant.errors import InputError
 from pliant.scene.distance import Obstacle, field_of
 
@@ -82,9 +83,15 @@ class Interference:
 
 def of_curve(s: np.ndarray, points: np.ndarray, radius: float,
              obstacles: tuple[Obstacle, ...] | list[Obstacle], *, margin: float = 0.0,
-             tolerance: float = 1e-6, subdivide: int = 8) -> Interference:
+             tolerance: float = 1e-6, subdivide: int = 8,
+             tubes: dict[str, tuple[np.ndarray, float, float]] | None = None
+             ) -> Interference:
     """The interference of a tube of ``radius`` round the polyline ``points`` (n, 3)
-    [m] at arc lengths ``s`` (n,) [m] with each obstacle."""
+    [m] at arc lengths ``s`` (n,) [m] with each obstacle. ``tubes``: obstacles that are
+    other parts' tubes, by name: (their neutral line's points (m, 3) [m], their radius
+    [m], the overlap [m] their contact model allows: walls' give and probes' spacing);
+    the clearance to those is measured to that line (as it deformed), and an overlap
+    within that allowance is touching, not penetrating."""
     s = np.asarray(s, dtype=float)
     points = np.asarray(points, dtype=float)
     if points.ndim != 2 or points.shape[1] != 3 or s.shape != (points.shape[0],):
@@ -102,14 +109,21 @@ def of_curve(s: np.ndarray, points: np.ndarray, radius: float,
     band = radius + margin + 1e-3
     clearances, penetrations, too_close = [], [], []
     field = field_of(obstacles)
+    tubes = tubes or {}
     for k, obstacle in enumerate(obstacles):
-        d, _ = field.query_one(k, dense, band=band)
+        deep = tolerance
+        if obstacle.name in tubes:
+            line, outer, allowed = tubes[obstacle.name]
+            d = polyline_distance(dense, np.asarray(line, dtype=float)) - outer
+            deep += allowed
+        else:
+            d, _ = field.query_one(k, dense, band=band)
         gap = d - radius
         k = int(np.argmin(gap))
         clearances.append(Clearance(obstacle.name, float(gap[k]), float(ds[k]),
                                     tuple(float(x) for x in dense[k])))
-        penetrations += _spans(obstacle.name, ds, gap, gap < -tolerance)
-        too_close += _spans(obstacle.name, ds, gap, (gap >= -tolerance) & (gap < margin))
+        penetrations += _spans(obstacle.name, ds, gap, gap < -deep)
+        too_close += _spans(obstacle.name, ds, gap, (gap >= -deep) & (gap < margin))
     return Interference(margin, tolerance, tuple(clearances), tuple(penetrations),
                         tuple(too_close))
 
@@ -118,12 +132,49 @@ def of_equilibrium(eq: Any, obstacles: tuple[Obstacle, ...] | None = None, *,
                    margin: float = 0.0, tolerance: float = 1e-6,
                    subdivide: int = 8) -> Interference:
     """The interference of a 3D equilibrium with its problem's obstacles (or others).
-    The tube's radius is the part's outer radius (0: a line, when it has none)."""
+    The tube's radius is the part's outer radius (0: a line, when it has none). A
+    flexible part already fitted is measured as it is in this answer: deformed where
+    the part touched it (``eq.fitted``), else at rest."""
     if eq.problem.dimension != 3:
         raise InputError("eq", "interference is checked in 3D scenes; this is a 2D answer")
-    return of_curve(eq.s, eq.position, eq.problem.part.tube_radius,
-                    eq.problem.obstacles if obstacles is None else obstacles,
-                    margin=margin, tolerance=tolerance, subdivide=subdivide)
+    obstacles = eq.problem.obstacles if obstacles is None else obstacles
+    return of_curve(eq.s, eq.position, eq.problem.part.tube_radius, obstacles,
+                    margin=margin, tolerance=tolerance, subdivide=subdivide,
+                    tubes=fitted_tubes(eq, obstacles))
+
+
+def fitted_tubes(eq: Any, obstacles) -> dict[str, tuple[np.ndarray, float, float]]:
+    """The fitted flexible parts among ``obstacles``, by name: (neutral line [m], outer
+    radius [m], allowed overlap [m]), deformed as in ``eq`` where it touched them, else
+    at rest (see ``of_curve``)."""
+    out = {}
+    deformed = {id(f.problem): f for f in getattr(eq, "fitted", ())}
+    forces = eq.contacts.by_obstacle() if deformed else {}
+    for o in obstacles:
+        fit = getattr(o, "fitted", None)
+        if fit is None:
+            continue
+        shape = deformed.get(id(fit.problem), fit.equilibrium)
+        outer = fit.problem.part.tube_radius
+        allowed = (PROBE_SAG * (outer + eq.problem.part.tube_radius)
+                   + WALL_COMPLIANCE * float(np.linalg.norm(forces.get(o.name, np.zeros(3)))))
+        out[o.name] = (shape.position, outer, allowed)
+    return out
+
+
+def polyline_distance(points: np.ndarray, line: np.ndarray) -> np.ndarray:
+    """The distance [m] of each point (k, 3) to the polyline ``line`` (m, 3)."""
+    a = line[:-1]
+    ab = line[1:] - a
+    ab2 = np.maximum(np.einsum("ij,ij->i", ab, ab), 1e-300)
+    out = np.empty(points.shape[0])
+    for lo in range(0, points.shape[0], 512):  # bounded memory: 512 x segments x 3
+        p = points[lo:lo + 512]
+        t = np.clip(np.einsum("kij,ij->ki", p[:, None] - a[None], ab) / ab2, 0.0, 1.0)
+        q = a[None] + t[..., None] * ab[None]
+        out[lo:lo + 512] = np.sqrt(np.einsum("kij,kij->ki", p[:, None] - q,
+                                             p[:, None] - q).min(axis=1))
+    return out
 
 
 def _spans(name: str, s: np.ndarray, gap: np.ndarray, mask: np.ndarray) -> list[Span]:

@@ -20,6 +20,7 @@ import numpy as np
 from pliant.core.equilibrium import StationLoad
 from pliant.core.problem import Problem
 from pliant.errors import PliantError
+from pliant.scene.interference import fitted_tubes
 
 
 @dataclass(frozen=True)
@@ -56,6 +57,9 @@ class AccurateResult:
     min_bend_radius: tuple[float, float] = (math.inf, 0.0)
     tangent: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)))
     torque: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    # The flexible parts already fitted, by name: (neutral line (m, 3) [m], outer radius
+    # [m], the overlap [m] their contact allows), deformed where this pose touches them.
+    fitted: dict[str, tuple[np.ndarray, float, float]] = field(default_factory=dict)
 
     @property
     def ok(self) -> bool:
@@ -109,7 +113,8 @@ class AccurateSolver:
                               bending_moment=_bending_moment(eq),
                               contacts=getattr(eq, "contacts", None),
                               min_bend_radius=eq.min_bend_radius(),
-                              **({"tangent": np.array(eq.tangent), "torque": np.array(eq.torque)}
+                              **({"tangent": np.array(eq.tangent), "torque": np.array(eq.torque),
+                                  "fitted": fitted_tubes(eq, problem.obstacles)}
                                  if problem.dimension == 3 else {}))
 
 

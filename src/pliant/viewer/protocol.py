@@ -192,6 +192,15 @@ class Verdict(BaseModel):
     items: list[VerdictItem] = []
 
 
+class FittedShape(BaseModel):
+    """A flexible part already fitted, as this answer has it: its neutral line [m] and
+    outer radius [m] (deformed where the part touches it, else at rest)."""
+
+    name: str
+    position: list[list[float]]
+    radius: float
+
+
 class ServerAccurate(_Message):
     """An accurate equilibrium (real forces): the shape, curvature and bending moment
     along s, what each condition applies (``loads``; for a grip held by position this is
@@ -210,6 +219,7 @@ class ServerAccurate(_Message):
     loads: list[Load] = []
     contacts: list[Contact] = []
     interference: Interference | None = None
+    fitted: list[FittedShape] = []
     min_bend_radius: float | None = None
     min_bend_radius_s: float | None = None
     allowed_bend_radius: float | None = None

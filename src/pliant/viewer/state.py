@@ -355,7 +355,8 @@ class ViewerState:
             contacts = [P.Contact(s=float(c.s[k]), point=c.point[k].tolist(),
                                   force=c.force[k].tolist(), obstacle=c.obstacle[k])
                         for k in range(len(c))]
-        interference = self._interference(result.s, position)
+        fitted = getattr(result, "fitted", {})
+        interference = self._interference(result.s, position, fitted)
         radius, s_radius = result.min_bend_radius
         allowed = self.session.problem.part.min_bend_radius
         warnings = []
@@ -374,7 +375,9 @@ class ViewerState:
             min_bend_radius=radius, min_bend_radius_s=s_radius, allowed_bend_radius=allowed,
             stable=result.stable, residual=result.residual, iterations=result.iterations,
             solve_seconds=result.solve_seconds, warnings=warnings, notes=list(result.notes),
-            verdict=verdict)
+            verdict=verdict,
+            fitted=[P.FittedShape(name=name, position=np.round(line, 6).tolist(), radius=r)
+                    for name, (line, r, _) in fitted.items()])
 
     def _verdict(self, result, interference: P.Interference) -> P.Verdict | None:
         """The pose's evaluation by the same rules as ``pliant evaluate`` (3D scenes);
@@ -410,7 +413,10 @@ class ViewerState:
             drift=float(frame.drift.distance_to_accurate), pending=bool(frame.pending),
             seconds=float(frame.seconds))
 
-    def _interference(self, s: np.ndarray, points: np.ndarray) -> P.Interference:
+    def _interference(self, s: np.ndarray, points: np.ndarray,
+                      fitted: dict | None = None) -> P.Interference:
+        """``fitted``: flexible parts already fitted as an accurate answer deformed them
+        (the real-time frames measure to them at rest, as their tubes are)."""
         obstacles = self.session.problem.obstacles
         if not obstacles:
             return P.Interference(margin=self.scene.margin, clearances=[], penetrations=[],
@@ -418,7 +424,7 @@ class ViewerState:
         from pliant.scene.interference import of_curve  # noqa: PLC0415
 
         report = of_curve(s, points, self.radius, obstacles, margin=self.scene.margin,
-                          tolerance=0.01 * self.radius, subdivide=2)
+                          tolerance=0.01 * self.radius, subdivide=2, tubes=fitted)
         return P.Interference(
             margin=report.margin,
             clearances=[P.Clearance(obstacle=c.obstacle, clearance=c.clearance, s=c.s,

@@ -726,10 +726,15 @@ def solve(problem: Problem, *, warm_start: Equilibrium3D | None = None,
 
 
 def _solve(problem: Problem, warm_start: Equilibrium3D | None, solver: RodSolver,
-           follow_only: bool) -> Equilibrium3D:
+           follow_only: bool, rigid: bool = False) -> Equilibrium3D:
+    """``rigid``: flexible parts already fitted (``coupled``) count as rigid tubes."""
     if problem.dimension != 3:
         raise IllPosedProblemError("the 3D model solves 3D problems; this one is 2D "
                                    "(use pliant.solve, which picks the model)")
+    if not rigid and any(getattr(o, "fitted", None) is not None for o in problem.obstacles):
+        from pliant.models.rod3d import coupled  # noqa: PLC0415
+
+        return coupled.solve_fitted(problem, warm_start, solver, follow_only)
     rod = None
     if warm_start is not None and isinstance(warm_start.state, _WarmState):
         rod = warm_start.state.rod.retarget(problem, solver.elements)  # skips re-meshing

@@ -597,6 +597,7 @@ function onAccurate(msg) {
   state.failed = null;
   pulseHands(msg);
   drawGhost(msg);
+  drawFitted(msg.fitted || []);
   drawLoads(msg);
   if (state.frame) drawTube(state.frame);
   const lines = [];
@@ -630,6 +631,21 @@ function showVerdict(verdict) {
   box.textContent = verdict.headline;
   $('verdict-items').innerHTML = verdict.items.map((i) => `<li><span class="zone ${i.zone}">${esc(i.zone)}</span>` +
     `${esc(i.text)}<div class="source">${esc(i.source)}</div></li>`).join('');
+}
+
+// A flexible part already fitted is drawn as the accurate answer has it: deformed where
+// the part touches it (its obstacle mesh, same name, takes the new tube).
+function drawFitted(fitted) {
+  for (const part of fitted) {
+    const mesh = obstacleGroup.getObjectByName(part.name);
+    if (!mesh || part.position.length < 2) continue;
+    const points = part.position.map((p) => new THREE.Vector3(...p));
+    const path = new THREE.CatmullRomCurve3(points, false, 'centripetal');
+    const geometry = new THREE.TubeGeometry(path, Math.max(2 * points.length, 32), part.radius, 16, false);
+    mesh.geometry.dispose();
+    mesh.geometry = geometry;
+    mesh.userData.fitted = true;
+  }
 }
 
 function drawGhost(msg) {

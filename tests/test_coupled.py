@@ -1,0 +1,151 @@
+"""Flexible parts solved together (``rod3d.coupled``): two cantilevers pressed tip to tip
+against the symmetry and a single cantilever under the same load, Newton's third law
+and each part's balance, and a scene's fitted hose that gives way under a line, its
+clamps taking the push."""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import pliant as pl
+from pliant.core.problem import PROBE_SAG, WALL_COMPLIANCE, Problem
+from pliant.errors import ConvergenceError
+from pliant.io.problem_file import load_scene
+from pliant.models import rod3d
+from pliant.models.rod3d import coupled
+from pliant.models.rod3d.lowering import lower
+from pliant.models.rod3d.solver import _Run
+from pliant.scene.interference import of_equilibrium
+
+EXAMPLES = Path(__file__).resolve().parents[1] / "examples"
+L, GAP, TILT = 0.5, 0.1, 0.2  # m, m (clamps apart), rad (each clamp turned in)
+PART = pl.Part(length=L, bending_stiffness=1.0, outer_diameter=0.01)
+SOLVER = rod3d.RodSolver(elements=40)
+
+
+def cantilevers(tilt: float) -> list[Problem]:
+    """A along +x from the origin and B from (0, GAP, 0), each turned ``tilt`` toward
+    the other: past about 0.1 rad their tips meet."""
+    out = []
+    for name, y, sign in (("A", 0.0, 1.0), ("B", GAP, -1.0)):
+        tangent = (math.cos(tilt), sign * math.sin(tilt), 0.0)
+        out.append(Problem(PART, (pl.clamp(0.0, (0.0, y, 0.0), tangent=tangent,
+                                           normal=(0.0, 0.0, 1.0), name=f"{name} clamp"),),
+                           name=name))
+    return out
+
+
+@pytest.fixture(scope="module")
+def pressed():
+    """The two cantilevers turned in from parallel until they press tip to tip."""
+    runs = [_Run(lower(p, elements=40), SOLVER) for p in cantilevers(TILT)]
+    starts = [_Run(r.rod.retarget(p, 40), SOLVER) for r, p in zip(runs, cantilevers(0.0))]
+    states = [r.cold() for r in starts]
+    coupling, states, mus = coupled.solve_coupled(
+        runs, states, solver=SOLVER, start=[r.rod.target for r in starts], held_first=False)
+    return coupled.equilibria(coupling, states, mus, ["A", "B"])
+
+
+def test_equal_and_opposite_and_each_part_balances(pressed):
+    a, b = pressed
+    fa, fb = a.contacts.force.sum(axis=0), b.contacts.force.sum(axis=0)
+    assert np.linalg.norm(fa) > 0.5  # they do press (about 1.3 N)
+    np.testing.assert_allclose(fa, -fb, atol=1e-12)
+    assert set(a.contacts.obstacle) == {"B"} and set(b.contacts.obstacle) == {"A"}
+    for eq, name in ((a, "A clamp"), (b, "B clamp")):
+        assert eq.residual < 1e-9
+        clamp = eq.loads[name]
+        # Forces: the clamp takes the contact; moments about the clamp balance too.
+        np.testing.assert_allclose(clamp.force + eq.contacts.force.sum(axis=0), 0.0,
+                                   atol=1e-9)
+        arm = eq.contacts.point - eq.position[0]
+        moment = clamp.moment + np.cross(arm, eq.contacts.force).sum(axis=0)
+        np.testing.assert_allclose(moment, 0.0, atol=1e-9)
+
+
+def test_symmetric_and_as_a_single_cantilever_under_that_load(pressed):
+    a, b = pressed
+    mirror = np.array([1.0, -1.0, 1.0])
+    np.testing.assert_allclose(b.position, a.position * mirror + [0.0, GAP, 0.0], atol=1e-9)
+    # The tips touch: their centrelines a tube's diameter apart, less the walls' give.
+    gap = b.position[-1, 1] - a.position[-1, 1]
+    force = np.linalg.norm(a.contacts.force.sum(axis=0))
+    assert gap == pytest.approx(0.01 - WALL_COMPLIANCE * force, abs=1e-9)
+    # A alone, with B's push as a point load at its tip: the same shape.
+    (s,) = a.contacts.s
+    single = rod3d.solve(Problem(PART, (cantilevers(TILT)[0].conditions[0],
+                                        pl.push(s, force=tuple(a.contacts.force[0]),
+                                                name="push")), name="single"),
+                         solver=SOLVER)
+    assert np.abs(single.position - a.position).max() < 1e-8
+
+
+def test_stability_is_not_claimed_for_parts_solved_together(pressed):
+    a, _ = pressed
+    assert a.stability == (None, None)
+    assert any("solved together" in n for n in a.notes)
+
+
+@pytest.fixture(scope="module")
+def draped():
+    """The oil line of the example carried along its path and pulled down onto the
+    fitted coolant hose (the last step)."""
+    scene = load_scene(EXAMPLES / "scenes" / "line_over_hose.toml")
+    eq = None
+    for problem in [scene.problem, *scene.path]:
+        eq = rod3d.solve(problem, warm_start=eq, solver=rod3d.RodSolver(elements=60))
+    return eq
+
+
+def test_a_fitted_hose_gives_way_and_its_clamps_take_the_push(draped):
+    eq = draped
+    assert eq.residual < 1e-9
+    push = eq.contacts.by_obstacle()["coolant hose"]
+    assert push[2] > 5.0  # the hose holds the line up (about 10 N)
+    (hose,) = eq.fitted
+    rest = eq.problem.obstacles[0].fitted.equilibrium
+    # The hose's crest went down (it is no rigid tube) and it feels the line.
+    assert rest.position[:, 2].max() - hose.position[:, 2].max() > 1e-3
+    on_hose = hose.contacts.by_obstacle()
+    np.testing.assert_allclose(on_hose[eq.problem.name], -push, atol=1e-9)
+    # The hose balances: its clamps, its weight and the line's push.
+    weight = hose.problem.part.mass_per_length * hose.problem.part.length * np.array(
+        hose.problem.gravity)
+    clamps = sum(load.force for load in hose.loads.values())
+    np.testing.assert_allclose(clamps + weight + on_hose[eq.problem.name], 0.0, atol=1e-8)
+
+
+def test_clearance_to_a_fitted_part_is_measured_as_it_deformed(draped):
+    report = of_equilibrium(draped)
+    (c,) = [c for c in report.clearances if c.obstacle == "coolant hose"]
+    # Touching: within the walls' give under the contact force and the probes' spacing
+    # (1 % of the radii's sum: see coupled.probes), not the centimetres the line would be
+    # inside the hose at rest.
+    force = np.linalg.norm(draped.contacts.by_obstacle()["coolant hose"])
+    reach = 0.004 + 0.0125
+    assert -WALL_COMPLIANCE * force - PROBE_SAG * reach < c.clearance < 1e-4
+    assert not report.penetrations
+
+
+def test_a_fitted_part_not_touched_stays_a_plain_solve():
+    scene = load_scene(EXAMPLES / "scenes" / "line_over_hose.toml")
+    eq = rod3d.solve(scene.problem, solver=rod3d.RodSolver(elements=60))
+    assert not eq.fitted and "coolant hose" not in eq.contacts.obstacle
+
+
+def test_parts_that_cannot_be_solved_together_say_so(monkeypatch):
+    """No silent fallback: the rigid answer comes with a note naming the part."""
+    scene = load_scene(EXAMPLES / "scenes" / "line_over_hose.toml")
+
+    def refuse(*args, **kwargs):
+        raise ConvergenceError("refused for the test", residual=1.0)
+
+    monkeypatch.setattr(coupled, "solve_coupled", refuse)
+    eq = rod3d.solve(scene.path[-1], solver=rod3d.RodSolver(elements=60))
+    assert not eq.fitted and "coolant hose" in eq.contacts.obstacle
+    assert any("coolant hose could not be solved together" in n and "held rigid" in n
+               for n in eq.notes)
