@@ -12,8 +12,8 @@ import numpy as np
 import pytest
 
 import pliant as pl
-from pliant.core.problem import PROBE_SAG, WALL_COMPLIANCE, Problem
-from pliant.errors import ConvergenceError
+from pliant.core.problem import PROBE_SAG, WALL_COMPLIANCE, Problem, SlidingClip
+from pliant.errors import ConvergenceError, FileFormatError
 from pliant.io.problem_file import load_scene
 from pliant.models import rod3d
 from pliant.models.rod3d import coupled
@@ -149,3 +149,119 @@ def test_parts_that_cannot_be_solved_together_say_so(monkeypatch):
     assert not eq.fitted and "coolant hose" in eq.contacts.obstacle
     assert any("coolant hose could not be solved together" in n and "held rigid" in n
                for n in eq.notes)
+
+
+# -- clips that slide and turn ---------------------------------------------------------------
+BEAM = pl.Part(length=1.0, bending_stiffness=1.0)
+CLIP_AT = (0.6, 0.05, 0.0)  # 5 cm off the clamp's line: the part bends into an S to pass
+
+
+@pytest.fixture(scope="module")
+def slid():
+    """A cantilever along +x, its tip pushed down by 2 N, led through a frictionless
+    sliding clip 5 cm off its line that holds its direction along +x; the clip starts
+    at s = 0.6025 m (just longer than the chord) and the part slides to balance."""
+    clip = SlidingClip("clip", 0.6025, CLIP_AT, (1.0, 0.0, 0.0))
+    problem = Problem(BEAM, (pl.clamp(0.0, (0.0, 0.0, 0.0), tangent=(1.0, 0.0, 0.0),
+                                      normal=(0.0, 0.0, 1.0), name="clamp"),
+                             pl.push(1.0, force=(0.0, -2.0, 0.0), name="tip")),
+                      sliders=(clip,))
+    return rod3d.solve(problem, solver=rod3d.RodSolver(elements=100))
+
+
+def test_a_part_slides_through_a_clip_as_the_2d_model_with_a_free_axial_pin(slid):
+    eq = slid
+    assert eq.residual < 1e-9
+    clip = eq.loads["clip"]
+    # The clip holds the part at its point, whatever point of the part is there (to
+    # within h^2 kappa = 8e-5 m, h = 1 cm, kappa = 0.8 / m: the clip holds the smooth
+    # B-spline of the nodes, not the polyline through them).
+    at = np.array([np.interp(clip.s, eq.s, eq.position[:, c]) for c in range(3)])
+    np.testing.assert_allclose(at, CLIP_AT, atol=8e-5)
+    assert clip.s > math.hypot(0.6, 0.05)  # the S is longer than its chord
+    # Balance: clamp, clip and tip.
+    np.testing.assert_allclose(eq.loads["clamp"].force + clip.force + eq.loads["tip"].force,
+                               0.0, atol=1e-9)
+    # The 2D model with the clip as a station at that s, its x free (a pin with a free
+    # axial component) and its angle held: the same shape, the clip where it is.
+    plane = pl.solve(pl.Problem(BEAM, (pl.clamp(0.0), pl.Condition(
+        s=clip.s, name="clip", position=(None, 0.05), angle=0.0),
+        pl.push(1.0, force=(0.0, -2.0), name="tip"))))
+    assert np.interp(clip.s, plane.s, plane.position[:, 0]) == pytest.approx(0.6, abs=8e-5)
+    for c in range(2):
+        mine = np.interp(plane.s, eq.s, eq.position[:, c])
+        assert np.abs(mine - plane.position[:, c]).max() < 2e-4  # h = 1 cm
+    assert clip.force[1] == pytest.approx(plane.loads["clip"].force[1], rel=1e-3)
+
+
+def test_a_sliding_clip_pushes_along_the_part_by_its_bending_energys_jump(slid):
+    """Frictionless, the clip still pushes along the part: by (M+^2 - M-^2) / 2 EI, the
+    jump of the bending energy across it (the Eshelby-like force of Bigoni, Dal Corso,
+    Bosi and Misseroni, Mech. Mater. 2015), which the 2D pin cannot have."""
+    eq = slid
+    clip = eq.loads["clip"]
+    M = np.linalg.norm(eq.internal_moment, axis=1)
+    k = int(np.searchsorted(eq.s, clip.s))  # the first node past the clip
+
+    def side(i, j):  # the moment extrapolated to the clip from two nodes on one side
+        return M[i] + (M[j] - M[i]) / (eq.s[j] - eq.s[i]) * (clip.s - eq.s[i])
+
+    before, after = side(k - 3, k - 2), side(k + 1, k + 2)
+    eshelby = (after**2 - before**2) / (2.0 * BEAM.bending_stiffness)
+    assert abs(eshelby) > 0.01  # not nothing: about 0.03 N here
+    assert clip.force[0] == pytest.approx(eshelby, rel=0.02)
+
+
+def test_a_turning_clip_takes_no_moment_about_its_axis():
+    """A clip without a normal lets the part turn in it: a twist at the tip goes to the
+    clamp whole."""
+    problem = Problem(BEAM, (
+        pl.clamp(0.0, (0.0, 0.0, 0.0), tangent=(1.0, 0.0, 0.0), normal=(0.0, 0.0, 1.0),
+                 name="clamp"),
+        pl.grip(0.5, (0.49, 0.0, 0.02), tangent=(1.0, 0.0, 0.0), name="turning clip"),
+        pl.push(1.0, force=(0.0, 0.0, -1.0), moment=(0.3, 0.0, 0.0), name="tip")))
+    eq = rod3d.solve(problem, solver=rod3d.RodSolver(elements=60))
+    clip = eq.loads["turning clip"]
+    axis = eq.frames[int(np.argmin(np.abs(eq.s - 0.5)))][:, 2]
+    assert abs(clip.moment @ axis) < 1e-9
+    assert np.linalg.norm(clip.moment) > 0.05  # it does hold the direction
+    # The whole part balances in moment about the clamp (the twist goes round the clip
+    # through the clamp).
+    total = np.zeros(3)
+    for load in eq.loads.values():
+        at = eq.position[int(np.argmin(np.abs(eq.s - load.s)))]
+        total += load.moment + np.cross(at, load.force)
+    np.testing.assert_allclose(total, 0.0, atol=1e-9)
+
+
+def test_clip_kinds_in_scene_files():
+    text = """
+gravity = [0.0, 0.0, -9.81]
+[part]
+length = 1.0
+bending_stiffness = 1.0
+[[condition]]
+name = "clamp"
+s = 0.0
+x = 0.0
+y = 0.0
+z = 0.0
+tangent = [1.0, 0.0, 0.0]
+normal = [0.0, 0.0, 1.0]
+[[clip]]
+name = "sleeve"
+s = 0.6025
+position = [0.6, 0.05, 0.0]
+axis = [1.0, 0.0, 0.0]
+kind = "sliding"
+"""
+    from pliant.io.problem_file import parse_problem
+
+    problem = parse_problem(text)
+    (clip,) = problem.sliders
+    assert clip.name == "sleeve" and clip.holds_axis
+    assert parse_problem(text.replace('"sliding"', '"ring"')).sliders[0].holds_axis is False
+    with pytest.raises(FileFormatError, match=r"clip\[0\]: normal: a turning clip"):
+        parse_problem(text.replace('kind = "sliding"', 'kind = "turning"\nnormal = [0, 0, 1]'))
+    with pytest.raises(FileFormatError, match=r"sleeve\.s"):
+        parse_problem(text.replace("s = 0.6025", "s = 1.5"))

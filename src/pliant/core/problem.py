@@ -155,6 +155,36 @@ class FittedPart:
 
 
 @dataclass(frozen=True)
+class SlidingClip:
+    """A clip the part slides through (3D): it holds the part's neutral line at
+    ``position`` [m] and, with ``holds_axis``, its direction along ``axis``, whatever
+    point of the part is there; the part slides freely along the axis (the clip takes no
+    axial force). ``s`` [m] is where along the part the clip is at the start; the solve
+    finds where it ends (the slide). Without ``holds_axis`` it is a ring or grommet that
+    holds the position only."""
+
+    name: str
+    s: float
+    position: tuple[float, float, float]
+    axis: tuple[float, float, float]
+    holds_axis: bool = True
+
+    def __post_init__(self) -> None:
+        for field_name, value in (("position", self.position), ("axis", self.axis)):
+            v = tuple(float(x) for x in value)
+            if len(v) != 3 or not all(math.isfinite(x) for x in v):
+                raise InputError(f"{self.name}.{field_name}", "give 3 finite numbers")
+            object.__setattr__(self, field_name, v)
+        norm = math.sqrt(sum(a * a for a in self.axis))
+        if not norm > 0.0:
+            raise InputError(f"{self.name}.axis", "must be a non-zero direction")
+        object.__setattr__(self, "axis", tuple(a / norm for a in self.axis))
+        if not math.isfinite(float(self.s)):
+            raise InputError(f"{self.name}.s", "give the arc length [m] at the clip")
+        object.__setattr__(self, "s", float(self.s))
+
+
+@dataclass(frozen=True)
 class Problem:
     """A flexible part, conditions at stations along it, and gravity [m/s^2].
 
@@ -169,6 +199,7 @@ class Problem:
     gravity: tuple[float, ...] | None = None
     name: str = ""
     obstacles: tuple = ()
+    sliders: tuple[SlidingClip, ...] = ()
     stations: tuple = field(init=False, repr=False, compare=False)
     dimension: int = field(init=False, repr=False, compare=False)
 
@@ -218,13 +249,28 @@ class Problem:
             if not -STATION_MERGE * length <= c.s <= length * (1 + STATION_MERGE):
                 raise InputError(f"{c.name}.s", f"station s = {c.s} m lies outside the part "
                                  f"[0, {length}] m; move it onto the part")
+        sliders = tuple(self.sliders)
+        if sliders and dimension != 3:
+            raise InputError("sliders", "a sliding clip is 3D; give the conditions and "
+                             "gravity three components")
+        for c in sliders:
+            if not isinstance(c, SlidingClip):
+                raise InputError("sliders", "must be SlidingClip objects")
+            if not 0.0 < c.s < length:
+                raise InputError(f"{c.name}.s", f"the clip must hold the part inside it: "
+                                 f"s = {c.s} m is not within (0, {length}) m")
+            if c.name in names or [x.name for x in sliders].count(c.name) > 1:
+                raise InputError(f"{c.name}.name", "a sliding clip needs a name of its own "
+                                 "(its reaction is reported by name)")
+        object.__setattr__(self, "sliders", sliders)
         merge = _merge if dimension == 2 else _merge3
         object.__setattr__(self, "stations", merge(conditions, length))
         self._check_rigid_motion()
         self._check_reach()
 
     def with_conditions(self, conditions: Iterable[Condition]) -> Problem:
-        return Problem(self.part, tuple(conditions), self.gravity, self.name, self.obstacles)
+        return Problem(self.part, tuple(conditions), self.gravity, self.name, self.obstacles,
+                       self.sliders)
 
     def _located(self, st) -> list[int]:
         """The coordinates a station prescribes."""

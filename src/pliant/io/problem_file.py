@@ -508,8 +508,12 @@ def _end_face_centre(vertices: np.ndarray, axis: Vec3) -> tuple[float, float, fl
 
 
 class ClipModel(_Strict):
-    """[[clip]]: a clip or clamp holding the part at s by position and axis (and the
-    section's d1 when normal is given: it then also stops twist)."""
+    """[[clip]]: a clip or clamp holding the part at s by position and axis. ``kind``:
+    "fixed" (the default; with ``normal``, the section's d1, it also stops twist),
+    "turning" (the part turns freely about the axis in it: no moment about the axis),
+    "sliding" (the part slides through along the axis, without friction: s is where it
+    is at the start, the solve finds where it ends), "ring" (a grommet or a hole: the
+    position only, the part slides and tilts in it)."""
 
     name: str
     s: float = Field(description="arc length [m]")
@@ -518,6 +522,7 @@ class ClipModel(_Strict):
                               "of its box is the position, and it is no obstacle to the part")
     axis: Vec3 = Field(description="the part's direction through the clip")
     normal: Vec3 | None = None
+    kind: Literal["fixed", "turning", "sliding", "ring"] = "fixed"
     note: str = ""
 
     @model_validator(mode="after")
@@ -526,7 +531,16 @@ class ClipModel(_Strict):
             raise ValueError("give position [m] or solid (the name of a CAD solid), one")
         return self
 
-    def build(self) -> Condition:
+    def build(self) -> Any:
+        """The condition (fixed, turning) or the sliding clip (sliding, ring)."""
+        if self.normal is not None and self.kind != "fixed":
+            raise ValueError(f"normal: a {self.kind} clip lets the part turn about its "
+                             "axis; drop the normal, or make the clip kind = \"fixed\"")
+        if self.kind in ("sliding", "ring"):
+            from pliant.core.problem import SlidingClip  # noqa: PLC0415
+
+            return SlidingClip(self.name, self.s, tuple(self.position), tuple(self.axis),
+                               holds_axis=self.kind == "sliding")
         return Condition(s=self.s, name=self.name, position=self.position,
                          tangent=self.axis, normal=self.normal)
 
@@ -666,15 +680,17 @@ class ProblemFile(_Strict):
                 if isinstance(err, PliantError):
                     raise
                 raise InputError(f"condition[{i}]", str(err)) from None
+        sliders = []
         for i, clip in enumerate(self.clip):
             try:
-                conditions.append(clip.build())
+                built = clip.build()
             except ValueError as err:
                 raise InputError(f"clip[{i}]", str(err).removeprefix("Value error, ")) from None
+            (conditions if isinstance(built, Condition) else sliders).append(built)
         if dimension == 2 and obstacles:
             raise InputError("obstacle", "obstacles are 3D: give gravity as [gx, gy, gz]")
         return Problem(part, tuple(conditions), self.gravity, self.name,
-                       obstacles=tuple(obstacles))
+                       obstacles=tuple(obstacles), sliders=tuple(sliders))
 
     def _obstacles(self, base: Path | None, nested: bool) -> list[Any]:
         obstacles = []

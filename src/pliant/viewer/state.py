@@ -340,11 +340,10 @@ class ViewerState:
         position = _pad3(result.position)
         loads = []
         for name, load in result.loads.items():
-            cond = self._condition(name)
-            point = _at(result.s, result.position, cond.s)[0] if cond is not None else None
+            # Where the load acts now (a sliding clip's s is where it slid to).
+            point = _at(result.s, result.position, load.s)[0]
             moment = np.atleast_1d(np.asarray(load.moment, float))
-            loads.append(P.Load(name=name, position=_pad(point if point is not None
-                                                         else (0.0, 0.0, 0.0)),
+            loads.append(P.Load(name=name, position=_pad(point),
                                 force=_pad(load.force),
                                 moment=([0.0, 0.0, float(moment[0])] if moment.size == 1
                                         else moment[:3].tolist()),

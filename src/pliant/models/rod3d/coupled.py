@@ -31,13 +31,15 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from pliant.core.equilibrium import Contacts, Equilibrium3D, Samples3D
+from pliant.core.equilibrium import Contacts, Equilibrium3D, Samples3D, StationLoad
 from pliant.core.problem import PROBE_SAG, WALL_COMPLIANCE
 from pliant.errors import ConvergenceError
 from pliant.models import clock
 from pliant.models.banded import band_lu, band_lu_solve, band_reduce
 from pliant.models.rod3d import kernels, spline
-from pliant.models.rod3d.lowering import Loads, Rod
+from pliant.models.rod3d.lowering import Loads, Rod, quat_matrix
+from pliant.models.rod3d.kernels import qexp as _qexp
+from pliant.models.rod3d.solver import _qconj, _qmul
 from pliant.models.rod3d.solver import (
     CONTACT_SCALE,
     RodSolver,
@@ -118,6 +120,63 @@ class _Eval:
     near: list[np.ndarray]  # probe indices within reach of the band
     residual: float
     slopes: list  # per pair, the contact rows' d/dmu and d/dg (probes in ``near``)
+    states: Sequence[State] = ()
+
+
+@dataclass
+class _Block:
+    """Border unknowns of the condensed Newton system (a contact's force; a sliding
+    clip's slide and multipliers; a junction's multipliers) and the coupling coordinates
+    they touch: ``coords`` (part, the first of three unknowns of that part: a node's
+    position or a frame's rotation); E (3n, nb) the residual's change on those
+    coordinates per unknown; F (nb, 3n) and D (nb, nb) the block's rows' change per
+    coordinate and per unknown; K (3n, 3n) the residual's change per coordinate; rhs
+    (nb,) minus its rows; target (index in mus, slice): where its increments go."""
+
+    coords: list
+    E: np.ndarray
+    F: np.ndarray
+    D: np.ndarray
+    K: np.ndarray
+    rhs: np.ndarray
+    target: tuple
+
+
+@dataclass(frozen=True, eq=False)
+class Slider:
+    """A sliding clip (``core.problem.SlidingClip``) on part ``part``, in that part's
+    units: point (3,) its position by L, basis (2, 3) two directions across its axis,
+    s0 where along the part it starts (by L). Its unknowns (6): the slide sigma (s / L
+    at the clip) and the multipliers of position (3) and direction (2)."""
+
+    part: int
+    clip: object
+    point: np.ndarray
+    basis: np.ndarray
+    s0: float
+
+    @property
+    def rows(self) -> int:
+        """Its constraints: position, and direction when it holds the axis."""
+        return 5 if self.clip.holds_axis else 3
+
+
+@dataclass(frozen=True, eq=False)
+class Joint:
+    """A junction: part b's end node ``end_b`` held rigidly to part a's end node
+    ``end_a`` (a harness's Y-piece, of no size): at the same point, b's end frame turned
+    from a's by ``q_rel``. Its unknowns (6): the force (by F_ref) and moment (by F_ref
+    L_ref) it passes. ``gap`` [m] and ``turn`` are b's end's offset and relative
+    rotation where the parts start apart (each alone): the homotopy closes them."""
+
+    name: str
+    a: int
+    end_a: int
+    b: int
+    end_b: int
+    q_rel: np.ndarray
+    gap: np.ndarray
+    turn: np.ndarray
 
 
 @dataclass
@@ -130,6 +189,8 @@ class Coupling:
     runs: list[_Run]
     pairs: list[Pair]
     solver: RodSolver
+    sliders: list[Slider] = field(default_factory=list)
+    joints: list[Joint] = field(default_factory=list)
     iterations: int = 0
     steps: int = 0
     notes: list[str] = field(default_factory=list)
@@ -212,11 +273,27 @@ class Coupling:
             geos.append(geo)
             actives.append(active)
             self._forces(pair, geo, only, m, weight, R)
+        out_of_clip = False
+        for k in range(len(self.sliders)):
+            rows, forces, nodes = self._slider_terms(k, states, mus, weight)[:3]
+            if rows is None:  # the part slid out of the clip
+                out_of_clip = True
+                Rmu.append(np.full(6, math.inf))
+                continue
+            ix = self.runs[self.sliders[k].part].rod.ix
+            for j, (_, node) in enumerate(nodes):
+                R[self.sliders[k].part][ix[node]:ix[node] + 3] += forces[3 * j:3 * j + 3]
+            Rmu.append(rows)
+        for k in range(len(self.joints)):
+            rows, forces = self._joint_terms(k, states, mus, weight)[:2]
+            for (part, first), f in zip(self._joint_coords(k), forces):
+                R[part][first:first + 3] += f
+            Rmu.append(rows)
         residual = max([float(np.abs(r).max(initial=0.0)) for r in R]
                        + [float(np.abs(r).max(initial=0.0)) for r in Rmu])
-        if deep:  # one tube half through the other: no Newton finds its way back
+        if deep or out_of_clip:  # one tube half through the other, or out of a clip
             residual = math.inf
-        return _Eval(R, ab, Rmu, geos, actives, list(near), residual, slopes)
+        return _Eval(R, ab, Rmu, geos, actives, list(near), residual, slopes, states)
 
     def _factors(self, pair: Pair, weight: float) -> np.ndarray:
         """(12,) what turns mu d|p-q|/dy into each coordinate's residual entry."""
@@ -243,33 +320,22 @@ class Coupling:
 
     # -- the Newton direction ---------------------------------------------------------
     def direction(self, ev: _Eval, mus: Sequence[np.ndarray], weight: float):
-        """The Newton step (per part du, per pair dmu) or None where singular."""
+        """The Newton step (per part du, per pair or clip d mu) or None where singular."""
         P = len(self.runs)
-        # The contacts in the system: touching ones and any with a force still on.
-        rows = []  # (pair index, probe index in ``near``, probe index)
-        for p, (pair, geo) in enumerate(zip(self.pairs, ev.geo)):
-            if geo is None:
-                continue
-            only = ev.near[p]
-            m = mus[p][only]
-            # (A probe with no force and an open gap has the row d mu = 0: left out.)
-            for j in np.nonzero((m != 0.0) | (ev.slopes[p][1] != 0.0))[0]:
-                rows.append((p, int(j), int(only[j])))
-        # The coupling coordinates: x of every node those contacts touch, part by part.
+        blocks = self._contact_blocks(ev, mus, weight) + [
+            self._slider_block(k, ev, mus, weight) for k in range(len(self.sliders))] + [
+            self._joint_block(k, ev, mus, weight) for k in range(len(self.joints))]
+        # The coupling coordinates: x of every node a block touches, part by part.
         slot = [dict() for _ in range(P)]
         coords: list[list[int]] = [[] for _ in range(P)]
-        nodes_of = []
-        for p, j, _ in rows:
-            pair, geo = self.pairs[p], ev.geo[p]
-            e = int(pair.elem[ev.near[p][j]])
-            nodes_of.append(((pair.a, e), (pair.a, e + 1))
-                            + tuple((pair.b, int(x)) for x in geo.jb[j]))
-            for part, node in nodes_of[-1]:
-                if node not in slot[part]:
-                    slot[part][node] = len(coords[part])
-                    coords[part].append(node)
+        for b in blocks:
+            for part, first in b.coords:
+                if first not in slot[part]:
+                    slot[part][first] = len(coords[part])
+                    coords[part].append(first)
         offset = np.concatenate([[0], np.cumsum([3 * len(c) for c in coords])]).astype(int)
-        nc, m = int(offset[-1]), len(rows)
+        nc = int(offset[-1])
+        m = sum(b.rhs.shape[0] for b in blocks)
         # Each part: its band factorised, solved for -R and the unit loads.
         base, W = [], []
         Z = np.zeros((nc, nc))
@@ -279,7 +345,7 @@ class Coupling:
             if fac is None:
                 return None
             base.append(_solve(fac, -ev.R[i]))
-            cols = np.array([run.rod.ix[node] + c for node in coords[i] for c in range(3)],
+            cols = np.array([first + c for first in coords[i] for c in range(3)],
                             dtype=np.int64)
             Wi = np.empty((run.rod.n, cols.shape[0]))
             for k, col in enumerate(cols):
@@ -290,47 +356,262 @@ class Coupling:
             sl = slice(offset[i], offset[i + 1])
             Z[sl, sl] = Wi[cols]
             z[sl] = base[i][cols]
-        # The coupling terms on those coordinates.
+        # The blocks' terms on those coordinates.
         Kc = np.zeros((nc, nc))
         E = np.zeros((nc, m))
         Fm = np.zeros((m, nc))
-        G = np.zeros(m)
-        rhs_mu = np.zeros(m)
-        for c, (p, j, k) in enumerate(rows):
-            pair, geo = self.pairs[p], ev.geo[p]
-            a = pair.alpha[k]
-            y = geo.y[j]
-            shape = (bool(geo.left[j]), bool(geo.right[j]), float(geo.beta[j]))
-            grad = spline.gradient(y, float(a), *shape)[0]
-            fac = self._factors(pair, weight)
-            lengths = np.concatenate([np.full(6, self.runs[pair.a].rod.length),
-                                      np.full(12, self.runs[pair.b].rod.length)])
-            idx = np.array([offset[part] + 3 * slot[part][node] + cc
-                            for part, node in nodes_of[c] for cc in range(3)])
-            np.add.at(E[:, c], idx, fac * grad)
-            mu = mus[p][k]
-            if mu != 0.0:
-                H = spline.hessian(y, float(a), *shape, _HESSIAN_STEP * pair.reach)
-                np.add.at(Kc, (idx[:, None], idx[None, :]),
-                          (fac * mu)[:, None] * H * lengths[None, :])
-            d_mu, d_g = ev.slopes[p][0][j], ev.slopes[p][1][j]
-            np.add.at(Fm[c], idx, d_g * CONTACT_SCALE * grad * lengths / self.L_ref)
-            G[c] = d_mu + d_g * CONTACT_SCALE * self.compliance
-            rhs_mu[c] = -ev.Rmu[p][k]
-        A = np.block([[np.eye(nc) + Z @ Kc, Z @ E], [Fm, np.diag(G)]])
+        D = np.zeros((m, m))
+        rhs = np.zeros(m)
+        at = 0
+        for b in blocks:
+            idx = np.array([offset[part] + 3 * slot[part][first] + c
+                            for part, first in b.coords for c in range(3)])
+            nb = b.rhs.shape[0]
+            cols = slice(at, at + nb)
+            np.add.at(E, (idx[:, None], np.arange(at, at + nb)[None, :]), b.E)
+            np.add.at(Fm, (np.arange(at, at + nb)[:, None], idx[None, :]), b.F)
+            np.add.at(Kc, (idx[:, None], idx[None, :]), b.K)
+            D[cols, cols] = b.D
+            rhs[cols] = b.rhs
+            at += nb
+        A = np.block([[np.eye(nc) + Z @ Kc, Z @ E], [Fm, D]])
         try:
-            sol = np.linalg.solve(A, np.concatenate([z, rhs_mu]))
+            sol = np.linalg.solve(A, np.concatenate([z, rhs]))
         except np.linalg.LinAlgError:
             return None
         if not np.all(np.isfinite(sol)):
             return None
-        dv, dmu = sol[:nc], sol[nc:]
-        push = Kc @ dv + E @ dmu
+        dv, dw = sol[:nc], sol[nc:]
+        push = Kc @ dv + E @ dw
         du = [base[i] - W[i] @ push[offset[i]:offset[i + 1]] for i in range(P)]
         dmus = [np.zeros_like(mu) for mu in mus]
-        for c, (p, _, k) in enumerate(rows):
-            dmus[p][k] = dmu[c]
+        at = 0
+        for b in blocks:
+            nb = b.rhs.shape[0]
+            dmus[b.target[0]][b.target[1]] = dw[at:at + nb]
+            at += nb
         return du, dmus
+
+    # -- sliding clips ------------------------------------------------------------------
+    def _slider_at(self, k: int, states: Sequence[State], sigma: float):
+        """The segment of the clip's part at the slide sigma, its four nodes and their
+        positions (12,), by L."""
+        sl = self.sliders[k]
+        rod = self.runs[sl.part].rod
+        N = rod.elements
+        f = int(np.clip(np.searchsorted(rod.s_node, sigma, side="right") - 1, 0, N - 1))
+        jb = np.clip(np.arange(f - 1, f + 3), 0, N)
+        return f, jb, states[sl.part][0][jb].ravel()
+
+    def _slider_E(self, k: int, y: np.ndarray, sigma: float, f: int):
+        """The clip's constraints (position, direction) at the nodes y and slide sigma on
+        segment f, and their Jacobian (rows, 13): by the 12 coordinates, then sigma."""
+        sl = self.sliders[k]
+        rod = self.runs[sl.part].rod
+        h = rod.h[f]
+        w, w1, w2 = spline.bspline_weights((sigma - rod.s_node[f]) / h, f == 0,
+                                           f == rod.elements - 1)
+        Y = y.reshape(4, 3)
+        q, qb, qbb = w @ Y, w1 @ Y, w2 @ Y
+        norm = math.sqrt(float(qb @ qb))
+        t = qb / norm
+        P = (np.eye(3) - np.outer(t, t)) / norm
+        rows = sl.rows
+        E = np.empty(rows)
+        J = np.zeros((rows, 13))
+        E[:3] = q - sl.point
+        for j in range(4):
+            J[:3, 3 * j:3 * j + 3] = w[j] * np.eye(3)
+        J[:3, 12] = qb / h
+        if rows == 5:
+            E[3:] = sl.basis @ t
+            bP = sl.basis @ P
+            for j in range(4):
+                J[3:, 3 * j:3 * j + 3] = w1[j] * bP
+            J[3:, 12] = bP @ qbb / h
+        return E, J
+
+    def _slider_terms(self, k: int, states: Sequence[State], mus: Sequence[np.ndarray],
+                      weight: float, want_jac: bool = False):
+        """(rows (6,), forces on the four nodes (12,), nodes, block or None). The clip
+        holds the part where it is (sigma = s0) at weight 0 and lets it slide freely at
+        1: the slide row is (1 - weight) (sigma - s0) + weight nu . dE/dsigma (no axial
+        force)."""
+        sl = self.sliders[k]
+        w = mus[len(self.pairs) + k]
+        sigma = float(w[0])
+        if not 0.0 <= sigma <= 1.0:
+            return None, None, None, None
+        f, jb, y = self._slider_at(k, states, sigma)
+        E, J = self._slider_E(k, y, sigma, f)
+        n = sl.rows
+        nu = w[1:1 + n]
+        forces = J[:, :12].T @ nu
+        rows = np.zeros(6)
+        rows[0] = (1.0 - weight) * (sigma - sl.s0) + weight * float(nu @ J[:, 12])
+        rows[1:1 + n] = E
+        rows[1 + n:] = w[1 + n:]  # a ring's unused direction multipliers stay 0
+        nodes = [(sl.part, int(j)) for j in jb]
+        if not want_jac:
+            return rows, forces, nodes, None
+        # nu . d2E, by central differences of the exact Jacobian (13 variables).
+        step = 1e-6
+        H = np.empty((13, 13))
+        for v in range(13):
+            yp, ym = y.copy(), y.copy()
+            sp = sm = sigma
+            if v < 12:
+                yp[v] += step
+                ym[v] -= step
+            else:
+                sp, sm = sigma + step, sigma - step
+            Jp = self._slider_E(k, yp, sp, f)[1]
+            Jm = self._slider_E(k, ym, sm, f)[1]
+            H[v] = nu @ (Jp - Jm) / (2.0 * step)
+        H = 0.5 * (H + H.T)
+        Eb = np.zeros((12, 6))
+        Eb[:, 0] = H[:12, 12]
+        Eb[:, 1:1 + n] = J[:, :12].T
+        F = np.zeros((6, 12))
+        F[0] = weight * H[12, :12]
+        F[1:1 + n] = J[:, :12]
+        D = np.zeros((6, 6))
+        D[0, 0] = (1.0 - weight) + weight * H[12, 12]
+        D[0, 1:1 + n] = weight * J[:, 12]
+        D[1:1 + n, 0] = J[:, 12]
+        for r in range(1 + n, 6):
+            D[r, r] = 1.0
+        ix = self.runs[sl.part].rod.ix
+        block = _Block([(part, int(ix[node])) for part, node in nodes], Eb, F, D, H[:12, :12],
+                       -rows,
+                       (len(self.pairs) + k, slice(0, 6)))
+        return rows, forces, nodes, block
+
+    def _slider_block(self, k: int, ev: _Eval, mus, weight: float) -> _Block:
+        block = self._slider_terms(k, ev.states, mus, weight, want_jac=True)[3]
+        block.rhs = -ev.Rmu[len(self.pairs) + k]  # (the tangent's rows are dR/dt)
+        return block
+
+    # -- junctions -------------------------------------------------------------------------
+    def _joint_coords(self, k: int) -> list[tuple[int, int]]:
+        """The junction's coordinates: a's end node and frame, b's end node and frame."""
+        j = self.joints[k]
+        out = []
+        for part, node in ((j.a, j.end_a), (j.b, j.end_b)):
+            rod = self.runs[part].rod
+            out += [(part, int(rod.ix[node])), (part, int(rod.ith[rod.node_frame[node]]))]
+        return out
+
+    def _joint_rotation(self, k: int, qa: np.ndarray, qb: np.ndarray, weight: float):
+        """The relative rotation's error c = Im(conj(qa q) qb) (3,), q turned from where
+        the parts start (weight 0) to the junction's (1), and its Jacobian (3, 6) in the
+        frames' material increments (q <- q exp(theta)): for qb 0.5 (r0 I + [r]x), for
+        qa -0.5 (r0 I - [r]x) R(q)^T."""
+        from pliant.models.rod3d.lowering import _slerp_quats  # noqa: PLC0415
+
+        j = self.joints[k]
+        q = _slerp_quats(j.turn[None], j.q_rel[None], weight)[0]
+        r = _qmul(_qconj(_qmul(qa, q)), qb)
+        sign = 1.0 if r[0] >= 0.0 else -1.0
+        skew = np.array([[0.0, -r[3], r[2]], [r[3], 0.0, -r[1]], [-r[2], r[1], 0.0]])
+        J = np.empty((3, 6))
+        J[:, :3] = -0.5 * sign * (r[0] * np.eye(3) - skew) @ quat_matrix(q).T
+        J[:, 3:] = 0.5 * sign * (r[0] * np.eye(3) + skew)
+        return sign * r[1:], J
+
+    def _joint_terms(self, k: int, states: Sequence[State], mus: Sequence[np.ndarray],
+                     weight: float, want_jac: bool = False):
+        """(rows (6,), forces on the four coordinates (4, 3), block or None)."""
+        j = self.joints[k]
+        ra, rb = self.runs[j.a].rod, self.runs[j.b].rod
+        Lr, Fr = self.L_ref, self.F_ref
+        w = mus[len(self.pairs) + len(self.sliders) + k]
+        lam, mom = w[:3], w[3:]
+        xa = states[j.a][0][j.end_a] * ra.length
+        xb = states[j.b][0][j.end_b] * rb.length
+        qa = states[j.a][1][ra.node_frame[j.end_a]]
+        qb = states[j.b][1][rb.node_frame[j.end_b]]
+        rows = np.empty(6)
+        rows[:3] = (xb - xa - (1.0 - weight) * j.gap) / Lr
+        rows[3:], Jr = self._joint_rotation(k, qa, qb, weight)
+        fa = Fr * Lr / ra.moment_scale  # the junction's energy in each part's units
+        fb = Fr * Lr / rb.moment_scale
+        forces = np.array([fa * (-ra.length / Lr) * lam, fa * (Jr[:, :3].T @ mom),
+                           fb * (rb.length / Lr) * lam, fb * (Jr[:, 3:].T @ mom)])
+        if not want_jac:
+            return rows, forces, None
+        # mom . d2(rotation error), by central differences of its exact Jacobian.
+        step = 1e-6
+        H = np.empty((6, 6))
+        for c in range(6):
+            d = np.zeros(3)
+            d[c % 3] = step
+            e = _qexp(d)
+            if c < 3:
+                Jp = self._joint_rotation(k, _qmul(qa, e), qb, weight)[1]
+                Jm = self._joint_rotation(k, _qmul(qa, _qconj(e)), qb, weight)[1]
+            else:
+                Jp = self._joint_rotation(k, qa, _qmul(qb, e), weight)[1]
+                Jm = self._joint_rotation(k, qa, _qmul(qb, _qconj(e)), weight)[1]
+            H[c] = mom @ (Jp - Jm) / (2 * step)
+        H = 0.5 * (H + H.T)
+        eye = np.eye(3)
+        E = np.zeros((12, 6))
+        E[0:3, :3] = fa * (-ra.length / Lr) * eye
+        E[3:6, 3:] = fa * Jr[:, :3].T
+        E[6:9, :3] = fb * (rb.length / Lr) * eye
+        E[9:12, 3:] = fb * Jr[:, 3:].T
+        F = np.zeros((6, 12))
+        F[:3, 0:3] = -ra.length / Lr * eye
+        F[:3, 6:9] = rb.length / Lr * eye
+        F[3:, 3:6] = Jr[:, :3]
+        F[3:, 9:12] = Jr[:, 3:]
+        K = np.zeros((12, 12))
+        rot = [3, 4, 5, 9, 10, 11]
+        scale = np.array([fa] * 3 + [fb] * 3)
+        K[np.ix_(rot, rot)] = scale[:, None] * H
+        block = _Block(self._joint_coords(k), E, F, np.zeros((6, 6)), K, -rows,
+                       (len(self.pairs) + len(self.sliders) + k, slice(0, 6)))
+        return rows, forces, block
+
+    def _joint_block(self, k: int, ev: _Eval, mus, weight: float) -> _Block:
+        block = self._joint_terms(k, ev.states, mus, weight, want_jac=True)[2]
+        block.rhs = -ev.Rmu[len(self.pairs) + len(self.sliders) + k]
+        return block
+
+    def _contact_blocks(self, ev: _Eval, mus: Sequence[np.ndarray], weight: float) -> list:
+        """A block per contact in the system: touching ones, and any with a force still
+        on (a probe with no force and an open gap has the row d mu = 0: left out)."""
+        out = []
+        for p, (pair, geo) in enumerate(zip(self.pairs, ev.geo)):
+            if geo is None:
+                continue
+            only = ev.near[p]
+            m = mus[p][only]
+            fac = self._factors(pair, weight)
+            lengths = np.concatenate([np.full(6, self.runs[pair.a].rod.length),
+                                      np.full(12, self.runs[pair.b].rod.length)])
+            for j in np.nonzero((m != 0.0) | (ev.slopes[p][1] != 0.0))[0]:
+                k = int(only[j])
+                a = float(pair.alpha[k])
+                y = geo.y[j]
+                shape = (bool(geo.left[j]), bool(geo.right[j]), float(geo.beta[j]))
+                grad = spline.gradient(y, a, *shape)[0]
+                e = int(pair.elem[k])
+                ia, ib = self.runs[pair.a].rod.ix, self.runs[pair.b].rod.ix
+                nodes = [(pair.a, int(ia[e])), (pair.a, int(ia[e + 1]))] + [
+                    (pair.b, int(ib[x])) for x in geo.jb[j]]
+                K = np.zeros((18, 18))
+                if m[j] != 0.0:
+                    H = spline.hessian(y, a, *shape, _HESSIAN_STEP * pair.reach)
+                    K = (fac * m[j])[:, None] * H * lengths[None, :]
+                d_mu, d_g = ev.slopes[p][0][j], ev.slopes[p][1][j]
+                out.append(_Block(
+                    nodes, (fac * grad)[:, None],
+                    (d_g * CONTACT_SCALE * grad * lengths / self.L_ref)[None, :],
+                    np.array([[d_mu + d_g * CONTACT_SCALE * self.compliance]]), K,
+                    np.array([-ev.Rmu[p][k]]), (p, slice(k, k + 1))))
+        return out
 
     # -- Newton and continuation ------------------------------------------------------
     def newton(self, states: list[State], mus: list[np.ndarray], loads: list[Loads],
@@ -422,10 +703,32 @@ class Coupling:
                 if accepted or (strict and step < 0.1):
                     break
                 step *= 0.5
-            if not accepted:
+            if not accepted or (strict and step < 0.1):
+                # A corrector crawling in short steps is far from its basin: the
+                # continuation does better with a shorter load step.
                 return states, mus, r, False
             states, mus, ev, r = new_states, new_mus, new, rn
         return states, mus, r, r <= tol
+
+    def tangent(self, members: list[_Member], states: list[State], mus: list[np.ndarray],
+                w0: float, w1: float):
+        """The path's tangent at its start, (du, dmu) per unit of t: J d/dt (u) = -dR/dt,
+        dR/dt by a forward difference (the first predictor; secants after it). None
+        where the start is singular."""
+        eps = 1e-7
+        near = [self.near(p, states, mu) for p, mu in zip(self.pairs, mus)]
+        here = [m.start for m in members]
+        ahead = [m.start.lerp(m.end, eps) for m in members]
+        fixed = self._touching(self.evaluate(states, mus, here, w0, near, False), mus, None)
+        a = self.evaluate(states, mus, here, w0, near, True, fixed)
+        b = self.evaluate(states, mus, ahead, w0 + eps * (w1 - w0), near, False, fixed)
+        a.R = [(rb - ra) / eps for ra, rb in zip(a.R, b.R)]
+        a.Rmu = [(rb - ra) / eps for ra, rb in zip(a.Rmu, b.Rmu)]
+        try:
+            out = self.direction(a, mus, w0)
+        except (np.linalg.LinAlgError, FloatingPointError):
+            return None
+        return out
 
     def follow(self, members: list[_Member], states: list[State], mus: list[np.ndarray],
                w0: float, w1: float, deadline: float, strict: bool = True):
@@ -435,6 +738,7 @@ class Coupling:
         opts = self.solver
         t, dt = 0.0, 1.0
         prev = None
+        tangent = self.tangent(members, states, mus, w0, w1)
         while True:
             if clock.now() > deadline:
                 raise _CoupledStall(t, "the time budget of "
@@ -442,7 +746,11 @@ class Coupling:
             t_next = min(1.0, t + dt)
             loads = [m.start.lerp(m.end, t_next) for m in members]
             weight = w0 + t_next * (w1 - w0)
-            if prev is None:
+            if prev is None and tangent is not None:
+                du, dmu = tangent
+                guess = [run.step(s, d, t_next - t) for run, s, d in zip(self.runs, states, du)]
+                guess_mu = [mu + (t_next - t) * d for mu, d in zip(mus, dmu)]
+            elif prev is None:
                 guess, guess_mu = states, mus
             else:
                 t_prev, s_prev, mu_prev = prev
@@ -450,7 +758,8 @@ class Coupling:
                 guess = [run.step(s, run.difference(sp, s), f)
                          for run, s, sp in zip(self.runs, states, s_prev)]
                 guess_mu = [mu + f * (mu - mp) for mu, mp in zip(mus, mu_prev)]
-                guess_mu = [np.maximum(g, 0.0) for g in guess_mu]
+                guess_mu = [np.maximum(g, 0.0) if i < len(self.pairs) else g
+                            for i, g in enumerate(guess_mu)]  # contact forces push
             final = t_next >= 1.0
             tol = opts.tolerance if final else max(opts.tolerance, 1e-7)
             new, new_mu, r, ok = self.newton(guess, guess_mu, loads, weight, strict=strict,
@@ -536,28 +845,19 @@ def part_contacts(coupling: Coupling, states: Sequence[State], mus: Sequence[np.
     return out
 
 
-def nodal_loads(coupling: Coupling, states: Sequence[State], mus: Sequence[np.ndarray]
-                ) -> list[np.ndarray]:
-    """Each part's contact forces from the others as dead nodal forces (N+1, 3), in its
-    own units: with them as loads, each part alone is in equilibrium."""
-    R = [np.zeros(run.rod.n) for run in coupling.runs]
-    for pair, mu in zip(coupling.pairs, mus):
-        on = np.nonzero(mu != 0.0)[0]
-        if on.shape[0]:
-            coupling._forces(pair, coupling.geometry(pair, states, on), on, mu[on], 1.0, R)
-    # The residual gained -f at each node's position rows.
-    return [-r[run.rod.ix[:, None] + np.arange(3)] for run, r in zip(coupling.runs, R)]
-
-
 @dataclass(frozen=True, eq=False)
 class _WithContacts:
-    """A part's sampler with its contacts with the other parts added."""
+    """A part's sampler with its contacts with the other parts added, and the loads of
+    its sliding clips (which the part's own stations do not hold)."""
 
     inner: _Sampler
     extra: Contacts
+    loads: dict = field(default_factory=dict)
 
     def __call__(self) -> Samples3D:
         samples = self.inner()
+        if self.loads:
+            samples = replace(samples, loads={**samples.loads, **self.loads})
         c = samples.contacts
         if not len(self.extra):
             return samples
@@ -570,26 +870,70 @@ class _WithContacts:
         return replace(samples, contacts=merged)
 
 
-STABILITY_NOTE = ("parts solved together: stability is that of each part with the others' "
-                  "contact forces held as loads, not of the coupled system")
+def slider_loads(coupling: Coupling, states: Sequence[State], mus: Sequence[np.ndarray]
+                 ) -> list[dict[str, StationLoad]]:
+    """Per part, each sliding clip's load on it [N, N m] (the moment about the clip's
+    point), at the arc length where the clip now sits (s: the slide's result)."""
+    out: list[dict[str, StationLoad]] = [{} for _ in coupling.runs]
+    for k, sl in enumerate(coupling.sliders):
+        rod = coupling.runs[sl.part].rod
+        _, forces, nodes, _ = coupling._slider_terms(k, states, mus, 1.0)
+        X = states[sl.part][0]
+        on_nodes = -forces.reshape(4, 3) * rod.force_scale  # what the clip applies
+        arms = (X[[node for _, node in nodes]] - sl.point) * rod.length
+        force = on_nodes.sum(axis=0)
+        moment = np.cross(arms, on_nodes).sum(axis=0)
+        sigma = float(mus[len(coupling.pairs) + k][0])
+        out[sl.part][sl.clip.name] = StationLoad(
+            sl.clip.name, sigma * rod.length, force, moment,
+            (True, True, True, bool(sl.clip.holds_axis), False))
+    return out
+
+
+STABILITY_NOTE = ("solved together (parts in contact or a sliding clip): stability is not "
+                  "assessed; that of each part with the others' forces held as loads would "
+                  "not be the coupled system's")
 
 
 def equilibria(coupling: Coupling, states: Sequence[State], mus: Sequence[np.ndarray],
                names: Sequence[str]) -> list[Equilibrium3D]:
-    """Each part's equilibrium: its own, with the others' contact forces as dead loads
-    (so its residual, reactions and internal forces are the coupled system's), and those
-    contacts listed with its obstacles' under the other part's name."""
-    loads = nodal_loads(coupling, states, mus)
+    """Each part's equilibrium: its own arrays, the coupled system's residual (its
+    largest entry over all parts and couplings), its contacts with the other parts
+    listed with its obstacles' under the other part's name, and the loads of its sliding
+    clips and junctions with its conditions'."""
+    near = [coupling.near(p, states, mu) for p, mu in zip(coupling.pairs, mus)]
+    loads = [run.rod.target for run in coupling.runs]
+    residual = coupling.evaluate(states, mus, loads, 1.0, near, False).residual
     contacts = part_contacts(coupling, states, mus, names)
+    held = slider_loads(coupling, states, mus)
+    for part, extra in enumerate(joint_loads(coupling, states, mus)):
+        held[part].update(extra)
     out = []
-    for run, state, f, extra in zip(coupling.runs, states, loads, contacts):
-        rod = run.rod
-        run.rod = replace(rod, target=replace(rod.target, fnode=rod.target.fnode + f))
+    for run, state, extra, mine in zip(coupling.runs, states, contacts, held):
         eq = _build(run, state)
-        touched = len(extra) > 0
-        out.append(replace(eq, sampler=_WithContacts(eq.sampler, extra),
-                           notes=eq.notes + ((STABILITY_NOTE,) if touched else ()),
-                           stability_check=None if touched else eq.stability_check))
+        coupled = len(extra) > 0 or bool(mine)
+        out.append(replace(eq, residual=residual,
+                           sampler=_WithContacts(eq.sampler, extra, mine),
+                           notes=eq.notes + ((STABILITY_NOTE,) if coupled else ()),
+                           stability_check=None if coupled else eq.stability_check))
+    return out
+
+
+def joint_loads(coupling: Coupling, states: Sequence[State], mus: Sequence[np.ndarray]
+                ) -> list[dict[str, StationLoad]]:
+    """Per part, what each junction applies to it at its end [N, N m] (equal and
+    opposite on the two parts it joins), named by the junction."""
+    out: list[dict[str, StationLoad]] = [{} for _ in coupling.runs]
+    for k, j in enumerate(coupling.joints):
+        _, forces, _ = coupling._joint_terms(k, states, mus, 1.0)
+        for (part, node), f_x, f_th in (((j.a, j.end_a), forces[0], forces[1]),
+                                        ((j.b, j.end_b), forces[2], forces[3])):
+            rod = coupling.runs[part].rod
+            Rm = quat_matrix(states[part][1][rod.node_frame[node]])
+            force = -f_x * rod.force_scale  # the residual gained -f
+            moment = Rm @ (-f_th) * rod.moment_scale
+            out[part][j.name] = StationLoad(j.name, float(rod.s_node[node] * rod.length),
+                                            force, moment, (True,) * 5)
     return out
 
 
@@ -612,15 +956,21 @@ def no_contact_forces(pairs: Sequence[Pair]) -> list[np.ndarray]:
 
 def solve_coupled(runs: list[_Run], states: list[State], *, solver: RodSolver,
                   start: list[Loads] | None = None, mus: list[np.ndarray] | None = None,
-                  pairs: list[Pair] | None = None, held_first: bool = True):
+                  pairs: list[Pair] | None = None, sliders: list[Slider] | None = None,
+                  joints: list[Joint] | None = None, held_first: bool = True):
     """Solve parts together from ``states`` (each an equilibrium of its ``start`` loads,
-    alone or with the others' contact forces ``mus``) to their targets. With
-    ``held_first``, the parts after the first start held still under the contact (the
-    first sees them as rigid) and let go (weight 0 to 1). Returns (coupling, states,
-    mus). Raises ConvergenceError with the residual and how far it got."""
+    alone or with the others' contact forces and the clips' multipliers ``mus``) to their
+    targets. With ``held_first``, the parts after the first start held still under the
+    contact (the first sees them as rigid) and the sliding clips where they are, and are
+    let go (weight 0 to 1). Returns (coupling, states, mus). Raises ConvergenceError
+    with the residual and how far it got."""
     pairs = close_pairs([r.rod for r in runs]) if pairs is None else pairs
-    coupling = Coupling(runs, pairs, solver)
-    mus = no_contact_forces(pairs) if mus is None else mus
+    sliders = sliders or []
+    joints = joints or []
+    coupling = Coupling(runs, pairs, solver, sliders, joints)
+    if mus is None:
+        mus = no_contact_forces(pairs) + [np.concatenate([[sl.s0], np.zeros(5)])
+                                          for sl in sliders] + [np.zeros(6) for _ in joints]
     start = [r.rod.target for r in runs] if start is None else start
     members = [_Member(run, s, run.rod.target) for run, s in zip(runs, start)]
     deadline = clock.now() + solver.time_budget
@@ -639,11 +989,12 @@ def solve_coupled(runs: list[_Run], states: list[State], *, solver: RodSolver,
     return coupling, states, mus
 
 
-# -- a part fitted among flexible parts already assembled --------------------------------
+# -- a part among flexible parts already assembled, or in sliding clips ------------------
 @dataclass(frozen=True, eq=False)
 class _TogetherState:
     """What a warm start needs of an equilibrium solved together: each part's rod and
-    state (the part being fitted first), the contact forces, the pairs."""
+    state (the part being fitted first), the contact forces and clips' unknowns, the
+    pairs, the fitted parts and the sliding clips."""
 
     rods: tuple[Rod, ...]
     states: tuple
@@ -651,6 +1002,8 @@ class _TogetherState:
     mus: tuple
     pairs: tuple
     fitted: tuple  # the FittedPart of each part after the first
+    sliders: tuple = ()  # Slider
+    clips: tuple = ()  # the problem's SlidingClip, to tell whether they are the same
 
 
 def fitted_of(problem) -> list:
@@ -658,28 +1011,53 @@ def fitted_of(problem) -> list:
     return [o for o in problem.obstacles if getattr(o, "fitted", None) is not None]
 
 
+def _held_problem(problem):
+    """The problem with its sliding clips as clips that hold the part where it starts
+    (the rigid answer the coupled solve starts from)."""
+    from pliant.core.conditions import Condition  # noqa: PLC0415
+
+    held = tuple(Condition(s=c.s, name=c.name, position=c.position,
+                           tangent=c.axis if c.holds_axis else None) for c in problem.sliders)
+    return replace(problem, conditions=problem.conditions + held, sliders=())
+
+
+def _own_problem(problem):
+    """The part's own problem in the coupled solve: no fitted parts' tubes (the coupling
+    touches those) and the sliding clips as free stations (the mesh keeps a node where
+    each clip starts, as the held problem's)."""
+    from pliant.core.conditions import Condition  # noqa: PLC0415
+
+    free = tuple(Condition(s=c.s, name=c.name) for c in problem.sliders)
+    return replace(problem, conditions=problem.conditions + free, sliders=(),
+                   obstacles=tuple(o for o in problem.obstacles
+                                   if getattr(o, "fitted", None) is None))
+
+
 def solve_fitted(problem, warm_start, solver: RodSolver, follow_only: bool) -> Equilibrium3D:
     """The equilibrium of a part among flexible parts already fitted (obstacles with
-    ``fitted``): solved with their tubes as rigid obstacles first; where it touches one,
-    it and the parts it touches are solved together from there (those parts let go
-    from held still). A warm start that was solved together is followed together."""
+    ``fitted``) or in sliding clips: solved with the fitted parts' tubes as rigid
+    obstacles and the sliding clips holding it where they start first; where it touches
+    a fitted part, or where it has sliding clips, the parts are solved together from
+    there (the fitted parts let go from held still, the clips let it slide). A warm
+    start that was solved together is followed together."""
     from pliant.models.rod3d.solver import _solve  # noqa: PLC0415
 
     fitted = fitted_of(problem)
-    own = replace(problem, obstacles=tuple(o for o in problem.obstacles if o.fitted is None))
+    own = _own_problem(problem)
     if warm_start is not None and isinstance(warm_start.state, _TogetherState):
         old = warm_start.state
-        if tuple(o.fitted for o in fitted) == old.fitted:
+        if (tuple(o.fitted for o in fitted) == old.fitted[:len(fitted)]
+                and problem.sliders == old.clips):
             try:
                 return _follow_together(problem, own, old, solver)
             except ConvergenceError:
                 if follow_only:
                     raise
         warm_start = None  # the rigid solve below starts cold
-    rigid = _solve(problem, warm_start, solver, follow_only, rigid=True)
+    rigid = _solve(_held_problem(problem), warm_start, solver, follow_only, rigid=True)
     touched = sorted({name for name in rigid.contacts.obstacle}
                      & {o.name for o in fitted})
-    if not touched:
+    if not touched and not problem.sliders:
         return rigid
     parts = [o.fitted for o in fitted if o.name in touched]
     try:
@@ -688,27 +1066,30 @@ def solve_fitted(problem, warm_start, solver: RodSolver, follow_only: bool) -> E
         if follow_only:
             raise
         # Said, not hidden: the answer is the one with those parts held still.
-        note = (f"{', '.join(touched)} could not be solved together with the part ({err}); "
-                "held rigid here, at rest, its deformation and its clamps' share of the "
-                "contact not computed")
-        return replace(rigid, notes=rigid.notes + (note,))
+        held = ", ".join(touched + [c.name for c in problem.sliders])
+        note = (f"{held} could not be solved together with the part ({err}); held rigid "
+                "here: fitted parts at rest (their deformation and their clamps' share of "
+                "the contact not computed), sliding clips where they start")
+        return replace(rigid, problem=problem, notes=rigid.notes + (note,))
 
 
 def _start_together(problem, own, rigid: Equilibrium3D, parts: list, solver: RodSolver):
-    """From the rigid answer: the fitted parts held still under the contact, then let
-    go."""
-    from pliant.models.rod3d.lowering import lower  # noqa: PLC0415
+    """From the rigid answer: the fitted parts held still under the contact and the
+    clips where they start, then let go."""
+    from pliant.models.rod3d.lowering import axis_basis, lower  # noqa: PLC0415
     from pliant.models.rod3d.solver import _WarmState  # noqa: PLC0415
 
     first = _Run(lower(own, elements=solver.elements), solver)
     old = rigid.state
     assert isinstance(old, _WarmState)
-    X, Q, lam, nu, gam = old.state
+    X, Q, lam, _, gam = old.state
     first.gauge_quat = old.gauge_quat
-    # (Both rods are of the part, lowered alike: their unknowns' scales are the same.)
     rod = first.rod
-    _, _, which, _ = _Run(old.rod, solver).contacts(old.state, old.rod.target)
-    names = [old.rod.obstacles.obstacles[o].name if o >= 0 else "" for o in which]
+    nu = _station_multipliers(old.rod, old.state[3], rod)
+    names: list[str] = []
+    if old.rod.iprobe.shape[0]:
+        _, _, which, _ = _Run(old.rod, solver).contacts(old.state, old.rod.target)
+        names = [old.rod.obstacles.obstacles[o].name if o >= 0 else "" for o in which]
     on_part = np.array([n in {p.name for p in parts} for n in names], dtype=bool)
     if rod.islot.shape[0] == old.rod.islot.shape[0] and rod.slot == old.rod.slot:
         # The same probes: keep their forces on the rigid obstacles, drop those on the
@@ -717,7 +1098,7 @@ def _start_together(problem, own, rigid: Equilibrium3D, parts: list, solver: Rod
     else:
         gam = np.zeros(rod.islot.shape[0])
     runs = [first]
-    states = [(X.copy(), Q.copy(), lam.copy(), nu.copy(), gam.copy())]
+    states = [(X.copy(), Q.copy(), lam.copy(), nu, gam.copy())]
     for part in parts:
         runs.append(_fitted_run(part, solver))
         states.append(part.equilibrium.state.state)
@@ -726,7 +1107,7 @@ def _start_together(problem, own, rigid: Equilibrium3D, parts: list, solver: Rod
     # probe's force on the nearest probe of the pair (the part is first in its pairs).
     mus = no_contact_forces(pairs)
     s_old = old.rod.s_node[old.rod.probe_elem] + old.rod.probe_a * old.rod.h[old.rod.probe_elem]
-    force = old.state[4].reshape(-1, old.rod.slot)[:, 0]
+    force = old.state[4].reshape(-1, old.rod.slot)[:, 0] if old.rod.iprobe.shape[0] else []
     for pair, mu in zip(pairs, mus):
         if pair.a != 0:
             continue
@@ -734,9 +1115,32 @@ def _start_together(problem, own, rigid: Equilibrium3D, parts: list, solver: Rod
         mine = on_part & np.array([n == parts[pair.b - 1].name for n in names], dtype=bool)
         for k in np.nonzero(mine & (force > 0.0))[0]:
             mu[int(np.argmin(np.abs(s_pair - s_old[k])))] += force[k]
+    # The sliding clips start where they held the part, with its reaction there.
+    sliders = []
+    for clip in problem.sliders:
+        sliders.append(Slider(0, clip, np.asarray(clip.position) / rod.length,
+                              axis_basis(np.asarray(clip.axis)), clip.s / rod.length))
+        w = np.zeros(6)
+        w[0] = clip.s / rod.length
+        w[1:4] = -np.asarray(rigid.loads[clip.name].force) / rod.force_scale
+        mus.append(w)
     coupling, states, mus = solve_coupled(runs, states, solver=solver, held_first=True,
-                                          pairs=pairs, mus=mus)
+                                          pairs=pairs, mus=mus, sliders=sliders)
     return _result(problem, coupling, states, mus, parts, rigid.iterations, rigid.steps)
+
+
+def _station_multipliers(old: Rod, nu: np.ndarray, rod: Rod) -> np.ndarray:
+    """The station multipliers of ``old`` (a rod with the same stations) for ``rod``:
+    station by station where their counts agree (a clip that became a free station
+    has none), and the twist gauge's."""
+    out = np.zeros(rod.m)
+    for k in range(min(len(old.stations), len(rod.stations))):
+        n = int(rod.nu_cnt[k])
+        if n and n == int(old.nu_cnt[k]):
+            out[rod.nu_off[k]:rod.nu_off[k] + n] = nu[old.nu_off[k]:old.nu_off[k] + n]
+    if rod.gauge_frame >= 0 and old.gauge_frame >= 0:
+        out[-1] = nu[-1]
+    return out
 
 
 def _fitted_run(part, solver: RodSolver) -> _Run:
@@ -757,7 +1161,8 @@ def _follow_together(problem, own, old: _TogetherState, solver: RodSolver) -> Eq
         run.gauge_quat = gauge
     start = [old.rods[0].target] + [r.target for r in old.rods[1:]]
     coupling, states, mus = solve_coupled(runs, list(old.states), solver=solver, start=start,
-                                          mus=list(old.mus), pairs=list(old.pairs),
+                                          mus=[m.copy() for m in old.mus],
+                                          pairs=list(old.pairs), sliders=list(old.sliders),
                                           held_first=False)
     return _result(problem, coupling, states, mus, list(old.fitted), 0, 0)
 
@@ -773,7 +1178,8 @@ def _result(problem, coupling: Coupling, states, mus, parts, iterations: int,
                     iterations=eqs[0].iterations + iterations + coupling.iterations,
                     steps=eqs[0].steps + steps + coupling.steps,
                     state=_TogetherState(rods, tuple(states), gauges, tuple(mus),
-                                         tuple(coupling.pairs), tuple(parts)),
+                                         tuple(coupling.pairs), tuple(parts),
+                                         tuple(coupling.sliders), tuple(problem.sliders)),
                     fitted=tuple(replace(eq, problem=p.problem)
                                  for eq, p in zip(eqs[1:], parts)))
     return first

@@ -217,3 +217,38 @@ def hessian(y, alpha, left, right, beta, h):
             H[i, j] = v
             H[j, i] = v
     return H
+
+
+@njit(cache=True)
+def weights(beta, left, right):
+    """The folded Catmull-Rom weights (4,) at beta and their first and second
+    derivatives in beta (a point, tangent and curvature vector of a segment)."""
+    w = np.empty(4)
+    w1 = np.empty(4)
+    w2 = np.empty(4)
+    _basis(beta, w, w1, w2)
+    _fold(w, left, right)
+    _fold(w1, left, right)
+    _fold(w2, left, right)
+    return w, w1, w2
+
+
+@njit(cache=True)
+def bspline_weights(beta, left, right):
+    """The uniform cubic B-spline's weights (4,) on the same four nodes, and their first
+    and second derivatives in beta, folded as ``weights``. The curve passes within
+    h^2 kappa / 6 of the nodes and, unlike Catmull-Rom's, its curvature is continuous:
+    what a clip that slides along it needs (the slide's equation holds the tangent's
+    derivative, which must not jump at the nodes). With the straight phantom nodes it
+    starts and ends at the end nodes."""
+    b = beta
+    c = 1.0 - b
+    w = np.array([c * c * c / 6.0, (3.0 * b * b * b - 6.0 * b * b + 4.0) / 6.0,
+                  (-3.0 * b * b * b + 3.0 * b * b + 3.0 * b + 1.0) / 6.0, b * b * b / 6.0])
+    w1 = np.array([-0.5 * c * c, 0.5 * (3.0 * b * b - 4.0 * b),
+                   0.5 * (-3.0 * b * b + 2.0 * b + 1.0), 0.5 * b * b])
+    w2 = np.array([c, 3.0 * b - 2.0, -3.0 * b + 1.0, b])
+    _fold(w, left, right)
+    _fold(w1, left, right)
+    _fold(w2, left, right)
+    return w, w1, w2
