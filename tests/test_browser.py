@@ -330,3 +330,33 @@ def test_two_vr_controllers_each_hold_their_own_grip_and_feel_its_force(browser,
         for side in ("left", "right"):
             page.evaluate(f"{device}.{side}.updateButtonValue('trigger', 0)")
         page.close()
+
+
+def test_the_page_draws_a_harness_with_its_branches(browser):
+    """A harness scene: the accurate answer carries its two branches and the page draws
+    each as a tube of its own, where the answer has it (its end at the trunk's end)."""
+    from pliant.viewer.server import Server
+
+    harness = Path(__file__).resolve().parents[1] / "examples" / "harness" / "harness_y.toml"
+    with Server(harness, port=0, live=True) as server:
+        page = browser.new_page(viewport={"width": 1100, "height": 720})
+        errors: list[str] = []
+        page.on("pageerror", lambda e: errors.append(str(e)))
+        page.goto(server.url)
+        page.wait_for_function(LOADED, timeout=120_000)
+        page.wait_for_function("window.pliant.state.accurate.branches.length === 2",
+                               timeout=60_000)
+        drawn = page.evaluate("""() => ['left branch', 'right branch'].map((n) => {
+            const m = window.pliant.world.getObjectByName(n);
+            if (!m) return null;
+            m.geometry.computeBoundingBox();
+            const b = m.geometry.boundingBox;
+            return [b.min.toArray(), b.max.toArray()];
+        })""")
+        trunk_end = page.evaluate("window.pliant.state.accurate.position.at(-1)")
+        page.close()
+    assert not errors, errors
+    for box in drawn:
+        assert box is not None
+        lo, hi = np.array(box)
+        assert np.all(lo - 0.01 <= trunk_end) and np.all(trunk_end <= hi + 0.01)

@@ -12,7 +12,14 @@ import numpy as np
 import pytest
 
 import pliant as pl
-from pliant.core.problem import PROBE_SAG, WALL_COMPLIANCE, Problem, SlidingClip
+from pliant.core.problem import (
+    PROBE_SAG,
+    WALL_COMPLIANCE,
+    Branch,
+    Junction,
+    Problem,
+    SlidingClip,
+)
 from pliant.errors import ConvergenceError, FileFormatError
 from pliant.io.problem_file import load_scene
 from pliant.models import rod3d
@@ -265,3 +272,82 @@ kind = "sliding"
         parse_problem(text.replace('kind = "sliding"', 'kind = "turning"\nnormal = [0, 0, 1]'))
     with pytest.raises(FileFormatError, match=r"sleeve\.s"):
         parse_problem(text.replace("s = 0.6025", "s = 1.5"))
+
+
+# -- harness junctions ---------------------------------------------------------------------
+HALF = pl.Part(length=0.5, bending_stiffness=1.0, mass_per_length=2.0)
+DOWN = (0.0, 0.0, -9.81)
+
+
+def clamp_at(s, x, name):
+    return pl.clamp(s, (x, 0.0, 0.0), tangent=(1.0, 0.0, 0.0), normal=(0.0, 0.0, 1.0),
+                    name=name)
+
+
+def test_a_part_cut_in_two_and_joined_again_is_the_part():
+    """A beam clamped at both ends under its weight, as two halves joined by a junction
+    (the second leaving straight on), is the whole beam with a station where it was cut:
+    the same shape to the solver's tolerance, the same reactions."""
+    right = Problem(HALF, (clamp_at(0.5, 0.95, "right"),), gravity=DOWN, name="right half")
+    joint = Junction("cut", 0.5, (Branch("right half", right, 0, (0.0, 0.0, 1.0), 40),))
+    left = Problem(HALF, (clamp_at(0.0, 0.0, "left"),), gravity=DOWN, name="left half",
+                   junctions=(joint,))
+    eq = rod3d.solve(left, solver=rod3d.RodSolver(elements=40))
+    (other,) = eq.branches
+    whole = rod3d.solve(Problem(
+        pl.Part(length=1.0, bending_stiffness=1.0, mass_per_length=2.0),
+        (clamp_at(0.0, 0.0, "left"), pl.Condition(s=0.5, name="cut"),
+         clamp_at(1.0, 0.95, "right")), gravity=DOWN), solver=rod3d.RodSolver(elements=80))
+    joined = np.concatenate([eq.position, other.position[1:]])
+    assert np.abs(joined - whole.position).max() < 1e-9
+    for name, part in (("left", eq), ("right", other)):
+        np.testing.assert_allclose(part.loads[name].force, whole.loads[name].force,
+                                   atol=1e-7)
+        np.testing.assert_allclose(part.loads[name].moment, whole.loads[name].moment,
+                                   atol=1e-7)
+
+
+def test_a_y_harness_balances():
+    """A trunk clamped at its connector and two branches clamped at their ports, joined
+    at a Y-piece: the clamps carry the whole weight, each junction load is equal and
+    opposite on the two parts it joins, the two branches mirror each other."""
+    twig = pl.Part(length=0.3, bending_stiffness=0.2, mass_per_length=0.2,
+                   outer_diameter=0.008)
+    branches = []
+    for name, side in (("left", 1.0), ("right", -1.0)):
+        d = np.array([math.cos(math.pi / 6), -side * 0.5, 0.0])
+        port = np.array([0.38, 0.0, -0.01]) + 0.27 * d
+        p = Problem(twig, (pl.clamp(0.3, tuple(port), tangent=tuple(d),
+                                    normal=(0.0, 0.0, 1.0), name=f"{name} port"),),
+                    gravity=DOWN, name=name)
+        branches.append(Branch(name, p, 0, (0.0, side * 0.5, math.cos(math.pi / 6)), 30))
+    trunk = pl.Part(length=0.4, bending_stiffness=0.5, mass_per_length=0.3,
+                    outer_diameter=0.012)
+    problem = Problem(trunk, (clamp_at(0.0, 0.0, "connector"),), gravity=DOWN,
+                      name="trunk", junctions=(Junction("Y", 0.4, tuple(branches)),))
+    eq = rod3d.solve(problem, solver=rod3d.RodSolver(elements=40))
+    assert eq.residual < 1e-9
+    left, right = eq.branches
+    weight = 9.81 * (0.4 * 0.3 + 2 * 0.3 * 0.2)
+    clamps = (eq.loads["connector"].force + left.loads["left port"].force
+              + right.loads["right port"].force)
+    np.testing.assert_allclose(clamps, [0.0, 0.0, weight], atol=1e-9)
+    for branch in (left, right):
+        name = f"Y: {branch.problem.name}"
+        np.testing.assert_allclose(eq.loads[name].force, -branch.loads[name].force,
+                                   atol=1e-9)
+        # The junction point is one point: the trunk's end is the branch's first end.
+        np.testing.assert_allclose(eq.position[-1], branch.position[0], atol=1e-9)
+    mirror = np.array([1.0, -1.0, 1.0])
+    np.testing.assert_allclose(left.position * mirror, right.position, atol=1e-8)
+
+
+def test_harness_scene_file_with_junction_and_branches():
+    from pliant.io.problem_file import load_scene
+
+    scene = load_scene(EXAMPLES / "harness" / "harness_y.toml")
+    (jn,) = scene.problem.junctions
+    assert [b.name for b in jn.branches] == ["left branch", "right branch"]
+    eq = rod3d.solve(scene.problem, solver=rod3d.RodSolver(elements=40))
+    assert eq.residual < 1e-9 and len(eq.branches) == 2
+    assert "left port" in eq.branches[0].loads

@@ -375,6 +375,9 @@ class Equilibrium3D:
     # The flexible parts already fitted that this part touched, as they deformed: each
     # the Equilibrium3D of its own problem, its clamps' reactions with the contact on it.
     fitted: tuple[Equilibrium3D, ...] = field(default=(), repr=False)
+    # A harness's branches (the problem's junctions), each the Equilibrium3D of its own
+    # problem, with what its junction applies to it among its loads.
+    branches: tuple[Equilibrium3D, ...] = field(default=(), repr=False)
 
     @cached_property
     def samples(self) -> Samples3D:

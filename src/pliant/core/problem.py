@@ -184,6 +184,59 @@ class SlidingClip:
         object.__setattr__(self, "s", float(self.s))
 
 
+@dataclass(frozen=True, eq=False)
+class Branch:
+    """A branch of a harness: its own problem (its part and what holds its far end: a
+    port's clamp), which of its ends meets the junction (``end``: 0 its first, 1 its
+    last), the direction it leaves the junction in (``axis``, in the frame (d1, d2, d3)
+    of the main part's end there, d3 pointing out of the part) and its element count."""
+
+    name: str
+    problem: Problem
+    end: int
+    axis: tuple[float, float, float]
+    elements: int = 60
+    solved: object = field(default=None, repr=False, compare=False)  # alone, on demand
+
+    @property
+    def equilibrium(self):
+        """The branch alone (held only at its far end): where the harness solve starts."""
+        if self.solved is None:
+            from pliant.models import rod3d  # noqa: PLC0415 (core knows no model but here)
+
+            object.__setattr__(self, "solved", rod3d.solve(
+                self.problem, solver=rod3d.RodSolver(elements=self.elements)))
+        return self.solved
+
+    def __getstate__(self) -> dict:
+        return {**self.__dict__, "solved": None}
+
+    def __setstate__(self, state: dict) -> None:
+        self.__dict__.update(state)
+
+    def __post_init__(self) -> None:
+        if self.end not in (0, 1):
+            raise InputError(f"{self.name}.end", "give 0 (its first end) or 1 (its last)")
+        if self.problem.dimension != 3:
+            raise InputError(f"{self.name}.file", "a harness branch is a 3D problem")
+        v = tuple(float(a) for a in self.axis)
+        norm = math.sqrt(sum(a * a for a in v))
+        if len(v) != 3 or not (norm > 0.0 and math.isfinite(norm)):
+            raise InputError(f"{self.name}.axis", "give the direction it leaves the junction "
+                             "in, 3 numbers not all 0")
+        object.__setattr__(self, "axis", tuple(a / norm for a in v))
+
+
+@dataclass(frozen=True, eq=False)
+class Junction:
+    """A harness junction (a Y-piece of no size) at an end of the part (``s``: 0 or its
+    length): each branch's end is held rigidly to the part's end there."""
+
+    name: str
+    s: float
+    branches: tuple[Branch, ...]
+
+
 @dataclass(frozen=True)
 class Problem:
     """A flexible part, conditions at stations along it, and gravity [m/s^2].
@@ -200,6 +253,7 @@ class Problem:
     name: str = ""
     obstacles: tuple = ()
     sliders: tuple[SlidingClip, ...] = ()
+    junctions: tuple[Junction, ...] = ()
     stations: tuple = field(init=False, repr=False, compare=False)
     dimension: int = field(init=False, repr=False, compare=False)
 
@@ -263,6 +317,19 @@ class Problem:
                 raise InputError(f"{c.name}.name", "a sliding clip needs a name of its own "
                                  "(its reaction is reported by name)")
         object.__setattr__(self, "sliders", sliders)
+        junctions = tuple(self.junctions)
+        for jn in junctions:
+            if not isinstance(jn, Junction):
+                raise InputError("junctions", "must be Junction objects")
+            if dimension != 3:
+                raise InputError(f"{jn.name}", "a harness junction is 3D")
+            if not (abs(jn.s) <= STATION_MERGE * length
+                    or abs(jn.s - length) <= STATION_MERGE * length):
+                raise InputError(f"{jn.name}.s", f"a junction is at an end of the part: "
+                                 f"0 or {length} m, not {jn.s} m")
+            if not jn.branches:
+                raise InputError(f"{jn.name}.branch", "give its branches ([[junction.branch]])")
+        object.__setattr__(self, "junctions", junctions)
         merge = _merge if dimension == 2 else _merge3
         object.__setattr__(self, "stations", merge(conditions, length))
         self._check_rigid_motion()
@@ -270,7 +337,7 @@ class Problem:
 
     def with_conditions(self, conditions: Iterable[Condition]) -> Problem:
         return Problem(self.part, tuple(conditions), self.gravity, self.name, self.obstacles,
-                       self.sliders)
+                       self.sliders, self.junctions)
 
     def _located(self, st) -> list[int]:
         """The coordinates a station prescribes."""

@@ -545,6 +545,56 @@ class ClipModel(_Strict):
                          tangent=self.axis, normal=self.normal)
 
 
+class BranchModel(_Strict):
+    """[[junction.branch]]: a branch of the harness: its own problem file (3D, relative
+    to this one: its part and what holds its far end, a port's clamp), which of its ends
+    meets the junction, and the direction it leaves the junction in, in the frame
+    (d1, d2, d3) of the part's end (d3 pointing out of the part; d1 the section's first
+    axis, the normal the part's clamps give)."""
+
+    name: str
+    file: str = Field(description="its problem file, relative to this file")
+    end: Literal["first", "last"] = "first"
+    axis: Vec3 = Field(description="where it leaves the junction, in the part's end frame")
+    elements: int = Field(40, ge=4, le=2000)
+    note: str = ""
+
+    def build(self, base: Path | None) -> Any:
+        from pliant.core.problem import Branch  # noqa: PLC0415
+
+        path = _referenced(self.file, base, "problem")
+        try:
+            text = path.read_text(encoding="utf-8")
+            problem = parse_scene(text, str(path), path.parent, nested=True).problem
+        except (OSError, PliantError) as err:
+            raise ValueError(f"file: {err}") from None
+        if problem.dimension != 3:
+            raise ValueError(f"file: {str(path)!r} is a 2D problem; a branch is 3D")
+        return Branch(self.name, problem, 0 if self.end == "first" else 1, tuple(self.axis),
+                      self.elements)
+
+
+class JunctionModel(_Strict):
+    """[[junction]]: a harness junction (a Y-piece of no size) at an end of the part
+    (s: 0 or its length), its branches in [[junction.branch]] tables."""
+
+    name: str
+    s: float = Field(description="the part's end where it is [m]: 0 or its length")
+    branch: list[BranchModel] = Field(min_length=1)
+    note: str = ""
+
+    def build(self, base: Path | None) -> Any:
+        from pliant.core.problem import Junction  # noqa: PLC0415
+
+        branches = []
+        for i, b in enumerate(self.branch):
+            try:
+                branches.append(b.build(base))
+            except ValueError as err:
+                raise ValueError(f"branch[{i}].{err}") from None
+        return Junction(self.name, self.s, tuple(branches))
+
+
 class PathModel(_Strict):
     """[path]: a manipulation: the condition ``grip`` is carried from where the file
     puts it through ``waypoints`` (straight legs), its axis turned toward ``tangents``
@@ -638,6 +688,7 @@ class ProblemFile(_Strict):
     assembled: list[AssembledModel] = Field(default_factory=list)
     port: list[PortModel] = Field(default_factory=list)
     clip: list[ClipModel] = Field(default_factory=list)
+    junction: list[JunctionModel] = Field(default_factory=list)
     path: PathModel | None = None
     margin: float = Field(0.0, ge=0, description="clearance wanted round obstacles [m]")
     units: str | None = Field(None, description="the length unit of the CAD and mesh files "
@@ -649,7 +700,8 @@ class ProblemFile(_Strict):
     @property
     def dimension(self) -> int:
         three = (self.gravity is not None and len(self.gravity) == 3) or any(
-            c.is_3d for c in self.condition) or bool(self.obstacle or self.clip or self.assembled
+            c.is_3d for c in self.condition) or bool(self.obstacle or self.clip or self.junction
+                                                     or self.assembled
                                                      or self.cad)
         return 3 if three else 2
 
@@ -689,8 +741,16 @@ class ProblemFile(_Strict):
             (conditions if isinstance(built, Condition) else sliders).append(built)
         if dimension == 2 and obstacles:
             raise InputError("obstacle", "obstacles are 3D: give gravity as [gx, gy, gz]")
+        junctions = []
+        for i, j in enumerate([] if nested else self.junction):
+            try:
+                junctions.append(j.build(base))
+            except ValueError as err:
+                raise InputError(f"junction[{i}]", str(err).removeprefix("Value error, ")
+                                 ) from None
         return Problem(part, tuple(conditions), self.gravity, self.name,
-                       obstacles=tuple(obstacles), sliders=tuple(sliders))
+                       obstacles=tuple(obstacles), sliders=tuple(sliders),
+                       junctions=tuple(junctions))
 
     def _obstacles(self, base: Path | None, nested: bool) -> list[Any]:
         obstacles = []
@@ -860,6 +920,7 @@ def _unknown_key(loc: tuple) -> str:
     tables = {"part": PartModel, "condition": ConditionModel, "obstacle": ObstacleModel,
               "cad": CadModel,
               "assembled": AssembledModel, "port": PortModel, "clip": ClipModel,
+              "junction": JunctionModel, "junction.branch": BranchModel,
               "path": PathModel, "evaluation": EvaluationModel, "solver": SolverModel,
               "plan": PlanModel, "part.material": MaterialModel,
               "evaluation.rating": RatingModel}

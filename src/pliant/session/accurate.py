@@ -60,6 +60,8 @@ class AccurateResult:
     # The flexible parts already fitted, by name: (neutral line (m, 3) [m], outer radius
     # [m], the overlap [m] their contact allows), deformed where this pose touches them.
     fitted: dict[str, tuple[np.ndarray, float, float]] = field(default_factory=dict)
+    # A harness's branches, by name: (neutral line (m, 3) [m], outer radius [m]).
+    branches: dict[str, tuple[np.ndarray, float]] = field(default_factory=dict)
 
     @property
     def ok(self) -> bool:
@@ -114,7 +116,10 @@ class AccurateSolver:
                               contacts=getattr(eq, "contacts", None),
                               min_bend_radius=eq.min_bend_radius(),
                               **({"tangent": np.array(eq.tangent), "torque": np.array(eq.torque),
-                                  "fitted": fitted_tubes(eq, problem.obstacles)}
+                                  "fitted": fitted_tubes(eq, problem.obstacles),
+                                  "branches": {b.problem.name: (np.array(b.position),
+                                                                b.problem.part.tube_radius)
+                                               for b in eq.branches}}
                                  if problem.dimension == 3 else {}))
 
 

@@ -220,6 +220,7 @@ class ServerAccurate(_Message):
     contacts: list[Contact] = []
     interference: Interference | None = None
     fitted: list[FittedShape] = []
+    branches: list[FittedShape] = []  # a harness's branches (their own tubes)
     min_bend_radius: float | None = None
     min_bend_radius_s: float | None = None
     allowed_bend_radius: float | None = None

@@ -376,7 +376,9 @@ class ViewerState:
             solve_seconds=result.solve_seconds, warnings=warnings, notes=list(result.notes),
             verdict=verdict,
             fitted=[P.FittedShape(name=name, position=np.round(line, 6).tolist(), radius=r)
-                    for name, (line, r, _) in fitted.items()])
+                    for name, (line, r, _) in fitted.items()],
+            branches=[P.FittedShape(name=name, position=np.round(line, 6).tolist(), radius=r)
+                      for name, (line, r) in getattr(result, "branches", {}).items()])
 
     def _verdict(self, result, interference: P.Interference) -> P.Verdict | None:
         """The pose's evaluation by the same rules as ``pliant evaluate`` (3D scenes);

@@ -1004,6 +1004,8 @@ class _TogetherState:
     fitted: tuple  # the FittedPart of each part after the first
     sliders: tuple = ()  # Slider
     clips: tuple = ()  # the problem's SlidingClip, to tell whether they are the same
+    joints: tuple = ()  # Joint
+    junctions: tuple = ()  # the problem's Junction, to tell whether they are the same
 
 
 def fitted_of(problem) -> list:
@@ -1018,19 +1020,20 @@ def _held_problem(problem):
 
     held = tuple(Condition(s=c.s, name=c.name, position=c.position,
                            tangent=c.axis if c.holds_axis else None) for c in problem.sliders)
-    return replace(problem, conditions=problem.conditions + held, sliders=())
+    return replace(problem, conditions=problem.conditions + held, sliders=(), junctions=())
 
 
-def _own_problem(problem):
-    """The part's own problem in the coupled solve: no fitted parts' tubes (the coupling
-    touches those) and the sliding clips as free stations (the mesh keeps a node where
-    each clip starts, as the held problem's)."""
+def _own_problem(problem, together):
+    """The part's own problem in the coupled solve: without the tubes of the fitted parts
+    solved with it (``together``, FittedPart; the coupling touches those; the others
+    stay rigid obstacles) and with the sliding clips as free stations (the mesh keeps a
+    node where each clip starts, as the held problem's)."""
     from pliant.core.conditions import Condition  # noqa: PLC0415
 
     free = tuple(Condition(s=c.s, name=c.name) for c in problem.sliders)
-    return replace(problem, conditions=problem.conditions + free, sliders=(),
+    return replace(problem, conditions=problem.conditions + free, sliders=(), junctions=(),
                    obstacles=tuple(o for o in problem.obstacles
-                                   if getattr(o, "fitted", None) is None))
+                                   if getattr(o, "fitted", None) not in together))
 
 
 def solve_fitted(problem, warm_start, solver: RodSolver, follow_only: bool) -> Equilibrium3D:
@@ -1043,13 +1046,18 @@ def solve_fitted(problem, warm_start, solver: RodSolver, follow_only: bool) -> E
     from pliant.models.rod3d.solver import _solve  # noqa: PLC0415
 
     fitted = fitted_of(problem)
-    own = _own_problem(problem)
     if warm_start is not None and isinstance(warm_start.state, _TogetherState):
         old = warm_start.state
-        if (tuple(o.fitted for o in fitted) == old.fitted[:len(fitted)]
-                and problem.sliders == old.clips):
+        present = {id(o.fitted) for o in fitted}
+        if (all(id(f) in present for f in old.fitted) and problem.sliders == old.clips
+                and problem.junctions == old.junctions):
             try:
-                return _follow_together(problem, own, old, solver)
+                eq = _follow_together(problem, _own_problem(problem, old.fitted), old,
+                                      solver)
+                # A fitted part held rigid that it now touches: solve again, with it.
+                rigid_ones = {o.name for o in fitted} - {f.name for f in old.fitted}
+                if not rigid_ones & set(eq.contacts.obstacle):
+                    return eq
             except ConvergenceError:
                 if follow_only:
                     raise
@@ -1057,15 +1065,17 @@ def solve_fitted(problem, warm_start, solver: RodSolver, follow_only: bool) -> E
     rigid = _solve(_held_problem(problem), warm_start, solver, follow_only, rigid=True)
     touched = sorted({name for name in rigid.contacts.obstacle}
                      & {o.name for o in fitted})
-    if not touched and not problem.sliders:
-        return rigid
+    if not touched and not problem.sliders and not problem.junctions:
+        return replace(rigid, problem=problem)
     parts = [o.fitted for o in fitted if o.name in touched]
     try:
-        return _start_together(problem, own, rigid, parts, solver)
+        return _start_together(problem, _own_problem(problem, parts), rigid, parts, solver)
     except ConvergenceError as err:
         if follow_only:
             raise
         # Said, not hidden: the answer is the one with those parts held still.
+        if problem.junctions:  # a harness has no answer without its branches
+            raise
         held = ", ".join(touched + [c.name for c in problem.sliders])
         note = (f"{held} could not be solved together with the part ({err}); held rigid "
                 "here: fitted parts at rest (their deformation and their clamps' share of "
@@ -1099,10 +1109,14 @@ def _start_together(problem, own, rigid: Equilibrium3D, parts: list, solver: Rod
         gam = np.zeros(rod.islot.shape[0])
     runs = [first]
     states = [(X.copy(), Q.copy(), lam.copy(), nu, gam.copy())]
-    for part in parts:
-        runs.append(_fitted_run(part, solver))
-        states.append(part.equilibrium.state.state)
-    pairs = close_pairs([r.rod for r in runs])
+    branches = [b for jn in problem.junctions for b in jn.branches]
+    for member in branches + parts:
+        runs.append(_fitted_run(member, solver))
+        states.append(member.equilibrium.state.state)
+    harness = 1 + len(branches)  # the part and its branches: one harness, no contact
+    pairs = [p for p in close_pairs([r.rod for r in runs])
+             if not (p.a < harness and p.b < harness)]
+    joints = _joints(problem, runs, states)
     # The rigid answer's contact forces on each fitted part start the coupling's: each
     # probe's force on the nearest probe of the pair (the part is first in its pairs).
     mus = no_contact_forces(pairs)
@@ -1112,7 +1126,8 @@ def _start_together(problem, own, rigid: Equilibrium3D, parts: list, solver: Rod
         if pair.a != 0:
             continue
         s_pair = rod.s_node[pair.elem] + pair.alpha * rod.h[pair.elem]
-        mine = on_part & np.array([n == parts[pair.b - 1].name for n in names], dtype=bool)
+        mine = on_part & np.array([n == parts[pair.b - harness].name for n in names],
+                                  dtype=bool)
         for k in np.nonzero(mine & (force > 0.0))[0]:
             mu[int(np.argmin(np.abs(s_pair - s_old[k])))] += force[k]
     # The sliding clips start where they held the part, with its reaction there.
@@ -1124,9 +1139,41 @@ def _start_together(problem, own, rigid: Equilibrium3D, parts: list, solver: Rod
         w[0] = clip.s / rod.length
         w[1:4] = -np.asarray(rigid.loads[clip.name].force) / rod.force_scale
         mus.append(w)
+    mus += [np.zeros(6) for _ in joints]
     coupling, states, mus = solve_coupled(runs, states, solver=solver, held_first=True,
-                                          pairs=pairs, mus=mus, sliders=sliders)
+                                          pairs=pairs, mus=mus, sliders=sliders, joints=joints)
     return _result(problem, coupling, states, mus, parts, rigid.iterations, rigid.steps)
+
+
+def _joints(problem, runs: list[_Run], states: list[State]) -> list[Joint]:
+    """The problem's junctions as joints between the part (run 0) and its branches (the
+    runs after it, in order), each closing from where the parts start apart."""
+    from pliant.models.rod3d.lowering import (  # noqa: PLC0415
+        quat_from_matrix,
+        rotation_between,
+    )
+
+    out = []
+    k = 1
+    rod = runs[0].rod
+    for jn in problem.junctions:
+        end_a = 0 if jn.s < 0.5 * problem.part.length else rod.elements
+        # The junction's frame: the part's end frame, turned so its d3 points out of it.
+        flip = np.array([1.0, 0.0, 0.0, 0.0]) if end_a else np.array([0.0, 1.0, 0.0, 0.0])
+        for branch in jn.branches:
+            rb = runs[k].rod
+            end_b = 0 if branch.end == 0 else rb.elements
+            leaving = np.asarray(branch.axis, float)
+            d3 = leaving if end_b == 0 else -leaving  # the branch's tangent there
+            q_rel = _qmul(flip, quat_from_matrix(rotation_between(np.array([0.0, 0.0, 1.0]),
+                                                                  d3)))
+            qa = states[0][1][rod.node_frame[end_a]]
+            qb = states[k][1][rb.node_frame[end_b]]
+            gap = states[k][0][end_b] * rb.length - states[0][0][end_a] * rod.length
+            out.append(Joint(f"{jn.name}: {branch.name}", 0, end_a, k, end_b, q_rel, gap,
+                             _qmul(_qconj(qa), qb)))
+            k += 1
+    return out
 
 
 def _station_multipliers(old: Rod, nu: np.ndarray, rod: Rod) -> np.ndarray:
@@ -1163,7 +1210,7 @@ def _follow_together(problem, own, old: _TogetherState, solver: RodSolver) -> Eq
     coupling, states, mus = solve_coupled(runs, list(old.states), solver=solver, start=start,
                                           mus=[m.copy() for m in old.mus],
                                           pairs=list(old.pairs), sliders=list(old.sliders),
-                                          held_first=False)
+                                          joints=list(old.joints), held_first=False)
     return _result(problem, coupling, states, mus, list(old.fitted), 0, 0)
 
 
@@ -1172,14 +1219,20 @@ def _result(problem, coupling: Coupling, states, mus, parts, iterations: int,
     # The targets before the contact forces join them as loads (for the warm starts).
     rods = tuple(run.rod for run in coupling.runs)
     gauges = tuple(run.gauge_quat.copy() for run in coupling.runs)
-    names = [problem.name or problem.part.name] + [p.name for p in parts]
+    branches = [b for jn in problem.junctions for b in jn.branches]
+    names = ([problem.name or problem.part.name] + [b.name for b in branches]
+             + [p.name for p in parts])
     eqs = equilibria(coupling, states, mus, names)
+    nb = len(branches)
     first = replace(eqs[0], problem=problem,
                     iterations=eqs[0].iterations + iterations + coupling.iterations,
                     steps=eqs[0].steps + steps + coupling.steps,
                     state=_TogetherState(rods, tuple(states), gauges, tuple(mus),
                                          tuple(coupling.pairs), tuple(parts),
-                                         tuple(coupling.sliders), tuple(problem.sliders)),
+                                         tuple(coupling.sliders), tuple(problem.sliders),
+                                         tuple(coupling.joints), tuple(problem.junctions)),
+                    branches=tuple(replace(eq, problem=b.problem)
+                                   for eq, b in zip(eqs[1:1 + nb], branches)),
                     fitted=tuple(replace(eq, problem=p.problem)
-                                 for eq, p in zip(eqs[1:], parts)))
+                                 for eq, p in zip(eqs[1 + nb:], parts)))
     return first

@@ -598,6 +598,7 @@ function onAccurate(msg) {
   pulseHands(msg);
   drawGhost(msg);
   drawFitted(msg.fitted || []);
+  drawBranches(msg.branches || []);
   drawLoads(msg);
   if (state.frame) drawTube(state.frame);
   const lines = [];
@@ -645,6 +646,25 @@ function drawFitted(fitted) {
     mesh.geometry.dispose();
     mesh.geometry = geometry;
     mesh.userData.fitted = true;
+  }
+}
+
+// A harness's branches, solved with the part: tubes of their own, redrawn with each
+// accurate answer (the real-time frames do not carry them).
+const branchGroup = new THREE.Group();
+branchGroup.name = 'branches';
+world.add(branchGroup);
+function drawBranches(branches) {
+  for (const child of [...branchGroup.children]) child.geometry.dispose();
+  branchGroup.clear();
+  for (const part of branches) {
+    if (part.position.length < 2) continue;
+    const points = part.position.map((p) => new THREE.Vector3(...p));
+    const path = new THREE.CatmullRomCurve3(points, false, 'centripetal');
+    const geometry = new THREE.TubeGeometry(path, Math.max(2 * points.length, 32), part.radius, 12, false);
+    const mesh = new THREE.Mesh(geometry, new THREE.MeshStandardMaterial({ color: 0x3b6ea5, roughness: 0.6 }));
+    mesh.name = part.name;
+    branchGroup.add(mesh);
   }
 }
 
