@@ -351,3 +351,89 @@ def test_harness_scene_file_with_junction_and_branches():
     eq = rod3d.solve(scene.problem, solver=rod3d.RodSolver(elements=40))
     assert eq.residual < 1e-9 and len(eq.branches) == 2
     assert "left port" in eq.branches[0].loads
+
+
+def test_a_ring_with_friction_sticks_then_slides_at_mu_times_the_force_across():
+    """A ring (holding the position only) with Coulomb's friction mu = 2, the tip pulled
+    harder and harder along the part: the part sticks in the ring (the same point of it
+    there) while the force along it is below mu times the force across the ring, then
+    slides with the force along it at mu times the force across it."""
+    def problem(pull, mu):
+        ring = SlidingClip("ring", 0.6025, CLIP_AT, (1.0, 0.0, 0.0), holds_axis=False,
+                           friction=mu)
+        return Problem(BEAM, (pl.clamp(0.0, (0.0, 0.0, 0.0), tangent=(1.0, 0.0, 0.0),
+                                       normal=(0.0, 0.0, 1.0), name="clamp"),
+                              pl.push(1.0, force=(pull, -2.0, 0.0), name="tip")),
+                       sliders=(ring,))
+
+    def along_across(eq):
+        ring = eq.loads["ring"]
+        k = int(np.searchsorted(eq.s, ring.s))
+        t = eq.position[k] - eq.position[k - 1]
+        t /= np.linalg.norm(t)
+        return ring.s, ring.force @ t, float(np.linalg.norm(ring.force[1:]))
+
+    solver = rod3d.RodSolver(elements=60)
+    eq = None
+    seen = []
+    for pull in (0.0, 1.0, 2.0, 3.0):
+        eq = rod3d.solve(problem(pull, 2.0), warm_start=eq, solver=solver)
+        assert not any("could not" in n for n in eq.notes)
+        seen.append(along_across(eq))
+    (s0, a0, n0), (s1, a1, n1), (s2, a2, n2), (s3, a3, n3) = seen
+    assert abs(a0) < 0.01 * n0  # installed where it slides freely (a cold start)
+    assert s1 == s0 and abs(a1) < 2.0 * n1  # sticks
+    for s, a, n in ((s2, a2, n2), (s3, a3, n3)):  # slides, at the friction limit
+        assert abs(a) == pytest.approx(2.0 * n, rel=0.01)
+    assert s3 < s2 < s1
+
+
+def test_a_pivoting_clip_takes_no_moment_about_its_pin():
+    """A clip that holds the part firmly but turns on a pin: the section's d1 stays
+    along the pin, the clip's moment about the pin is zero (not across it), and the
+    part balances."""
+    text = """
+[part]
+length = 1.0
+bending_stiffness = 1.0
+[[condition]]
+name = "clamp"
+s = 0.0
+x = 0.0
+y = 0.0
+z = 0.0
+tangent = [1.0, 0.0, 0.0]
+normal = [0.0, 0.0, 1.0]
+[[condition]]
+name = "tip"
+s = 1.0
+Fx = 0.0
+Fy = 0.5
+Fz = -1.0
+moment = [0.2, 0.0, 0.0]
+[[clip]]
+name = "pivot clip"
+s = 0.5
+position = [0.49, 0.0, 0.03]
+axis = [1.0, 0.0, 0.0]
+kind = "pivot"
+pivot = [0.0, 1.0, 0.0]
+"""
+    from pliant.io.problem_file import parse_problem
+
+    problem = parse_problem(text)
+    eq = rod3d.solve(problem, solver=rod3d.RodSolver(elements=60))
+    assert eq.residual < 1e-9
+    clip = eq.loads["pivot clip"]
+    pin = np.array([0.0, 1.0, 0.0])
+    assert abs(clip.moment @ pin) < 1e-9
+    assert np.linalg.norm(clip.moment) > 0.1  # it holds the other turns
+    np.testing.assert_allclose(eq.frames[int(np.argmin(np.abs(eq.s - 0.5)))][:, 0], pin,
+                               atol=1e-9)
+    total = np.zeros(3)
+    for load in eq.loads.values():
+        at = eq.position[int(np.argmin(np.abs(eq.s - load.s)))]
+        total += load.moment + np.cross(at, load.force)
+    np.testing.assert_allclose(total, 0.0, atol=1e-8)
+    with pytest.raises(FileFormatError, match=r"clip\[0\]: pivot"):
+        parse_problem(text.replace('pivot = [0.0, 1.0, 0.0]', ''))

@@ -158,8 +158,9 @@ class FittedPart:
 class SlidingClip:
     """A clip the part slides through (3D): it holds the part's neutral line at
     ``position`` [m] and, with ``holds_axis``, its direction along ``axis``, whatever
-    point of the part is there; the part slides freely along the axis (the clip takes no
-    axial force). ``s`` [m] is where along the part the clip is at the start; the solve
+    point of the part is there; the part slides along the axis, freely or, with
+    ``friction`` > 0, against Coulomb's friction (it sticks while the axial force is
+    below friction times the force across the clip). ``s`` [m] is where along the part the clip is at the start; the solve
     finds where it ends (the slide). Without ``holds_axis`` it is a ring or grommet that
     holds the position only."""
 
@@ -168,8 +169,13 @@ class SlidingClip:
     position: tuple[float, float, float]
     axis: tuple[float, float, float]
     holds_axis: bool = True
+    friction: float = 0.0  # Coulomb's coefficient along the axis (0: frictionless)
 
     def __post_init__(self) -> None:
+        if not (math.isfinite(float(self.friction)) and float(self.friction) >= 0.0):
+            raise InputError(f"{self.name}.friction", f"must be a number >= 0 (Coulomb's "
+                             f"coefficient), not {self.friction!r}")
+        object.__setattr__(self, "friction", float(self.friction))
         for field_name, value in (("position", self.position), ("axis", self.axis)):
             v = tuple(float(x) for x in value)
             if len(v) != 3 or not all(math.isfinite(x) for x in v):
@@ -181,6 +187,30 @@ class SlidingClip:
         object.__setattr__(self, "axis", tuple(a / norm for a in self.axis))
         if not math.isfinite(float(self.s)):
             raise InputError(f"{self.name}.s", "give the arc length [m] at the clip")
+        object.__setattr__(self, "s", float(self.s))
+
+
+@dataclass(frozen=True)
+class PivotClip:
+    """A clip that holds the part firmly at ``s`` [m] and ``position`` [m] but turns on
+    a pin along ``pivot`` (3D): the part's section keeps its first axis d1 along the pin
+    and may turn about it; the clip takes no moment about the pin."""
+
+    name: str
+    s: float
+    position: tuple[float, float, float]
+    pivot: tuple[float, float, float]
+
+    def __post_init__(self) -> None:
+        for field_name, value in (("position", self.position), ("pivot", self.pivot)):
+            v = tuple(float(x) for x in value)
+            if len(v) != 3 or not all(math.isfinite(x) for x in v):
+                raise InputError(f"{self.name}.{field_name}", "give 3 finite numbers")
+            object.__setattr__(self, field_name, v)
+        norm = math.sqrt(sum(a * a for a in self.pivot))
+        if not norm > 0.0:
+            raise InputError(f"{self.name}.pivot", "must be a non-zero direction")
+        object.__setattr__(self, "pivot", tuple(a / norm for a in self.pivot))
         object.__setattr__(self, "s", float(self.s))
 
 
@@ -254,6 +284,7 @@ class Problem:
     obstacles: tuple = ()
     sliders: tuple[SlidingClip, ...] = ()
     junctions: tuple[Junction, ...] = ()
+    pivots: tuple[PivotClip, ...] = ()
     stations: tuple = field(init=False, repr=False, compare=False)
     dimension: int = field(init=False, repr=False, compare=False)
 
@@ -330,6 +361,16 @@ class Problem:
             if not jn.branches:
                 raise InputError(f"{jn.name}.branch", "give its branches ([[junction.branch]])")
         object.__setattr__(self, "junctions", junctions)
+        pivots = tuple(self.pivots)
+        for c in pivots:
+            if not isinstance(c, PivotClip):
+                raise InputError("pivots", "must be PivotClip objects")
+            if dimension != 3:
+                raise InputError(f"{c.name}", "a pivoting clip is 3D")
+            if c.name not in names:
+                raise InputError(f"{c.name}", "a pivoting clip holds the part by a "
+                                 "condition of its name (its position); give one")
+        object.__setattr__(self, "pivots", pivots)
         merge = _merge if dimension == 2 else _merge3
         object.__setattr__(self, "stations", merge(conditions, length))
         self._check_rigid_motion()
@@ -337,7 +378,7 @@ class Problem:
 
     def with_conditions(self, conditions: Iterable[Condition]) -> Problem:
         return Problem(self.part, tuple(conditions), self.gravity, self.name, self.obstacles,
-                       self.sliders, self.junctions)
+                       self.sliders, self.junctions, self.pivots)
 
     def _located(self, st) -> list[int]:
         """The coordinates a station prescribes."""

@@ -511,9 +511,10 @@ class ClipModel(_Strict):
     """[[clip]]: a clip or clamp holding the part at s by position and axis. ``kind``:
     "fixed" (the default; with ``normal``, the section's d1, it also stops twist),
     "turning" (the part turns freely about the axis in it: no moment about the axis),
-    "sliding" (the part slides through along the axis, without friction: s is where it
-    is at the start, the solve finds where it ends), "ring" (a grommet or a hole: the
-    position only, the part slides and tilts in it)."""
+    "sliding" (the part slides through along the axis, with Coulomb's ``friction`` or
+    none: s is where it is at the start, the solve finds where it ends), "ring" (a
+    grommet or a hole: the position only, the part slides and tilts in it), "pivot"
+    (the part held firmly, the clip turning on a pin along ``pivot``)."""
 
     name: str
     s: float = Field(description="arc length [m]")
@@ -522,7 +523,11 @@ class ClipModel(_Strict):
                               "of its box is the position, and it is no obstacle to the part")
     axis: Vec3 = Field(description="the part's direction through the clip")
     normal: Vec3 | None = None
-    kind: Literal["fixed", "turning", "sliding", "ring"] = "fixed"
+    kind: Literal["fixed", "turning", "sliding", "ring", "pivot"] = "fixed"
+    pivot: Vec3 | None = Field(None, description="kind = \"pivot\": the pin the clip "
+                               "turns on, across the part")
+    friction: float = Field(0.0, ge=0.0, description="Coulomb's coefficient along the "
+                            "axis of a sliding clip or ring")
     note: str = ""
 
     @model_validator(mode="after")
@@ -536,11 +541,22 @@ class ClipModel(_Strict):
         if self.normal is not None and self.kind != "fixed":
             raise ValueError(f"normal: a {self.kind} clip lets the part turn about its "
                              "axis; drop the normal, or make the clip kind = \"fixed\"")
+        if (self.pivot is None) == (self.kind == "pivot"):
+            raise ValueError("pivot: give the pin's direction for kind = \"pivot\" (and "
+                             "only for it)")
+        if self.kind == "pivot":
+            from pliant.core.problem import PivotClip  # noqa: PLC0415
+
+            return (Condition(s=self.s, name=self.name, position=self.position),
+                    PivotClip(self.name, self.s, tuple(self.position), tuple(self.pivot)))
         if self.kind in ("sliding", "ring"):
             from pliant.core.problem import SlidingClip  # noqa: PLC0415
 
             return SlidingClip(self.name, self.s, tuple(self.position), tuple(self.axis),
-                               holds_axis=self.kind == "sliding")
+                               holds_axis=self.kind == "sliding", friction=self.friction)
+        if self.friction:
+            raise ValueError(f"friction: a {self.kind} clip does not slide; friction is for "
+                             "kind = \"sliding\" or \"ring\"")
         return Condition(s=self.s, name=self.name, position=self.position,
                          tangent=self.axis, normal=self.normal)
 
@@ -732,13 +748,17 @@ class ProblemFile(_Strict):
                 if isinstance(err, PliantError):
                     raise
                 raise InputError(f"condition[{i}]", str(err)) from None
-        sliders = []
+        sliders, pivots = [], []
         for i, clip in enumerate(self.clip):
             try:
                 built = clip.build()
             except ValueError as err:
                 raise InputError(f"clip[{i}]", str(err).removeprefix("Value error, ")) from None
-            (conditions if isinstance(built, Condition) else sliders).append(built)
+            if isinstance(built, tuple):  # a pivot: its position, and its pin
+                conditions.append(built[0])
+                pivots.append(built[1])
+            else:
+                (conditions if isinstance(built, Condition) else sliders).append(built)
         if dimension == 2 and obstacles:
             raise InputError("obstacle", "obstacles are 3D: give gravity as [gx, gy, gz]")
         junctions = []
@@ -750,7 +770,7 @@ class ProblemFile(_Strict):
                                  ) from None
         return Problem(part, tuple(conditions), self.gravity, self.name,
                        obstacles=tuple(obstacles), sliders=tuple(sliders),
-                       junctions=tuple(junctions))
+                       junctions=tuple(junctions), pivots=tuple(pivots))
 
     def _obstacles(self, base: Path | None, nested: bool) -> list[Any]:
         obstacles = []

@@ -156,6 +156,10 @@ class Slider:
     s0: float
 
     @property
+    def axis(self) -> np.ndarray:
+        return np.asarray(self.clip.axis, dtype=float)
+
+    @property
     def rows(self) -> int:
         """Its constraints: position, and direction when it holds the axis."""
         return 5 if self.clip.holds_axis else 3
@@ -179,6 +183,19 @@ class Joint:
     turn: np.ndarray
 
 
+@dataclass(frozen=True, eq=False)
+class Pivot:
+    """A pivoting clip (``core.problem.PivotClip``) on part 0: its station's frame keeps
+    its first axis d1 along the pin ``pin`` (turning from ``start``, d1 where the part
+    starts, as the weight goes 0 to 1). Its unknowns (2): the multipliers, moments
+    across the pin (by the part's moment scale)."""
+
+    clip: object
+    frame: int  # the station's frame in the part's rod
+    start: np.ndarray
+    pin: np.ndarray
+
+
 @dataclass
 class Coupling:
     """Parts solved together: their runs (each a rod with its own obstacles), the pairs
@@ -191,6 +208,11 @@ class Coupling:
     solver: RodSolver
     sliders: list[Slider] = field(default_factory=list)
     joints: list[Joint] = field(default_factory=list)
+    pivots: list[Pivot] = field(default_factory=list)
+    # Sliding clips with friction: each one's state (0 sticking, +-1 sliding that way)
+    # held within a Newton solve, and where the load step started (what sticking keeps).
+    slide_mode: dict = field(default_factory=dict)
+    slide_ref: dict = field(default_factory=dict)
     iterations: int = 0
     steps: int = 0
     notes: list[str] = field(default_factory=list)
@@ -289,6 +311,11 @@ class Coupling:
             for (part, first), f in zip(self._joint_coords(k), forces):
                 R[part][first:first + 3] += f
             Rmu.append(rows)
+        for k in range(len(self.pivots)):
+            rows, torque = self._pivot_terms(k, states, mus, weight)[:2]
+            first = self._pivot_coord(k)
+            R[0][first:first + 3] += torque
+            Rmu.append(rows)
         residual = max([float(np.abs(r).max(initial=0.0)) for r in R]
                        + [float(np.abs(r).max(initial=0.0)) for r in Rmu])
         if deep or out_of_clip:  # one tube half through the other, or out of a clip
@@ -324,7 +351,8 @@ class Coupling:
         P = len(self.runs)
         blocks = self._contact_blocks(ev, mus, weight) + [
             self._slider_block(k, ev, mus, weight) for k in range(len(self.sliders))] + [
-            self._joint_block(k, ev, mus, weight) for k in range(len(self.joints))]
+            self._joint_block(k, ev, mus, weight) for k in range(len(self.joints))] + [
+            self._pivot_block(k, ev, mus, weight) for k in range(len(self.pivots))]
         # The coupling coordinates: x of every node a block touches, part by part.
         slot = [dict() for _ in range(P)]
         coords: list[list[int]] = [[] for _ in range(P)]
@@ -448,7 +476,24 @@ class Coupling:
         nu = w[1:1 + n]
         forces = J[:, :12].T @ nu
         rows = np.zeros(6)
-        rows[0] = (1.0 - weight) * (sigma - sl.s0) + weight * float(nu @ J[:, 12])
+        # The slide's row at weight 1: frictionless, G = nu . dE/dsigma = 0 (no work along
+        # the slide); with Coulomb's friction mu, sticking (sigma where the step started)
+        # or sliding s = +-1 with G = -s mu N (N the clip's force across its axis).
+        # (While the clip is let go from where it starts, weight < 1, it slides freely:
+        # a cold start finds its frictionless place, one of the equilibria friction
+        # allows; friction acts from there on, along the path.)
+        mode = (self.slide_mode.get(k, 0) if sl.clip.friction > 0.0 and weight >= 1.0
+                else None)
+        G = float(nu @ J[:, 12])
+        across = nu[:3] - (nu[:3] @ sl.axis) * sl.axis
+        N = float(np.linalg.norm(across))
+        if mode is None:
+            slide = G
+        elif mode == 0:
+            slide = sigma - self.slide_ref.get(k, sl.s0)
+        else:
+            slide = G + mode * sl.clip.friction * N
+        rows[0] = (1.0 - weight) * (sigma - sl.s0) + weight * slide
         rows[1:1 + n] = E
         rows[1 + n:] = w[1 + n:]  # a ring's unused direction multipliers stay 0
         nodes = [(sl.part, int(j)) for j in jb]
@@ -473,12 +518,17 @@ class Coupling:
         Eb[:, 0] = H[:12, 12]
         Eb[:, 1:1 + n] = J[:, :12].T
         F = np.zeros((6, 12))
-        F[0] = weight * H[12, :12]
         F[1:1 + n] = J[:, :12]
         D = np.zeros((6, 6))
-        D[0, 0] = (1.0 - weight) + weight * H[12, 12]
-        D[0, 1:1 + n] = weight * J[:, 12]
         D[1:1 + n, 0] = J[:, 12]
+        if mode == 0:  # sticking: sigma held
+            D[0, 0] = 1.0
+        else:
+            F[0] = weight * H[12, :12]
+            D[0, 0] = (1.0 - weight) + weight * H[12, 12]
+            D[0, 1:1 + n] = weight * J[:, 12]
+            if mode and N > 0.0:  # sliding: + s mu dN/dnu
+                D[0, 1:4] += weight * mode * sl.clip.friction * (across / N)
         for r in range(1 + n, 6):
             D[r, r] = 1.0
         ix = self.runs[sl.part].rod.ix
@@ -579,6 +629,53 @@ class Coupling:
         block.rhs = -ev.Rmu[len(self.pairs) + len(self.sliders) + k]
         return block
 
+    # -- pivoting clips -------------------------------------------------------------------
+    def _pivot_coord(self, k: int) -> int:
+        return int(self.runs[0].rod.ith[self.pivots[k].frame])
+
+    def _pivot_rows(self, k: int, q: np.ndarray, weight: float):
+        """(c (2,), J (2, 3)): d1 across the pin's direction (turned from where the part
+        starts), and its change per material increment of the frame (d1 <- R (e1 +
+        theta x e1))."""
+        from pliant.models.rod3d.lowering import _slerp_vectors, axis_basis  # noqa: PLC0415
+
+        pv = self.pivots[k]
+        target = _slerp_vectors(pv.start[None], pv.pin[None], weight)[0]
+        basis = axis_basis(target / np.linalg.norm(target))
+        R = quat_matrix(q)
+        d1 = R[:, 0]
+        e1x = np.array([[0.0, 0.0, 0.0], [0.0, 0.0, -1.0], [0.0, 1.0, 0.0]])  # [e1]x
+        return basis @ d1, -basis @ R @ e1x
+
+    def _pivot_terms(self, k: int, states: Sequence[State], mus: Sequence[np.ndarray],
+                     weight: float, want_jac: bool = False):
+        """(rows (2,), the torque on the frame's three rows, block or None)."""
+        pv = self.pivots[k]
+        nu = mus[len(self.pairs) + len(self.sliders) + len(self.joints) + k]
+        q = states[0][1][pv.frame]
+        c, J = self._pivot_rows(k, q, weight)
+        torque = J.T @ nu
+        if not want_jac:
+            return c, torque, None
+        step = 1e-6
+        H = np.empty((3, 3))
+        for v in range(3):
+            d = np.zeros(3)
+            d[v] = step
+            e = _qexp(d)
+            H[v] = nu @ (self._pivot_rows(k, _qmul(q, e), weight)[1]
+                         - self._pivot_rows(k, _qmul(q, _qconj(e)), weight)[1]) / (2 * step)
+        block = _Block([(0, self._pivot_coord(k))], J.T, J, np.zeros((2, 2)),
+                       0.5 * (H + H.T), -c,
+                       (len(self.pairs) + len(self.sliders) + len(self.joints) + k,
+                        slice(0, 2)))
+        return c, torque, block
+
+    def _pivot_block(self, k: int, ev: _Eval, mus, weight: float) -> _Block:
+        block = self._pivot_terms(k, ev.states, mus, weight, want_jac=True)[2]
+        block.rhs = -ev.Rmu[len(self.pairs) + len(self.sliders) + len(self.joints) + k]
+        return block
+
     def _contact_blocks(self, ev: _Eval, mus: Sequence[np.ndarray], weight: float) -> list:
         """A block per contact in the system: touching ones, and any with a force still
         on (a probe with no force and an open gap has the row d mu = 0: left out)."""
@@ -632,9 +729,12 @@ class Coupling:
             if not math.isfinite(ev.residual):
                 return states, mus, ev.residual, False
             touching = self._touching(ev, mus, fixed)
-            if fixed is not None and all(np.array_equal(a, b) for a, b in zip(touching, fixed)):
+            modes = self._slide_modes(states, mus) if weight >= 1.0 else self.slide_mode
+            if (fixed is not None and modes == self.slide_mode
+                    and all(np.array_equal(a, b) for a, b in zip(touching, fixed))):
                 return states, mus, ev.residual, ev.residual <= tol
-            key = b"".join(t.tobytes() for t in touching)
+            self.slide_mode = modes
+            key = b"".join(t.tobytes() for t in touching) + repr(sorted(modes.items())).encode()
             if key in seen:  # the sets cycle: no set holds from here
                 return states, mus, ev.residual, False
             seen.add(key)
@@ -657,6 +757,33 @@ class Coupling:
                 return states, mus, r, False
             states, mus = trial, trial_mus
         return states, mus, r, False
+
+    def _slide_modes(self, states: Sequence[State], mus: Sequence[np.ndarray]) -> dict:
+        """The sliding clips' friction states that hold at (states, mus): a sticking
+        clip whose axial force G beats mu N slides (against G); a sliding one that went
+        back sticks."""
+        out = {}
+        for k, sl in enumerate(self.sliders):
+            if not sl.clip.friction > 0.0:
+                continue
+            w = mus[len(self.pairs) + k]
+            sigma = float(w[0])
+            mode = self.slide_mode.get(k, 0)
+            if not 0.0 <= sigma <= 1.0:
+                out[k] = mode
+                continue
+            f, _, y = self._slider_at(k, states, sigma)
+            _, J = self._slider_E(k, y, sigma, f)
+            nu = w[1:1 + sl.rows]
+            G = float(nu @ J[:, 12])
+            N = float(np.linalg.norm(nu[:3] - (nu[:3] @ sl.axis) * sl.axis))
+            if mode == 0:
+                out[k] = (-1 if G > 0.0 else 1) if abs(G) > sl.clip.friction * N * (
+                    1.0 + 1e-9) + 1e-12 else 0
+            else:
+                moved = sigma - self.slide_ref.get(k, sl.s0)
+                out[k] = 0 if moved * mode < 0.0 else mode
+        return out
 
     def _touching(self, ev: _Eval, mus: Sequence[np.ndarray],
                   fixed: list[np.ndarray] | None) -> list[np.ndarray]:
@@ -746,6 +873,9 @@ class Coupling:
             t_next = min(1.0, t + dt)
             loads = [m.start.lerp(m.end, t_next) for m in members]
             weight = w0 + t_next * (w1 - w0)
+            # Friction in sliding clips is measured from where this step starts.
+            self.slide_ref = {k: float(mus[len(self.pairs) + k][0])
+                              for k in range(len(self.sliders))}
             if prev is None and tangent is not None:
                 du, dmu = tangent
                 guess = [run.step(s, d, t_next - t) for run, s, d in zip(self.runs, states, du)]
@@ -853,11 +983,17 @@ class _WithContacts:
     inner: _Sampler
     extra: Contacts
     loads: dict = field(default_factory=dict)
+    moments: dict = field(default_factory=dict)  # added to conditions' (pivoting clips)
 
     def __call__(self) -> Samples3D:
         samples = self.inner()
-        if self.loads:
-            samples = replace(samples, loads={**samples.loads, **self.loads})
+        if self.loads or self.moments:
+            loads = {**samples.loads, **self.loads}
+            for name, m in self.moments.items():
+                load = loads[name]
+                loads[name] = replace(load, moment=np.asarray(load.moment) + m,
+                                      prescribed=load.prescribed[:3] + (True, True))
+            samples = replace(samples, loads=loads)
         c = samples.contacts
         if not len(self.extra):
             return samples
@@ -908,12 +1044,18 @@ def equilibria(coupling: Coupling, states: Sequence[State], mus: Sequence[np.nda
     held = slider_loads(coupling, states, mus)
     for part, extra in enumerate(joint_loads(coupling, states, mus)):
         held[part].update(extra)
+    pins = {}
+    rod = coupling.runs[0].rod
+    for k, pv in enumerate(coupling.pivots):
+        _, torque, _ = coupling._pivot_terms(k, states, mus, 1.0)
+        pins[pv.clip.name] = quat_matrix(states[0][1][pv.frame]) @ (-torque) * rod.moment_scale
     out = []
-    for run, state, extra, mine in zip(coupling.runs, states, contacts, held):
+    for i, (run, state, extra, mine) in enumerate(zip(coupling.runs, states, contacts, held)):
         eq = _build(run, state)
-        coupled = len(extra) > 0 or bool(mine)
+        coupled = len(extra) > 0 or bool(mine) or (i == 0 and bool(pins))
         out.append(replace(eq, residual=residual,
-                           sampler=_WithContacts(eq.sampler, extra, mine),
+                           sampler=_WithContacts(eq.sampler, extra, mine,
+                                                 pins if i == 0 else {}),
                            notes=eq.notes + ((STABILITY_NOTE,) if coupled else ()),
                            stability_check=None if coupled else eq.stability_check))
     return out
@@ -957,7 +1099,8 @@ def no_contact_forces(pairs: Sequence[Pair]) -> list[np.ndarray]:
 def solve_coupled(runs: list[_Run], states: list[State], *, solver: RodSolver,
                   start: list[Loads] | None = None, mus: list[np.ndarray] | None = None,
                   pairs: list[Pair] | None = None, sliders: list[Slider] | None = None,
-                  joints: list[Joint] | None = None, held_first: bool = True):
+                  joints: list[Joint] | None = None, pivots: list[Pivot] | None = None,
+                  held_first: bool = True):
     """Solve parts together from ``states`` (each an equilibrium of its ``start`` loads,
     alone or with the others' contact forces and the clips' multipliers ``mus``) to their
     targets. With ``held_first``, the parts after the first start held still under the
@@ -967,10 +1110,12 @@ def solve_coupled(runs: list[_Run], states: list[State], *, solver: RodSolver,
     pairs = close_pairs([r.rod for r in runs]) if pairs is None else pairs
     sliders = sliders or []
     joints = joints or []
-    coupling = Coupling(runs, pairs, solver, sliders, joints)
+    pivots = pivots or []
+    coupling = Coupling(runs, pairs, solver, sliders, joints, pivots)
     if mus is None:
-        mus = no_contact_forces(pairs) + [np.concatenate([[sl.s0], np.zeros(5)])
-                                          for sl in sliders] + [np.zeros(6) for _ in joints]
+        mus = (no_contact_forces(pairs) + [np.concatenate([[sl.s0], np.zeros(5)])
+                                           for sl in sliders]
+               + [np.zeros(6) for _ in joints] + [np.zeros(2) for _ in pivots])
     start = [r.rod.target for r in runs] if start is None else start
     members = [_Member(run, s, run.rod.target) for run, s in zip(runs, start)]
     deadline = clock.now() + solver.time_budget
@@ -1006,6 +1151,8 @@ class _TogetherState:
     clips: tuple = ()  # the problem's SlidingClip, to tell whether they are the same
     joints: tuple = ()  # Joint
     junctions: tuple = ()  # the problem's Junction, to tell whether they are the same
+    pivots: tuple = ()  # Pivot
+    pins: tuple = ()  # the problem's PivotClip, to tell whether they are the same
 
 
 def fitted_of(problem) -> list:
@@ -1020,7 +1167,8 @@ def _held_problem(problem):
 
     held = tuple(Condition(s=c.s, name=c.name, position=c.position,
                            tangent=c.axis if c.holds_axis else None) for c in problem.sliders)
-    return replace(problem, conditions=problem.conditions + held, sliders=(), junctions=())
+    return replace(problem, conditions=problem.conditions + held, sliders=(), junctions=(),
+                   pivots=())
 
 
 def _own_problem(problem, together):
@@ -1032,7 +1180,7 @@ def _own_problem(problem, together):
 
     free = tuple(Condition(s=c.s, name=c.name) for c in problem.sliders)
     return replace(problem, conditions=problem.conditions + free, sliders=(), junctions=(),
-                   obstacles=tuple(o for o in problem.obstacles
+                   pivots=(), obstacles=tuple(o for o in problem.obstacles
                                    if getattr(o, "fitted", None) not in together))
 
 
@@ -1050,7 +1198,7 @@ def solve_fitted(problem, warm_start, solver: RodSolver, follow_only: bool) -> E
         old = warm_start.state
         present = {id(o.fitted) for o in fitted}
         if (all(id(f) in present for f in old.fitted) and problem.sliders == old.clips
-                and problem.junctions == old.junctions):
+                and problem.junctions == old.junctions and problem.pivots == old.pins):
             try:
                 eq = _follow_together(problem, _own_problem(problem, old.fitted), old,
                                       solver)
@@ -1065,7 +1213,7 @@ def solve_fitted(problem, warm_start, solver: RodSolver, follow_only: bool) -> E
     rigid = _solve(_held_problem(problem), warm_start, solver, follow_only, rigid=True)
     touched = sorted({name for name in rigid.contacts.obstacle}
                      & {o.name for o in fitted})
-    if not touched and not problem.sliders and not problem.junctions:
+    if not (touched or problem.sliders or problem.junctions or problem.pivots):
         return replace(rigid, problem=problem)
     parts = [o.fitted for o in fitted if o.name in touched]
     try:
@@ -1140,8 +1288,17 @@ def _start_together(problem, own, rigid: Equilibrium3D, parts: list, solver: Rod
         w[1:4] = -np.asarray(rigid.loads[clip.name].force) / rod.force_scale
         mus.append(w)
     mus += [np.zeros(6) for _ in joints]
+    pivots = []
+    for clip in problem.pivots:
+        k = next(i for i, st in enumerate(rod.stations)
+                 if any(c.name == clip.name for c in st.conditions))
+        frame = int(rod.st_frame[k])
+        pivots.append(Pivot(clip, frame, quat_matrix(states[0][1][frame])[:, 0].copy(),
+                            np.asarray(clip.pivot, float)))
+        mus.append(np.zeros(2))
     coupling, states, mus = solve_coupled(runs, states, solver=solver, held_first=True,
-                                          pairs=pairs, mus=mus, sliders=sliders, joints=joints)
+                                          pairs=pairs, mus=mus, sliders=sliders, joints=joints,
+                                          pivots=pivots)
     return _result(problem, coupling, states, mus, parts, rigid.iterations, rigid.steps)
 
 
@@ -1210,7 +1367,8 @@ def _follow_together(problem, own, old: _TogetherState, solver: RodSolver) -> Eq
     coupling, states, mus = solve_coupled(runs, list(old.states), solver=solver, start=start,
                                           mus=[m.copy() for m in old.mus],
                                           pairs=list(old.pairs), sliders=list(old.sliders),
-                                          joints=list(old.joints), held_first=False)
+                                          joints=list(old.joints), pivots=list(old.pivots),
+                                          held_first=False)
     return _result(problem, coupling, states, mus, list(old.fitted), 0, 0)
 
 
@@ -1230,7 +1388,8 @@ def _result(problem, coupling: Coupling, states, mus, parts, iterations: int,
                     state=_TogetherState(rods, tuple(states), gauges, tuple(mus),
                                          tuple(coupling.pairs), tuple(parts),
                                          tuple(coupling.sliders), tuple(problem.sliders),
-                                         tuple(coupling.joints), tuple(problem.junctions)),
+                                         tuple(coupling.joints), tuple(problem.junctions),
+                                         tuple(coupling.pivots), tuple(problem.pivots)),
                     branches=tuple(replace(eq, problem=b.problem)
                                    for eq, b in zip(eqs[1:1 + nb], branches)),
                     fitted=tuple(replace(eq, problem=p.problem)

@@ -731,7 +731,7 @@ def _solve(problem: Problem, warm_start: Equilibrium3D | None, solver: RodSolver
     if problem.dimension != 3:
         raise IllPosedProblemError("the 3D model solves 3D problems; this one is 2D "
                                    "(use pliant.solve, which picks the model)")
-    if not rigid and (problem.sliders or problem.junctions or any(
+    if not rigid and (problem.sliders or problem.junctions or problem.pivots or any(
             getattr(o, "fitted", None) is not None for o in problem.obstacles)):
         from pliant.models.rod3d import coupled  # noqa: PLC0415
 
