@@ -733,9 +733,9 @@ def _solve(problem: Problem, warm_start: Equilibrium3D | None, solver: RodSolver
                                    "(use pliant.solve, which picks the model)")
     if not rigid and (problem.sliders or problem.junctions or problem.pivots or any(
             getattr(o, "fitted", None) is not None for o in problem.obstacles)):
-        from pliant.models.rod3d import coupled  # noqa: PLC0415
+        from pliant.models.rod3d import together  # noqa: PLC0415
 
-        return coupled.solve_fitted(problem, warm_start, solver, follow_only)
+        return together.solve_fitted(problem, warm_start, solver, follow_only)
     rod = None
     if warm_start is not None and isinstance(warm_start.state, _WarmState):
         rod = warm_start.state.rod.retarget(problem, solver.elements)  # skips re-meshing

@@ -1,0 +1,295 @@
+"""The routes to an answer solved together (``coupled``): a part among flexible parts
+already fitted, in sliding or pivoting clips, or with harness branches.
+
+``solve_fitted`` is what ``rod3d.solve`` calls for such a problem: it solves the part
+first as the single-part model does (fitted parts as rigid tubes, sliding clips holding
+it where they start, branches apart), and where that answer touches a fitted part, or
+the problem has clips that slide or pivot or junctions, solves the parts together from
+there (``coupled.solve_coupled``), letting go what was held. A warm start solved together
+is followed together. What it returns is the part's ``Equilibrium3D`` with the fitted
+parts and branches as they deformed (``fitted``, ``branches``).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, replace
+
+import numpy as np
+
+from pliant.core.equilibrium import Equilibrium3D
+from pliant.errors import ConvergenceError
+from pliant.models.rod3d import coupled
+from pliant.models.rod3d.coupled import (
+    Coupling,
+    Joint,
+    Pivot,
+    Slider,
+    close_pairs,
+    equilibria,
+    no_contact_forces,
+)
+from pliant.models.rod3d.lowering import Rod, quat_matrix
+from pliant.models.rod3d.solver import RodSolver, State, _qconj, _qmul, _Run
+
+
+@dataclass(frozen=True, eq=False)
+class _TogetherState:
+    """What a warm start needs of an equilibrium solved together: each part's rod and
+    state (the part being fitted first), the contact forces and clips' unknowns, the
+    pairs, the fitted parts and the sliding clips."""
+
+    rods: tuple[Rod, ...]
+    states: tuple
+    gauges: tuple
+    mus: tuple
+    pairs: tuple
+    fitted: tuple  # the FittedPart of each part after the first
+    sliders: tuple = ()  # Slider
+    clips: tuple = ()  # the problem's SlidingClip, to tell whether they are the same
+    joints: tuple = ()  # Joint
+    junctions: tuple = ()  # the problem's Junction, to tell whether they are the same
+    pivots: tuple = ()  # Pivot
+    pins: tuple = ()  # the problem's PivotClip, to tell whether they are the same
+
+
+def fitted_of(problem) -> list:
+    """The obstacles of ``problem`` that are flexible parts already fitted."""
+    return [o for o in problem.obstacles if getattr(o, "fitted", None) is not None]
+
+
+def _held_problem(problem):
+    """The problem with its sliding clips as clips that hold the part where it starts
+    (the rigid answer the coupled solve starts from)."""
+    from pliant.core.conditions import Condition  # noqa: PLC0415
+
+    held = tuple(Condition(s=c.s, name=c.name, position=c.position,
+                           tangent=c.axis if c.holds_axis else None) for c in problem.sliders)
+    return replace(problem, conditions=problem.conditions + held, sliders=(), junctions=(),
+                   pivots=())
+
+
+def _own_problem(problem, together):
+    """The part's own problem in the coupled solve: without the tubes of the fitted parts
+    solved with it (``together``, FittedPart; the coupling touches those; the others
+    stay rigid obstacles) and with the sliding clips as free stations (the mesh keeps a
+    node where each clip starts, as the held problem's)."""
+    from pliant.core.conditions import Condition  # noqa: PLC0415
+
+    free = tuple(Condition(s=c.s, name=c.name) for c in problem.sliders)
+    return replace(problem, conditions=problem.conditions + free, sliders=(), junctions=(),
+                   pivots=(), obstacles=tuple(o for o in problem.obstacles
+                                   if getattr(o, "fitted", None) not in together))
+
+
+def solve_fitted(problem, warm_start, solver: RodSolver, follow_only: bool) -> Equilibrium3D:
+    """The equilibrium of a part among flexible parts already fitted (obstacles with
+    ``fitted``) or in sliding clips: solved with the fitted parts' tubes as rigid
+    obstacles and the sliding clips holding it where they start first; where it touches
+    a fitted part, or where it has sliding clips, the parts are solved together from
+    there (the fitted parts let go from held still, the clips let it slide). A warm
+    start that was solved together is followed together."""
+    from pliant.models.rod3d.solver import _solve  # noqa: PLC0415
+
+    fitted = fitted_of(problem)
+    if warm_start is not None and isinstance(warm_start.state, _TogetherState):
+        old = warm_start.state
+        present = {id(o.fitted) for o in fitted}
+        if (all(id(f) in present for f in old.fitted) and problem.sliders == old.clips
+                and problem.junctions == old.junctions and problem.pivots == old.pins):
+            try:
+                eq = _follow_together(problem, _own_problem(problem, old.fitted), old,
+                                      solver)
+                # A fitted part held rigid that it now touches: solve again, with it.
+                rigid_ones = {o.name for o in fitted} - {f.name for f in old.fitted}
+                if not rigid_ones & set(eq.contacts.obstacle):
+                    return eq
+            except ConvergenceError:
+                if follow_only:
+                    raise
+        warm_start = None  # the rigid solve below starts cold
+    rigid = _solve(_held_problem(problem), warm_start, solver, follow_only, rigid=True)
+    touched = sorted({name for name in rigid.contacts.obstacle}
+                     & {o.name for o in fitted})
+    if not (touched or problem.sliders or problem.junctions or problem.pivots):
+        return replace(rigid, problem=problem)
+    parts = [o.fitted for o in fitted if o.name in touched]
+    try:
+        return _start_together(problem, _own_problem(problem, parts), rigid, parts, solver)
+    except ConvergenceError as err:
+        if follow_only:
+            raise
+        # Said, not hidden: the answer is the one with those parts held still.
+        if problem.junctions:  # a harness has no answer without its branches
+            raise
+        held = ", ".join(touched + [c.name for c in problem.sliders])
+        note = (f"{held} could not be solved together with the part ({err}); held rigid "
+                "here: fitted parts at rest (their deformation and their clamps' share of "
+                "the contact not computed), sliding clips where they start")
+        return replace(rigid, problem=problem, notes=rigid.notes + (note,))
+
+
+def _start_together(problem, own, rigid: Equilibrium3D, parts: list, solver: RodSolver):
+    """From the rigid answer: the fitted parts held still under the contact and the
+    clips where they start, then let go."""
+    from pliant.models.rod3d.lowering import axis_basis, lower  # noqa: PLC0415
+    from pliant.models.rod3d.solver import _WarmState  # noqa: PLC0415
+
+    first = _Run(lower(own, elements=solver.elements), solver)
+    old = rigid.state
+    assert isinstance(old, _WarmState)
+    X, Q, lam, _, gam = old.state
+    first.gauge_quat = old.gauge_quat
+    rod = first.rod
+    nu = _station_multipliers(old.rod, old.state[3], rod)
+    names: list[str] = []
+    if old.rod.iprobe.shape[0]:
+        _, _, which, _ = _Run(old.rod, solver).contacts(old.state, old.rod.target)
+        names = [old.rod.obstacles.obstacles[o].name if o >= 0 else "" for o in which]
+    on_part = np.array([n in {p.name for p in parts} for n in names], dtype=bool)
+    if rod.islot.shape[0] == old.rod.islot.shape[0] and rod.slot == old.rod.slot:
+        # The same probes: keep their forces on the rigid obstacles, drop those on the
+        # fitted parts' tubes (the coupling takes those).
+        gam = (gam.reshape(-1, rod.slot) * ~on_part[:, None]).ravel()
+    else:
+        gam = np.zeros(rod.islot.shape[0])
+    runs = [first]
+    states = [(X.copy(), Q.copy(), lam.copy(), nu, gam.copy())]
+    branches = [b for jn in problem.junctions for b in jn.branches]
+    for member in branches + parts:
+        runs.append(_fitted_run(member, solver))
+        states.append(member.equilibrium.state.state)
+    harness = 1 + len(branches)  # the part and its branches: one harness, no contact
+    pairs = [p for p in close_pairs([r.rod for r in runs])
+             if not (p.a < harness and p.b < harness)]
+    joints = _joints(problem, runs, states)
+    # The rigid answer's contact forces on each fitted part start the coupling's: each
+    # probe's force on the nearest probe of the pair (the part is first in its pairs).
+    mus = no_contact_forces(pairs)
+    s_old = old.rod.s_node[old.rod.probe_elem] + old.rod.probe_a * old.rod.h[old.rod.probe_elem]
+    force = old.state[4].reshape(-1, old.rod.slot)[:, 0] if old.rod.iprobe.shape[0] else []
+    for pair, mu in zip(pairs, mus):
+        if pair.a != 0:
+            continue
+        s_pair = rod.s_node[pair.elem] + pair.alpha * rod.h[pair.elem]
+        mine = on_part & np.array([n == parts[pair.b - harness].name for n in names],
+                                  dtype=bool)
+        for k in np.nonzero(mine & (force > 0.0))[0]:
+            mu[int(np.argmin(np.abs(s_pair - s_old[k])))] += force[k]
+    # The sliding clips start where they held the part, with its reaction there.
+    sliders = []
+    for clip in problem.sliders:
+        sliders.append(Slider(0, clip, np.asarray(clip.position) / rod.length,
+                              axis_basis(np.asarray(clip.axis)), clip.s / rod.length))
+        w = np.zeros(6)
+        w[0] = clip.s / rod.length
+        w[1:4] = -np.asarray(rigid.loads[clip.name].force) / rod.force_scale
+        mus.append(w)
+    mus += [np.zeros(6) for _ in joints]
+    pivots = []
+    for clip in problem.pivots:
+        k = next(i for i, st in enumerate(rod.stations)
+                 if any(c.name == clip.name for c in st.conditions))
+        frame = int(rod.st_frame[k])
+        pivots.append(Pivot(clip, frame, quat_matrix(states[0][1][frame])[:, 0].copy(),
+                            np.asarray(clip.pivot, float)))
+        mus.append(np.zeros(2))
+    coupling, states, mus = coupled.solve_coupled(runs, states, solver=solver, held_first=True,
+                                          pairs=pairs, mus=mus, sliders=sliders, joints=joints,
+                                          pivots=pivots)
+    return _result(problem, coupling, states, mus, parts, rigid.iterations, rigid.steps)
+
+
+def _joints(problem, runs: list[_Run], states: list[State]) -> list[Joint]:
+    """The problem's junctions as joints between the part (run 0) and its branches (the
+    runs after it, in order), each closing from where the parts start apart."""
+    from pliant.models.rod3d.lowering import (  # noqa: PLC0415
+        quat_from_matrix,
+        rotation_between,
+    )
+
+    out = []
+    k = 1
+    rod = runs[0].rod
+    for jn in problem.junctions:
+        end_a = 0 if jn.s < 0.5 * problem.part.length else rod.elements
+        # The junction's frame: the part's end frame, turned so its d3 points out of it.
+        flip = np.array([1.0, 0.0, 0.0, 0.0]) if end_a else np.array([0.0, 1.0, 0.0, 0.0])
+        for branch in jn.branches:
+            rb = runs[k].rod
+            end_b = 0 if branch.end == 0 else rb.elements
+            leaving = np.asarray(branch.axis, float)
+            d3 = leaving if end_b == 0 else -leaving  # the branch's tangent there
+            q_rel = _qmul(flip, quat_from_matrix(rotation_between(np.array([0.0, 0.0, 1.0]),
+                                                                  d3)))
+            qa = states[0][1][rod.node_frame[end_a]]
+            qb = states[k][1][rb.node_frame[end_b]]
+            gap = states[k][0][end_b] * rb.length - states[0][0][end_a] * rod.length
+            out.append(Joint(f"{jn.name}: {branch.name}", 0, end_a, k, end_b, q_rel, gap,
+                             _qmul(_qconj(qa), qb)))
+            k += 1
+    return out
+
+
+def _station_multipliers(old: Rod, nu: np.ndarray, rod: Rod) -> np.ndarray:
+    """The station multipliers of ``old`` (a rod with the same stations) for ``rod``:
+    station by station where their counts agree (a clip that became a free station
+    has none), and the twist gauge's."""
+    out = np.zeros(rod.m)
+    for k in range(min(len(old.stations), len(rod.stations))):
+        n = int(rod.nu_cnt[k])
+        if n and n == int(old.nu_cnt[k]):
+            out[rod.nu_off[k]:rod.nu_off[k] + n] = nu[old.nu_off[k]:old.nu_off[k] + n]
+    if rod.gauge_frame >= 0 and old.gauge_frame >= 0:
+        out[-1] = nu[-1]
+    return out
+
+
+def _fitted_run(part, solver: RodSolver) -> _Run:
+    warm = part.equilibrium.state
+    run = _Run(warm.rod, replace(solver, elements=part.elements))
+    run.gauge_quat = warm.gauge_quat
+    return run
+
+
+def _follow_together(problem, own, old: _TogetherState, solver: RodSolver) -> Equilibrium3D:
+    from pliant.models.rod3d.lowering import lower  # noqa: PLC0415
+
+    rod = old.rods[0].retarget(own, solver.elements) or lower(own, elements=solver.elements)
+    if rod.key != old.rods[0].key:
+        raise ConvergenceError("the mesh changed", residual=math.inf)
+    runs = [_Run(rod, solver)] + [_Run(r, solver) for r in old.rods[1:]]
+    for run, gauge in zip(runs, old.gauges):
+        run.gauge_quat = gauge
+    start = [old.rods[0].target] + [r.target for r in old.rods[1:]]
+    coupling, states, mus = coupled.solve_coupled(runs, list(old.states), solver=solver, start=start,
+                                          mus=[m.copy() for m in old.mus],
+                                          pairs=list(old.pairs), sliders=list(old.sliders),
+                                          joints=list(old.joints), pivots=list(old.pivots),
+                                          held_first=False)
+    return _result(problem, coupling, states, mus, list(old.fitted), 0, 0)
+
+
+def _result(problem, coupling: Coupling, states, mus, parts, iterations: int,
+            steps: int) -> Equilibrium3D:
+    # The targets before the contact forces join them as loads (for the warm starts).
+    rods = tuple(run.rod for run in coupling.runs)
+    gauges = tuple(run.gauge_quat.copy() for run in coupling.runs)
+    branches = [b for jn in problem.junctions for b in jn.branches]
+    names = ([problem.name or problem.part.name] + [b.name for b in branches]
+             + [p.name for p in parts])
+    eqs = equilibria(coupling, states, mus, names)
+    nb = len(branches)
+    first = replace(eqs[0], problem=problem,
+                    iterations=eqs[0].iterations + iterations + coupling.iterations,
+                    steps=eqs[0].steps + steps + coupling.steps,
+                    state=_TogetherState(rods, tuple(states), gauges, tuple(mus),
+                                         tuple(coupling.pairs), tuple(parts),
+                                         tuple(coupling.sliders), tuple(problem.sliders),
+                                         tuple(coupling.joints), tuple(problem.junctions),
+                                         tuple(coupling.pivots), tuple(problem.pivots)),
+                    branches=tuple(replace(eq, problem=b.problem)
+                                   for eq, b in zip(eqs[1:1 + nb], branches)),
+                    fitted=tuple(replace(eq, problem=p.problem)
+                                 for eq, p in zip(eqs[1 + nb:], parts)))
+    return first
