@@ -181,3 +181,18 @@ def test_ctrl_c_inside_a_compiled_kernel_is_interrupted_not_a_traceback(monkeypa
     monkeypatch.setattr(cli_app, "app", broken)
     with pytest.raises(SystemError, match="a real one"):  # not hidden
         cli_app.main()
+
+
+def test_solve_a_harness_reports_its_branches():
+    """`pliant solve` on a harness: the summary names each branch with what holds it, the
+    JSON carries the branches' loads, each port's reaction and the junction's."""
+    harness = EXAMPLES / "harness" / "harness_y.toml"
+    out = run("solve", str(harness))
+    assert out.returncode == 0, out.stderr
+    assert "branch 'left branch'" in out.stdout and "left port" in out.stdout
+    assert "not assessed" in out.stdout
+    data = json.loads(run("solve", str(harness), "--json").stdout)
+    names = [b["name"] for b in data["branches"]]
+    assert names == ["left branch", "right branch"]
+    loads = {load["name"] for load in data["branches"][0]["loads"]}
+    assert {"left port", "Y-piece: left branch"} <= loads

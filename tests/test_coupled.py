@@ -437,3 +437,34 @@ pivot = [0.0, 1.0, 0.0]
     np.testing.assert_allclose(total, 0.0, atol=1e-8)
     with pytest.raises(FileFormatError, match=r"clip\[0\]: pivot"):
         parse_problem(text.replace('pivot = [0.0, 1.0, 0.0]', ''))
+
+
+def test_friction_between_parts_obeys_coulomb_and_balances():
+    """The example's line drawn over the hose with friction 0.5 between them: at every
+    contact the force along the surfaces is at most 0.5 times the force across (at the
+    limit where it slides), the hose balances with its clamps, its weight and the line's
+    push friction included, and the line feels the opposite."""
+    from pliant.io.problem_file import parse_scene
+
+    path = EXAMPLES / "scenes" / "line_over_hose.toml"
+    text = path.read_text(encoding="utf-8").replace(
+        'file = "coolant_hose.toml"', 'file = "coolant_hose.toml"\nfriction = 0.5')
+    scene = parse_scene(text, str(path), path.parent)
+    solver = rod3d.RodSolver(elements=60)
+    eq = None
+    for problem in [scene.problem, *scene.path]:
+        eq = rod3d.solve(problem, warm_start=eq, solver=solver)
+    assert not any("could not" in n for n in eq.notes)
+    c = eq.contacts
+    on = [i for i, name in enumerate(c.obstacle) if name == "coolant hose"]
+    along = np.linalg.norm(c.friction[on], axis=1)
+    across = np.linalg.norm(c.force[on] - c.friction[on], axis=1)
+    assert along.max() > 0.1  # friction acts
+    assert np.all(along <= 0.5 * across * (1 + 1e-6) + 1e-9)
+    (hose,) = eq.fitted
+    push = hose.contacts.by_obstacle()[eq.problem.name]
+    np.testing.assert_allclose(push, -c.force[on].sum(axis=0), atol=1e-9)
+    weight = hose.problem.part.mass_per_length * hose.problem.part.length * np.array(
+        hose.problem.gravity)
+    np.testing.assert_allclose(sum(v.force for v in hose.loads.values()) + weight + push,
+                               0.0, atol=1e-8)

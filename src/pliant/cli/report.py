@@ -80,6 +80,10 @@ def print_summary(eq: Any, seconds: float, console: Console | None = None) -> No
 def _stability_line(eq: Any) -> str:
     """The stability verdict in words, with the smallest eigenvalue."""
     verdict = eq.verdict
+    if verdict == "undecided" and (getattr(eq, "fitted", ()) or getattr(eq, "branches", ())
+                                   or any(n.startswith("solved together") for n in eq.notes)):
+        return ("stability: not assessed (solved together with other parts or sliding "
+                "clips; see the note)")
     if verdict == "undecided":
         why = ("follower loads" if eq.problem.dimension == 2
                else "follower loads or dead moments")
@@ -130,7 +134,7 @@ def _vec(v) -> str:
 
 def _summary_3d(eq: Any, seconds: float, console: Console) -> None:
     problem = eq.problem
-    console.print(f"[bold]{problem.name or 'problem'}[/bold] (3D, {eq.state.rod.elements} "
+    console.print(f"[bold]{problem.name or 'problem'}[/bold] (3D, {len(eq.s) - 1} "
                   f"elements): solved in {seconds * 1e3:.2f} ms ({eq.iterations} Newton "
                   f"iterations, {eq.steps} continuation steps, residual {eq.residual:.1e})")
     position, tangent = eq.tip
@@ -151,10 +155,22 @@ def _summary_3d(eq: Any, seconds: float, console: Console) -> None:
     console.print(_bend_radius_line(eq))
     _print_stretch(eq, console)
     print_contacts(eq, console)
+    _print_others(eq, console)
     console.print(_stability_line(eq))
     console.print(f"elastic energy = {_fmt(eq.energy, 'J')}")
     for note in eq.notes:
         console.print(f"note: {note}")
+
+
+def _print_others(eq: Any, console: Console) -> None:
+    """The parts solved with this one (a harness's branches, flexible parts it touched):
+    what holds each of them (their clamps' reactions), and what they take from it."""
+    for kind, key in (("branch", "branches"), ("fitted part", "fitted")):
+        for other in getattr(eq, key, ()):
+            name = other.problem.name or other.problem.part.name
+            rows = ", ".join(f"{load.name}: {_vec(load.force)} N" for load in
+                             other.loads.values() if load.is_reaction)
+            console.print(f"{kind} {name!r}: {rows}")
 
 
 def print_json(eq: Any, seconds: float, interference: Any = None) -> None:
@@ -164,6 +180,12 @@ def print_json(eq: Any, seconds: float, interference: Any = None) -> None:
 
         data["neutral_mode"] = describe_mode(eq)
     data["solve_seconds"] = seconds
+    for key in ("branches", "fitted"):
+        others = getattr(eq, key, ())  # (3D answers solved with other parts)
+        if others:
+            data[key] = [{"name": o.problem.name or o.problem.part.name,
+                          "loads": [load.to_dict() for load in o.loads.values()],
+                          "position": o.position.tolist()} for o in others]
     if interference is not None:
         data["interference"] = interference.to_dict()
     print(json.dumps(finite(data), indent=1, allow_nan=False))

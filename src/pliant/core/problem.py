@@ -137,6 +137,7 @@ class FittedPart:
     problem: Problem
     elements: int
     solved: object = field(default=None, repr=False)  # its Equilibrium3D, alone
+    friction: float = 0.0  # Coulomb's coefficient between it and the part that touches it
 
     @property
     def equilibrium(self):

@@ -436,6 +436,8 @@ class AssembledModel(_Strict):
     elements: int = Field(60, ge=4, le=2000)
     flexible: bool = Field(True, description="a part that touches it deforms it (they are "
                            "solved together); false: its tube is a rigid obstacle")
+    friction: float = Field(0.0, ge=0.0, description="Coulomb's coefficient between it and "
+                            "the part that touches it")
     note: str = ""
 
     def build(self, base: Path | None) -> Any:
@@ -459,10 +461,10 @@ class AssembledModel(_Strict):
         part = problem.part
         radius = 0.5 * part.outer_diameter if part.outer_diameter else 0.01 * part.length
         vertices, faces = tube_mesh(eq.position, radius, eq.frames, sides=16, caps=True)
-        obstacle = Obstacle.from_mesh(self.name, vertices, faces)
+        obstacle = Obstacle.from_mesh(self.name, vertices, faces).with_friction(self.friction)
         if self.flexible:
             obstacle = replace(obstacle, fitted=FittedPart(self.name, problem, self.elements,
-                                                           solved=eq))
+                                                           solved=eq, friction=self.friction))
         return obstacle
 
 

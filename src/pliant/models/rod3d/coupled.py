@@ -77,6 +77,7 @@ class Pair:
     elem: np.ndarray  # (K,) the element of a each probe lies on
     alpha: np.ndarray  # (K,) where in it: p = (1 - alpha) x_e + alpha x_e+1
     reach: float  # r_a + r_b [m]: the centrelines' distance at touch
+    friction: float = 0.0  # Coulomb's coefficient between the two parts
 
 
 def probes(rod: Rod, reach: float) -> tuple[np.ndarray, np.ndarray]:
@@ -220,9 +221,77 @@ class Coupling:
     # held within a Newton solve, and where the load step started (what sticking keeps).
     slide_mode: dict = field(default_factory=dict)
     slide_ref: dict = field(default_factory=dict)
+    # Friction between parts, per pair with friction: where each probe and the point of
+    # the other part it touched were when the load step started, the tangent bases
+    # there (``_FrictionRef``), and each probe's state: -1 free, 0 sticking, 1 sliding
+    # (its force along ``fric_dir``, in the basis).
+    fric_ref: dict = field(default_factory=dict)
+    fric_mode: dict = field(default_factory=dict)
+    fric_dir: dict = field(default_factory=dict)
     iterations: int = 0
     steps: int = 0
     notes: list[str] = field(default_factory=list)
+
+    @property
+    def rubbing(self) -> list[int]:
+        """The pairs with friction, in the order of their tangential unknowns (after
+        every other block's in ``mus``)."""
+        return [p for p, pair in enumerate(self.pairs) if pair.friction > 0.0]
+
+    def t_slot(self, p: int) -> int:
+        """Where pair p's tangential forces (K, 2, flattened) are in ``mus``."""
+        base = len(self.pairs) + len(self.sliders) + len(self.joints) + len(self.pivots)
+        return base + self.rubbing.index(p)
+
+    def friction_unknowns(self) -> list[np.ndarray]:
+        return [np.zeros(2 * self.pairs[p].elem.shape[0]) for p in self.rubbing]
+
+    def hold_friction(self, states: Sequence[State], mus: list[np.ndarray]) -> None:
+        """Friction between parts from here on is measured from ``states`` (a load
+        step's start): each probe's point, the point of the other part nearest it (a
+        material point of that part, followed as it moves) and the tangent basis across
+        their normal; the tangential forces found in the old bases are carried into the
+        new ones (in place, in ``mus``)."""
+        from pliant.models.rod3d.lowering import axis_basis  # noqa: PLC0415
+
+        for p in self.rubbing:
+            pair = self.pairs[p]
+            geo = self.geometry(pair, states, np.arange(pair.elem.shape[0]))
+            al = pair.alpha[:, None]
+            pa = (1.0 - al) * geo.y[:, 0:3] + al * geo.y[:, 3:6]
+            tau = axis_basis(geo.n)
+            slot = self.t_slot(p)
+            t = mus[slot].reshape(-1, 2)
+            old = self.fric_ref.get(p)
+            if old is not None:
+                force = np.einsum("ki,kic->kc", t, old[-1])
+                t = np.einsum("kic,kc->ki", tau, force)
+                mus[slot] = t.ravel()
+                if p in self.fric_dir:
+                    d = np.einsum("ki,kic->kc", self.fric_dir[p], old[-1])
+                    d = np.einsum("kic,kc->ki", tau, d)
+                    self.fric_dir[p] = d / np.maximum(np.linalg.norm(d, axis=1,
+                                                                     keepdims=True), 1e-300)
+            self.fric_ref[p] = (pa, geo.jb.copy(), geo.left.copy(), geo.right.copy(),
+                                geo.beta.copy(), geo.q.copy(), tau)
+
+    def _rub(self, p: int, states: Sequence[State], k: np.ndarray):
+        """For probes k of friction pair p: their slip since the step's start (K, 2, by
+        L_ref) in the tangent basis, and the weights on a's two nodes and on b's four
+        (the material point of b it touched)."""
+        pair = self.pairs[p]
+        pa0, jb, left, right, beta, qb0, tau = self.fric_ref[p]
+        ra, rb = self.runs[pair.a].rod, self.runs[pair.b].rod
+        Xa = states[pair.a][0] * ra.length
+        Xb = states[pair.b][0] * rb.length
+        e, al = pair.elem[k], pair.alpha[k][:, None]
+        pa = (1.0 - al) * Xa[e] + al * Xa[e + 1]
+        wb = np.array([spline.weights(float(beta[i]), bool(left[i]), bool(right[i]))[0]
+                       for i in k]).reshape(-1, 4)
+        qb = np.einsum("kj,kjc->kc", wb, Xb[jb[k]])
+        move = (pa - pa0[k]) - (qb - qb0[k])
+        slip = np.einsum("kic,kc->ki", tau[k], move) / self.L_ref
+        return slip, wb, tau[k]
 
     @property
     def compliance(self) -> float:
@@ -323,6 +392,9 @@ class Coupling:
             first = self._pivot_coord(k)
             R[0][first:first + 3] += torque
             Rmu.append(rows)
+        for p in self.rubbing:
+            Rmu.append(self._friction_terms(p, states, mus, weight, near[p],
+                                            actives[p] if p < len(actives) else None, R))
         residual = max([float(np.abs(r).max(initial=0.0)) for r in R]
                        + [float(np.abs(r).max(initial=0.0)) for r in Rmu])
         if deep or out_of_clip:  # one tube half through the other, or out of a clip
@@ -359,7 +431,8 @@ class Coupling:
         blocks = self._contact_blocks(ev, mus, weight) + [
             self._slider_block(k, ev, mus, weight) for k in range(len(self.sliders))] + [
             self._joint_block(k, ev, mus, weight) for k in range(len(self.joints))] + [
-            self._pivot_block(k, ev, mus, weight) for k in range(len(self.pivots))]
+            self._pivot_block(k, ev, mus, weight) for k in range(len(self.pivots))] + (
+            self._friction_blocks(ev, mus, weight))
         # The coupling coordinates: x of every node a block touches, part by part.
         slot = [dict() for _ in range(P)]
         coords: list[list[int]] = [[] for _ in range(P)]
@@ -683,6 +756,128 @@ class Coupling:
         block.rhs = -ev.Rmu[len(self.pairs) + len(self.sliders) + len(self.joints) + k]
         return block
 
+    # -- friction between parts -----------------------------------------------------------
+    def _friction_modes(self, p: int, active: np.ndarray | None, only: np.ndarray):
+        """Each probe's friction state in ``only`` (-1 where it does not touch)."""
+        K = self.pairs[p].elem.shape[0]
+        mode = self.fric_mode.get(p, np.full(K, -1))[only]
+        if active is None or not active.shape[0]:
+            return np.full(only.shape[0], -1)
+        return np.where(active, np.where(mode < 0, 0, mode), -1)
+
+    def _friction_terms(self, p: int, states, mus, weight: float, only: np.ndarray,
+                        active: np.ndarray | None, R: list[np.ndarray]) -> np.ndarray:
+        """Pair p's tangential rows (K * 2): a free probe's force, a sticking one's slip,
+        a sliding one's force less mu times its normal force along its direction; and
+        their forces on both parts' nodes (in R)."""
+        pair = self.pairs[p]
+        t = mus[self.t_slot(p)].reshape(-1, 2)
+        rows = t.copy()  # every probe not looked at: its force (0)
+        if p not in self.fric_ref or not only.shape[0]:
+            return rows.ravel()
+        mode = self._friction_modes(p, active, only)
+        slip, wb, tau = self._rub(p, states, only)
+        mu_n = mus[p][only]
+        d = self.fric_dir.get(p, np.zeros((pair.elem.shape[0], 2)))[only]
+        # (A sticking probe gives as the walls do, compliance times its force: probes
+        # stuck along a wrapped span are otherwise dependent constraints.)
+        rows[only] = np.where((mode == 0)[:, None], slip + self.compliance * t[only],
+                              np.where((mode == 1)[:, None],
+                                       t[only] - pair.friction * mu_n[:, None] * d, t[only]))
+        force = np.einsum("ki,kic->kc", t[only], tau)  # on a, by F_ref
+        ra, rb = self.runs[pair.a].rod, self.runs[pair.b].rod
+        e, al = pair.elem[only], pair.alpha[only]
+        fa = -self.F_ref / ra.force_scale
+        fb = weight * self.F_ref / rb.force_scale
+        jb = self.fric_ref[p][1][only]
+        for c in range(3):
+            np.add.at(R[pair.a], ra.ix[e] + c, fa * (1.0 - al) * force[:, c])
+            np.add.at(R[pair.a], ra.ix[e + 1] + c, fa * al * force[:, c])
+            for j in range(4):
+                np.add.at(R[pair.b], rb.ix[jb[:, j]] + c, fb * wb[:, j] * force[:, c])
+        return rows.ravel()
+
+    def _friction_blocks(self, ev: _Eval, mus, weight: float) -> list:
+        out = []
+        for p in self.rubbing:
+            pair = self.pairs[p]
+            if p not in self.fric_ref:
+                continue
+            only = ev.near[p]
+            active = ev.active[p] if ev.geo[p] is not None else None
+            t = mus[self.t_slot(p)].reshape(-1, 2)
+            mode = self._friction_modes(p, active, only)
+            keep = np.nonzero((mode >= 0) | np.any(t[only] != 0.0, axis=1))[0]
+            if not keep.shape[0]:
+                continue
+            _, wb, tau = self._rub(p, ev.states, only[keep])
+            ra, rb = self.runs[pair.a].rod, self.runs[pair.b].rod
+            fa = -self.F_ref / ra.force_scale
+            fb = weight * self.F_ref / rb.force_scale
+            jb = self.fric_ref[p][1]
+            slot = self.t_slot(p)
+            rows_all = ev.Rmu[slot].reshape(-1, 2)
+            for i, j in enumerate(keep):
+                k = int(only[j])
+                e, al = int(pair.elem[k]), float(pair.alpha[k])
+                coords = [(pair.a, int(ra.ix[e])), (pair.a, int(ra.ix[e + 1]))] + [
+                    (pair.b, int(rb.ix[n])) for n in jb[k]]
+                w = np.concatenate([[1.0 - al, al], wb[i]])
+                scale = np.array([fa, fa, fb, fb, fb, fb])
+                E = np.zeros((18, 2))
+                F = np.zeros((2, 18))
+                for n in range(6):
+                    E[3 * n:3 * n + 3] = (scale[n] * w[n]) * tau[i].T
+                D = np.eye(2)
+                if mode[j] == 0:  # sticking: the slip's rows
+                    lengths = [ra.length] * 2 + [rb.length] * 4
+                    sign = [1.0] * 2 + [-1.0] * 4
+                    for n in range(6):
+                        F[:, 3 * n:3 * n + 3] = (sign[n] * w[n] * lengths[n]
+                                                 / self.L_ref) * tau[i]
+                    D = self.compliance * np.eye(2)
+                out.append(_Block(coords, E, F, D, np.zeros((18, 18)), -rows_all[k],
+                                  (slot, slice(2 * k, 2 * k + 2))))
+        return out
+
+    def update_friction(self, ev: _Eval, mus, touching: list[np.ndarray]) -> bool:
+        """Correct each probe's friction state between Newton solves (Coulomb): a probe
+        that touches sticks; a sticking one whose force beats mu times its normal force
+        slides along its force; a sliding one that slips along its force sticks, else its
+        direction follows its slip. Returns whether any changed."""
+        changed = False
+        for p in self.rubbing:
+            pair = self.pairs[p]
+            K = pair.elem.shape[0]
+            mode = self.fric_mode.get(p, np.full(K, -1)).copy()
+            d = self.fric_dir.get(p, np.zeros((K, 2))).copy()
+            t = mus[self.t_slot(p)].reshape(-1, 2)
+            new = np.where(touching[p], np.where(mode < 0, 0, mode), -1)
+            on = np.nonzero(touching[p] & (mode >= 0))[0]
+            if on.shape[0] and p in self.fric_ref:
+                slip = self._rub(p, ev.states, on)[0]
+                limit = pair.friction * mus[p][on]
+                size = np.linalg.norm(t[on], axis=1)
+                for i, k in enumerate(on):
+                    if mode[k] == 0 and size[i] > limit[i] * (1.0 + 1e-9) + 1e-12:
+                        new[k] = 1
+                        d[k] = t[k] / size[i]
+                    elif mode[k] == 1:
+                        s = slip[i]
+                        n_s = float(np.linalg.norm(s))
+                        if n_s > 1e-13 and float(s @ d[k]) > 0.0:
+                            new[k] = 0  # slipping with its force: friction holds
+                        elif n_s > 1e-13:
+                            turned = -s / n_s
+                            if np.linalg.norm(turned - d[k]) > 1e-6:
+                                d[k] = turned
+                                changed = True
+            if not np.array_equal(new, mode):
+                changed = True
+            self.fric_mode[p] = new
+            self.fric_dir[p] = d
+        return changed
+
     def _contact_blocks(self, ev: _Eval, mus: Sequence[np.ndarray], weight: float) -> list:
         """A block per contact in the system: touching ones, and any with a force still
         on (a probe with no force and an open gap has the row d mu = 0: left out)."""
@@ -737,11 +932,14 @@ class Coupling:
                 return states, mus, ev.residual, False
             touching = self._touching(ev, mus, fixed)
             modes = self._slide_modes(states, mus) if weight >= 1.0 else self.slide_mode
-            if (fixed is not None and modes == self.slide_mode
+            rubbed = self.update_friction(ev, mus, touching) if self.rubbing else False
+            if (fixed is not None and modes == self.slide_mode and not rubbed
                     and all(np.array_equal(a, b) for a, b in zip(touching, fixed))):
                 return states, mus, ev.residual, ev.residual <= tol
             self.slide_mode = modes
-            key = b"".join(t.tobytes() for t in touching) + repr(sorted(modes.items())).encode()
+            key = (b"".join(t.tobytes() for t in touching) + repr(sorted(modes.items())).encode()
+                   + b"".join(self.fric_mode[p].tobytes() + self.fric_dir[p].round(6).tobytes()
+                              for p in self.rubbing))
             if key in seen:  # the sets cycle: no set holds from here
                 return states, mus, ev.residual, False
             seen.add(key)
@@ -883,6 +1081,9 @@ class Coupling:
             # Friction in sliding clips is measured from where this step starts.
             self.slide_ref = {k: float(mus[len(self.pairs) + k][0])
                               for k in range(len(self.sliders))}
+            if self.rubbing:
+                mus = [m.copy() for m in mus]
+                self.hold_friction(states, mus)
             if prev is None and tangent is not None:
                 du, dmu = tangent
                 guess = [run.step(s, d, t_next - t) for run, s, d in zip(self.runs, states, du)]
@@ -957,28 +1158,34 @@ def part_contacts(coupling: Coupling, states: Sequence[State], mus: Sequence[np.
     """Each part's contacts with the others: rows as an obstacle's, named by the part
     that pushes (force on this part [N])."""
     rows: list[list] = [[] for _ in coupling.runs]
-    for pair, mu in zip(coupling.pairs, mus):
+    for p, (pair, mu) in enumerate(zip(coupling.pairs, mus)):
         on = np.nonzero(mu > 1e-10 * max(1.0, float(mu.max(initial=0.0))))[0]
         if not on.shape[0]:
             continue
         geo = coupling.geometry(pair, states, on)
         ra, rb = coupling.runs[pair.a].rod, coupling.runs[pair.b].rod
         force = mu[on, None] * geo.n * coupling.F_ref
+        rub = np.zeros_like(force)
+        if pair.friction > 0.0 and p in coupling.fric_ref:
+            t = mus[coupling.t_slot(p)].reshape(-1, 2)[on]
+            rub = np.einsum("ki,kic->kc", t, coupling.fric_ref[p][-1][on]) * coupling.F_ref
+            force = force + rub
         e, al = pair.elem[on], pair.alpha[on]
         s_a = (ra.s_node[e] + al * ra.h[e]) * ra.length
         s_b = (rb.s_node[geo.f] + geo.beta * rb.h[geo.f]) * rb.length
         p_a = (1.0 - al[:, None]) * geo.y[:, 0:3] + al[:, None] * geo.y[:, 3:6]
         p_b = geo.q
         for k in range(on.shape[0]):
-            rows[pair.a].append((s_a[k], p_a[k], force[k], names[pair.b]))
-            rows[pair.b].append((s_b[k], p_b[k], -force[k], names[pair.a]))
+            rows[pair.a].append((s_a[k], p_a[k], force[k], names[pair.b], rub[k]))
+            rows[pair.b].append((s_b[k], p_b[k], -force[k], names[pair.a], -rub[k]))
     out = []
     for r in rows:
         r.sort(key=lambda row: row[0])
         out.append(Contacts(s=np.array([x[0] for x in r]),
                             point=np.array([x[1] for x in r]).reshape(-1, 3),
                             force=np.array([x[2] for x in r]).reshape(-1, 3),
-                            obstacle=tuple(x[3] for x in r)))
+                            obstacle=tuple(x[3] for x in r),
+                            friction=np.array([x[4] for x in r]).reshape(-1, 3)))
     return out
 
 
@@ -1107,7 +1314,7 @@ def solve_coupled(runs: list[_Run], states: list[State], *, solver: RodSolver,
                   start: list[Loads] | None = None, mus: list[np.ndarray] | None = None,
                   pairs: list[Pair] | None = None, sliders: list[Slider] | None = None,
                   joints: list[Joint] | None = None, pivots: list[Pivot] | None = None,
-                  held_first: bool = True):
+                  held_first: bool = True, friction: tuple = ()):
     """Solve parts together from ``states`` (each an equilibrium of its ``start`` loads,
     alone or with the others' contact forces and the clips' multipliers ``mus``) to their
     targets. With ``held_first``, the parts after the first start held still under the
@@ -1119,10 +1326,15 @@ def solve_coupled(runs: list[_Run], states: list[State], *, solver: RodSolver,
     joints = joints or []
     pivots = pivots or []
     coupling = Coupling(runs, pairs, solver, sliders, joints, pivots)
+    if friction:  # a warm start's friction references and states
+        coupling.fric_ref, coupling.fric_mode, coupling.fric_dir = (dict(x) for x in friction)
     if mus is None:
         mus = (no_contact_forces(pairs) + [np.concatenate([[sl.s0], np.zeros(5)])
                                            for sl in sliders]
                + [np.zeros(6) for _ in joints] + [np.zeros(2) for _ in pivots])
+    expected = len(pairs) + len(sliders) + len(joints) + len(pivots)
+    if len(mus) == expected:
+        mus = list(mus) + coupling.friction_unknowns()
     start = [r.rod.target for r in runs] if start is None else start
     members = [_Member(run, s, run.rod.target) for run, s in zip(runs, start)]
     deadline = clock.now() + solver.time_budget

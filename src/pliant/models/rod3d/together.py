@@ -51,6 +51,7 @@ class _TogetherState:
     junctions: tuple = ()  # the problem's Junction, to tell whether they are the same
     pivots: tuple = ()  # Pivot
     pins: tuple = ()  # the problem's PivotClip, to tell whether they are the same
+    friction: tuple = ()  # between parts: (references, states, directions) by pair
 
 
 def fitted_of(problem) -> list:
@@ -160,7 +161,9 @@ def _start_together(problem, own, rigid: Equilibrium3D, parts: list, solver: Rod
         runs.append(_fitted_run(member, solver))
         states.append(member.equilibrium.state.state)
     harness = 1 + len(branches)  # the part and its branches: one harness, no contact
-    pairs = [p for p in close_pairs([r.rod for r in runs])
+    pairs = [replace(p, friction=parts[p.b - harness].friction)
+             if p.a == 0 and p.b >= harness else p
+             for p in close_pairs([r.rod for r in runs])
              if not (p.a < harness and p.b < harness)]
     joints = _joints(problem, runs, states)
     # The rigid answer's contact forces on each fitted part start the coupling's: each
@@ -266,7 +269,7 @@ def _follow_together(problem, own, old: _TogetherState, solver: RodSolver) -> Eq
                                           mus=[m.copy() for m in old.mus],
                                           pairs=list(old.pairs), sliders=list(old.sliders),
                                           joints=list(old.joints), pivots=list(old.pivots),
-                                          held_first=False)
+                                          held_first=False, friction=old.friction)
     return _result(problem, coupling, states, mus, list(old.fitted), 0, 0)
 
 
@@ -287,7 +290,9 @@ def _result(problem, coupling: Coupling, states, mus, parts, iterations: int,
                                          tuple(coupling.pairs), tuple(parts),
                                          tuple(coupling.sliders), tuple(problem.sliders),
                                          tuple(coupling.joints), tuple(problem.junctions),
-                                         tuple(coupling.pivots), tuple(problem.pivots)),
+                                         tuple(coupling.pivots), tuple(problem.pivots),
+                                         (coupling.fric_ref, coupling.fric_mode,
+                                          coupling.fric_dir)),
                     branches=tuple(replace(eq, problem=b.problem)
                                    for eq, b in zip(eqs[1:1 + nb], branches)),
                     fitted=tuple(replace(eq, problem=p.problem)
