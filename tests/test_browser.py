@@ -360,3 +360,31 @@ def test_the_page_draws_a_harness_with_its_branches(browser):
         assert box is not None
         lo, hi = np.array(box)
         assert np.all(lo - 0.01 <= trunk_end) and np.all(trunk_end <= hi + 0.01)
+
+
+def test_the_page_draws_a_fitted_part_as_the_accurate_answer_has_it(browser):
+    """A scene with a flexible part already fitted: each accurate answer carries that
+    part's neutral line and the page redraws its obstacle as a tube along it."""
+    from pliant.viewer.server import Server
+
+    scene = Path(__file__).resolve().parents[1] / "examples" / "scenes" / "line_over_hose.toml"
+    with Server(scene, port=0, live=True) as server:
+        page = browser.new_page(viewport={"width": 1100, "height": 720})
+        errors: list[str] = []
+        page.on("pageerror", lambda e: errors.append(str(e)))
+        page.goto(server.url)
+        page.wait_for_function(LOADED, timeout=120_000)
+        page.wait_for_function("window.pliant.state.accurate.fitted.length === 1",
+                               timeout=60_000)
+        drawn = page.evaluate("""() => {
+            const m = window.pliant.world.getObjectByName('coolant hose');
+            m.geometry.computeBoundingBox();
+            const b = m.geometry.boundingBox;
+            return {fitted: m.userData.fitted === true, top: b.max.z,
+                    line: window.pliant.state.accurate.fitted[0].position.map((p) => p[2])};
+        }""")
+        page.close()
+    assert not errors, errors
+    assert drawn["fitted"]
+    # The tube's top is its neutral line's highest point plus its radius (12.5 mm).
+    assert drawn["top"] == pytest.approx(max(drawn["line"]) + 0.0125, abs=1e-3)
