@@ -4,12 +4,16 @@ The vocabulary (``Part``, ``Problem``, conditions) imports at once; the solvers 
 numba kernels, so ``solve`` and ``trace`` are imported on first use.
 """
 
+from pliant.core import Branch as Branch
 from pliant.core import Condition as Condition
 from pliant.core import Equilibrium as Equilibrium
 from pliant.core import Equilibrium3D as Equilibrium3D
+from pliant.core import Junction as Junction
 from pliant.core import Material as Material
 from pliant.core import Part as Part
+from pliant.core import PivotClip as PivotClip
 from pliant.core import Problem as Problem
+from pliant.core import SlidingClip as SlidingClip
 from pliant.core import StationLoad as StationLoad
 from pliant.core import clamp as clamp
 from pliant.core import grip as grip

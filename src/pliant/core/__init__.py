@@ -10,5 +10,9 @@ from pliant.core.equilibrium import Equilibrium3D as Equilibrium3D
 from pliant.core.equilibrium import StationLoad as StationLoad
 from pliant.core.part import Material as Material
 from pliant.core.part import Part as Part
+from pliant.core.problem import Branch as Branch
+from pliant.core.problem import Junction as Junction
+from pliant.core.problem import PivotClip as PivotClip
 from pliant.core.problem import Problem as Problem
+from pliant.core.problem import SlidingClip as SlidingClip
 from pliant.core.problem import interpolate as interpolate

@@ -64,6 +64,8 @@ def _held_problem(problem):
     (the rigid answer the coupled solve starts from)."""
     from pliant.core.conditions import Condition  # noqa: PLC0415
 
+    if not (problem.sliders or problem.junctions or problem.pivots):
+        return problem  # (fitted parts only: the problem as it is, not rebuilt each step)
     held = tuple(Condition(s=c.s, name=c.name, position=c.position,
                            tangent=c.axis if c.holds_axis else None) for c in problem.sliders)
     return replace(problem, conditions=problem.conditions + held, sliders=(), junctions=(),
@@ -113,7 +115,7 @@ def solve_fitted(problem, warm_start, solver: RodSolver, follow_only: bool) -> E
     touched = sorted({name for name in rigid.contacts.obstacle}
                      & {o.name for o in fitted})
     if not (touched or problem.sliders or problem.junctions or problem.pivots):
-        return replace(rigid, problem=problem)
+        return rigid  # (its problem is this one: its samples, computed above, kept)
     parts = [o.fitted for o in fitted if o.name in touched]
     try:
         return _start_together(problem, _own_problem(problem, parts), rigid, parts, solver)
