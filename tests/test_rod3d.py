@@ -590,3 +590,31 @@ def test_a_flat_part_between_two_pins_takes_the_roll_of_least_energy():
                 assert np.abs(rolled.loads["a"].moment).max() < 1e-7
             else:
                 assert rolled.energy > eq.energy + 1e-9
+
+
+def test_equilibria_lists_every_bow_side_of_a_buckled_strip():
+    """A round strip clamped at both ends and pushed in by a fifth of its length buckles
+    to any side: the four bow sides the routes try are four distinct equilibria of the
+    same potential energy (the section is round), each neutral (it can roll about its
+    chord), bowing along +-y and +-z; solve's answer is one of them."""
+    from pliant.core.equilibrium import potential_energy
+    from pliant.models.rod3d.solver import _same_shape
+
+    part = pl.Part(length=1.0, bending_stiffness=1.0)
+    problem = pl.Problem(part, (
+        pl.clamp(0.0, (0.0, 0.0, 0.0), tangent=(1, 0, 0), normal=(0, 0, 1), name="a"),
+        pl.clamp(1.0, (0.8, 0.0, 0.0), tangent=(1, 0, 0), normal=(0, 0, 1), name="b")))
+    solver = rod3d.RodSolver(elements=40)
+    found = rod3d.equilibria(problem, solver=solver)
+    assert len(found) == 4
+    energies = [potential_energy(eq) for eq in found]
+    assert max(energies) - min(energies) <= 1e-9 * max(energies)
+    assert all(eq.verdict == "neutral" for eq in found)
+    sides = set()
+    for eq in found:
+        mid = eq.position[len(eq.position) // 2]
+        axis = int(np.argmax(np.abs(mid[1:]))) + 1
+        sides.add((axis, float(np.sign(mid[axis]))))
+    assert sides == {(1, 1.0), (1, -1.0), (2, 1.0), (2, -1.0)}
+    answer = rod3d.solve(problem, solver=solver)
+    assert any(_same_shape(answer, eq) for eq in found)

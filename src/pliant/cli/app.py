@@ -131,8 +131,8 @@ def solve(
     elements: Annotated[int | None, typer.Option(help="3D: about how many elements "
                                                       "(default: the file's \\[solver], or 100)")]
     = None,
-    all_: Annotated[bool, typer.Option("--all", help="2D: list every equilibrium the "
-                                                     "routes reach, with its energy and "
+    all_: Annotated[bool, typer.Option("--all", help="list every equilibrium the routes "
+                                                     "reach, with its energy and "
                                                      "stability")] = False,
 ) -> None:
     """Solve a problem file (2D or 3D): shape, internal forces, reactions."""
@@ -148,7 +148,7 @@ def solve(
     problem = scene.problem
     _first_run_note()
     if all_:
-        _all_equilibria(problem, json)
+        _all_equilibria(problem, json, elements or scene.solver.elements)
         return
     eq, seconds = timed_solve(problem, elements or scene.solver.elements)
     report = None
@@ -177,18 +177,21 @@ def solve(
             typer.echo(f"mesh written to {mesh}, radius {part_radius(eq):.4g} m{note}")
 
 
-def _all_equilibria(problem, as_json: bool) -> None:
-    """``pliant solve --all``: the equilibria the 2D routes reach, best first."""
+def _all_equilibria(problem, as_json: bool, elements: int | None = None) -> None:
+    """``pliant solve --all``: the equilibria the routes reach (2D or 3D), best first."""
     import time  # noqa: PLC0415
 
-    if problem.dimension != 2:
-        raise PliantError("--all: enumerating equilibria is 2D for now; solve the 3D "
-                          "problem without it (its note says which bow side it took)")
     from pliant.core.equilibrium import potential_energy  # noqa: PLC0415
-    from pliant.models.elastica2d import equilibria  # noqa: PLC0415
 
     start = time.perf_counter()
-    found = equilibria(problem)
+    if problem.dimension == 2:
+        from pliant.models.elastica2d import equilibria  # noqa: PLC0415
+
+        found = equilibria(problem)
+    else:
+        from pliant.models import rod3d  # noqa: PLC0415
+
+        found = rod3d.equilibria(problem, solver=rod3d.RodSolver(elements=elements or 100))
     seconds = time.perf_counter() - start
     if as_json:
         import json as _json  # noqa: PLC0415
@@ -203,8 +206,10 @@ def _all_equilibria(problem, as_json: bool) -> None:
 
     if not found:
         raise PliantError("no equilibrium: no route reached one (see pliant solve for why)")
+    first = ("the first is pliant's answer" if problem.dimension == 2 else
+             "stable first, then by potential energy")
     table = Table(title=f"{problem.name or 'problem'}: {len(found)} equilibria found in "
-                        f"{seconds:.2f} s; the first is pliant's answer",
+                        f"{seconds:.2f} s; {first}",
                   title_justify="left")
     for col in ("#", "potential\n[J]", "elastic\n[J]", "stability", "eigenvalue\n[N m]",
                 "bows", "max |M|\n[N m]"):
@@ -218,9 +223,18 @@ def _all_equilibria(problem, as_json: bool) -> None:
 
 def _side(eq) -> str:
     """Which side of the chord between its ends the part's middle lies on (looking from
-    the first end to the last)."""
+    the first end to the last); in 3D, the direction it bows in from the chord."""
     import numpy as np  # noqa: PLC0415
 
+    if eq.position.shape[1] == 3:
+        a, b = eq.position[0], eq.position[-1]
+        mid = eq.position[len(eq.position) // 2] - a
+        chord = b - a
+        across = mid - (mid @ chord) / max(float(chord @ chord), 1e-300) * chord
+        size = float(np.linalg.norm(across))
+        if size <= 1e-9 * max(float(np.linalg.norm(chord)), 1e-300):
+            return "straight"
+        return "toward (" + ", ".join(f"{x:+.2f}" for x in across / size) + ")"
     a, b = eq.position[0], eq.position[-1]
     mid = eq.position[len(eq.position) // 2]
     chord = b - a

@@ -130,6 +130,9 @@ class _Run:
     # Friction's reference (see kernels.contact_terms): none yet, so no friction.
     friction: tuple = ()
     branch_note: str = _BRANCH_NOTE  # how a note on the buckling side begins
+    # ``equilibria``: every branch a route reaches is kept here (state, gauge, note), not
+    # only the one the route returns.
+    reached: list | None = None
 
     def __post_init__(self) -> None:
         self.deadline = clock.now() + self.solver.time_budget
@@ -342,6 +345,8 @@ class _Run:
         straight: tuple[State, np.ndarray] | None = None
         try:
             found = self.through(rest, legs(rest), state)
+            if self.reached is not None:
+                self.reached.append((found, self.gauge_quat.copy(), "the straight branch"))
             # An extensible part's start is not singular: its chord shortens by
             # compression, and the route stays on the straight branch past buckling.
             if rod.K[3] == 0.0 or not _conservative(self, found) or _stability(
@@ -391,6 +396,9 @@ class _Run:
                 if stall.budget:
                     break
                 continue
+            if self.reached is not None:
+                self.reached.append((found, self.gauge_quat.copy(),
+                                     f"bowed toward {np.round(bow_side, 3).tolist()}"))
             # An unstable branch is not where a real part settles: try the other sides
             # for a stable one (for conservative loads, where stability is defined).
             if not _conservative(self):
@@ -404,7 +412,7 @@ class _Run:
                 continue
             stable.append((found, bow_side, self.gauge_quat,
                            potential_energy(_probe(self, found))))
-            if len(stable) == 2:
+            if len(stable) == 2 and self.reached is None:
                 break
         if stable:
             # Of the first two stable branches, the lower potential energy; the side the
@@ -723,6 +731,63 @@ def solve(problem: Problem, *, warm_start: Equilibrium3D | None = None,
           solver: RodSolver | None = None) -> Equilibrium3D:
     """The equilibrium of a 3D problem; see the module docstring."""
     return _solve(problem, warm_start, solver or RodSolver(), follow_only=False)
+
+
+def equilibria(problem: Problem, *, solver: RodSolver | None = None,
+               budget: float = 20.0) -> list[Equilibrium3D]:
+    """The distinct equilibria of a 3D problem that pliant's routes reach from the
+    unloaded part within ``budget`` seconds: each route of a cold solve (straight,
+    targets first then loads, a swing round the first support, loads first) and, from a
+    singular start, each bow side (toward the push, away from it, and the two across).
+    Stable and neutral ones first, then unstable, each group by potential energy; each
+    carries a note saying how it was reached. Problems solved together (fitted parts,
+    clips that slide, junctions) are not enumerated: ``solve`` answers those."""
+    if problem.dimension != 3:
+        raise IllPosedProblemError("rod3d.equilibria enumerates 3D problems; this one is 2D")
+    if problem.sliders or problem.junctions or problem.pivots or any(
+            getattr(o, "fitted", None) is not None for o in problem.obstacles):
+        raise IllPosedProblemError(
+            "equilibria: a problem solved together with other parts or clips that slide "
+            "is not enumerated; solve it (its note says which branch it took)")
+    solver = solver or RodSolver()
+    deadline = clock.now() + budget
+    found: list[Equilibrium3D] = []
+    rod = lower(problem, elements=solver.elements)
+    for name in ("straight", "two_stage", "swing", "loads_first"):
+        left = deadline - clock.now()
+        if left <= 0.0:
+            break
+        run = _Run(rod, replace(solver, time_budget=left))
+        run.reached = []
+        try:
+            run.route(getattr(run, name))
+        except _Stalled:
+            pass
+        for state, gauge, how in run.reached:
+            run.gauge_quat = gauge
+            try:
+                if rod.gauge_frame >= 0 and rod.K[0] != rod.K[1]:
+                    state = _release_roll(run, state)
+                eq = _build(run, state)
+            except (_Stalled, IllPosedProblemError):
+                continue
+            eq = replace(eq, notes=(f"reached by the {name.replace('_', ' ')} route, "
+                                    f"{how}",))
+            if not any(_same_shape(eq, other) for other in found):
+                found.append(eq)
+    energy = {id(e): potential_energy(e) for e in found}
+    found.sort(key=lambda e: (e.verdict == "unstable", energy[id(e)]))
+    return found
+
+
+def _same_shape(a: Equilibrium3D, b: Equilibrium3D) -> bool:
+    """One equilibrium reached twice: the same neutral line to 1e-6 of the part's length
+    (sampled at 41 points)."""
+    L = a.problem.part.length
+    s = np.linspace(0.0, L, 41)
+    pa = np.column_stack([np.interp(s, a.s, a.position[:, k]) for k in range(3)])
+    pb = np.column_stack([np.interp(s, b.s, b.position[:, k]) for k in range(3)])
+    return float(np.abs(pa - pb).max()) <= 1e-6 * L
 
 
 def _solve(problem: Problem, warm_start: Equilibrium3D | None, solver: RodSolver,
