@@ -384,17 +384,19 @@ class Evaluation:
 # -- the evaluation -----------------------------------------------------------------------
 def evaluate(scene: Any, *, rules: Rules | None = None, run: PathRun | None = None,
              elements: int | None = None, search: bool = True,
-             on_step: Callable[[int, Any], None] | None = None) -> Evaluation:
+             on_step: Callable[[int, Any], None] | None = None,
+             start_from: Any = None) -> Evaluation:
     """Judge a scene's operation (``pliant.io.problem_file.Scene``): its [path] if it has
     one, else its single pose. ``rules`` default to the scene's ``[evaluation] rules``
     or the bundled table; ``run`` reuses a path already followed; ``search`` places a
     second hand with the accurate model where one hand is red (else two hands are only
-    tried side by side)."""
+    tried side by side); ``start_from`` an equilibrium to start the path from (see
+    ``follow_path``)."""
     rules, grips, port = prepare(scene, rules)
     if run is None:
         run = follow_path(scene.problem, scene.path, scene.grip or grips[0],
                           margin=scene.margin, elements=elements or scene.solver.elements,
-                          on_step=on_step)
+                          on_step=on_step, start_from=start_from)
     if not run.steps:
         raise InputError("scene", f"the start pose could not be solved: {run.stopped}")
     return _judge(scene, run, rules, grips, port, elements, search)

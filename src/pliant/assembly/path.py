@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import time
 from collections.abc import Callable
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Any
 
 import numpy as np
@@ -117,8 +117,12 @@ class PathRun:
 
 def follow_path(start: Problem, path: list[Problem], grip: str, *, margin: float = 0.0,
                 elements: int = 100,
-                on_step: Callable[[int, StepRecord], None] | None = None) -> PathRun:
-    """Solve ``start`` then each problem of ``path`` in turn (warm), recording each."""
+                on_step: Callable[[int, StepRecord], None] | None = None,
+                start_from: Any = None) -> PathRun:
+    """Solve ``start`` then each problem of ``path`` in turn (warm), recording each.
+    ``start_from``: an equilibrium of a problem like ``start`` (a variation study's
+    nominal start) to start from instead of the unloaded part: the same branch, found
+    in a few Newton iterations; cold where it cannot be followed."""
     from pliant.models import rod3d  # noqa: PLC0415 (numba kernels: on demand)
 
     solver = rod3d.RodSolver(elements=elements)
@@ -127,7 +131,12 @@ def follow_path(start: Problem, path: list[Problem], grip: str, *, margin: float
     for k, problem in enumerate([start, *path]):
         begin = time.perf_counter()
         try:
-            eq = rod3d.solve(problem, warm_start=eq, solver=solver)
+            if k == 0 and start_from is not None:
+                eq = rod3d.solve(problem, warm_start=start_from, solver=solver)
+                # A start solved cold after all is no snap along the path.
+                eq = replace(eq, notes=tuple(n for n in eq.notes if n != WARM_START_LOST))
+            else:
+                eq = rod3d.solve(problem, warm_start=eq, solver=solver)
         except PliantError as err:
             run.stopped = (f"step {k} of {len(path)} (progress {k / max(len(path), 1):.0%}) "
                            f"could not be solved: {err}")

@@ -70,6 +70,27 @@ def _heap_kept() -> None:
         pass
 
 
+_NOMINAL: dict[tuple, Any] = {}  # per process: each study's nominal start, solved once
+
+
+def nominal_start(spec: StudySpec) -> Any:
+    """The nominal scene's start pose, solved once per process: every sample starts from
+    it (the same branch, in a few Newton iterations where a cold start takes about a
+    second). None where it has no equilibrium (the samples then start cold)."""
+    from pliant.io.problem_file import scene_from_data  # noqa: PLC0415
+    from pliant.models import rod3d  # noqa: PLC0415
+
+    key = (spec.source, spec.elements, json.dumps(spec.data, sort_keys=True, default=str))
+    if key not in _NOMINAL:
+        try:
+            scene = scene_from_data(spec.data, spec.source, Path(spec.base))
+            solver = rod3d.RodSolver(elements=spec.elements or scene.solver.elements)
+            _NOMINAL[key] = rod3d.solve(scene.problem, solver=solver)
+        except (PliantError, ValueError, ArithmeticError):
+            _NOMINAL[key] = None
+    return _NOMINAL[key]
+
+
 def evaluate_samples(spec: StudySpec, rows: list[tuple[int, list[float]]]
                      ) -> list[tuple[dict[str, Any], np.ndarray | None]]:
     """Evaluate each (index, deviations) sample: (its record, its swept voxels (k, 3)
@@ -78,6 +99,7 @@ def evaluate_samples(spec: StudySpec, rows: list[tuple[int, list[float]]]
     from pliant.io.problem_file import scene_from_data  # noqa: PLC0415
 
     _heap_kept()
+    start_from = nominal_start(spec)
 
     out = []
     for index, row in rows:
@@ -87,7 +109,8 @@ def evaluate_samples(spec: StudySpec, rows: list[tuple[int, list[float]]]
             doc, values = apply(spec.data, list(spec.variations), spec.nominal,
                                 np.asarray(row, float))
             scene = scene_from_data(doc, f"{spec.source} (sample {index})", Path(spec.base))
-            ev = evaluate(scene, elements=spec.elements, search=spec.search)
+            ev = evaluate(scene, elements=spec.elements, search=spec.search,
+                          start_from=start_from)
             record, voxels = _record(ev, spec.voxel)
             record.update(index=index, deviations=list(map(float, row)), values=values,
                           status="ok", error=None)

@@ -14,10 +14,12 @@ samples is cut into ``subdivide`` pieces) and the distances exact near the surfa
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
+from numba import njit
 
 from pliant.core.problem import PROBE_SAG, WALL_COMPLIANCE
 from pliant.errors import InputError
@@ -164,16 +166,30 @@ def fitted_tubes(eq: Any, obstacles) -> dict[str, tuple[np.ndarray, float, float
 
 def polyline_distance(points: np.ndarray, line: np.ndarray) -> np.ndarray:
     """The distance [m] of each point (k, 3) to the polyline ``line`` (m, 3)."""
-    a = line[:-1]
-    ab = line[1:] - a
-    ab2 = np.maximum(np.einsum("ij,ij->i", ab, ab), 1e-300)
+    return _polyline_distance(np.ascontiguousarray(points, dtype=float),
+                              np.ascontiguousarray(line, dtype=float))
+
+
+@njit(cache=True)
+def _polyline_distance(points, line):
     out = np.empty(points.shape[0])
-    for lo in range(0, points.shape[0], 512):  # bounded memory: 512 x segments x 3
-        p = points[lo:lo + 512]
-        t = np.clip(np.einsum("kij,ij->ki", p[:, None] - a[None], ab) / ab2, 0.0, 1.0)
-        q = a[None] + t[..., None] * ab[None]
-        out[lo:lo + 512] = np.sqrt(np.einsum("kij,kij->ki", p[:, None] - q,
-                                             p[:, None] - q).min(axis=1))
+    for k in range(points.shape[0]):
+        best = 1e300
+        for f in range(line.shape[0] - 1):
+            ss = 0.0
+            rs = 0.0
+            for c in range(3):
+                s = line[f + 1, c] - line[f, c]
+                ss += s * s
+                rs += (points[k, c] - line[f, c]) * s
+            t = min(1.0, max(0.0, rs / max(ss, 1e-300)))
+            d2 = 0.0
+            for c in range(3):
+                v = points[k, c] - line[f, c] - t * (line[f + 1, c] - line[f, c])
+                d2 += v * v
+            if d2 < best:
+                best = d2
+        out[k] = math.sqrt(best)
     return out
 
 
