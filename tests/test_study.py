@@ -266,3 +266,27 @@ def test_pliant_study_runs_on_a_scheduler_and_a_worker_started_here(scene_file, 
             except subprocess.TimeoutExpired:
                 p.kill()
                 p.wait()
+
+
+def test_a_sample_starts_from_the_nominal_start_and_gets_the_cold_answer(scene_file):
+    """Each sample's path starts from the nominal start pose (solved once per process):
+    the same equilibrium as a cold start, to the solver's tolerance, the same verdict."""
+    from pliant.assembly.evaluate import evaluate
+    from pliant.assembly.study import StudySpec, evaluate_samples, nominal_start
+    from pliant.io.problem_file import scene_from_data
+
+    doc = data()
+    parsed = [parse_variation("bending_stiffness=20%", doc, 0),
+              parse_variation("length=5mm", doc, 1)]
+    nominal = nominal_values(parsed, doc, parse_scene(SCENE).problem.part)
+    spec = StudySpec(doc, str(scene_file), str(scene_file.parent), tuple(parsed), nominal,
+                     0.012)
+    assert nominal_start(spec) is nominal_start(spec)  # solved once
+    row = [0.15, -0.004]  # +15 % stiffness, 4 mm shorter (the plan's units)
+    (record, _), = evaluate_samples(spec, [(0, row)])
+    sample, _ = apply(doc, parsed, nominal, np.asarray(row))
+    cold = evaluate(scene_from_data(sample, str(scene_file), scene_file.parent))
+    assert record["status"] == "ok"
+    assert record["peak_force"] == pytest.approx(cold.run.peak("force")[0], rel=1e-6)
+    assert record["headline"] == cold.verdict.headline
+    np.testing.assert_allclose(record["final"], cold.run.final.position, atol=1e-8)
