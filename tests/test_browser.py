@@ -4,6 +4,7 @@ the accurate model in its worker process as a user runs it."""
 
 from __future__ import annotations
 
+import contextlib
 import io
 import math
 import shutil
@@ -332,18 +333,28 @@ def test_two_vr_controllers_each_hold_their_own_grip_and_feel_its_force(browser,
         page.close()
 
 
-def test_the_page_draws_a_harness_with_its_branches(browser):
-    """A harness scene: the accurate answer carries its two branches and the page draws
-    each as a tube of its own, where the answer has it (its end at the trunk's end)."""
+@contextlib.contextmanager
+def scene_page(browser, scene: Path):
+    """A page on its own server for ``scene``, loaded (the first accurate answer in);
+    no page error may have happened by the end."""
     from pliant.viewer.server import Server
 
-    harness = Path(__file__).resolve().parents[1] / "examples" / "harness" / "harness_y.toml"
-    with Server(harness, port=0, live=True) as server:
+    with Server(scene, port=0, live=True) as server:
         page = browser.new_page(viewport={"width": 1100, "height": 720})
         errors: list[str] = []
         page.on("pageerror", lambda e: errors.append(str(e)))
         page.goto(server.url)
         page.wait_for_function(LOADED, timeout=120_000)
+        yield page
+        page.close()
+    assert not errors, errors
+
+
+def test_the_page_draws_a_harness_with_its_branches(browser):
+    """A harness scene: the accurate answer carries its two branches and the page draws
+    each as a tube of its own, where the answer has it (its end at the trunk's end)."""
+    harness = Path(__file__).resolve().parents[1] / "examples" / "harness" / "harness_y.toml"
+    with scene_page(browser, harness) as page:
         page.wait_for_function("window.pliant.state.accurate.branches.length === 2",
                                timeout=60_000)
         drawn = page.evaluate("""() => ['left branch', 'right branch'].map((n) => {
@@ -354,8 +365,6 @@ def test_the_page_draws_a_harness_with_its_branches(browser):
             return [b.min.toArray(), b.max.toArray()];
         })""")
         trunk_end = page.evaluate("window.pliant.state.accurate.position.at(-1)")
-        page.close()
-    assert not errors, errors
     for box in drawn:
         assert box is not None
         lo, hi = np.array(box)
@@ -365,15 +374,8 @@ def test_the_page_draws_a_harness_with_its_branches(browser):
 def test_the_page_draws_a_fitted_part_as_the_accurate_answer_has_it(browser):
     """A scene with a flexible part already fitted: each accurate answer carries that
     part's neutral line and the page redraws its obstacle as a tube along it."""
-    from pliant.viewer.server import Server
-
     scene = Path(__file__).resolve().parents[1] / "examples" / "scenes" / "line_over_hose.toml"
-    with Server(scene, port=0, live=True) as server:
-        page = browser.new_page(viewport={"width": 1100, "height": 720})
-        errors: list[str] = []
-        page.on("pageerror", lambda e: errors.append(str(e)))
-        page.goto(server.url)
-        page.wait_for_function(LOADED, timeout=120_000)
+    with scene_page(browser, scene) as page:
         page.wait_for_function("window.pliant.state.accurate.fitted.length === 1",
                                timeout=60_000)
         drawn = page.evaluate("""() => {
@@ -383,8 +385,6 @@ def test_the_page_draws_a_fitted_part_as_the_accurate_answer_has_it(browser):
             return {fitted: m.userData.fitted === true, top: b.max.z,
                     line: window.pliant.state.accurate.fitted[0].position.map((p) => p[2])};
         }""")
-        page.close()
-    assert not errors, errors
     assert drawn["fitted"]
     # The tube's top is its neutral line's highest point plus its radius (12.5 mm).
     assert drawn["top"] == pytest.approx(max(drawn["line"]) + 0.0125, abs=1e-3)

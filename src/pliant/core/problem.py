@@ -6,7 +6,7 @@ import math
 from collections.abc import Iterable
 from dataclasses import dataclass, field, replace
 
-from pliant.core.conditions import Condition
+from pliant.core.conditions import Condition, _unit, _vector
 from pliant.core.part import Part
 from pliant.errors import IllPosedProblemError, InputError, UnreachableTargetError
 
@@ -125,22 +125,22 @@ WALL_COMPLIANCE = 1e-5  # m/N
 PROBE_SAG = 0.01
 
 
-@dataclass(frozen=True, eq=False)
-class FittedPart:
-    """A flexible part already assembled, in its clamps and clips: its own problem, the
-    element count it is solved with, and its equilibrium there (untouched). A part being
-    fitted that touches it is solved together with it: it deforms, and its clamps feel
-    the contact (``pliant.models.rod3d.coupled``). It pickles without its equilibrium
-    (which holds the solver's closures), found again on first use."""
+def _point3(field_name: str, value) -> tuple[float, float, float]:
+    """A 3D vector, every component given and finite (``conditions._vector``)."""
+    v = _vector(field_name, value, allow_none=False)
+    if len(v) != 3:
+        raise InputError(field_name, f"give 3 components, not {len(v)}")
+    return v  # type: ignore[return-value]
 
-    name: str
-    problem: Problem
-    elements: int
-    solved: object = field(default=None, repr=False)  # its Equilibrium3D, alone
-    friction: float = 0.0  # Coulomb's coefficient between it and the part that touches it
+
+class _SolvedAlone:
+    """A part of a scene solved on its own first (a fitted part, a harness branch): its
+    ``problem`` solved with ``elements`` elements on first use, kept in ``solved``. It
+    pickles without that equilibrium (which holds the solver's closures)."""
 
     @property
     def equilibrium(self):
+        """Its equilibrium alone: where a solve together with it starts."""
         if self.solved is None:
             from pliant.models import rod3d  # noqa: PLC0415 (core knows no model but here)
 
@@ -153,6 +153,22 @@ class FittedPart:
 
     def __setstate__(self, state: dict) -> None:
         self.__dict__.update(state)
+
+
+@dataclass(frozen=True, eq=False)
+class FittedPart(_SolvedAlone):
+    """A flexible part already assembled, in its clamps and clips: its own problem, the
+    element count it is solved with, and its equilibrium there (untouched). A part being
+    fitted that touches it is solved together with it: it deforms, and its clamps feel
+    the contact (``pliant.models.rod3d.coupled``). It pickles without its equilibrium
+    (which holds the solver's closures), found again on first use."""
+
+    name: str
+    problem: Problem
+    elements: int
+    solved: object = field(default=None, repr=False)  # its Equilibrium3D, alone
+    friction: float = 0.0  # Coulomb's coefficient between it and the part that touches it
+
 
 
 @dataclass(frozen=True)
@@ -177,15 +193,9 @@ class SlidingClip:
             raise InputError(f"{self.name}.friction", f"must be a number >= 0 (Coulomb's "
                              f"coefficient), not {self.friction!r}")
         object.__setattr__(self, "friction", float(self.friction))
-        for field_name, value in (("position", self.position), ("axis", self.axis)):
-            v = tuple(float(x) for x in value)
-            if len(v) != 3 or not all(math.isfinite(x) for x in v):
-                raise InputError(f"{self.name}.{field_name}", "give 3 finite numbers")
-            object.__setattr__(self, field_name, v)
-        norm = math.sqrt(sum(a * a for a in self.axis))
-        if not norm > 0.0:
-            raise InputError(f"{self.name}.axis", "must be a non-zero direction")
-        object.__setattr__(self, "axis", tuple(a / norm for a in self.axis))
+        object.__setattr__(self, "position", _point3(f"{self.name}.position", self.position))
+        object.__setattr__(self, "axis", _unit(f"{self.name}.axis",
+                                               _point3(f"{self.name}.axis", self.axis)))
         if not math.isfinite(float(self.s)):
             raise InputError(f"{self.name}.s", "give the arc length [m] at the clip")
         object.__setattr__(self, "s", float(self.s))
@@ -203,20 +213,14 @@ class PivotClip:
     pivot: tuple[float, float, float]
 
     def __post_init__(self) -> None:
-        for field_name, value in (("position", self.position), ("pivot", self.pivot)):
-            v = tuple(float(x) for x in value)
-            if len(v) != 3 or not all(math.isfinite(x) for x in v):
-                raise InputError(f"{self.name}.{field_name}", "give 3 finite numbers")
-            object.__setattr__(self, field_name, v)
-        norm = math.sqrt(sum(a * a for a in self.pivot))
-        if not norm > 0.0:
-            raise InputError(f"{self.name}.pivot", "must be a non-zero direction")
-        object.__setattr__(self, "pivot", tuple(a / norm for a in self.pivot))
+        object.__setattr__(self, "position", _point3(f"{self.name}.position", self.position))
+        object.__setattr__(self, "pivot", _unit(f"{self.name}.pivot",
+                                                _point3(f"{self.name}.pivot", self.pivot)))
         object.__setattr__(self, "s", float(self.s))
 
 
 @dataclass(frozen=True, eq=False)
-class Branch:
+class Branch(_SolvedAlone):
     """A branch of a harness: its own problem (its part and what holds its far end: a
     port's clamp), which of its ends meets the junction (``end``: 0 its first, 1 its
     last), the direction it leaves the junction in (``axis``, in the frame (d1, d2, d3)
@@ -229,33 +233,13 @@ class Branch:
     elements: int = 60
     solved: object = field(default=None, repr=False, compare=False)  # alone, on demand
 
-    @property
-    def equilibrium(self):
-        """The branch alone (held only at its far end): where the harness solve starts."""
-        if self.solved is None:
-            from pliant.models import rod3d  # noqa: PLC0415 (core knows no model but here)
-
-            object.__setattr__(self, "solved", rod3d.solve(
-                self.problem, solver=rod3d.RodSolver(elements=self.elements)))
-        return self.solved
-
-    def __getstate__(self) -> dict:
-        return {**self.__dict__, "solved": None}
-
-    def __setstate__(self, state: dict) -> None:
-        self.__dict__.update(state)
-
     def __post_init__(self) -> None:
         if self.end not in (0, 1):
             raise InputError(f"{self.name}.end", "give 0 (its first end) or 1 (its last)")
         if self.problem.dimension != 3:
             raise InputError(f"{self.name}.file", "a harness branch is a 3D problem")
-        v = tuple(float(a) for a in self.axis)
-        norm = math.sqrt(sum(a * a for a in v))
-        if len(v) != 3 or not (norm > 0.0 and math.isfinite(norm)):
-            raise InputError(f"{self.name}.axis", "give the direction it leaves the junction "
-                             "in, 3 numbers not all 0")
-        object.__setattr__(self, "axis", tuple(a / norm for a in v))
+        object.__setattr__(self, "axis", _unit(f"{self.name}.axis",
+                                               _point3(f"{self.name}.axis", self.axis)))
 
 
 @dataclass(frozen=True, eq=False)
@@ -376,6 +360,14 @@ class Problem:
         object.__setattr__(self, "stations", merge(conditions, length))
         self._check_rigid_motion()
         self._check_reach()
+
+    @property
+    def solved_together(self) -> bool:
+        """Whether the 3D model solves it with other parts or clips (``rod3d.together``):
+        flexible parts already fitted among its obstacles, clips that slide or pivot,
+        harness junctions."""
+        return bool(self.sliders or self.junctions or self.pivots or any(
+            getattr(o, "fitted", None) is not None for o in self.obstacles))
 
     def with_conditions(self, conditions: Iterable[Condition]) -> Problem:
         return Problem(self.part, tuple(conditions), self.gravity, self.name, self.obstacles,

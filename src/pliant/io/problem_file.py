@@ -427,6 +427,20 @@ class CadModel(_Strict):
         return out
 
 
+def _nested_problem(name: str, base: Path | None, what: str) -> tuple[Path, Problem]:
+    """(path, problem) of a 3D problem file a scene refers to (an assembled part's, a
+    branch's), its own [[assembled]] parts not followed; ValueError naming ``file``."""
+    path = _referenced(name, base, "problem")
+    try:
+        text = path.read_text(encoding="utf-8")
+        problem = parse_scene(text, str(path), path.parent, nested=True).problem
+    except (OSError, PliantError) as err:
+        raise ValueError(f"file: {err}") from None
+    if problem.dimension != 3:
+        raise ValueError(f"file: {str(path)!r} is a 2D problem; {what} is 3D")
+    return path, problem
+
+
 class AssembledModel(_Strict):
     """[[assembled]]: a flexible part already fitted, in its clamps: its own problem file
     (3D, relative to this one) is solved once and its tube becomes an obstacle."""
@@ -446,14 +460,7 @@ class AssembledModel(_Strict):
         from pliant.models import rod3d  # noqa: PLC0415
         from pliant.scene.distance import Obstacle  # noqa: PLC0415
 
-        path = _referenced(self.file, base, "problem")
-        try:
-            text = path.read_text(encoding="utf-8")
-            problem = parse_scene(text, str(path), path.parent, nested=True).problem
-        except (OSError, PliantError) as err:
-            raise ValueError(f"file: {err}") from None
-        if problem.dimension != 3:
-            raise ValueError(f"file: {str(path)!r} is a 2D problem; an assembled part is 3D")
+        path, problem = _nested_problem(self.file, base, "an assembled part")
         try:
             eq = rod3d.solve(problem, solver=rod3d.RodSolver(elements=self.elements))
         except PliantError as err:
@@ -580,14 +587,7 @@ class BranchModel(_Strict):
     def build(self, base: Path | None) -> Any:
         from pliant.core.problem import Branch  # noqa: PLC0415
 
-        path = _referenced(self.file, base, "problem")
-        try:
-            text = path.read_text(encoding="utf-8")
-            problem = parse_scene(text, str(path), path.parent, nested=True).problem
-        except (OSError, PliantError) as err:
-            raise ValueError(f"file: {err}") from None
-        if problem.dimension != 3:
-            raise ValueError(f"file: {str(path)!r} is a 2D problem; a branch is 3D")
+        _, problem = _nested_problem(self.file, base, "a branch")
         return Branch(self.name, problem, 0 if self.end == "first" else 1, tuple(self.axis),
                       self.elements)
 

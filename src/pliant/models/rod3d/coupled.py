@@ -138,15 +138,15 @@ class _Block:
     they touch: ``coords`` (part, the first of three unknowns of that part: a node's
     position or a frame's rotation); E (3n, nb) the residual's change on those
     coordinates per unknown; F (nb, 3n) and D (nb, nb) the block's rows' change per
-    coordinate and per unknown; K (3n, 3n) the residual's change per coordinate; rhs
-    (nb,) minus its rows; target (index in mus, slice): where its increments go."""
+    coordinate and per unknown; K (3n, 3n) the residual's change per coordinate;
+    target (index in mus, slice): its unknowns, whose rows in ``_Eval.Rmu`` are the
+    system's right-hand side there (the residual's, or dR/dt for the tangent)."""
 
     coords: list
     E: np.ndarray
     F: np.ndarray
     D: np.ndarray
     K: np.ndarray
-    rhs: np.ndarray
     target: tuple
 
 
@@ -221,10 +221,11 @@ class Coupling:
     # held within a Newton solve, and where the load step started (what sticking keeps).
     slide_mode: dict = field(default_factory=dict)
     slide_ref: dict = field(default_factory=dict)
-    # Friction between parts, per pair with friction: where each probe and the point of
-    # the other part it touched were when the load step started, the tangent bases
-    # there (``_FrictionRef``), and each probe's state: -1 free, 0 sticking, 1 sliding
-    # (its force along ``fric_dir``, in the basis).
+    # Friction between parts, per pair with friction: ``fric_ref`` where each probe and
+    # the point of the other part it touched were when the load step started (probe
+    # points (K, 3) [m], that point's four nodes (K, 4) and weights (K, 4), its position
+    # (K, 3) [m], the tangent bases (K, 2, 3)); each probe's state: -1 free, 0 sticking,
+    # 1 sliding (its force along ``fric_dir``, in the basis).
     fric_ref: dict = field(default_factory=dict)
     fric_mode: dict = field(default_factory=dict)
     fric_dir: dict = field(default_factory=dict)
@@ -238,10 +239,21 @@ class Coupling:
         every other block's in ``mus``)."""
         return [p for p, pair in enumerate(self.pairs) if pair.friction > 0.0]
 
+    def slot(self, kind: str, k: int) -> int:
+        """Where the unknowns of the k-th "slider", "joint" or "pivot" are in ``mus``:
+        after the pairs' contact forces, sliders, then joints, then pivots (then the
+        tangential forces of the pairs with friction, ``t_slot``)."""
+        base = len(self.pairs)
+        for name, items in (("slider", self.sliders), ("joint", self.joints),
+                            ("pivot", self.pivots)):
+            if name == kind:
+                return base + k
+            base += len(items)
+        raise ValueError(f"no block kind {kind!r}")
+
     def t_slot(self, p: int) -> int:
         """Where pair p's tangential forces (K, 2, flattened) are in ``mus``."""
-        base = len(self.pairs) + len(self.sliders) + len(self.joints) + len(self.pivots)
-        return base + self.rubbing.index(p)
+        return self.slot("pivot", len(self.pivots)) + self.rubbing.index(p)
 
     def friction_unknowns(self) -> list[np.ndarray]:
         return [np.zeros(2 * self.pairs[p].elem.shape[0]) for p in self.rubbing]
@@ -272,26 +284,26 @@ class Coupling:
                     d = np.einsum("kic,kc->ki", tau, d)
                     self.fric_dir[p] = d / np.maximum(np.linalg.norm(d, axis=1,
                                                                      keepdims=True), 1e-300)
-            self.fric_ref[p] = (pa, geo.jb.copy(), geo.left.copy(), geo.right.copy(),
-                                geo.beta.copy(), geo.q.copy(), tau)
+            # The weights of b's material point on its four nodes, fixed for the step.
+            wb = np.array([spline.weights(float(b), bool(lf), bool(rt))[0]
+                           for b, lf, rt in zip(geo.beta, geo.left, geo.right)]).reshape(-1, 4)
+            self.fric_ref[p] = (pa, geo.jb.copy(), wb, geo.q.copy(), tau)
 
     def _rub(self, p: int, states: Sequence[State], k: np.ndarray):
         """For probes k of friction pair p: their slip since the step's start (K, 2, by
         L_ref) in the tangent basis, and the weights on a's two nodes and on b's four
         (the material point of b it touched)."""
         pair = self.pairs[p]
-        pa0, jb, left, right, beta, qb0, tau = self.fric_ref[p]
+        pa0, jb, wb, qb0, tau = self.fric_ref[p]
         ra, rb = self.runs[pair.a].rod, self.runs[pair.b].rod
         Xa = states[pair.a][0] * ra.length
         Xb = states[pair.b][0] * rb.length
         e, al = pair.elem[k], pair.alpha[k][:, None]
         pa = (1.0 - al) * Xa[e] + al * Xa[e + 1]
-        wb = np.array([spline.weights(float(beta[i]), bool(left[i]), bool(right[i]))[0]
-                       for i in k]).reshape(-1, 4)
-        qb = np.einsum("kj,kjc->kc", wb, Xb[jb[k]])
+        qb = np.einsum("kj,kjc->kc", wb[k], Xb[jb[k]])
         move = (pa - pa0[k]) - (qb - qb0[k])
         slip = np.einsum("kic,kc->ki", tau[k], move) / self.L_ref
-        return slip, wb, tau[k]
+        return slip, wb[k], tau[k]
 
     @property
     def compliance(self) -> float:
@@ -429,10 +441,12 @@ class Coupling:
         """The Newton step (per part du, per pair or clip d mu) or None where singular."""
         P = len(self.runs)
         blocks = self._contact_blocks(ev, mus, weight) + [
-            self._slider_block(k, ev, mus, weight) for k in range(len(self.sliders))] + [
-            self._joint_block(k, ev, mus, weight) for k in range(len(self.joints))] + [
-            self._pivot_block(k, ev, mus, weight) for k in range(len(self.pivots))] + (
-            self._friction_blocks(ev, mus, weight))
+            self._slider_terms(k, ev.states, mus, weight, want_jac=True)[3]
+            for k in range(len(self.sliders))] + [
+            self._joint_terms(k, ev.states, mus, weight, want_jac=True)[2]
+            for k in range(len(self.joints))] + [
+            self._pivot_terms(k, ev.states, mus, weight, want_jac=True)[2]
+            for k in range(len(self.pivots))] + self._friction_blocks(ev, mus, weight)
         # The coupling coordinates: x of every node a block touches, part by part.
         slot = [dict() for _ in range(P)]
         coords: list[list[int]] = [[] for _ in range(P)]
@@ -443,7 +457,8 @@ class Coupling:
                     coords[part].append(first)
         offset = np.concatenate([[0], np.cumsum([3 * len(c) for c in coords])]).astype(int)
         nc = int(offset[-1])
-        m = sum(b.rhs.shape[0] for b in blocks)
+        rows = [-ev.Rmu[b.target[0]][b.target[1]] for b in blocks]  # right-hand sides
+        m = sum(r.shape[0] for r in rows)
         # Each part: its band factorised, solved for -R and the unit loads.
         base, W = [], []
         Z = np.zeros((nc, nc))
@@ -469,22 +484,20 @@ class Coupling:
         E = np.zeros((nc, m))
         Fm = np.zeros((m, nc))
         D = np.zeros((m, m))
-        rhs = np.zeros(m)
         at = 0
-        for b in blocks:
+        for b, r in zip(blocks, rows):
             idx = np.array([offset[part] + 3 * slot[part][first] + c
                             for part, first in b.coords for c in range(3)])
-            nb = b.rhs.shape[0]
+            nb = r.shape[0]
             cols = slice(at, at + nb)
             np.add.at(E, (idx[:, None], np.arange(at, at + nb)[None, :]), b.E)
             np.add.at(Fm, (np.arange(at, at + nb)[:, None], idx[None, :]), b.F)
             np.add.at(Kc, (idx[:, None], idx[None, :]), b.K)
             D[cols, cols] = b.D
-            rhs[cols] = b.rhs
             at += nb
         A = np.block([[np.eye(nc) + Z @ Kc, Z @ E], [Fm, D]])
         try:
-            sol = np.linalg.solve(A, np.concatenate([z, rhs]))
+            sol = np.linalg.solve(A, np.concatenate([z, *rows]))
         except np.linalg.LinAlgError:
             return None
         if not np.all(np.isfinite(sol)):
@@ -494,10 +507,9 @@ class Coupling:
         du = [base[i] - W[i] @ push[offset[i]:offset[i + 1]] for i in range(P)]
         dmus = [np.zeros_like(mu) for mu in mus]
         at = 0
-        for b in blocks:
-            nb = b.rhs.shape[0]
-            dmus[b.target[0]][b.target[1]] = dw[at:at + nb]
-            at += nb
+        for b, r in zip(blocks, rows):
+            dmus[b.target[0]][b.target[1]] = dw[at:at + r.shape[0]]
+            at += r.shape[0]
         return du, dmus
 
     # -- sliding clips ------------------------------------------------------------------
@@ -546,7 +558,7 @@ class Coupling:
         1: the slide row is (1 - weight) (sigma - s0) + weight nu . dE/dsigma (no axial
         force)."""
         sl = self.sliders[k]
-        w = mus[len(self.pairs) + k]
+        w = mus[self.slot("slider", k)]
         sigma = float(w[0])
         if not 0.0 <= sigma <= 1.0:
             return None, None, None, None
@@ -613,14 +625,8 @@ class Coupling:
             D[r, r] = 1.0
         ix = self.runs[sl.part].rod.ix
         block = _Block([(part, int(ix[node])) for part, node in nodes], Eb, F, D, H[:12, :12],
-                       -rows,
-                       (len(self.pairs) + k, slice(0, 6)))
+                       (self.slot("slider", k), slice(0, 6)))
         return rows, forces, nodes, block
-
-    def _slider_block(self, k: int, ev: _Eval, mus, weight: float) -> _Block:
-        block = self._slider_terms(k, ev.states, mus, weight, want_jac=True)[3]
-        block.rhs = -ev.Rmu[len(self.pairs) + k]  # (the tangent's rows are dR/dt)
-        return block
 
     # -- junctions -------------------------------------------------------------------------
     def _joint_coords(self, k: int) -> list[tuple[int, int]]:
@@ -655,7 +661,7 @@ class Coupling:
         j = self.joints[k]
         ra, rb = self.runs[j.a].rod, self.runs[j.b].rod
         Lr, Fr = self.L_ref, self.F_ref
-        w = mus[len(self.pairs) + len(self.sliders) + k]
+        w = mus[self.slot("joint", k)]
         lam, mom = w[:3], w[3:]
         xa = states[j.a][0][j.end_a] * ra.length
         xb = states[j.b][0][j.end_b] * rb.length
@@ -700,14 +706,9 @@ class Coupling:
         rot = [3, 4, 5, 9, 10, 11]
         scale = np.array([fa] * 3 + [fb] * 3)
         K[np.ix_(rot, rot)] = scale[:, None] * H
-        block = _Block(self._joint_coords(k), E, F, np.zeros((6, 6)), K, -rows,
-                       (len(self.pairs) + len(self.sliders) + k, slice(0, 6)))
+        block = _Block(self._joint_coords(k), E, F, np.zeros((6, 6)), K,
+                       (self.slot("joint", k), slice(0, 6)))
         return rows, forces, block
-
-    def _joint_block(self, k: int, ev: _Eval, mus, weight: float) -> _Block:
-        block = self._joint_terms(k, ev.states, mus, weight, want_jac=True)[2]
-        block.rhs = -ev.Rmu[len(self.pairs) + len(self.sliders) + k]
-        return block
 
     # -- pivoting clips -------------------------------------------------------------------
     def _pivot_coord(self, k: int) -> int:
@@ -731,7 +732,7 @@ class Coupling:
                      weight: float, want_jac: bool = False):
         """(rows (2,), the torque on the frame's three rows, block or None)."""
         pv = self.pivots[k]
-        nu = mus[len(self.pairs) + len(self.sliders) + len(self.joints) + k]
+        nu = mus[self.slot("pivot", k)]
         q = states[0][1][pv.frame]
         c, J = self._pivot_rows(k, q, weight)
         torque = J.T @ nu
@@ -746,15 +747,8 @@ class Coupling:
             H[v] = nu @ (self._pivot_rows(k, _qmul(q, e), weight)[1]
                          - self._pivot_rows(k, _qmul(q, _qconj(e)), weight)[1]) / (2 * step)
         block = _Block([(0, self._pivot_coord(k))], J.T, J, np.zeros((2, 2)),
-                       0.5 * (H + H.T), -c,
-                       (len(self.pairs) + len(self.sliders) + len(self.joints) + k,
-                        slice(0, 2)))
+                       0.5 * (H + H.T), (self.slot("pivot", k), slice(0, 2)))
         return c, torque, block
-
-    def _pivot_block(self, k: int, ev: _Eval, mus, weight: float) -> _Block:
-        block = self._pivot_terms(k, ev.states, mus, weight, want_jac=True)[2]
-        block.rhs = -ev.Rmu[len(self.pairs) + len(self.sliders) + len(self.joints) + k]
-        return block
 
     # -- friction between parts -----------------------------------------------------------
     def _friction_modes(self, p: int, active: np.ndarray | None, only: np.ndarray):
@@ -816,7 +810,6 @@ class Coupling:
             fb = weight * self.F_ref / rb.force_scale
             jb = self.fric_ref[p][1]
             slot = self.t_slot(p)
-            rows_all = ev.Rmu[slot].reshape(-1, 2)
             for i, j in enumerate(keep):
                 k = int(only[j])
                 e, al = int(pair.elem[k]), float(pair.alpha[k])
@@ -836,7 +829,7 @@ class Coupling:
                         F[:, 3 * n:3 * n + 3] = (sign[n] * w[n] * lengths[n]
                                                  / self.L_ref) * tau[i]
                     D = self.compliance * np.eye(2)
-                out.append(_Block(coords, E, F, D, np.zeros((18, 18)), -rows_all[k],
+                out.append(_Block(coords, E, F, D, np.zeros((18, 18)),
                                   (slot, slice(2 * k, 2 * k + 2))))
         return out
 
@@ -909,7 +902,7 @@ class Coupling:
                     nodes, (fac * grad)[:, None],
                     (d_g * CONTACT_SCALE * grad * lengths / self.L_ref)[None, :],
                     np.array([[d_mu + d_g * CONTACT_SCALE * self.compliance]]), K,
-                    np.array([-ev.Rmu[p][k]]), (p, slice(k, k + 1))))
+                    (p, slice(k, k + 1))))
         return out
 
     # -- Newton and continuation ------------------------------------------------------
@@ -971,7 +964,7 @@ class Coupling:
         for k, sl in enumerate(self.sliders):
             if not sl.clip.friction > 0.0:
                 continue
-            w = mus[len(self.pairs) + k]
+            w = mus[self.slot("slider", k)]
             sigma = float(w[0])
             mode = self.slide_mode.get(k, 0)
             if not 0.0 <= sigma <= 1.0:
@@ -1079,7 +1072,7 @@ class Coupling:
             loads = [m.start.lerp(m.end, t_next) for m in members]
             weight = w0 + t_next * (w1 - w0)
             # Friction in sliding clips is measured from where this step starts.
-            self.slide_ref = {k: float(mus[len(self.pairs) + k][0])
+            self.slide_ref = {k: float(mus[self.slot("slider", k)][0])
                               for k in range(len(self.sliders))}
             if self.rubbing:
                 mus = [m.copy() for m in mus]
@@ -1233,7 +1226,7 @@ def slider_loads(coupling: Coupling, states: Sequence[State], mus: Sequence[np.n
         arms = (X[[node for _, node in nodes]] - sl.point) * rod.length
         force = on_nodes.sum(axis=0)
         moment = np.cross(arms, on_nodes).sum(axis=0)
-        sigma = float(mus[len(coupling.pairs) + k][0])
+        sigma = float(mus[coupling.slot("slider", k)][0])
         out[sl.part][sl.clip.name] = StationLoad(
             sl.clip.name, sigma * rod.length, force, moment,
             (True, True, True, bool(sl.clip.holds_axis), False))
@@ -1332,8 +1325,7 @@ def solve_coupled(runs: list[_Run], states: list[State], *, solver: RodSolver,
         mus = (no_contact_forces(pairs) + [np.concatenate([[sl.s0], np.zeros(5)])
                                            for sl in sliders]
                + [np.zeros(6) for _ in joints] + [np.zeros(2) for _ in pivots])
-    expected = len(pairs) + len(sliders) + len(joints) + len(pivots)
-    if len(mus) == expected:
+    if len(mus) == coupling.slot("pivot", len(pivots)):  # none for friction yet
         mus = list(mus) + coupling.friction_unknowns()
     start = [r.rod.target for r in runs] if start is None else start
     members = [_Member(run, s, run.rod.target) for run, s in zip(runs, start)]

@@ -744,8 +744,7 @@ def equilibria(problem: Problem, *, solver: RodSolver | None = None,
     clips that slide, junctions) are not enumerated: ``solve`` answers those."""
     if problem.dimension != 3:
         raise IllPosedProblemError("rod3d.equilibria enumerates 3D problems; this one is 2D")
-    if problem.sliders or problem.junctions or problem.pivots or any(
-            getattr(o, "fitted", None) is not None for o in problem.obstacles):
+    if problem.solved_together:
         raise IllPosedProblemError(
             "equilibria: a problem solved together with other parts or clips that slide "
             "is not enumerated; solve it (its note says which branch it took)")
@@ -796,8 +795,7 @@ def _solve(problem: Problem, warm_start: Equilibrium3D | None, solver: RodSolver
     if problem.dimension != 3:
         raise IllPosedProblemError("the 3D model solves 3D problems; this one is 2D "
                                    "(use pliant.solve, which picks the model)")
-    if not rigid and (problem.sliders or problem.junctions or problem.pivots or any(
-            getattr(o, "fitted", None) is not None for o in problem.obstacles)):
+    if not rigid and problem.solved_together:
         from pliant.models.rod3d import together  # noqa: PLC0415
 
         return together.solve_fitted(problem, warm_start, solver, follow_only)

@@ -46,12 +46,20 @@ class _TogetherState:
     pairs: tuple
     fitted: tuple  # the FittedPart of each part after the first
     sliders: tuple = ()  # Slider
-    clips: tuple = ()  # the problem's SlidingClip, to tell whether they are the same
     joints: tuple = ()  # Joint
     junctions: tuple = ()  # the problem's Junction, to tell whether they are the same
     pivots: tuple = ()  # Pivot
-    pins: tuple = ()  # the problem's PivotClip, to tell whether they are the same
     friction: tuple = ()  # between parts: (references, states, directions) by pair
+
+    @property
+    def clips(self) -> tuple:
+        """The problem's SlidingClip, in order (to tell whether they are the same)."""
+        return tuple(sl.clip for sl in self.sliders)
+
+    @property
+    def pins(self) -> tuple:
+        """The problem's PivotClip, in order."""
+        return tuple(pv.clip for pv in self.pivots)
 
 
 def fitted_of(problem) -> list:
@@ -290,9 +298,8 @@ def _result(problem, coupling: Coupling, states, mus, parts, iterations: int,
                     steps=eqs[0].steps + steps + coupling.steps,
                     state=_TogetherState(rods, tuple(states), gauges, tuple(mus),
                                          tuple(coupling.pairs), tuple(parts),
-                                         tuple(coupling.sliders), tuple(problem.sliders),
-                                         tuple(coupling.joints), tuple(problem.junctions),
-                                         tuple(coupling.pivots), tuple(problem.pivots),
+                                         tuple(coupling.sliders), tuple(coupling.joints),
+                                         tuple(problem.junctions), tuple(coupling.pivots),
                                          (coupling.fric_ref, coupling.fric_mode,
                                           coupling.fric_dir)),
                     branches=tuple(replace(eq, problem=b.problem)

@@ -634,35 +634,37 @@ function showVerdict(verdict) {
     `${esc(i.text)}<div class="source">${esc(i.source)}</div></li>`).join('');
 }
 
+// Another part's tube along its neutral line, as an accurate answer gives it.
+function tubeAlong(position, radius, radial) {
+  const points = position.map((p) => new THREE.Vector3(...p));
+  const path = new THREE.CatmullRomCurve3(points, false, 'centripetal');
+  return new THREE.TubeGeometry(path, Math.max(2 * points.length, 32), radius, radial, false);
+}
+
 // A flexible part already fitted is drawn as the accurate answer has it: deformed where
 // the part touches it (its obstacle mesh, same name, takes the new tube).
 function drawFitted(fitted) {
   for (const part of fitted) {
     const mesh = obstacleGroup.getObjectByName(part.name);
     if (!mesh || part.position.length < 2) continue;
-    const points = part.position.map((p) => new THREE.Vector3(...p));
-    const path = new THREE.CatmullRomCurve3(points, false, 'centripetal');
-    const geometry = new THREE.TubeGeometry(path, Math.max(2 * points.length, 32), part.radius, 16, false);
     mesh.geometry.dispose();
-    mesh.geometry = geometry;
+    mesh.geometry = tubeAlong(part.position, part.radius, 16);
     mesh.userData.fitted = true;
   }
 }
 
 // A harness's branches, solved with the part: tubes of their own, redrawn with each
-// accurate answer (the real-time frames do not carry them).
+// accurate answer (the real-time frames do not carry them), all of one material.
 const branchGroup = new THREE.Group();
 branchGroup.name = 'branches';
 world.add(branchGroup);
+const branchMaterial = new THREE.MeshStandardMaterial({ color: 0x3b6ea5, roughness: 0.6 });
 function drawBranches(branches) {
   for (const child of [...branchGroup.children]) child.geometry.dispose();
   branchGroup.clear();
   for (const part of branches) {
     if (part.position.length < 2) continue;
-    const points = part.position.map((p) => new THREE.Vector3(...p));
-    const path = new THREE.CatmullRomCurve3(points, false, 'centripetal');
-    const geometry = new THREE.TubeGeometry(path, Math.max(2 * points.length, 32), part.radius, 12, false);
-    const mesh = new THREE.Mesh(geometry, new THREE.MeshStandardMaterial({ color: 0x3b6ea5, roughness: 0.6 }));
+    const mesh = new THREE.Mesh(tubeAlong(part.position, part.radius, 12), branchMaterial);
     mesh.name = part.name;
     branchGroup.add(mesh);
   }
