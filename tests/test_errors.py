@@ -93,7 +93,9 @@ def test_interior_target_out_of_reach():
 
 
 def test_non_convergence_says_so_with_residual():
-    problem = pl.Problem(UNIT, (pl.clamp(0.0), pl.push(1.0, force=(0.0, 50.0))))
+    # A follower load: no potential, so no energy minimum to fall back on.
+    problem = pl.Problem(UNIT, (pl.clamp(0.0), pl.push(1.0, force=(0.0, 50.0),
+                                                        follower=True)))
     with pytest.raises(ConvergenceError) as err:
         solve(problem, solver=ShootingSolver(max_steps=2))
     assert "budget" in str(err.value)

@@ -41,7 +41,7 @@ from pliant.core.equilibrium import (
 from pliant.core.problem import Problem
 from pliant.errors import ConvergenceError
 from pliant.models import clock
-from pliant.models.elastica2d import kernels
+from pliant.models.elastica2d import kernels, minimum
 from pliant.models.elastica2d.lowering import (
     NODE_SPAN,
     PRESCRIBED,
@@ -213,12 +213,16 @@ class _Run:
                 self.low = lower(problem, nodes=count)
             said = len(self.notes)
             try:
-                return self.route(legs)
+                return self.lowest(self.route(legs))
             except _Stalled as stall:
                 del self.notes[said:]  # what a failed route found does not hold
                 if best is None or stall.t > best.t:
                     best = stall
         assert best is not None
+        if clock.now() < self.deadline:  # a route's step budget is not the solve's
+            point = self.minimised(best)
+            if point is not None:
+                return point
         if best.budget:
             raise best
         return self.beyond_fold(best)
@@ -387,6 +391,119 @@ class _Run:
             return Arrays(val, arrays.fol, arrays.prm)
 
         return [at(i / legs) for i in range(1, legs + 1)]
+
+    def minima(self) -> list[tuple[Lowered, _Point]]:
+        """The equilibria the discretised part's energy minima lead to
+        (``minimum.minima``), each converged by a damped Newton of the shooting, with
+        more restart nodes where the intervals are too long for its forces; each with
+        the lowering its unknowns belong to."""
+        problem = self.low.problem
+        if not minimum.applicable(problem):
+            return []
+        base = len(lower(problem).nodes) + 1
+        out: list[tuple[Lowered, _Point]] = []
+
+        def converged(start) -> tuple[Lowered, _Point] | None:
+            for count in (base, 4 * base, 16 * base):
+                if clock.now() > self.deadline:
+                    return None
+                self.low = low = lower(problem, nodes=count)
+                mesh = self.first_mesh()
+                z, r, status, jac, stats = self.newton(
+                    low.unknowns_from(start), low.target, mesh, strict=False,
+                    tol=self.solver.tolerance)
+                if status == kernels.CONVERGED:
+                    try:
+                        return low, self.polish(_Point(z, jac, mesh, stats, r))
+                    except _Stalled:
+                        pass
+            return None
+
+        out: list[tuple[Lowered, _Point]] = []
+        for start in minimum.minima(problem, deadline=self.deadline):
+            found = converged(start)
+            if found is None and clock.now() < self.deadline:
+                finer = minimum.refined(start)
+                found = converged(finer) if finer is not None else None
+            if found is not None:
+                out.append(found)
+        return out
+
+    def _judged(self, candidates: list[tuple[Lowered, _Point]]) -> list[tuple]:
+        """Distinct candidates as (unstable, energy, low, point), the best first: stable
+        (or neutral) before unstable, then the lower potential energy; a tie (mirror
+        twins, to 1e-9) keeps the earlier candidate first."""
+        judged: list[tuple] = []
+        seen: list[Equilibrium] = []
+        for low, point in candidates:
+            self.low = low
+            eq = self._equilibrium(point)
+            if any(_same(eq, other) for other in seen):
+                continue
+            seen.append(eq)
+            judged.append((self.stable(point) is False, self.energy(point), low, point))
+        part = self.low.problem.part
+        scale = part.bending_stiffness / part.length
+
+        def key(j: tuple) -> tuple:  # energies within 1e-9 are one level
+            return j[0], round(j[1] / (1e-9 * (abs(j[1]) + scale)))
+
+        judged.sort(key=key)  # stable sort: ties keep their order
+        return judged
+
+    @staticmethod
+    def _listed(judged: list[tuple]) -> str:
+        return ", ".join(f"{e:.6g} J ({'unstable' if u else 'stable'})"
+                         for u, e, *_ in judged)
+
+    def lowest(self, point: _Point) -> _Point:
+        """The route's answer, unless a minimum of the energy (``minima``) is a lower
+        stable equilibrium (or the route's is unstable): a cold solve in configuration
+        space (positions held at two stations or more) answers with where the part is
+        likeliest to settle, and names the others. In force space (one held station) the
+        route's answer is the branch the loads lead to from the unloaded part."""
+        problem = self.low.problem
+        if (not minimum.applicable(problem) or clock.now() > self.deadline
+                or sum(any(v is not None for v in c.position) for c in problem.conditions) < 2):
+            return point  # force space: the path from the unloaded part is the answer
+        low, notes, reached = self.low, list(self.notes), list(self.reached)
+        judged = self._judged([(low, point)] + self.minima())
+        best = judged[0]
+        if best[3] is point:
+            self.low, self.notes, self.reached = low, notes, reached
+            if len(judged) > 1:
+                self.notes.append("the other equilibria found by minimising the energy "
+                                  "from a few starting shapes: " + self._listed(judged[1:]))
+            return point
+        self.low = best[2]
+        route = next(j for j in judged if j[3] is point)
+        self.notes[:] = [n for n in notes if not n.startswith(_BRANCH_NOTE)]
+        self.notes.append(
+            f"pliant took the equilibrium where the part's energy is least "
+            f"({'unstable' if best[0] else 'stable'}, potential energy {best[1]:.6g} J, found "
+            f"by minimising it from {len(minimum.BOWS)} starting shapes); the path from the "
+            f"unloaded part leads to another: " + self._listed([route])
+            + "".join(f"; also found: {self._listed([j])}" for j in judged[1:] if j is not route))
+        self.reached = [best[3]]
+        return best[3]
+
+    def minimised(self, stall: _Stalled) -> _Point | None:
+        """Every path met a fold: the lowest stable equilibrium among those the energy
+        minima lead to (``minima``), or None. Say so, and what else was found."""
+        judged = self._judged(self.minima())
+        if not judged:
+            return None
+        unstable, energy, self.low, point = judged[0]
+        note = (f"the paths from the unloaded part stopped at {stall.t:.3g} of the way "
+                f"({stall.reason}); this equilibrium "
+                f"({'unstable' if unstable else 'stable'}, potential energy {energy:.6g} J) "
+                f"is where the part's energy is least, found by minimising it from "
+                f"{len(minimum.BOWS)} starting shapes")
+        if len(judged) > 1:
+            note += "; the others found: " + self._listed(judged[1:])
+        self.notes.append(note)
+        self.reached = [point]
+        return point
 
     def beyond_fold(self, stall: _Stalled) -> _Point:
         """Every path met a fold (the part would snap through): look for an equilibrium
@@ -575,7 +692,8 @@ def equilibria(problem: Problem, *, solver: ShootingSolver | None = None,
     """The distinct equilibria of a 2D problem that pliant's routes reach from the
     unloaded part within ``budget`` seconds: each route of a cold solve (straight, more
     restart nodes, positions first, a swing round the first support) and, from a singular
-    start, each bow side. Stable (and neutral) ones first, then unstable, each group by
+    start, each bow side; then the minima of the energy from a few starting shapes
+    (``minimum``). Stable (and neutral) ones first, then unstable, each group by
     potential energy (``pliant.core.equilibrium.potential_energy``); the first is what
     ``solve`` would choose among them. Empty when no route reaches one."""
     solver = solver or ShootingSolver()
@@ -600,6 +718,15 @@ def equilibria(problem: Problem, *, solver: ShootingSolver | None = None,
                     f"reached by the {name.replace('_', ' ')} route",))
             except _Stalled:
                 continue
+            if not any(_same(eq, other) for other in found):
+                found.append(eq)
+    left = deadline - clock.now()
+    if left > 0.0:  # and where the energy is least, from a few starting shapes
+        run = _Run(lower(problem), replace(solver, time_budget=left))
+        for low, point in run.minima():
+            run.low = low
+            eq = _answer(run, point, problem, solver,
+                         notes=("reached by minimising the energy",))
             if not any(_same(eq, other) for other in found):
                 found.append(eq)
     energy = {id(e): potential_energy(e) for e in found}
