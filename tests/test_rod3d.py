@@ -107,6 +107,30 @@ def test_isotropic_case3_leaves_the_plane():
     assert abs(values[1] - values[0]) < 0.02 * abs(values[1])
 
 
+def test_a_snap_that_ends_on_a_saddle_is_pushed_off_it():
+    """Issue (a snap stalled next to a saddle on another machine): the relaxation past a
+    fold ends with a Newton, which lands on a saddle where the flow slowed beside it. Here
+    it starts on one: case 3's planar equilibrium of a round part, unstable out of the
+    plane (see above). Relaxed alone it stays there; ``settle`` pushes along the unstable
+    mode and the part settles out of the plane, stable, in the equilibrium a cold solve
+    finds (or its mirror about the plane)."""
+    problem = pl.Problem(pl.Part(length=1.0, bending_stiffness=1.0),
+                         to_3d(zoo()["case3"]).conditions)
+    solver = rod3d.RodSolver(elements=40)
+    strip = rod3d.solve(to_3d(zoo()["case3"]), solver=solver)
+    run = _Run(strip.state.rod.retarget(problem, 40) or lower(problem, 40), solver)
+    saddle, _, status, _ = run.newton(strip.state.state, run.rod.target, strict=False)
+    assert status == kernels.CONVERGED and not stability_of(run, saddle)[0]
+    stayed = run.relax(saddle, run.rod.target)
+    assert np.abs(stayed[0][:, 2]).max() < 1e-8  # the plain relaxation: still the saddle
+    settled = run.settle(saddle, run.rod.target)
+    assert settled is not None and stability_of(run, settled)[0]
+    cold = rod3d.solve(problem, solver=solver)
+    mirrored = settled[0] * np.array([1.0, 1.0, -1.0])
+    assert min(np.abs(settled[0] - cold.position).max(),
+               np.abs(mirrored - cold.position).max()) < 1e-8
+
+
 def helix(kappa: float, tau: float, twist: float, s: np.ndarray):
     """Centreline, tangent and section axis d1 of a helix about +z (curvature kappa,
     torsion tau) whose material frame twists at the rate ``twist``."""

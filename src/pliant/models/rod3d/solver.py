@@ -538,7 +538,7 @@ class _Run:
             self.gauge_quat = stall.gauge
             end, *rest = stall.ahead
             past = stall.loads.lerp(end, min(1.0, max(1e-3, 10.0 * self.solver.min_step)))
-            state = self.relax(stall.state, past)
+            state = self.settle(stall.state, past)
             if state is None:
                 raise stall
             try:
@@ -553,6 +553,32 @@ class _Run:
                 "equilibrium it reaches after the snap, found by letting it settle (a "
                 "pseudo-transient relaxation) and following on: other equilibria may exist")
             return state
+
+    def settle(self, state: State, loads: Loads, push: float = 0.05) -> State | None:
+        """Relax (``relax``); where that ends on a saddle (an unstable equilibrium: the
+        flow slowed next to it and the closing Newton landed on it), push the part along
+        the saddle's unstable mode by ``push`` L, one way then the other, and relax
+        again, so that the snap cannot stall at a saddle: the state it settles in is
+        stable (or neutral), or None."""
+        state = self.relax(state, loads)
+        for _ in range(3):
+            if state is None:
+                return None
+            mode: list = []
+            stable, _ = _stability(self, state, found=mode, loads=loads)
+            if stable or not mode:
+                return state
+            primal, _ = _metric(self.rod)
+            du = np.zeros(self.rod.n)
+            du[np.flatnonzero(primal)] = mode[0]
+            du *= push / max(float(np.abs(du).max()), 1e-300)
+            pushed = None
+            for sign in (1.0, -1.0):
+                pushed = self.relax(self.step(state, sign * du, 1.0), loads)
+                if pushed is not None:
+                    break
+            state = pushed
+        return None
 
     def relax(self, state: State, loads: Loads, max_steps: int = 600,
               stride: float = 0.02) -> State | None:
@@ -1053,7 +1079,7 @@ def _metric(rod: Rod) -> tuple[np.ndarray, np.ndarray]:
 
 
 def _stability(run: _Run, state: State, seed: np.ndarray | None = None,
-               found: list | None = None) -> tuple[bool, float]:
+               found: list | None = None, loads: Loads | None = None) -> tuple[bool, float]:
     """(stable, smallest eigenvalue [N m]) of the Hessian of the Lagrangian on the
     constraints' tangent space (positions and frame rotations, weighed by the metric of
     ``_metric``): positive definite means stable.
@@ -1068,7 +1094,8 @@ def _stability(run: _Run, state: State, seed: np.ndarray | None = None,
 
     ``seed``: the softest mode of a nearby equilibrium on the same unknowns (the step
     before on a path), where Lanczos starts: along a path the mode changes little, so it
-    needs fewer iterations. ``found`` (a list) receives this one's mode.
+    needs fewer iterations. ``found`` (a list) receives this one's mode. ``loads``: those
+    the state balances, when not the problem's (a state on the way).
     """
     from pliant.models.banded import band_reduce  # noqa: PLC0415
     from pliant.models.lanczos import softest_mode  # noqa: PLC0415 (its own kernel)
@@ -1081,7 +1108,7 @@ def _stability(run: _Run, state: State, seed: np.ndarray | None = None,
     moment = float(np.abs(moments).max(initial=0.0))
     c = 2.0 * (1.0 + force + moment**2 / (2.0 * float(rod.K[:3].min())))
     primal, weight = _metric(rod)
-    _, ab, _ = run.residual(state, rod.target, want_jac=True)
+    _, ab, _ = run.residual(state, rod.target if loads is None else loads, want_jac=True)
     n, kl, ku = rod.n, rod.kl, rod.ku
     ab[:, kl + ku] += c * np.where(primal, weight, 0.0)
     # A free probe's row and column are the identity's and its part of every solve is 0:
@@ -1090,7 +1117,7 @@ def _stability(run: _Run, state: State, seed: np.ndarray | None = None,
     reduced, lo, up, new = band_reduce(ab, kl, ku, drop)
     piv, ok = kernels.band_lu(reduced, lo, up)
     if not ok:
-        return _stability_dense(run, state)
+        return _stability_dense(run, state, loads)
     size = int(primal.sum())
 
     primal_index = new[np.flatnonzero(primal)]
@@ -1110,7 +1137,7 @@ def _stability(run: _Run, state: State, seed: np.ndarray | None = None,
         value, vector = _stability_arpack(reduced, piv, int(keep.sum()), lo, up,
                                           primal[keep], weight[keep], c, size)
         if value is None:
-            return _stability_dense(run, state)
+            return _stability_dense(run, state, loads)
     if found is not None:
         found[:] = [vector]
     # Neutral (zero to the solver's accuracy: a free family) is not unstable.
@@ -1173,12 +1200,13 @@ def _stability_arpack(ab, piv, n, kl, ku, primal, weight, c, size):
     return float(values[0]), vectors[:, 0]
 
 
-def _stability_dense(run: _Run, state: State) -> tuple[bool, float]:
+def _stability_dense(run: _Run, state: State,
+                     loads: Loads | None = None) -> tuple[bool, float]:
     """The same test with a dense null space and eigensolver (the fallback)."""
     from scipy.linalg import eigh, null_space  # noqa: PLC0415 (heavy; on demand)
 
     rod = run.rod
-    _, ab, _ = run.residual(state, rod.target, want_jac=True)
+    _, ab, _ = run.residual(state, rod.target if loads is None else loads, want_jac=True)
     n, kl, ku = rod.n, rod.kl, rod.ku
     K = dense(ab, kl, ku, n)
     primal, weight = _metric(rod)
