@@ -378,6 +378,9 @@ class Equilibrium3D:
     # A harness's branches (the problem's junctions), each the Equilibrium3D of its own
     # problem, with what its junction applies to it among its loads.
     branches: tuple[Equilibrium3D, ...] = field(default=(), repr=False)
+    # The reactions' relative discretisation error, estimated from the same equilibrium
+    # on twice the elements (Richardson's rule; a cold solve without contact), or None.
+    reaction_error: float | None = None
 
     @cached_property
     def samples(self) -> Samples3D:
@@ -497,6 +500,7 @@ class Equilibrium3D:
             "smallest_eigenvalue": eigen,
             "stability": self.verdict,
             "residual": self.residual,
+            "reaction_error": self.reaction_error,
             "iterations": self.iterations,
             "steps": self.steps,
             "notes": list(self.notes),

@@ -72,6 +72,10 @@ class RodSolver:
     bow : the chord shortening of the imperfection that leaves a singular start, as a
         fraction of what the targets ask
     time_budget : wall-clock seconds before a solve gives up
+    accuracy : the relative error of the reactions a cold solve accepts from the
+        discretisation (estimated by Richardson's rule from the same equilibrium on twice
+        the elements, ``Equilibrium3D.reaction_error``); above it the answer says so and
+        names the element count that meets it
     """
 
     elements: int = 100
@@ -84,6 +88,7 @@ class RodSolver:
     wave_step: float = 1.0
     bow: float = 0.8
     time_budget: float = 60.0
+    accuracy: float = 0.01
 
 
 # X, Q, lam, nu and gam: positions, frames, element and station multipliers, and the
@@ -854,7 +859,71 @@ def _solve(problem: Problem, warm_start: Equilibrium3D | None, solver: RodSolver
     seed = None
     if warm_start is not None and isinstance(warm_start.state, _WarmState):
         seed = warm_start.state.mode[0] if warm_start.state.mode else None
-    return _build(run, state, seed)
+    eq = _build(run, state, seed)
+    if warm_start is None:
+        eq = _with_reaction_error(run, state, eq)
+    return eq
+
+
+def _twin(run: _Run, state: State) -> tuple[int, dict[str, StationLoad]] | None:
+    """The same equilibrium on twice the elements (element count, station loads), by a
+    damped Newton from this one carried over (positions and internal forces interpolated,
+    frames from their neighbours): the same branch. None where there is contact (the
+    touching set would have to be found again) or it does not converge."""
+    rod = run.rod
+    if rod.iprobe.shape[0]:
+        return None
+    fine = lower(rod.problem, elements=2 * rod.requested)
+    if fine.m != rod.m:
+        return None
+    X, Q, lam, nu = state[:4]
+    Xf = np.column_stack([np.interp(fine.s_node, rod.s_node, X[:, k]) for k in range(3)])
+    mid, mid_f = (0.5 * (s[1:] + s[:-1]) for s in (rod.s_node, fine.s_node))
+    lam_f = np.column_stack([np.interp(mid_f, mid, lam[:, k]) for k in range(3)])
+    twin = _Run(fine, run.solver)
+    twin.gauge_quat = run.gauge_quat
+    start = (Xf, _frames_at(rod.frame_s, Q, fine.frame_s), lam_f, nu.copy(),
+             np.zeros(fine.islot.shape[0]))
+    found, _, status, _ = twin.newton(start, fine.target, strict=False)
+    if status != kernels.CONVERGED:
+        return None
+    return fine.elements, _station_loads(twin, found)
+
+
+def _with_reaction_error(run: _Run, state: State, eq: Equilibrium3D) -> Equilibrium3D:
+    """The answer with its reactions' discretisation error estimated, relative to the
+    largest reaction, and a note where it exceeds the solver's accuracy with the element
+    count that would meet it. Richardson's rule on the same equilibrium with twice the
+    elements: the model is second order, so the answer is off by about r^2 / (r^2 - 1)
+    times its difference from the finer one (element ratio r); the finer twin is nearer
+    the asymptotic regime than a coarser one, where a taut part's error falls slower."""
+    twin = _twin(run, state)
+    if twin is None:
+        return eq
+    elements, finer = twin
+    loads = eq.loads
+    ratio = elements / run.rod.elements
+    factor = ratio**2 / (ratio**2 - 1.0)
+    worst = 0.0
+    for part in (slice(0, 3), slice(3, 5)):
+        held = [n for n in loads if any(loads[n].prescribed[part])]
+        pairs = ([(loads[n].force, finer[n].force) for n in held] if part.start == 0
+                 else [(loads[n].moment, finer[n].moment) for n in held])
+        size = max((float(np.linalg.norm(a)) for a, _ in pairs), default=0.0)
+        if size > 0.0:
+            diff = max(float(np.linalg.norm(a - b)) for a, b in pairs)
+            worst = max(worst, factor * diff / size)
+    notes = eq.notes
+    accuracy = run.solver.accuracy
+    if worst > accuracy:
+        need = int(math.ceil(run.rod.requested * math.sqrt(worst / accuracy) / 10.0) * 10)
+        notes = (*notes, f"the reactions may be off by about {100 * worst:.2g} % at "
+                 f"{run.rod.requested} elements (estimated from the same equilibrium on "
+                 f"{elements}); about {need} elements bring them within {100 * accuracy:g} % "
+                 f"(RodSolver(elements={need}))")
+    out = replace(eq, notes=notes, reaction_error=worst)
+    out.__dict__["samples"] = eq.samples  # sampled already (its loads): not again
+    return out
 
 
 def _release_roll(run: _Run, state: State) -> State:
