@@ -163,6 +163,39 @@ def test_a_cold_answer_estimates_its_reactions_discretisation_error(chord, side,
     assert error(finer) < 0.0125 and finer.reaction_error < 0.0125
 
 
+def test_a_cold_solve_in_configuration_space_takes_the_lowest_stable_equilibrium():
+    """Issue: a cold solve of a pre-curved part held by its axis at both ends found a
+    stable equilibrium where another of lower energy exists (here 11.47 J against 9.85 J
+    by the first route). The answer is the stable one of lowest potential energy among
+    every route's, in balance, and its note names the first route's."""
+    from pliant.core.equilibrium import potential_energy
+
+    part = pl.Part(1.0, 1.0, rest_curvature=-1.8746682220224526,
+                   rest_curvature_2=-2.110183111379974)
+    problem = pl.Problem(part, (
+        pl.clamp(0.0, (0.0, 0.0, 0.0), tangent=(1.0, 0.0, 0.0), normal=(0.0, 0.0, 1.0)),
+        pl.grip(1.0, (0.037373700440417025, 0.428805391043273, -0.09993627965470883),
+                tangent=(0.11971269704277052, 0.46351305555694045, -0.877966125482649),
+                name="hand")))
+    solver = rod3d.RodSolver(elements=40)
+    eq = rod3d.solve(problem, solver=solver)
+    assert eq.verdict == "stable"
+    energy = potential_energy(eq)
+    assert energy == pytest.approx(9.85, abs=0.01)
+    listed = [potential_energy(e) for e in rod3d.equilibria(problem, solver=solver)
+              if e.verdict != "unstable"]
+    assert energy == pytest.approx(min(listed), abs=1e-9)
+    note = next(n for n in eq.notes if n.startswith("pliant took the stable equilibrium"))
+    assert "the first route's has 11.47" in note
+    loads = eq.loads
+    total = sum(ld.force for ld in loads.values())
+    assert np.abs(total).max() < 1e-8  # no weight: the reactions balance
+    x = eq.position
+    moment = sum(np.cross(x[int(np.argmin(np.abs(eq.s - ld.s)))], ld.force) + ld.moment
+                 for ld in loads.values())
+    assert np.abs(moment).max() < 1e-8
+
+
 def helix(kappa: float, tau: float, twist: float, s: np.ndarray):
     """Centreline, tangent and section axis d1 of a helix about +z (curvature kappa,
     torsion tau) whose material frame twists at the rate ``twist``."""

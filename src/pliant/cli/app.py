@@ -8,6 +8,7 @@ traceback.
 
 from __future__ import annotations
 
+import os
 import sys
 from pathlib import Path
 from typing import Annotated
@@ -46,8 +47,12 @@ def _main(version: Annotated[bool, typer.Option(
 def _first_run_note() -> None:
     """Say so (on stderr) when the numba kernels are not cached yet: a fresh install
     compiles them once, for about a minute, and should not look hung."""
-    cache = Path(__file__).resolve().parents[1] / "models" / "rod3d" / "__pycache__"
-    if not any(cache.glob("kernels.*.nbi")):
+    source = Path(__file__).resolve().parents[1] / "models" / "rod3d"
+    cache = source / "__pycache__"
+    pattern = "kernels.*.nbi"
+    if os.environ.get("NUMBA_CACHE_DIR"):  # numba keeps a folder per source folder there
+        cache, pattern = Path(os.environ["NUMBA_CACHE_DIR"]), f"rod3d_*/{pattern}"
+    if not any(cache.glob(pattern)):
         typer.echo("compiling the solvers (first run only, about a minute)…", err=True)
 
 

@@ -861,8 +861,43 @@ def _solve(problem: Problem, warm_start: Equilibrium3D | None, solver: RodSolver
         seed = warm_start.state.mode[0] if warm_start.state.mode else None
     eq = _build(run, state, seed)
     if warm_start is None:
-        eq = _with_reaction_error(run, state, eq)
+        eq, run = _lowest(run, eq)
+        eq = _with_reaction_error(run, eq.state.state, eq)
     return eq
+
+
+def _lowest(run: _Run, eq: Equilibrium3D) -> tuple[Equilibrium3D, _Run]:
+    """A cold answer in configuration space (positions held at two stations or more,
+    no contact): the stable equilibrium of lowest potential energy among every route's
+    (``equilibria``), not the first route's, which is kept on a tie; the note names the
+    first route's. With the run the answer belongs to."""
+    rod = run.rod
+    problem = rod.problem
+    if (rod.iprobe.shape[0] or sum(any(v is not None for v in c.position)
+                                   for c in problem.conditions) < 2
+            or not _conservative(run, eq.state.state)):
+        return eq, run
+    left = run.deadline - clock.now()
+    if left <= 0.0:
+        return eq, run
+    first = potential_energy(eq)
+    found = equilibria(problem, solver=replace(run.solver, time_budget=left), budget=left)
+    scale = problem.part.bending_stiffness / problem.part.length
+    stable = eq.verdict != "unstable"
+    better = [e for e in found if e.verdict != "unstable" and (
+        not stable or potential_energy(e) < first - 1e-9 * (abs(first) + scale))]
+    if not better:
+        return eq, run
+    best = better[0]
+    energy = potential_energy(best)
+    kept = [n for n in eq.notes if not n.startswith(_BRANCH_NOTE)]
+    note = (f"pliant took the stable equilibrium of lowest potential energy its routes "
+            f"reach ({energy:.6g} J, {best.notes[0]}); the first route's has {first:.6g} J "
+            f"and is {eq.verdict}")
+    chosen = replace(best, notes=(*kept, note), iterations=eq.iterations + best.iterations)
+    again = _Run(best.state.rod, run.solver)
+    again.gauge_quat = best.state.gauge_quat
+    return chosen, again
 
 
 def _twin(run: _Run, state: State) -> tuple[int, dict[str, StationLoad]] | None:
