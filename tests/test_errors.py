@@ -10,6 +10,7 @@ import pytest
 import pliant as pl
 from pliant.errors import ConvergenceError, IllPosedProblemError, InputError, UnreachableTargetError
 from pliant.models.elastica2d import ShootingSolver, solve
+from pliant.models.rod3d import RodSolver
 
 UNIT = pl.Part(length=1.0, bending_stiffness=1.0)
 
@@ -169,4 +170,22 @@ def test_loads_far_past_bending_are_refused_at_once_by_name(problem, field):
 
     with pytest.raises(InputError, match="k L = ") as err:
         pl.solve(problem(pl))
+    assert err.value.field == field
+
+
+@pytest.mark.parametrize(("make", "field"), [
+    (lambda: RodSolver(elements=0), "RodSolver.elements"),
+    (lambda: RodSolver(elements=-5), "RodSolver.elements"),
+    (lambda: RodSolver(elements=200_000), "RodSolver.elements"),
+    (lambda: RodSolver(tolerance=0.0), "RodSolver.tolerance"),
+    (lambda: ShootingSolver(max_steps=0), "ShootingSolver.max_steps"),
+    (lambda: ShootingSolver(contraction=1.5), "ShootingSolver.contraction"),
+    (lambda: ShootingSolver(time_budget=float("nan")), "ShootingSolver.time_budget"),
+    (lambda: pl.grip(1.0, position=(0.5, 0.5), angle=1e300, name="hand"), "hand.angle"),
+])
+def test_settings_and_angles_out_of_range_are_named_not_no_equilibrium(make, field):
+    """Issue: `elements` of 0 or -5 and an angle of 1e300 came back as "no equilibrium",
+    which sends the user after the wrong cause."""
+    with pytest.raises(InputError) as err:
+        make()
     assert err.value.field == field

@@ -28,6 +28,8 @@ from dataclasses import dataclass
 
 from pliant.errors import IllPosedProblemError, InputError
 
+MAX_ANGLE = 1000.0  # rad: about 160 turns; beyond it a typo, never a part's angle
+
 Vector = tuple[float | None, ...]
 
 
@@ -104,7 +106,12 @@ class Condition:
         set_(self, "s", s)
         position = _vector(f"{label}.position", self.position)
         force = _vector(f"{label}.force", self.force)
-        set_(self, "angle", _finite_or_none(f"{label}.angle", self.angle))
+        angle = _finite_or_none(f"{label}.angle", self.angle)
+        if angle is not None and abs(angle) > MAX_ANGLE:
+            raise InputError(f"{label}.angle", f"a tangent angle in rad, within "
+                                               f"+-{MAX_ANGLE:g} (2 pi is a full turn); got "
+                                               f"{angle!r}")
+        set_(self, "angle", angle)
         set_(self, "follower", bool(self.follower))
         moment = self.moment
         if moment is not None and not isinstance(moment, (int, float)):

@@ -211,7 +211,8 @@ def minima(problem: Problem, *, elements: int = ELEMENTS, deadline: float | None
         start = disc.start(bow)
         if np.ptp(start[2:]) < 1e-9:
             continue  # straight: a chord that must shorten cannot to first order
-        state = _minimise(disc, start)
+        with np.errstate(over="ignore", invalid="ignore"):  # a trial step too far: refused
+            state = _minimise(disc, start)
         if state is not None and not any(
                 np.abs(state.u[2:] - other.u[2:]).max() < 1e-4 for other in found):
             found.append(state)
@@ -227,7 +228,8 @@ def refined(state: SimpleNamespace, factor: int = 4) -> SimpleNamespace | None:
     disc = _Discrete(coarse.problem, factor * coarse.n)
     theta = np.repeat(state.u[2:], factor)
     u = np.concatenate([state.u[:2], theta])
-    return _minimise(disc, u)
+    with np.errstate(over="ignore", invalid="ignore"):
+        return _minimise(disc, u)
 
 
 def _minimise(disc: _Discrete, u0: np.ndarray) -> SimpleNamespace | None:

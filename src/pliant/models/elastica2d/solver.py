@@ -41,6 +41,7 @@ from pliant.core.equilibrium import (
 from pliant.core.problem import Problem
 from pliant.errors import ConvergenceError
 from pliant.models import clock
+from pliant.models.settings import check
 from pliant.models.elastica2d import kernels, minimum
 from pliant.models.elastica2d.lowering import (
     NODE_SPAN,
@@ -95,6 +96,9 @@ class ShootingSolver:
     bow: float = 0.8
     bow_min: float = 0.01
     bow_max: float = 40.0
+
+    def __post_init__(self) -> None:
+        check(self, fractions=("contraction", "shrink"))
 
 
 @dataclass

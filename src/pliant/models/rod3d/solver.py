@@ -48,6 +48,7 @@ from pliant.core.equilibrium import (
 from pliant.core.problem import Problem
 from pliant.errors import ConvergenceError, IllPosedProblemError, InputError
 from pliant.models import clock
+from pliant.models.settings import check
 from pliant.models.banded import dense
 from pliant.models.rod3d import kernels
 from pliant.models.rod3d.kernels import AXIS, FULL
@@ -89,6 +90,9 @@ class RodSolver:
     bow: float = 0.8
     time_budget: float = 60.0
     accuracy: float = 0.01
+
+    def __post_init__(self) -> None:
+        check(self, fractions=("contraction",))
 
 
 # X, Q, lam, nu and gam: positions, frames, element and station multipliers, and the
