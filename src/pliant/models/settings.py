@@ -14,13 +14,17 @@ MAX_ELEMENTS = 100_000  # beyond this a solve runs for hours: a typo, not a requ
 
 
 def check(config: Any, fractions: tuple[str, ...] = ()) -> None:
-    """Every int field a whole number >= 1 (``elements`` from 4 to MAX_ELEMENTS), every
+    """Every bool field a bool, every int field a whole number >= 1 (``elements`` from 4 to MAX_ELEMENTS), every
     float field finite and positive, those in ``fractions`` below 1 too; InputError
     naming the setting otherwise."""
     kind = type(config).__name__
     for f in fields(config):
         value = getattr(config, f.name)
         name = f"{kind}.{f.name}"
+        if f.type in (bool, "bool"):
+            if not isinstance(value, bool):
+                raise InputError(name, f"must be true or false, got {value!r}")
+            continue
         if isinstance(value, bool) or not isinstance(value, (int, float)):
             raise InputError(name, f"must be a number, got {value!r}")
         if f.type in (int, "int"):

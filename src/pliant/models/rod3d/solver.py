@@ -77,6 +77,10 @@ class RodSolver:
         discretisation (estimated by Richardson's rule from the same equilibrium on twice
         the elements, ``Equilibrium3D.reaction_error``); above it the answer says so and
         names the element count that meets it
+    lowest : in a cold solve with positions held at two stations or more and no
+        contact, run every route and answer with the stable equilibrium of lowest
+        potential energy (about four times the first route's time); False answers with
+        the first route's
     """
 
     elements: int = 100
@@ -90,6 +94,7 @@ class RodSolver:
     bow: float = 0.8
     time_budget: float = 60.0
     accuracy: float = 0.01
+    lowest: bool = True
 
     def __post_init__(self) -> None:
         check(self, fractions=("contraction",))
@@ -877,8 +882,8 @@ def _lowest(run: _Run, eq: Equilibrium3D) -> tuple[Equilibrium3D, _Run]:
     first route's. With the run the answer belongs to."""
     rod = run.rod
     problem = rod.problem
-    if (rod.iprobe.shape[0] or sum(any(v is not None for v in c.position)
-                                   for c in problem.conditions) < 2
+    held = sum(any(v is not None for v in c.position) for c in problem.conditions)
+    if (not run.solver.lowest or rod.iprobe.shape[0] or held < 2
             or not _conservative(run, eq.state.state)):
         return eq, run
     left = run.deadline - clock.now()
