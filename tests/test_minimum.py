@@ -152,3 +152,16 @@ def test_inverse_solves_converge_at_least_96_percent_of_the_time():
     """The floor of the property above (it runs first: tests keep their file order)."""
     assert len(TRIED) >= 15
     assert sum(TRIED) >= 0.96 * len(TRIED)
+
+
+def test_lowest_false_answers_with_the_route_alone():
+    """Case 3: the route's answer is already the lowest (its mirror twin ties), so both
+    settings give the same equilibrium; only the default searched the energy's minima."""
+    from pliant.models.elastica2d import ShootingSolver
+
+    problem = load_problem(EXAMPLES / "paper" / "case3.toml")
+    searched = pl.solve(problem)
+    alone = pl.solve(problem, solver=ShootingSolver(lowest=False))
+    np.testing.assert_allclose(alone.position, searched.position, atol=1e-12)
+    assert any("minimising the energy" in n for n in searched.notes)
+    assert not any("minimising the energy" in n for n in alone.notes)
