@@ -369,6 +369,13 @@ class Problem:
         return bool(self.sliders or self.junctions or self.pivots or any(
             getattr(o, "fitted", None) is not None for o in self.obstacles))
 
+    @property
+    def held_stations(self) -> int:
+        """How many conditions hold a position component: two or more is a problem in
+        configuration space (a hand at a target), where a cold solve looks for the
+        lowest stable equilibrium among those it finds."""
+        return sum(any(v is not None for v in c.position) for c in self.conditions)
+
     def with_conditions(self, conditions: Iterable[Condition]) -> Problem:
         return Problem(self.part, tuple(conditions), self.gravity, self.name, self.obstacles,
                        self.sliders, self.junctions, self.pivots)

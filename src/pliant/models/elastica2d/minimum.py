@@ -5,17 +5,19 @@ path meets a fold (the part would snap through on the way) they stop, although t
 problem itself has a stable equilibrium: a stable equilibrium is a local minimum of the
 potential energy on the configurations the conditions allow, and a part held by its
 positions and angles always has one within reach. This route looks for those minima
-directly, from a few starting shapes (straight, bowed to either side), on a part cut
-into elements of constant angle (the discrete elastica):
+directly, from a few starting shapes (an even turn between the held angles, and that
+bowed to either side), on a part cut into elements of constant angle (the discrete
+elastica):
 
     E = sum EI / 2h (theta_k - theta_(k-1) - h kappa0_k)^2 - sum f_k . x_k - sum m_k theta_k
 
 with x_k = x_0 + h sum_(j<k) (cos theta_j, sin theta_j), the weight and dead forces f_k
-lumped at the nodes and the prescribed positions and angles as equality constraints
-(scipy's SLSQP, analytic gradients). The reactions are the constraints' Lagrange
-multipliers (least squares on the stationarity condition). Each minimum, first order in
-h, is only a start: the shooting Newton then converges to the part's own equilibrium
-with its own accuracy (``solver._Run.minimised``).
+lumped at the nodes, a held end angle bending a half element (second order in h), and
+the held positions and interior angles as equality constraints. The minimiser is an SQP
+with the exact Hessian of the Lagrangian (``_sqp``), scipy's SLSQP where it fails. The
+reactions are the constraints' Lagrange multipliers (least squares on the stationarity
+condition). Each minimum is only a start: the shooting Newton then converges to the
+part's own equilibrium with its own accuracy (``solver._Run.minima``).
 
 Only conservative, inextensible problems with at least one prescribed position: a
 follower load has no potential, and an extensible part's start would miss its stretch.

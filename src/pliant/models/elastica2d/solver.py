@@ -41,7 +41,6 @@ from pliant.core.equilibrium import (
 from pliant.core.problem import Problem
 from pliant.errors import ConvergenceError
 from pliant.models import clock
-from pliant.models.settings import check
 from pliant.models.elastica2d import kernels, minimum
 from pliant.models.elastica2d.lowering import (
     NODE_SPAN,
@@ -53,6 +52,7 @@ from pliant.models.elastica2d.lowering import (
     lower,
 )
 from pliant.models.elastica2d.stability import stability
+from pliant.models.settings import check
 
 
 @dataclass(frozen=True)
@@ -410,7 +410,6 @@ class _Run:
         if not minimum.applicable(problem):
             return []
         base = len(lower(problem).nodes) + 1
-        out: list[tuple[Lowered, _Point]] = []
 
         def converged(start) -> tuple[Lowered, _Point] | None:
             for count in (base, 4 * base, 16 * base):
@@ -473,8 +472,7 @@ class _Run:
         route's answer is the branch the loads lead to from the unloaded part."""
         problem = self.low.problem
         if (not self.solver.lowest or not minimum.applicable(problem)
-                or clock.now() > self.deadline
-                or sum(any(v is not None for v in c.position) for c in problem.conditions) < 2):
+                or clock.now() > self.deadline or problem.held_stations < 2):
             return point  # force space: the path from the unloaded part is the answer
         low, notes, reached = self.low, list(self.notes), list(self.reached)
         judged = self._judged([(low, point)] + self.minima())
@@ -491,7 +489,7 @@ class _Run:
         self.notes.append(
             f"pliant took the equilibrium where the part's energy is least "
             f"({'unstable' if best[0] else 'stable'}, potential energy {best[1]:.6g} J, found "
-            f"by minimising it from {len(minimum.BOWS)} starting shapes); the path from the "
+            f"by minimising it from a few starting shapes); the path from the "
             f"unloaded part leads to another: " + self._listed([route])
             + "".join(f"; also found: {self._listed([j])}" for j in judged[1:] if j is not route))
         self.reached = [best[3]]
@@ -507,8 +505,8 @@ class _Run:
         note = (f"the paths from the unloaded part stopped at {stall.t:.3g} of the way "
                 f"({stall.reason}); this equilibrium "
                 f"({'unstable' if unstable else 'stable'}, potential energy {energy:.6g} J) "
-                f"is where the part's energy is least, found by minimising it from "
-                f"{len(minimum.BOWS)} starting shapes")
+                f"is where the part's energy is least, found by minimising it from a few "
+                "starting shapes")
         if len(judged) > 1:
             note += "; the others found: " + self._listed(judged[1:])
         self.notes.append(note)

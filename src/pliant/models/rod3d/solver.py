@@ -882,8 +882,7 @@ def _lowest(run: _Run, eq: Equilibrium3D) -> tuple[Equilibrium3D, _Run]:
     first route's. With the run the answer belongs to."""
     rod = run.rod
     problem = rod.problem
-    held = sum(any(v is not None for v in c.position) for c in problem.conditions)
-    if (not run.solver.lowest or rod.iprobe.shape[0] or held < 2
+    if (not run.solver.lowest or rod.iprobe.shape[0] or problem.held_stations < 2
             or not _conservative(run, eq.state.state)):
         return eq, run
     left = run.deadline - clock.now()
@@ -949,9 +948,9 @@ def _with_reaction_error(run: _Run, state: State, eq: Equilibrium3D) -> Equilibr
     ratio = elements / run.rod.elements
     factor = ratio**2 / (ratio**2 - 1.0)
     worst = 0.0
-    for part in (slice(0, 3), slice(3, 5)):
-        held = [n for n in loads if any(loads[n].prescribed[part])]
-        pairs = ([(loads[n].force, finer[n].force) for n in held] if part.start == 0
+    for block in (slice(0, 3), slice(3, 5)):  # forces, then moments
+        held = [n for n in loads if any(loads[n].prescribed[block])]
+        pairs = ([(loads[n].force, finer[n].force) for n in held] if block.start == 0
                  else [(loads[n].moment, finer[n].moment) for n in held])
         size = max((float(np.linalg.norm(a)) for a, _ in pairs), default=0.0)
         if size > 0.0:
