@@ -27,8 +27,10 @@ from __future__ import annotations
 
 import math
 from types import SimpleNamespace
+from typing import NamedTuple
 
 import numpy as np
+from numba import njit
 
 from pliant.core.problem import Problem
 from pliant.models import clock
@@ -48,6 +50,26 @@ def applicable(problem: Problem) -> bool:
                for c in conds)
 
 
+class Arrays(NamedTuple):
+    """The discrete part for the compiled kernels (units of L and EI / L): rest
+    curvature, dead forces and couples at the nodes, the dead forces' sums from each node
+    on, held positions (node, component, value), held interior angles (node, value) and
+    held end angles (node, value)."""
+
+    h: float
+    kappa0: np.ndarray
+    f: np.ndarray
+    tail: np.ndarray
+    m: np.ndarray
+    pos_k: np.ndarray
+    pos_i: np.ndarray
+    pos_v: np.ndarray
+    ang_k: np.ndarray
+    ang_v: np.ndarray
+    end_k: np.ndarray
+    end_v: np.ndarray
+
+
 class _Discrete:
     """The discrete part in units of L (lengths), EI / L (energies)."""
 
@@ -58,12 +80,12 @@ class _Discrete:
         n, h = elements, self.h
         s = np.linspace(0.0, 1.0, n + 1)
         self.s = s
-        self.kappa0 = np.array([part.rest_curvature_at(x * L) for x in s]) * L
+        kappa0 = np.array([part.rest_curvature_at(x * L) for x in s]) * L
         weight = np.full(n + 1, h)
         weight[[0, -1]] = 0.5 * h
         q = part.mass_per_length * np.asarray(problem.gravity, float) * L**3 / EI
-        self.f = weight[:, None] * q[None, :]  # dead forces at the nodes
-        self.m = np.zeros(n + 1)  # dead couples at the nodes
+        f = weight[:, None] * q[None, :]  # dead forces at the nodes
+        m = np.zeros(n + 1)  # dead couples at the nodes
         self.position: list[tuple[int, int, float]] = []  # (node, component, value)
         self.angle: list[tuple[int, float]] = []  # interior: constraints
         self.ends: list[tuple[int, float]] = []  # at an end: a half element's bending
@@ -76,104 +98,43 @@ class _Discrete:
                 if v is not None:
                     self.position.append((k, i, float(v) / L))
                 elif c.force and c.force[i] is not None:
-                    self.f[k, i] += float(c.force[i]) * L**2 / EI
+                    f[k, i] += float(c.force[i]) * L**2 / EI
             if c.angle is not None and k in (0, n):
                 self.ends.append((k, float(c.angle)))
             elif c.angle is not None:
                 self.angle.append((k, float(c.angle)))
             elif c.moment is not None:
-                self.m[k] += float(c.moment) * L / EI
-        self.tail = np.cumsum(self.f[::-1], axis=0)[::-1]  # sum of f_k for k >= j
-
-    # -- the node angle and its weights on the element angles ----------------------------
-    def node_weights(self, k: int) -> list[tuple[int, float]]:
-        if k == 0:
-            return [(0, 1.0)]
-        if k == self.n:
-            return [(self.n - 1, 1.0)]
-        return [(k - 1, 0.5), (k, 0.5)]
+                m[k] += float(c.moment) * L / EI
+        ints = np.int64
+        self.arrays = Arrays(
+            h, kappa0, f, np.cumsum(f[::-1], axis=0)[::-1].copy(), m,
+            np.array([p[0] for p in self.position], ints),
+            np.array([p[1] for p in self.position], ints),
+            np.array([p[2] for p in self.position], float),
+            np.array([a[0] for a in self.angle], ints), np.array([a[1] for a in self.angle]),
+            np.array([e[0] for e in self.ends], ints), np.array([e[1] for e in self.ends]))
+        self.kappa0, self.f, self.tail = kappa0, f, self.arrays.tail
 
     def nodes(self, u: np.ndarray) -> np.ndarray:
-        theta = u[2:]
-        x = np.empty((self.n + 1, 2))
-        x[0] = u[:2]
-        x[1:, 0] = np.cos(theta)
-        x[1:, 1] = np.sin(theta)
-        x[1:] *= self.h
-        return np.cumsum(x, axis=0)
+        return _nodes(u, self.h)
 
     def energy(self, u: np.ndarray) -> tuple[float, np.ndarray]:
-        theta, h = u[2:], self.h
-        d = (np.diff(theta) - h * self.kappa0[1:-1]) / h
-        x = self.nodes(u)
-        e = 0.5 * h * float(d @ d) - float(np.vdot(self.f, x))
-        g = np.empty_like(u)
-        g[:2] = -self.tail[0]
-        gt = g[2:]
-        gt[:] = h * (np.sin(theta) * self.tail[1:, 0] - np.cos(theta) * self.tail[1:, 1])
-        gt[1:] += d
-        gt[:-1] -= d
-        for k, v, j, sign, end in self.end_terms(theta):
-            e += 0.25 * h * end * end
-            gt[j] += sign * end
-        for k in np.nonzero(self.m)[0]:
-            for j, w in self.node_weights(int(k)):
-                e -= w * self.m[k] * theta[j]
-                gt[j] -= w * self.m[k]
-        return e, g
+        return _energy(u, self.arrays)
 
-    def end_terms(self, theta: np.ndarray) -> list[tuple[int, float, int, float, float]]:
-        """Each end whose angle is held: (node, angle, its element, the sign of the
-        element's angle in the curvature, the curvature's excess M / EI there). The held
-        angle bends the half element between the end and the element's middle, which
-        keeps the discretisation second order (an element angle set to it is first)."""
-        out = []
-        for k, v in self.ends:
-            if k == 0:
-                out.append((k, v, 0, 1.0, (theta[0] - v) / (0.5 * self.h) - self.kappa0[0]))
-            else:
-                out.append((k, v, self.n - 1, -1.0,
-                            (v - theta[-1]) / (0.5 * self.h) - self.kappa0[-1]))
-        return out
+    def end_terms(self, theta: np.ndarray) -> list[tuple[int, float, float]]:
+        """Each end whose angle is held: (node, angle, the curvature's excess M / EI)."""
+        excess = _end_excess(np.ascontiguousarray(theta), self.arrays)
+        return [(k, v, float(e)) for (k, v), e in zip(self.ends, excess)]
 
     def hessian(self, u: np.ndarray, lam: np.ndarray) -> np.ndarray:
         """The Hessian of the Lagrangian E - lam . c in u."""
-        theta, h, n = u[2:], self.h, self.n
-        hess = np.zeros((u.size, u.size))
-        b = hess[2:, 2:]
-        idx = np.arange(n)
-        b[idx[1:], idx[1:]] += 1.0 / h
-        b[idx[:-1], idx[:-1]] += 1.0 / h
-        b[idx[1:], idx[:-1]] -= 1.0 / h
-        b[idx[:-1], idx[1:]] -= 1.0 / h
-        for _, _, j, _, _ in self.end_terms(theta):
-            b[j, j] += 2.0 / h
-        # d2 x_k / d theta_j^2 = -h (cos, sin) theta_j for j < k: the loads beyond j
-        # (E has -f . x), and minus the constraints' multipliers on their components.
-        pull = self.tail[1:].copy()
-        for r, (k, i, _) in enumerate(self.position):
-            pull[:k, i] += lam[r]
-        b[idx, idx] += h * (np.cos(theta) * pull[:, 0] + np.sin(theta) * pull[:, 1])
-        return hess
+        return _hessian(u, lam, self.arrays)
 
     def constraints(self, u: np.ndarray) -> np.ndarray:
-        x = self.nodes(u)
-        out = [x[k, i] - v for k, i, v in self.position]
-        for k, v in self.angle:
-            out.append(sum(w * u[2 + j] for j, w in self.node_weights(k)) - v)
-        return np.array(out)
+        return _constraints(u, self.arrays)
 
     def jacobian(self, u: np.ndarray) -> np.ndarray:
-        theta, h = u[2:], self.h
-        rows = np.zeros((len(self.position) + len(self.angle), u.size))
-        dx = h * np.column_stack([-np.sin(theta), np.cos(theta)])
-        for r, (k, i, _) in enumerate(self.position):
-            rows[r, i] = 1.0
-            rows[r, 2:2 + k] = dx[:k, i]
-        for r, (k, _) in enumerate(self.angle, start=len(self.position)):
-            for j, w in self.node_weights(k):
-                rows[r, 2 + j] = w
-        return rows
+        return _jacobian(u, self.arrays)
 
     # -- starts --------------------------------------------------------------------------
     def start(self, bow: float) -> np.ndarray:
@@ -253,72 +214,228 @@ def _minimise(disc: _Discrete, u0: np.ndarray) -> SimpleNamespace | None:
 
 
 def _sqp(disc: _Discrete, u: np.ndarray, iterations: int = 60,
-              tolerance: float = 1e-10) -> SimpleNamespace | None:
-    """Sequential quadratic programming with the exact Hessian of the Lagrangian
-    (tridiagonal: the bending, plus the loads' and constraints' second derivatives, which
-    are diagonal in the element angles). Where that Hessian is not positive on the
-    constraints' tangent space it is shifted until it is, so each step descends toward a
-    minimum, not a saddle; a step the l1 merit function cuts back raises a damping shift
-    for the next (Levenberg's rule), which a full step lowers again. None when it does not
-    converge within ``iterations``."""
-    m = len(disc.position) + len(disc.angle)
-    lam = np.zeros(m)
-    damping = 0.0
-    for _ in range(iterations):
-        e, g = disc.energy(u)
-        c, jac = disc.constraints(u), disc.jacobian(u)
-        if m:
-            lam = np.linalg.lstsq(jac.T, g, rcond=None)[0]
-        if (np.abs(g - jac.T @ lam).max() < tolerance * (1.0 + np.abs(g).max())
-                and np.abs(c).max() < tolerance):
-            return _state(disc, u)
-        step = _kkt_step(disc.hessian(u, lam), jac, g, c, damping)
-        if step is None:
-            return None
-        du, lam_new = step
-        du *= min(1.0, MAX_TURN / max(float(np.abs(du).max()), 1e-300))
-        rho = 2.0 * float(np.abs(lam_new).max(initial=0.0)) + 1.0
-        merit = e + rho * float(np.abs(c).sum())
-        slope = min(float(g @ du) - rho * float(np.abs(c).sum()), 0.0)
-        alpha = 1.0
-        while True:
-            trial = u + alpha * du
-            if disc.energy(trial)[0] + rho * float(np.abs(disc.constraints(trial)).sum()) \
-                    <= merit + 1e-4 * alpha * slope + 1e-12 * abs(merit):  # round-off
-                break
-            alpha *= 0.5
-            if alpha < 1e-6:
-                return None
-        damping = damping / 4.0 if alpha == 1.0 else max(4.0 * damping, 1.0)
-        u = trial
-    return None
+         tolerance: float = 1e-10) -> SimpleNamespace | None:
+    """The compiled SQP (``_sqp_kernel``) from u; None when it does not converge."""
+    found, ok = _sqp_kernel(np.ascontiguousarray(u, float), disc.arrays, iterations,
+                            tolerance, MAX_TURN)
+    return _state(disc, found) if ok else None
 
 
-def _kkt_step(hess: np.ndarray, jac: np.ndarray, g: np.ndarray, c: np.ndarray,
-              damping: float) -> tuple[np.ndarray, np.ndarray] | None:
+# -- compiled kernels (the discrete elastica and its SQP) --------------------------------
+@njit(cache=True)
+def _nodes(u, h):
+    n = u.shape[0] - 2
+    x = np.empty((n + 1, 2))
+    x[0, 0], x[0, 1] = u[0], u[1]
+    for j in range(n):
+        x[j + 1, 0] = x[j, 0] + h * math.cos(u[2 + j])
+        x[j + 1, 1] = x[j, 1] + h * math.sin(u[2 + j])
+    return x
+
+
+@njit(cache=True)
+def _end_excess(theta, a):
+    """M / EI at each held end: the half element between the end and the middle of its
+    element bends from the held angle (second order; an element angle set to it is
+    first)."""
+    n = theta.shape[0]
+    out = np.empty(a.end_k.shape[0])
+    for r in range(a.end_k.shape[0]):
+        if a.end_k[r] == 0:
+            out[r] = (theta[0] - a.end_v[r]) / (0.5 * a.h) - a.kappa0[0]
+        else:
+            out[r] = (a.end_v[r] - theta[n - 1]) / (0.5 * a.h) - a.kappa0[n]
+    return out
+
+
+@njit(cache=True)
+def _energy(u, a):
+    """E and its gradient (see the module)."""
+    n, h = u.shape[0] - 2, a.h
+    theta = u[2:]
+    x = _nodes(u, h)
+    g = np.zeros_like(u)
+    e = 0.0
+    for k in range(n + 1):
+        e -= a.f[k, 0] * x[k, 0] + a.f[k, 1] * x[k, 1]
+    g[0], g[1] = -a.tail[0, 0], -a.tail[0, 1]
+    for j in range(n):
+        g[2 + j] = h * (math.sin(theta[j]) * a.tail[j + 1, 0]
+                        - math.cos(theta[j]) * a.tail[j + 1, 1])
+    for k in range(1, n):
+        d = (theta[k] - theta[k - 1]) / h - a.kappa0[k]
+        e += 0.5 * h * d * d
+        g[2 + k] += d
+        g[2 + k - 1] -= d
+    excess = _end_excess(theta, a)
+    for r in range(excess.shape[0]):
+        e += 0.25 * h * excess[r] * excess[r]
+        if a.end_k[r] == 0:
+            g[2] += excess[r]
+        else:
+            g[2 + n - 1] -= excess[r]
+    for k in range(n + 1):
+        if a.m[k] != 0.0:
+            lo, hi = max(k - 1, 0), min(k, n - 1)
+            w = 1.0 if lo == hi else 0.5
+            for j in range(lo, hi + 1):
+                e -= w * a.m[k] * theta[j]
+                g[2 + j] -= w * a.m[k]
+    return e, g
+
+
+@njit(cache=True)
+def _constraints(u, a):
+    x = _nodes(u, a.h)
+    n = u.shape[0] - 2
+    P, A = a.pos_k.shape[0], a.ang_k.shape[0]
+    out = np.empty(P + A)
+    for r in range(P):
+        out[r] = x[a.pos_k[r], a.pos_i[r]] - a.pos_v[r]
+    for r in range(A):
+        k = a.ang_k[r]  # interior: the mean of its two elements
+        out[P + r] = 0.5 * (u[2 + k - 1] + u[2 + min(k, n - 1)]) - a.ang_v[r]
+    return out
+
+
+@njit(cache=True)
+def _jacobian(u, a):
+    n, h = u.shape[0] - 2, a.h
+    P, A = a.pos_k.shape[0], a.ang_k.shape[0]
+    rows = np.zeros((P + A, u.shape[0]))
+    for r in range(P):
+        i = a.pos_i[r]
+        rows[r, i] = 1.0
+        for j in range(a.pos_k[r]):
+            rows[r, 2 + j] = -h * math.sin(u[2 + j]) if i == 0 else h * math.cos(u[2 + j])
+    for r in range(A):
+        k = a.ang_k[r]
+        rows[P + r, 2 + k - 1] += 0.5
+        rows[P + r, 2 + min(k, n - 1)] += 0.5
+    return rows
+
+
+@njit(cache=True)
+def _hessian(u, lam, a):
+    """The Hessian of the Lagrangian E - lam . c: tridiagonal bending, and on the
+    diagonal the loads' and the constraints' second derivatives (d2 x_k / d theta_j^2 =
+    -h (cos, sin) theta_j for j < k)."""
+    n, h = u.shape[0] - 2, a.h
+    hess = np.zeros((n + 2, n + 2))
+    for k in range(1, n):
+        hess[2 + k, 2 + k] += 1.0 / h
+        hess[2 + k - 1, 2 + k - 1] += 1.0 / h
+        hess[2 + k, 2 + k - 1] -= 1.0 / h
+        hess[2 + k - 1, 2 + k] -= 1.0 / h
+    for r in range(a.end_k.shape[0]):
+        j = 0 if a.end_k[r] == 0 else n - 1
+        hess[2 + j, 2 + j] += 2.0 / h
+    pull = a.tail[1:].copy()
+    for r in range(a.pos_k.shape[0]):
+        for j in range(a.pos_k[r]):
+            pull[j, a.pos_i[r]] += lam[r]
+    for j in range(n):
+        hess[2 + j, 2 + j] += h * (math.cos(u[2 + j]) * pull[j, 0]
+                                   + math.sin(u[2 + j]) * pull[j, 1])
+    return hess
+
+
+@njit(cache=True)
+def _positive_on_tangents(hess, jac):
+    """Whether the Hessian is positive definite on the null space of the constraints'
+    Jacobian (Cholesky of H + rho J^T J, rho large: Finsler's lemma), and if not, the
+    shift that makes it so (from the reduced Hessian's smallest eigenvalue)."""
+    n, m = hess.shape[0], jac.shape[0]
+    rho = 1e4 * (1.0 + np.abs(hess).max())
+    try:
+        np.linalg.cholesky(hess + rho * (jac.T @ jac) - 1e-6 * np.eye(n))
+        return 0.0
+    except Exception:  # noqa: BLE001 (numba raises a plain LinAlgError)
+        pass
+    if m:
+        null = np.ascontiguousarray(np.linalg.svd(jac, full_matrices=True)[2][m:].T)
+    else:
+        null = np.eye(n)
+    if not null.shape[1]:
+        return 0.0
+    return max(0.0, 1e-6 - np.linalg.eigvalsh(null.T @ hess @ null)[0])
+
+
+@njit(cache=True)
+def _kkt_step(hess, jac, g, c, damping):
     """The SQP step (du, new multipliers), the Hessian shifted until it is positive
     definite on the null space of the constraints' Jacobian, and by ``damping`` more."""
     n, m = hess.shape[0], jac.shape[0]
-    if m:
-        q = np.linalg.qr(jac.T, mode="complete")[0]
-        null = q[:, m:]
-    else:
-        null = np.eye(n)
-    reduced = null.T @ hess @ null
-    shift = damping
-    try:  # positive definite on the tangent space: no shift (the usual case)
-        np.linalg.cholesky(reduced - 1e-6 * np.eye(reduced.shape[0]))
-    except np.linalg.LinAlgError:
-        shift += 1e-6 - float(np.linalg.eigvalsh(reduced)[0])
+    shift = damping + _positive_on_tangents(hess, jac)
     kkt = np.zeros((n + m, n + m))
-    kkt[:n, :n] = hess + shift * np.eye(n)
+    kkt[:n, :n] = hess
+    for i in range(n):
+        kkt[i, i] += shift
     kkt[:n, n:] = jac.T
     kkt[n:, :n] = jac
+    rhs = np.empty(n + m)
+    rhs[:n] = -g
+    rhs[n:] = -c
     try:
-        sol = np.linalg.solve(kkt, -np.concatenate([g, c]))
-    except np.linalg.LinAlgError:
-        return None
+        sol = np.linalg.solve(kkt, rhs)
+    except Exception:  # noqa: BLE001 (dependent constraints: least squares)
+        sol = np.linalg.lstsq(kkt, rhs)[0]
     return sol[:n], -sol[n:]
+
+
+@njit(cache=True)
+def _multipliers(jac, g):
+    """lam with grad E = J^T lam in the least-squares sense (normal equations: J has a
+    few rows)."""
+    try:
+        return np.linalg.solve(jac @ jac.T, jac @ g)
+    except Exception:  # noqa: BLE001
+        return np.linalg.lstsq(jac.T, g)[0]
+
+
+@njit(cache=True)
+def _merit(u, a, rho):
+    return _energy(u, a)[0] + rho * np.abs(_constraints(u, a)).sum()
+
+
+@njit(cache=True)
+def _sqp_kernel(u, a, iterations, tolerance, max_turn):
+    """Sequential quadratic programming with the exact Hessian of the Lagrangian. Where
+    that Hessian is not positive on the constraints' tangent space it is shifted until
+    it is, so each step descends toward a minimum, not a saddle; an element's angle turns
+    by at most ``max_turn`` a step (a longer one from a poor start leaps into a tangled
+    shape); a step the l1 merit function cuts back raises a damping shift for the next
+    (Levenberg's rule), which a full step lowers again. (u, converged)."""
+    m = a.pos_k.shape[0] + a.ang_k.shape[0]
+    lam = np.zeros(m)
+    damping = 0.0
+    for _ in range(iterations):
+        e, g = _energy(u, a)
+        c, jac = _constraints(u, a), _jacobian(u, a)
+        if m:
+            lam = _multipliers(jac, g)
+        if (np.abs(g - jac.T @ lam).max() < tolerance * (1.0 + np.abs(g).max())
+                and (m == 0 or np.abs(c).max() < tolerance)):
+            return u, True
+        du, lam_new = _kkt_step(_hessian(u, lam, a), jac, g, c, damping)
+        if not np.all(np.isfinite(du)):
+            return u, False
+        du *= min(1.0, max_turn / max(np.abs(du).max(), 1e-300))
+        rho = 2.0 * (np.abs(lam_new).max() if m else 0.0) + 1.0
+        merit = e + rho * np.abs(c).sum()
+        slope = min(g @ du - rho * np.abs(c).sum(), 0.0)
+        alpha = 1.0
+        while True:
+            trial = u + alpha * du
+            # (the last term: round-off at the minimum)
+            if _merit(trial, a, rho) <= merit + 1e-4 * alpha * slope + 1e-12 * abs(merit):
+                break
+            alpha *= 0.5
+            if alpha < 1e-6:
+                return u, False
+        damping = damping / 4.0 if alpha == 1.0 else max(4.0 * damping, 1.0)
+        u = trial
+    return u, False
 
 
 def _state(disc: _Discrete, u: np.ndarray) -> SimpleNamespace:
@@ -343,7 +460,7 @@ def _state(disc: _Discrete, u: np.ndarray) -> SimpleNamespace:
     moment = np.zeros(n + 1)  # M / EI - the rest curvature
     moment[1:-1] = (np.diff(theta) / h - disc.kappa0[1:-1])
     moment[0], moment[-1] = moment[1], moment[-2]
-    for k, v, _, _, end in disc.end_terms(theta):
+    for k, v, end in disc.end_terms(theta):
         node_theta[k], moment[k] = v, end
         # The held end's couple on the part: -M at the first end, +M at the last.
         reactions[(k, 2)] = -end if k == 0 else end
