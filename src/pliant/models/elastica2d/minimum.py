@@ -34,6 +34,7 @@ from numba import njit
 
 from pliant.core.problem import Problem
 from pliant.models import clock
+from pliant.models.elastica2d.kernels import lu_solve
 
 ELEMENTS = 48  # elements of the discrete part: a start for Newton, not an answer
 BOWS = (0.0, 1.5, -1.5)  # starting bows [rad]: straight, and to either side
@@ -341,56 +342,117 @@ def _hessian(u, lam, a):
 
 
 @njit(cache=True)
-def _positive_on_tangents(hess, jac):
-    """Whether the Hessian is positive definite on the null space of the constraints'
-    Jacobian (Cholesky of H + rho J^T J, rho large: Finsler's lemma), and if not, the
-    shift that makes it so (from the reduced Hessian's smallest eigenvalue)."""
+def _cholesky_ok(A):
+    """Whether the symmetric A is positive definite (a Cholesky factorisation in
+    place on a copy; plain loops compile in a fraction of LAPACK's time)."""
+    n = A.shape[0]
+    L = A.copy()
+    for j in range(n):
+        d = L[j, j]
+        for k in range(j):
+            d -= L[j, k] * L[j, k]
+        if not d > 0.0:
+            return False
+        d = math.sqrt(d)
+        L[j, j] = d
+        for i in range(j + 1, n):
+            v = L[i, j]
+            for k in range(j):
+                v -= L[i, k] * L[j, k]
+            L[i, j] = v / d
+    return True
+
+
+@njit(cache=True)
+def _tangent_shift(hess, jac):
+    """The shift that makes the Hessian positive definite on the null space of the
+    constraints' Jacobian, 0 where it already is: tested on H + rho J^T J with rho large
+    (Finsler's lemma): a Cholesky first (the usual case), and where it fails the shift
+    from the smallest eigenvalue (the least that works: a larger shift, as interior-point
+    codes raise it tenfold, was seen to steer the steps toward a saddle's basin)."""
     n, m = hess.shape[0], jac.shape[0]
-    rho = 1e4 * (1.0 + np.abs(hess).max())
-    try:
-        np.linalg.cholesky(hess + rho * (jac.T @ jac) - 1e-6 * np.eye(n))
+    scale = 1.0
+    for i in range(n):
+        scale = max(scale, abs(hess[i, i]))
+    big = hess.copy()
+    rho = 1e4 * scale
+    for i in range(n):
+        for j in range(n):
+            acc = 0.0
+            for r in range(m):
+                acc += jac[r, i] * jac[r, j]
+            big[i, j] += rho * acc
+    if _shifted_ok(big, 0.0):
         return 0.0
-    except Exception:  # noqa: BLE001 (numba raises a plain LinAlgError)
-        pass
-    if m:
-        null = np.ascontiguousarray(np.linalg.svd(jac, full_matrices=True)[2][m:].T)
-    else:
-        null = np.eye(n)
-    if not null.shape[1]:
-        return 0.0
-    return max(0.0, 1e-6 - np.linalg.eigvalsh(null.T @ hess @ null)[0])
+    return max(0.0, 1e-6 - np.linalg.eigvalsh(big)[0])
+
+
+@njit(cache=True)
+def _shifted_ok(big, shift):
+    trial = big.copy()
+    for i in range(big.shape[0]):
+        trial[i, i] += shift - 1e-6
+    return _cholesky_ok(trial)
 
 
 @njit(cache=True)
 def _kkt_step(hess, jac, g, c, damping):
     """The SQP step (du, new multipliers), the Hessian shifted until it is positive
-    definite on the null space of the constraints' Jacobian, and by ``damping`` more."""
+    definite on the null space of the constraints' Jacobian, and by ``damping`` more.
+    Where the constraints are dependent (a straight part whose chord must shorten) the
+    multipliers' block takes -1e-8 on its diagonal, so that a step still comes, which
+    bends the part; a system singular even so gives a step of NaN (refused)."""
     n, m = hess.shape[0], jac.shape[0]
-    shift = damping + _positive_on_tangents(hess, jac)
+    shift = damping + _tangent_shift(hess, jac)
     kkt = np.zeros((n + m, n + m))
     kkt[:n, :n] = hess
     for i in range(n):
         kkt[i, i] += shift
-    kkt[:n, n:] = jac.T
-    kkt[n:, :n] = jac
+    for i in range(m):
+        for j in range(n):
+            kkt[j, n + i] = jac[i, j]
+            kkt[n + i, j] = jac[i, j]
     rhs = np.empty(n + m)
     rhs[:n] = -g
     rhs[n:] = -c
-    try:
-        sol = np.linalg.solve(kkt, rhs)
-    except Exception:  # noqa: BLE001 (dependent constraints: least squares)
-        sol = np.linalg.lstsq(kkt, rhs)[0]
+    sol, ok = lu_solve(kkt, rhs)
+    if not ok:  # dependent constraints: regularised, the step still bends the part
+        for i in range(m):
+            kkt[n + i, n + i] = -1e-8
+        sol, ok = lu_solve(kkt, rhs)
+        if not ok:
+            sol[:] = np.nan
     return sol[:n], -sol[n:]
 
 
 @njit(cache=True)
 def _multipliers(jac, g):
-    """lam with grad E = J^T lam in the least-squares sense (normal equations: J has a
-    few rows)."""
-    try:
-        return np.linalg.solve(jac @ jac.T, jac @ g)
-    except Exception:  # noqa: BLE001
-        return np.linalg.lstsq(jac.T, g)[0]
+    """lam with grad E = J^T lam in the least-squares sense: J^T = Q R by modified
+    Gram-Schmidt (J has a few rows), lam = R^-1 Q^T g; a dependent row gets 0."""
+    m, n = jac.shape
+    q = jac.copy()  # rows become orthonormal
+    r = np.zeros((m, m))
+    for a in range(m):
+        for b in range(a):
+            dot = 0.0
+            for j in range(n):
+                dot += q[b, j] * q[a, j]
+            r[b, a] = dot
+            for j in range(n):
+                q[a, j] -= dot * q[b, j]
+        norm = math.sqrt(np.sum(q[a] * q[a]))
+        r[a, a] = norm
+        if norm > 1e-12 * (1.0 + np.abs(jac[a]).max()):
+            q[a] /= norm
+        else:
+            q[a] = 0.0
+    lam = np.zeros(m)
+    for a in range(m - 1, -1, -1):
+        acc = np.sum(q[a] * g)
+        for b in range(a + 1, m):
+            acc -= r[a, b] * lam[b]
+        lam[a] = acc / r[a, a] if np.any(q[a]) else 0.0
+    return lam
 
 
 @njit(cache=True)
@@ -414,7 +476,10 @@ def _sqp_kernel(u, a, iterations, tolerance, max_turn):
         c, jac = _constraints(u, a), _jacobian(u, a)
         if m:
             lam = _multipliers(jac, g)
-        if (np.abs(g - jac.T @ lam).max() < tolerance * (1.0 + np.abs(g).max())
+        station = g.copy()  # grad E - J^T lam
+        for r in range(m):
+            station -= lam[r] * jac[r]
+        if (np.abs(station).max() < tolerance * (1.0 + np.abs(g).max())
                 and (m == 0 or np.abs(c).max() < tolerance)):
             return u, True
         du, lam_new = _kkt_step(_hessian(u, lam, a), jac, g, c, damping)
@@ -423,7 +488,7 @@ def _sqp_kernel(u, a, iterations, tolerance, max_turn):
         du *= min(1.0, max_turn / max(np.abs(du).max(), 1e-300))
         rho = 2.0 * (np.abs(lam_new).max() if m else 0.0) + 1.0
         merit = e + rho * np.abs(c).sum()
-        slope = min(g @ du - rho * np.abs(c).sum(), 0.0)
+        slope = min(np.sum(g * du) - rho * np.abs(c).sum(), 0.0)
         alpha = 1.0
         while True:
             trial = u + alpha * du
