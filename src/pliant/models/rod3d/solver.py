@@ -869,7 +869,7 @@ def _solve(problem: Problem, warm_start: Equilibrium3D | None, solver: RodSolver
     if warm_start is not None and isinstance(warm_start.state, _WarmState):
         seed = warm_start.state.mode[0] if warm_start.state.mode else None
     eq = _build(run, state, seed)
-    if warm_start is None:
+    if warm_start is None and not problem.solved_together:  # (here: the rigid first pass)
         eq, run = _lowest(run, eq)
         eq = _with_reaction_error(run, eq.state.state, eq)
     return eq
