@@ -128,8 +128,12 @@ def _bend_radius_line(eq: Any) -> str:
     return line
 
 
-def _vec(v) -> str:
-    return "(" + ", ".join(f"{x:.5g}" for x in v) + ")"
+def _vec(v, scale: float = 0.0) -> str:
+    """A vector in 5 figures, its round-off printed as 0: components below 1e-9 of the
+    larger of its own size and ``scale`` (the problem's force or moment scale)."""
+    v = [float(x) for x in v]
+    floor = 1e-9 * max(max((abs(x) for x in v), default=0.0), scale)
+    return "(" + ", ".join(f"{0.0 if abs(x) <= floor else x:.5g}" for x in v) + ")"
 
 
 def _summary_3d(eq: Any, seconds: float, console: Console) -> None:
@@ -138,8 +142,11 @@ def _summary_3d(eq: Any, seconds: float, console: Console) -> None:
                   f"elements): solved in {seconds * 1e3:.2f} ms ({eq.iterations} Newton "
                   f"iterations, {eq.steps} continuation steps, residual {eq.residual:.1e})")
     position, tangent = eq.tip
-    console.print(f"tip (s = {problem.part.length:g} m): position {_vec(position)} m, "
-                  f"tangent {_vec(tangent)}")
+    part = problem.part
+    length, forces, moments = (part.length, part.bending_stiffness / part.length**2,
+                               part.bending_stiffness / part.length)
+    console.print(f"tip (s = {length:g} m): position {_vec(position, length)} m, "
+                  f"tangent {_vec(tangent, 1.0)}")
     table = Table(title="loads on the part (global frame)", title_justify="left")
     for column in ("condition", "s [m]", "force [N]", "moment [N m]", "kind"):
         table.add_column(column)
@@ -147,7 +154,8 @@ def _summary_3d(eq: Any, seconds: float, console: Console) -> None:
         names = ("Fx", "Fy", "Fz", "M (axis)", "M (twist)")
         kind = ("applied" if not any(load.prescribed) else "reaction (" + ", ".join(
             n for n, p in zip(names, load.prescribed) if p) + ")")
-        table.add_row(load.name, f"{load.s:g}", _vec(load.force), _vec(load.moment), kind)
+        table.add_row(load.name, f"{load.s:g}", _vec(load.force, forces),
+                      _vec(load.moment, moments), kind)
     console.print(table)
     moment, at = eq.max_moment()
     console.print(f"max |M| = {_fmt(moment, 'N m')} at s = {at:.4g} m; max |torque| = "
