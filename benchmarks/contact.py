@@ -14,6 +14,8 @@ onto a block), against the same steps without the block.
 accurate solve with contact, its interference and stability checks).
 (d) A real-time frame (50 control points, curve points held out of a drum) against the
 same frame without the drum.
+(e) `benchmarks/contact.py resolution`: (b)'s lowering at 100, 400 and 1,600 elements,
+the Newton iterations per warm step (issue 20: they should not grow with N).
 Timings are machine-dependent; the ratios, measured in the same run, are the figures.
 """
 
@@ -156,7 +158,49 @@ def realtime() -> None:
           "free frame")
 
 
+def resolution(counts: tuple[int, ...] = (100, 400, 1600)) -> None:
+    """(e) The same lowering onto the block at finer resolutions: Newton iterations per
+    warm step (they should not grow with N) and any step that fails."""
+    from pliant.errors import PliantError
+
+    print("(e) the hose's end lowered onto the block at", ", ".join(map(str, counts)),
+          "elements: Newton iterations per warm step")
+    hose = pl.Part(length=1.0, bending_stiffness=0.05, mass_per_length=0.3,
+                   outer_diameter=0.02)
+    block = Obstacle.box("block", (0.2, 0.2, 0.1), (0.7, 0.0, -0.12))
+    for count in counts:
+        solver = rod3d.RodSolver(elements=count)
+
+        def held(z: float) -> pl.Problem:
+            return pl.Problem(hose, (pl.clamp(0.0, position=(0.0, 0.0, 0.0)),
+                                     pl.pin(1.0, position=(0.95, 0.0, z), name="hand")),
+                              gravity=(0.0, 0.0, -9.81), obstacles=(block,))
+
+        heights = np.linspace(0.2, -0.15, 101)
+        eq = rod3d.solve(held(heights[0]), solver=solver)
+        iterations, touching, failed = [], [], None
+        start = time.perf_counter()
+        for step, z in enumerate(heights[1:], start=1):
+            try:
+                eq = rod3d.solve(held(z), warm_start=eq, solver=solver)
+            except PliantError as err:
+                failed = f"step {step} failed: {str(err)[:80]}"
+                break
+            iterations.append(eq.iterations)
+            if len(eq.contacts):
+                touching.append(eq.iterations)
+        print(f"    {count:5d} elements: {len(iterations)} steps, iterations median "
+              f"{statistics.median(iterations):.1f} (touching {statistics.median(touching or [0]):.1f}), "
+              f"max {max(iterations)}; {time.perf_counter() - start:.1f} s"
+              + (f"; {failed}" if failed else ""))
+
+
 if __name__ == "__main__":
+    import sys
+
+    if sys.argv[1:] == ["resolution"]:  # (e) alone: it takes a minute
+        resolution()
+        raise SystemExit
     distances()
     warm_steps()
     scene()
