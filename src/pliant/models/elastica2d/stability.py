@@ -143,8 +143,10 @@ def _smallest_sparse(Q: np.ndarray, A: np.ndarray, metric: np.ndarray,
     of [Q - shift M, A^T; A, 0], whose solutions lie in the constraints' null space.
     Milliseconds where the dense null space and eigensolver take a tenth of a second;
     None where it does not converge (the dense path then answers)."""
-    from scipy.sparse import bmat, csc_matrix, diags  # noqa: PLC0415 (heavy; on demand)
-    from scipy.sparse.linalg import ArpackError, LinearOperator, eigsh, splu  # noqa: PLC0415
+    from scipy.sparse import bmat, csc_matrix  # noqa: PLC0415 (heavy; on demand)
+    from scipy.sparse.linalg import splu  # noqa: PLC0415
+
+    from pliant.models.lanczos import smallest_by_arpack  # noqa: PLC0415
 
     n, m = Q.shape[0], A.shape[0]
     primal = metric > 0.0
@@ -155,19 +157,12 @@ def _smallest_sparse(Q: np.ndarray, A: np.ndarray, metric: np.ndarray,
         lu = splu(K)
     except RuntimeError:  # singular
         return None
-    size = int(primal.sum())
 
     def solve(r: np.ndarray) -> np.ndarray:
         rhs = np.zeros(n + m)
         rhs[:n][primal] = r.ravel()
         return lu.solve(rhs)[:n][primal]
 
-    inverse = LinearOperator((size, size), matvec=solve, dtype=float)
-    unused = LinearOperator((size, size), matvec=lambda x: x, dtype=float)
-    start = np.random.default_rng(12345).standard_normal(size)  # never symmetric
-    try:
-        values = eigsh(unused, k=1, M=diags(metric[primal]), sigma=shift, which="LM",
-                       OPinv=inverse, tol=1e-12, v0=start, return_eigenvectors=False)
-    except ArpackError:
-        return None
-    return float(values[0])
+    start = np.random.default_rng(12345).standard_normal(int(primal.sum()))  # no symmetry
+    value, _ = smallest_by_arpack(solve, metric[primal], shift, tol=1e-12, v0=start)
+    return value

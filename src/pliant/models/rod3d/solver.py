@@ -1294,22 +1294,14 @@ def describe_mode(eq: Equilibrium3D) -> str:
 def _stability_arpack(ab, piv, n, kl, ku, primal, weight, c, size):
     """The same eigenvalue by ARPACK (the fallback where the kernel's Lanczos did not
     converge): (value, vector), or (None, None)."""
-    from scipy.sparse import diags  # noqa: PLC0415 (heavy; on demand)
-    from scipy.sparse.linalg import ArpackError, LinearOperator, eigsh  # noqa: PLC0415
+    from pliant.models.lanczos import smallest_by_arpack  # noqa: PLC0415
 
     def solve(r: np.ndarray) -> np.ndarray:
         rhs = np.zeros(n)
         rhs[primal] = r.ravel()
         return kernels.band_lu_solve(ab, piv, kl, ku, rhs)[primal]
 
-    inverse = LinearOperator((size, size), matvec=solve, dtype=float)
-    unused = LinearOperator((size, size), matvec=lambda x: x, dtype=float)
-    try:
-        values, vectors = eigsh(unused, k=1, M=diags(weight[primal]), sigma=-c, which="LM",
-                                OPinv=inverse, tol=1e-10)
-    except ArpackError:
-        return None, None
-    return float(values[0]), vectors[:, 0]
+    return smallest_by_arpack(solve, weight[primal], -c)
 
 
 def _stability_dense(run: _Run, state: State,
