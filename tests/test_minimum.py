@@ -88,12 +88,12 @@ def test_targets_whose_every_path_meets_a_fold_are_reached_by_the_energy(target,
 
 def twin_lowest(problem: pl.Problem) -> float:
     """The exhaustive twin: the lowest discrete energy [J] over many starts of scipy's
-    SLSQP (a quasi-Newton, not pliant's SQP) on a part of 96 elements, extrapolated to
-    the continuous part from 48 (the discretisation is second order)."""
+    SLSQP (a quasi-Newton, not pliant's SQP) from five bows on a part of 96 elements,
+    extrapolated to the continuous part from 48 (the discretisation is second order)."""
     from scipy.optimize import minimize
 
     lowest = math.inf
-    for bow in np.linspace(-3.0, 3.0, 7):
+    for bow in np.linspace(-3.0, 3.0, 5):
         energies = []
         for n in (48, 96):
             disc = minimum._Discrete(problem, n)
@@ -128,7 +128,7 @@ def inverse_targets(draw):
         angle=angle, name="hand")))
 
 
-@settings(max_examples=20, deadline=None, derandomize=True,
+@settings(max_examples=12, deadline=None, derandomize=True,
           suppress_health_check=[HealthCheck.too_slow])
 @given(inverse_targets())
 def test_a_cold_inverse_solve_gives_the_lowest_stable_equilibrium(problem):
@@ -150,7 +150,7 @@ def test_a_cold_inverse_solve_gives_the_lowest_stable_equilibrium(problem):
 
 def test_inverse_solves_converge_at_least_96_percent_of_the_time():
     """The floor of the property above (it runs first: tests keep their file order)."""
-    assert len(TRIED) >= 15
+    assert len(TRIED) >= 10
     assert sum(TRIED) >= 0.96 * len(TRIED)
 
 

@@ -160,6 +160,7 @@ def test_routing_between_two_connectors_always_converges(direction, reach, axis,
                                 pl.clamp(1.0, position=target, tangent=axis,
                                          normal=normal_to(axis, hint), name="connector")),
                          gravity=(0.0, 0.0, -9.81))
-    eq = rod3d.solve(problem, solver=rod3d.RodSolver(elements=40))
+    # (the routes' convergence: the search for a lower equilibrium is tested elsewhere)
+    eq = rod3d.solve(problem, solver=rod3d.RodSolver(elements=40, lowest=False))
     assert eq.residual <= 1e-9
     assert np.allclose(eq.position[-1], target, atol=1e-9)
