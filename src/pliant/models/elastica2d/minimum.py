@@ -114,7 +114,6 @@ class _Discrete:
             np.array([p[2] for p in self.position], float),
             np.array([a[0] for a in self.angle], ints), np.array([a[1] for a in self.angle]),
             np.array([e[0] for e in self.ends], ints), np.array([e[1] for e in self.ends]))
-        self.kappa0, self.f, self.tail = kappa0, f, self.arrays.tail
 
     def nodes(self, u: np.ndarray) -> np.ndarray:
         return _nodes(u, self.h)
@@ -511,7 +510,7 @@ def _state(disc: _Discrete, u: np.ndarray) -> SimpleNamespace:
     _, g = disc.energy(u)
     jac = disc.jacobian(u)
     lam = np.linalg.lstsq(jac.T, g, rcond=None)[0]  # grad E = J^T lambda
-    force = disc.f.copy()  # every point load on the part, reactions included
+    force = disc.arrays.f.copy()  # every point load on the part, reactions included
     reactions = {}
     for r, (k, i, _) in enumerate(disc.position):
         force[k, i] += lam[r]
@@ -523,7 +522,7 @@ def _state(disc: _Discrete, u: np.ndarray) -> SimpleNamespace:
     x = disc.nodes(u)
     node_theta = np.concatenate([[theta[0]], 0.5 * (theta[1:] + theta[:-1]), [theta[-1]]])
     moment = np.zeros(n + 1)  # M / EI - the rest curvature
-    moment[1:-1] = (np.diff(theta) / h - disc.kappa0[1:-1])
+    moment[1:-1] = (np.diff(theta) / h - disc.arrays.kappa0[1:-1])
     moment[0], moment[-1] = moment[1], moment[-2]
     for k, v, end in disc.end_terms(theta):
         node_theta[k], moment[k] = v, end

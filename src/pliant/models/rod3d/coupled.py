@@ -677,20 +677,8 @@ class Coupling:
         if not want_jac:
             return rows, forces, None
         # mom . d2(rotation error), by central differences of its exact Jacobian.
-        step = 1e-6
-        H = np.empty((6, 6))
-        for c in range(6):
-            d = np.zeros(3)
-            d[c % 3] = step
-            e = _qexp(d)
-            if c < 3:
-                Jp = self._joint_rotation(k, _qmul(qa, e), qb, weight)[1]
-                Jm = self._joint_rotation(k, _qmul(qa, _qconj(e)), qb, weight)[1]
-            else:
-                Jp = self._joint_rotation(k, qa, _qmul(qb, e), weight)[1]
-                Jm = self._joint_rotation(k, qa, _qmul(qb, _qconj(e)), weight)[1]
-            H[c] = mom @ (Jp - Jm) / (2 * step)
-        H = 0.5 * (H + H.T)
+        H = _frame_hessian(lambda a, b: self._joint_rotation(k, a, b, weight)[1],
+                           (qa, qb), mom)
         eye = np.eye(3)
         E = np.zeros((12, 6))
         E[0:3, :3] = fa * (-ra.length / Lr) * eye
@@ -738,16 +726,9 @@ class Coupling:
         torque = J.T @ nu
         if not want_jac:
             return c, torque, None
-        step = 1e-6
-        H = np.empty((3, 3))
-        for v in range(3):
-            d = np.zeros(3)
-            d[v] = step
-            e = _qexp(d)
-            H[v] = nu @ (self._pivot_rows(k, _qmul(q, e), weight)[1]
-                         - self._pivot_rows(k, _qmul(q, _qconj(e)), weight)[1]) / (2 * step)
-        block = _Block([(0, self._pivot_coord(k))], J.T, J, np.zeros((2, 2)),
-                       0.5 * (H + H.T), (self.slot("pivot", k), slice(0, 2)))
+        H = _frame_hessian(lambda a: self._pivot_rows(k, a, weight)[1], (q,), nu)
+        block = _Block([(0, self._pivot_coord(k))], J.T, J, np.zeros((2, 2)), H,
+                       (self.slot("pivot", k), slice(0, 2)))
         return c, torque, block
 
     # -- friction between parts -----------------------------------------------------------
@@ -1123,6 +1104,24 @@ class _CoupledStall(Exception):
 
 
 # -- banded solves with the free probes left out ---------------------------------------
+def _frame_hessian(jacobian, frames: tuple[np.ndarray, ...], mult: np.ndarray,
+                   step: float = 1e-6) -> np.ndarray:
+    """mult . d(jacobian)/d(theta) over material increments theta of each frame in turn
+    (3 per frame), by central differences of the exact Jacobian, symmetrised: the
+    geometric stiffness of a constraint on frame rotations (junctions, pivots)."""
+    size = 3 * len(frames)
+    H = np.empty((size, size))
+    for c in range(size):
+        d = np.zeros(3)
+        d[c % 3] = step
+        e = _qexp(d)
+        plus, minus = list(frames), list(frames)
+        plus[c // 3] = _qmul(frames[c // 3], e)
+        minus[c // 3] = _qmul(frames[c // 3], _qconj(e))
+        H[c] = mult @ (jacobian(*plus) - jacobian(*minus)) / (2 * step)
+    return 0.5 * (H + H.T)
+
+
 def _factor(run: _Run, ab: np.ndarray):
     rod = run.rod
     drop = np.zeros(rod.n, dtype=bool)
