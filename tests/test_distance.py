@@ -131,13 +131,13 @@ def test_hessians_match_finite_differences_of_the_gradient():
         args = field.args
         checked = 0
         for p in obstacle.translation + rng.normal(scale=0.12, size=(150, 3)):
-            d, *g, nearest = distance.query_point(p, 1.0, *args)
+            d, *g, nearest = distance.query_point(p, 1.0, args)
             if nearest != o or d < 0.0:
                 continue
-            H = distance.hessian_point(p, o, *args)
+            H = distance.hessian_point(p, o, args)
             fd = np.column_stack([
-                (np.array(distance.query_point(p + eps * e, 1.0, *args)[1:4])
-                 - np.array(distance.query_point(p - eps * e, 1.0, *args)[1:4])) / (2 * eps)
+                (np.array(distance.query_point(p + eps * e, 1.0, args)[1:4])
+                 - np.array(distance.query_point(p - eps * e, 1.0, args)[1:4])) / (2 * eps)
                 for e in np.eye(3)])
             checked += 1
             assert np.allclose(H, fd, atol=1e-4 * max(1.0, np.abs(fd).max()))

@@ -100,20 +100,17 @@ def _jacobian_check(model, rhs, gam):
     mu = 0.1 * rng.standard_normal(model.mu.shape)
     lam = model.lam + 0.1 * rng.standard_normal(model.lam.shape)
     alpha = model.alpha + 0.1 * rng.standard_normal(model.alpha.shape)
-    head = (model.bar_i, model.bar_j, model.q, model.l0sq, model.p, model.g_start,
-            model.g_val, model.con_row, model.con_c, rhs, model.con_alpha, model.ix,
-            model.imu, model.icon, model.ialpha, model.c_start, model.c_val, model.igam,
-            model.contact, model.field, model.n_unknowns, model.kl, model.ku, True)
+    head = (*model.bundles(rhs), True)
     R, ab = kernels.assemble(X, mu, lam, alpha, gam, *head, True)
     n = model.n_unknowns
     J = dense(ab, model.kl, model.ku, n)
     fd = np.zeros((n, n))
-    index = (model.ix, model.imu, model.icon, model.ialpha, model.igam)
+    numbering = head[1]
     for j in range(n):
         du = np.zeros(n)
         du[j] = 1e-6
-        plus = kernels._apply(X, mu, lam, alpha, gam, du, *index, 1.0)
-        minus = kernels._apply(X, mu, lam, alpha, gam, du, *index, -1.0)
+        plus = kernels._apply(X, mu, lam, alpha, gam, du, numbering, 1.0)
+        minus = kernels._apply(X, mu, lam, alpha, gam, du, numbering, -1.0)
         fd[:, j] = (kernels.assemble(*plus, *head, False)[0]
                     - kernels.assemble(*minus, *head, False)[0]) / 2e-6
     assert np.allclose(J, fd, atol=1e-6)  # and every nonzero lies in the band

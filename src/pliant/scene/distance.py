@@ -24,6 +24,7 @@ import os
 import threading
 from dataclasses import dataclass, replace
 from pathlib import Path
+from typing import NamedTuple
 
 import numpy as np
 from numba import njit
@@ -32,6 +33,38 @@ from pliant.io import progress
 from pliant.io import cache as disk
 
 SPHERE, BOX, CYLINDER, HALFSPACE, MESH = 0, 1, 2, 3, 4
+
+
+class Field(NamedTuple):
+    """A scene's obstacles packed for the kernels (``DistanceField.args``): per obstacle
+    its kind, rotation (3, 3) and translation (3,) into its local frame, parameters (4,)
+    and mesh (-1: a primitive); the meshes' triangles (T, 3, 3), pseudo-normals
+    (T, 7, 3), solidity and first triangle (tri_off); their bounding-volume trees
+    (triangle order, node boxes, children, triangle ranges, first node); their distance
+    grids (values, first value, origin, cell size, dimensions)."""
+
+    kind: np.ndarray
+    rot: np.ndarray
+    trans: np.ndarray
+    param: np.ndarray
+    mesh_id: np.ndarray
+    tri: np.ndarray
+    pseudo: np.ndarray
+    solid: np.ndarray
+    tri_off: np.ndarray
+    order: np.ndarray
+    node_lo: np.ndarray
+    node_hi: np.ndarray
+    left: np.ndarray
+    right: np.ndarray
+    start: np.ndarray
+    count: np.ndarray
+    node_off: np.ndarray
+    g_values: np.ndarray
+    g_off: np.ndarray
+    g_origin: np.ndarray
+    g_size: np.ndarray
+    g_dims: np.ndarray
 GRID_VERSION = 2
 # How far a grid value may be from the truth, in cells: sqrt(3) beyond the exact band
 # (the nearest-band-node bound), plus sqrt(3)/2 of trilinear interpolation.
@@ -369,18 +402,16 @@ def _primitive_hessian(kind, x, y, z, param):
 
 
 @njit(cache=True)
-def hessian_point(p, o, kind, rot, trans, param, mesh_id, tri, pseudo, solid, tri_off,
-                  order, node_lo, node_hi, left, right, start, count, node_off, g_values,
-                  g_off, g_origin, g_size, g_dims):
+def hessian_point(p, o, field):
     """The Hessian (3, 3, world frame) of obstacle o's signed distance at p: the rate
     at which its unit gradient (the contact normal) turns as p moves. Takes the same
-    packed field as ``query_point`` (the grids unused: contact is decided exactly)."""
+    packed ``Field`` as ``query_point`` (the grids unused: contact is decided exactly)."""
+    kind, rot, trans, param, mesh_id, tri = (field.kind, field.rot, field.trans,
+                                             field.param, field.mesh_id, field.tri)
     R = rot[o]
     x, y, z = _local(p, R, trans[o])
     if kind[o] == MESH:
-        d, g, t, region = _packed_mesh_feature(x, y, z, mesh_id[o], tri, pseudo, solid,
-                                               tri_off, order, node_lo, node_hi, left,
-                                               right, start, count, node_off)
+        d, g, t, region = _packed_mesh_feature(x, y, z, mesh_id[o], field)
         e = np.zeros(3)
         feature = 0
         if 1 <= region <= 3:
@@ -451,39 +482,39 @@ def grid_sample(x, y, z, origin, size, dims, values, base):
 
 # -- the whole scene -----------------------------------------------------------------------
 @njit(cache=True)
-def _packed_mesh_feature(x, y, z, m, tri, pseudo, solid, tri_off, order, node_lo, node_hi,
-                         left, right, start, count, node_off):
-    """``_mesh_feature`` of packed mesh m at the local point (x, y, z): (signed
-    distance, unit gradient, the nearest triangle's index in ``tri``, its feature)."""
-    t0, t1 = tri_off[m], tri_off[m + 1]
-    n0, n1 = node_off[m], node_off[m + 1]
-    d, g, t, region = _mesh_feature(np.array([x, y, z]), tri[t0:t1], pseudo[t0:t1],
-                                    solid[m], order[t0:t1], node_lo[n0:n1], node_hi[n0:n1],
-                                    left[n0:n1], right[n0:n1], start[n0:n1], count[n0:n1])
+def _packed_mesh_feature(x, y, z, m, f):
+    """``_mesh_feature`` of packed mesh m of the ``Field`` f at the local point (x, y, z):
+    (signed distance, unit gradient, the nearest triangle's index in ``f.tri``, its
+    feature)."""
+    t0, t1 = f.tri_off[m], f.tri_off[m + 1]
+    n0, n1 = f.node_off[m], f.node_off[m + 1]
+    d, g, t, region = _mesh_feature(np.array([x, y, z]), f.tri[t0:t1], f.pseudo[t0:t1],
+                                    f.solid[m], f.order[t0:t1], f.node_lo[n0:n1],
+                                    f.node_hi[n0:n1], f.left[n0:n1], f.right[n0:n1],
+                                    f.start[n0:n1], f.count[n0:n1])
     return d, g, t0 + t, region
 
 
 @njit(cache=True)
-def query_point(p, band, kind, rot, trans, param, mesh_id, tri, pseudo, solid, tri_off,
-                order, node_lo, node_hi, left, right, start, count, node_off, g_values,
-                g_off, g_origin, g_size, g_dims):
+def query_point(p, band, field):
     """(signed distance, unit gradient x, y, z, obstacle) of the nearest obstacle to p
     (world frame): ``query_points`` for one point."""
-    d, g, o = query_points(p.reshape(1, 3), band, kind, rot, trans, param, mesh_id, tri,
-                           pseudo, solid, tri_off, order, node_lo, node_hi, left, right,
-                           start, count, node_off, g_values, g_off, g_origin, g_size, g_dims)
+    d, g, o = query_points(p.reshape(1, 3), band, field)
     return d[0], g[0, 0], g[0, 1], g[0, 2], o[0]
 
 
 @njit(cache=True)
-def query_points(points, band, kind, rot, trans, param, mesh_id, tri, pseudo, solid,
-                 tri_off, order, node_lo, node_hi, left, right, start, count, node_off,
-                 g_values, g_off, g_origin, g_size, g_dims):
+def query_points(points, band, field):
     """(signed distances (n,), unit gradients (n, 3), nearest obstacles (n,)) of points
     (n, 3), world frame. A mesh answers from its grid where the grid shows its surface
     farther than ``band`` beyond the grid's own error, else exactly. Obstacle by
     obstacle over all points: a call per point carrying the scene's many arrays would
-    cost more than a primitive's distance."""
+    cost more than a primitive's distance. field: the scene's packed ``Field``."""
+    kind, rot, trans, param, mesh_id = (field.kind, field.rot, field.trans, field.param,
+                                        field.mesh_id)
+    node_lo, node_hi, node_off = field.node_lo, field.node_hi, field.node_off
+    g_values, g_off, g_origin, g_size, g_dims = (field.g_values, field.g_off, field.g_origin,
+                                                 field.g_size, field.g_dims)
     n = points.shape[0]
     d = np.full(n, np.inf)
     g = np.zeros((n, 3))
@@ -510,9 +541,7 @@ def query_points(points, band, kind, rot, trans, param, mesh_id, tri, pseudo, so
                     lower = max(di - outside, math.sqrt(cx * cx + cy * cy + cz * cz))
                     di += outside
                 if lower <= band + GRID_ERROR * g_size[m] and lower < d[i]:
-                    di, gm, _, _ = _packed_mesh_feature(x, y, z, m, tri, pseudo, solid,
-                                                        tri_off, order, node_lo, node_hi,
-                                                        left, right, start, count, node_off)
+                    di, gm, _, _ = _packed_mesh_feature(x, y, z, m, field)
                     gx, gy, gz = gm[0], gm[1], gm[2]
             else:
                 di, gx, gy, gz = _primitive(k, x, y, z, prm)
@@ -913,7 +942,7 @@ class DistanceField:
         tri = cat([x.tri for x in meshes], (0, 3, 3))
         pseudo = cat([x.pseudo for x in meshes], (0, 7, 3))
         trees = [x.bvh for x in meshes]
-        self.args = (
+        self.args = Field(
             kind, rot, trans, param, mesh_id, tri, pseudo,
             np.array([x.solid for x in meshes], dtype=np.bool_),
             offsets([x.tri.shape[0] for x in meshes]),
@@ -939,7 +968,7 @@ class DistanceField:
         if not self.obstacles:
             n = points.shape[0]
             return np.full(n, np.inf), np.zeros((n, 3)), np.full(n, -1, dtype=np.int64)
-        return query_points(points, float(band), *self.args)
+        return query_points(points, float(band), self.args)
 
     def query_one(self, k: int, points, band: float = 0.0
                   ) -> tuple[np.ndarray, np.ndarray]:
@@ -948,6 +977,7 @@ class DistanceField:
         cut to it (no copy of a mesh)."""
         points = np.ascontiguousarray(np.atleast_2d(points), dtype=float)
         one = slice(k, k + 1)
-        args = tuple(a[one] for a in self.args[:5]) + self.args[5:]
-        d, g, _ = query_points(points, float(band), *args)
+        args = self.args._replace(**{name: getattr(self.args, name)[one]
+                                     for name in Field._fields[:5]})
+        d, g, _ = query_points(points, float(band), args)
         return d, g

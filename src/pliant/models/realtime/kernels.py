@@ -34,6 +34,7 @@ speeds of the tangents held there) so the Jacobian is banded.
 from __future__ import annotations
 
 import math
+from typing import NamedTuple
 
 import numpy as np
 from numba import njit
@@ -46,13 +47,58 @@ NOT_CONVERGED = 1
 SINGULAR = 2
 
 
+class Network(NamedTuple):
+    """The bars and grips (see the module docstring): each bar's nodes, force density q
+    and squared length l0sq (the first family's), the fictive nodal loads p (n, d); the
+    grips' rows (each a first node g_start and weights g_val), and per constraint its
+    row, coordinate, target (or held tangent component) and tangent speed (-1: a point)."""
+
+    bar_i: np.ndarray
+    bar_j: np.ndarray
+    q: np.ndarray
+    l0sq: np.ndarray
+    p: np.ndarray
+    g_start: np.ndarray
+    g_val: np.ndarray
+    con_row: np.ndarray
+    con_c: np.ndarray
+    con_rhs: np.ndarray
+    con_alpha: np.ndarray
+
+
+class Numbering(NamedTuple):
+    """The first unknown of each node (ix), first-family bar (imu), constraint (icon),
+    tangent speed (ialpha) and contact sample (igam); the system's size and half band
+    widths."""
+
+    ix: np.ndarray
+    imu: np.ndarray
+    icon: np.ndarray
+    ialpha: np.ndarray
+    igam: np.ndarray
+    n_unknowns: int
+    kl: int
+    ku: int
+
+
+class Touch(NamedTuple):
+    """The curve's contact samples (each a first node and weights), (L, radius / L,
+    band [m], scale) and the scene's packed distance field."""
+
+    c_start: np.ndarray
+    c_val: np.ndarray
+    contact: tuple
+    field: tuple
+
+
 @njit(cache=True)
-def assemble(X, mu, lam, alpha, gam, bar_i, bar_j, q, l0sq, p, g_start, g_val, con_row,
-             con_c, con_rhs, con_alpha, ix, imu, icon, ialpha, c_start, c_val, igam, contact,
-             field, n_unknowns, kl, ku, keep, want_jac):
-    """Residual (n_unknowns,) and, with want_jac, its banded Jacobian. keep: hold the
-    first family's lengths; else mu stays as it is and the system is linear in X (the
-    plain force density method). contact = (L, radius / L, band [m], scale)."""
+def assemble(X, mu, lam, alpha, gam, net, num, touch, keep, want_jac):
+    """Residual (n_unknowns,) and, with want_jac, its banded Jacobian (net, num, touch: a
+    ``Network``, ``Numbering`` and ``Touch``). keep: hold the first family's lengths;
+    else mu stays as it is and the system is linear in X (the plain force density
+    method)."""
+    bar_i, bar_j, q, l0sq, p, g_start, g_val, con_row, con_c, con_rhs, con_alpha = net
+    ix, imu, icon, ialpha, _, n_unknowns, kl, ku = num
     n, d = X.shape
     R = np.zeros(n_unknowns)
     ab = np.zeros((n_unknowns if want_jac else 0, 2 * kl + ku + 1))
@@ -109,18 +155,20 @@ def assemble(X, mu, lam, alpha, gam, bar_i, bar_j, q, l0sq, p, g_start, g_val, c
                 add(ab, kl, ku, icon[k], ialpha[a], -con_rhs[k])
                 add(ab, kl, ku, ialpha[a], icon[k], -con_rhs[k])
         R[icon[k]] = value
-    if c_start.shape[0]:
-        _contacts(X, gam, c_start, c_val, igam, ix, contact, field, R, ab, kl, ku, want_jac)
+    if touch.c_start.shape[0]:
+        _contacts(X, gam, touch, num, R, ab, want_jac)
     return R, ab
 
 
 @njit(cache=True)
-def _contacts(X, gam, c_start, c_val, igam, ix, contact, field, R, ab, kl, ku, want_jac):
+def _contacts(X, gam, touch, num, R, ab, want_jac):
     """Add the contact terms of the curve points (see the module docstring)."""
+    c_start, c_val, contact, field = touch
+    ix, igam, kl, ku = num.ix, num.igam, num.kl, num.ku
     L, radius, band, scale = contact
     width = c_val.shape[1]
     points = _curve_points(X, c_start, c_val, L)
-    dist, normals, found = query_points(points, band, *field)
+    dist, normals, found = query_points(points, band, field)
     for m in range(c_start.shape[0]):
         s0 = c_start[m]
         d, o = dist[m], found[m]
@@ -149,7 +197,7 @@ def _contacts(X, gam, c_start, c_val, igam, ix, contact, field, R, ab, kl, ku, w
             for c in range(3):
                 add(ab, kl, ku, ix[s0 + a] + c, igam[m], w * n[c])
         if lam != 0.0 and o >= 0:
-            H = hessian_point(points[m], o, *field) * L  # d n / d (X in units of L)
+            H = hessian_point(points[m], o, field) * L  # d n / d (X in units of L)
             for a in range(width):
                 for b in range(width):
                     wab = lam * c_val[m, a] * c_val[m, b]
@@ -172,7 +220,8 @@ def max_abs(v):
 
 
 @njit(cache=True)
-def _apply(X, mu, lam, alpha, gam, du, ix, imu, icon, ialpha, igam, step):
+def _apply(X, mu, lam, alpha, gam, du, num, step):
+    ix, imu, icon, ialpha, igam = num.ix, num.imu, num.icon, num.ialpha, num.igam
     n, d = X.shape
     Xn = X.copy()
     mun = mu.copy()
@@ -194,16 +243,13 @@ def _apply(X, mu, lam, alpha, gam, du, ix, imu, icon, ialpha, igam, step):
 
 
 @njit(cache=True)
-def newton(X, mu, lam, alpha, gam, bar_i, bar_j, q, l0sq, p, g_start, g_val, con_row, con_c,
-           con_rhs, con_alpha, ix, imu, icon, ialpha, c_start, c_val, igam, contact, field,
-           n_unknowns, kl, ku, keep, tol, max_iter):
+def newton(X, mu, lam, alpha, gam, net, num, touch, keep, tol, max_iter):
     """Newton with backtracking on the largest residual entry from (X, mu, lam, alpha,
     gam); a full step that changes which curve points touch is taken as the active-set
     update. Returns (X, mu, lam, alpha, gam, residual, iterations, status)."""
-    yes = n_unknowns >= 0  # a runtime True: a literal would compile assemble once more
-    R, ab = assemble(X, mu, lam, alpha, gam, bar_i, bar_j, q, l0sq, p, g_start, g_val,
-                     con_row, con_c, con_rhs, con_alpha, ix, imu, icon, ialpha, c_start,
-                     c_val, igam, contact, field, n_unknowns, kl, ku, keep, yes)
+    ix, kl, ku = num.ix, num.kl, num.ku
+    yes = num.n_unknowns >= 0  # a runtime True: a literal would compile assemble once more
+    R, ab = assemble(X, mu, lam, alpha, gam, net, num, touch, keep, yes)
     r = max_abs(R)
     it = 0
     switches = 0
@@ -224,18 +270,14 @@ def newton(X, mu, lam, alpha, gam, bar_i, bar_j, q, l0sq, p, g_start, g_val, con
             step = 0.1 / move
         accepted = False
         for _ in range(12):
-            Xn, mun, lamn, alphan, gamn = _apply(X, mu, lam, alpha, gam, du, ix, imu, icon,
-                                                 ialpha, igam, step)
-            Rn, abn = assemble(Xn, mun, lamn, alphan, gamn, bar_i, bar_j, q, l0sq, p,
-                               g_start, g_val, con_row, con_c, con_rhs, con_alpha, ix, imu,
-                               icon, ialpha, c_start, c_val, igam, contact, field,
-                               n_unknowns, kl, ku, keep, yes)
+            Xn, mun, lamn, alphan, gamn = _apply(X, mu, lam, alpha, gam, du, num, step)
+            Rn, abn = assemble(Xn, mun, lamn, alphan, gamn, net, num, touch, keep, yes)
             rn = max_abs(Rn)
             if rn < r or rn <= tol:
                 accepted = True
                 break
             if (_ == 0 and switches < 6 and math.isfinite(rn)
-                    and _switched(gam, gamn, Xn, X, c_start, c_val, contact, field)):
+                    and _switched(gam, gamn, Xn, X, touch)):
                 switches += 1
                 accepted = True
                 break
@@ -247,12 +289,12 @@ def newton(X, mu, lam, alpha, gam, bar_i, bar_j, q, l0sq, p, g_start, g_val, con
 
 
 @njit(cache=True)
-def _switched(gam, gamn, Xn, X, c_start, c_val, contact, field):
+def _switched(gam, gamn, Xn, X, touch):
     """Whether a step changes which curve points touch (lam > scale g)."""
-    if c_start.shape[0] == 0:
+    if touch.c_start.shape[0] == 0:
         return False
-    before = _touching(X, gam, c_start, c_val, contact, field)
-    after = _touching(Xn, gamn, c_start, c_val, contact, field)
+    before = _touching(X, gam, touch)
+    after = _touching(Xn, gamn, touch)
     for m in range(before.shape[0]):
         if before[m] != after[m]:
             return True
@@ -260,10 +302,11 @@ def _switched(gam, gamn, Xn, X, c_start, c_val, contact, field):
 
 
 @njit(cache=True)
-def _touching(X, gam, c_start, c_val, contact, field):
+def _touching(X, gam, touch):
+    c_start, c_val, contact, field = touch
     L, radius, band, scale = contact
     out = np.zeros(c_start.shape[0], dtype=np.bool_)
-    dist = query_points(_curve_points(X, c_start, c_val, L), band, *field)[0]
+    dist = query_points(_curve_points(X, c_start, c_val, L), band, field)[0]
     for m in range(c_start.shape[0]):
         out[m] = gam[m] > scale * (dist[m] / L - radius)
     return out

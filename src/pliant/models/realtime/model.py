@@ -320,16 +320,22 @@ class RealtimeModel:
             self._fits.append((ks, lambda b, f=factors: sla.lu_solve(f, b),
                                (G, np.linalg.pinv(G) if m else np.zeros((0, n)))))
 
+    def bundles(self, rhs: np.ndarray) -> tuple[kernels.Network, kernels.Numbering,
+                                                 kernels.Touch]:
+        """The kernels' arguments with the grips' targets ``rhs``."""
+        return (kernels.Network(self.bar_i, self.bar_j, self.q, self.l0sq, self.p,
+                                self.g_start, self.g_val, self.con_row, self.con_c, rhs,
+                                self.con_alpha),
+                kernels.Numbering(self.ix, self.imu, self.icon, self.ialpha, self.igam,
+                                  self.n_unknowns, self.kl, self.ku),
+                kernels.Touch(self.c_start, self.c_val, self.contact, self.field))
+
     # -- a frame ---------------------------------------------------------------------------
     def frame(self, problem: Problem) -> RealtimeFrame:
         """Move the grips to the problem's targets and return the display frame."""
-        rhs = self.targets(problem)
         X, mu, lam, alpha, gam, residual, iterations, status = kernels.newton(
-            self.X, self.mu, self.lam, self.alpha, self.gam, self.bar_i, self.bar_j, self.q,
-            self.l0sq, self.p, self.g_start, self.g_val, self.con_row, self.con_c, rhs,
-            self.con_alpha, self.ix, self.imu, self.icon, self.ialpha, self.c_start,
-            self.c_val, self.igam, self.contact, self.field, self.n_unknowns, self.kl,
-            self.ku, self.keep_lengths, self.tolerance, self.max_iterations)
+            self.X, self.mu, self.lam, self.alpha, self.gam, *self.bundles(self.targets(problem)),
+            self.keep_lengths, self.tolerance, self.max_iterations)
         converged = status == kernels.CONVERGED
         if np.isfinite(X).all():
             self.X, self.mu, self.lam, self.alpha, self.gam = X, mu, lam, alpha, gam

@@ -38,6 +38,7 @@ pivoting. Everything is dimensionless (lengths by L, stiffness by EI1).
 from __future__ import annotations
 
 import math
+from typing import NamedTuple
 
 import numpy as np
 from numba import njit
@@ -57,6 +58,85 @@ from pliant.scene.distance import hessian_point, query_points
 FREE = 0
 AXIS = 1
 FULL = 2
+
+
+# -- the kernels' arguments, in named bundles (numba takes NamedTuples as structs) --------
+class Mesh(NamedTuple):
+    """What a discretisation fixes (dimensionless): elements, frames, joints, stations."""
+
+    h: np.ndarray  # (N,) element lengths
+    elem_frame: np.ndarray  # (N,) int, each element's frame
+    joint_hh: np.ndarray  # (J,) each joint's cell length (J = F - 1)
+    K: np.ndarray  # (4,) EI1, EI2, GJ by EI1, and the axial compliance EI1 / (EA L^2)
+    st_node: np.ndarray  # (S,) int, each station's node
+    st_frame: np.ndarray  # (S,) int, and frame
+    st_pos_mask: np.ndarray  # (S, 3) int, which positions it prescribes
+    st_kind: np.ndarray  # (S,) int, FREE, AXIS or FULL
+
+
+class Targets(NamedTuple):
+    """What moves along a homotopy (dimensionless): rest curvature, targets, loads."""
+
+    joint_k0: np.ndarray  # (J, 3) rest Darboux vectors
+    fnode: np.ndarray  # (N+1, 3) applied dead nodal forces
+    st_pos: np.ndarray  # (S, 3) prescribed positions
+    st_axis_b: np.ndarray  # (S, 2, 3) the basis across a prescribed axis (AXIS)
+    st_quat: np.ndarray  # (S, 4) prescribed orientations (FULL)
+    st_moment: np.ndarray  # (S, 3) dead moments (global)
+    st_ffollow: np.ndarray  # (S, 3) follower forces (material)
+    st_mfollow: np.ndarray  # (S, 3) follower moments (material)
+
+
+class Numbering(NamedTuple):
+    """Where each unknown sits: the first of each node (ix), frame (ith), element
+    multiplier (ilam) and station multiplier (inu); each station's first entry (nu_off)
+    and count (nu_cnt) in nu; the twist gauge's frame and unknown (-1: none); the
+    system's size n and half band widths kl, ku."""
+
+    ix: np.ndarray
+    ith: np.ndarray
+    ilam: np.ndarray
+    inu: np.ndarray
+    nu_off: np.ndarray
+    nu_cnt: np.ndarray
+    gauge_frame: int
+    igauge: int
+    n: int
+    kl: int
+    ku: int
+
+
+class Contact(NamedTuple):
+    """The probes and the scene (see ``contact_terms``): each probe's element, place in
+    it and first unknown; unknowns per probe (1, or 3 with friction); L [m], the tube's
+    radius [m], the offset added to every gap, the exact-distance band [m], the
+    complementarity's scale; the scene's packed distance field; and friction's
+    reference (mu per obstacle, the probes' points at the step's start (K, 3, by L),
+    their tangent bases (K, 2, 3))."""
+
+    probe_elem: np.ndarray
+    probe_a: np.ndarray
+    iprobe: np.ndarray
+    slot: int
+    length: float
+    radius: float
+    offset: float
+    band: float
+    scale: float
+    field: tuple
+    friction: tuple
+
+
+class Settings(NamedTuple):
+    """A Newton's budget: tolerance, iterations, the contraction a corrector must reach
+    (<= 0: damped), whether it is a corrector (contact) and the active-set switches a
+    full step may make."""
+
+    tol: float
+    max_iter: int
+    contraction: float
+    strict: bool
+    max_switches: int
 
 
 # -- quaternions (w, x, y, z) ------------------------------------------------------------
@@ -155,21 +235,18 @@ def _sym_e3(H, mu0, mu1, mu2, factor):
 
 
 @njit(cache=True)
-def assemble(X, Q, lam, nu, h, elem_frame, joint_hh, joint_k0, K, fnode,
-             st_node, st_frame, st_pos_mask, st_pos, st_kind, st_axis_b, st_quat,
-             st_moment, st_ffollow, st_mfollow, gauge_frame, gauge_quat,
-             ix, ith, ilam, inu, nu_off, igauge, n, kl, ku, want_jac):
+def assemble(X, Q, lam, nu, mesh, tg, num, gauge_quat, want_jac):
     """KKT residual R (n,) and Jacobian in band storage (n, 2 kl + ku + 1), and energy.
 
     X (N+1, 3) node positions; Q (F, 4) frame quaternions; lam (N, 3) element
     multipliers; nu (m,) station multipliers (in station order, each station's position
     components first, then its 2 (axis) or 3 (full) orientation ones; the twist gauge
-    last). Per station: node, frame, which positions are prescribed and their targets,
-    orientation kind with the axis basis (b1, b2 perpendicular to the target tangent) or
-    the target quaternion, dead moment (global), follower force and moment (material).
-    ix, ith, ilam, inu: first unknown of each node, frame, element, station; nu_off the
-    first entry of each station in nu; igauge the gauge's unknown (when there is one).
+    last); mesh, tg, num: ``Mesh``, ``Targets``, ``Numbering``; gauge_quat (4,) where
+    the gauge holds its frame's twist.
     """
+    h, elem_frame, joint_hh, K, st_node, st_frame, st_pos_mask, st_kind = mesh
+    joint_k0, fnode, st_pos, st_axis_b, st_quat, st_moment, st_ffollow, st_mfollow = tg
+    ix, ith, ilam, inu, nu_off, _, gauge_frame, igauge, n, kl, ku = num
     R = np.zeros(n)
     ab = np.zeros((n, 2 * kl + ku + 1)) if want_jac else np.zeros((0, 0))
     Rm = np.empty((3, 3))
@@ -466,8 +543,9 @@ def assemble(X, Q, lam, nu, h, elem_frame, joint_hh, joint_k0, K, fnode,
 
 
 @njit(cache=True)
-def apply_step(X, Q, lam, nu, du, ix, ith, ilam, inu, nu_off, nu_cnt, igauge, step):
+def apply_step(X, Q, lam, nu, du, num, step):
     """New (X, Q, lam, nu) after the Newton update step * du (frames on the group)."""
+    ix, ith, ilam, inu, nu_off, nu_cnt, _, igauge, _, _, _ = num
     Xn = X.copy()
     Qn = Q.copy()
     lamn = lam.copy()
@@ -519,25 +597,22 @@ NOT_FINITE = 4
 
 
 @njit(cache=True)
-def newton(X, Q, lam, nu, h, elem_frame, joint_hh, joint_k0, K, fnode, st_node, st_frame,
-           st_pos_mask, st_pos, st_kind, st_axis_b, st_quat, st_moment, st_ffollow,
-           st_mfollow, gauge_frame, gauge_quat, ix, ith, ilam, inu, nu_off, nu_cnt, igauge,
-           n, kl, ku, tol, max_iter, contraction):
+def newton(X, Q, lam, nu, mesh, tg, num, gauge_quat, opts):
     """Newton on the KKT system from (X, Q, lam, nu), keeping the factorised Jacobian
     while an iteration contracts the residual tenfold (the band LU is most of the cost).
 
-    contraction > 0: a continuation corrector, rejected (NOT_CONTRACTING) as soon as an
-    iteration with a fresh Jacobian fails to shrink the residual by that factor;
-    contraction <= 0: damped Newton with backtracking on the residual's largest entry.
-    Returns (X, Q, lam, nu, residual, iterations, status, energy).
+    opts (``Settings``): contraction > 0 is a continuation corrector, rejected
+    (NOT_CONTRACTING) as soon as an iteration with a fresh Jacobian fails to shrink the
+    residual by that factor; contraction <= 0 a damped Newton with backtracking on the
+    residual's largest entry. Returns (X, Q, lam, nu, residual, iterations, status,
+    energy).
     """
+    tol, max_iter, contraction = opts.tol, opts.max_iter, opts.contraction
+    kl, ku = num.kl, num.ku
     # Runtime flags, not the literals True and False: numba compiles a callee once more
     # for each literal it is called with.
-    yes, no = n >= 0, n < 0
-    R, ab, energy = assemble(X, Q, lam, nu, h, elem_frame, joint_hh, joint_k0, K, fnode,
-                             st_node, st_frame, st_pos_mask, st_pos, st_kind, st_axis_b,
-                             st_quat, st_moment, st_ffollow, st_mfollow, gauge_frame,
-                             gauge_quat, ix, ith, ilam, inu, nu_off, igauge, n, kl, ku, yes)
+    yes, no = num.n >= 0, num.n < 0
+    R, ab, energy = assemble(X, Q, lam, nu, mesh, tg, num, gauge_quat, yes)
     r = max_abs(R)
     if not math.isfinite(r):
         return X, Q, lam, nu, r, 0, NOT_FINITE, energy
@@ -554,13 +629,8 @@ def newton(X, Q, lam, nu, h, elem_frame, joint_hh, joint_k0, K, fnode, st_node, 
         step = 1.0
         accepted = False
         for _ in range(30):
-            Xn, Qn, ln, nn = apply_step(X, Q, lam, nu, du, ix, ith, ilam, inu, nu_off, nu_cnt,
-                                        igauge, step)
-            Rn, _, en = assemble(Xn, Qn, ln, nn, h, elem_frame, joint_hh, joint_k0, K,
-                                 fnode, st_node, st_frame, st_pos_mask, st_pos, st_kind,
-                                 st_axis_b, st_quat, st_moment, st_ffollow, st_mfollow,
-                                 gauge_frame, gauge_quat, ix, ith, ilam, inu, nu_off,
-                                 igauge, n, kl, ku, no)
+            Xn, Qn, ln, nn = apply_step(X, Q, lam, nu, du, num, step)
+            Rn, _, en = assemble(Xn, Qn, ln, nn, mesh, tg, num, gauge_quat, no)
             rn = max_abs(Rn)
             if contraction > 0.0:
                 accepted = rn <= contraction * r or rn <= tol
@@ -578,11 +648,7 @@ def newton(X, Q, lam, nu, h, elem_frame, joint_hh, joint_k0, K, fnode, st_node, 
             if not accepted and fresh:
                 return X, Q, lam, nu, r, it, NOT_CONTRACTING, energy
             # Refactorise at the current point.
-            R, ab, energy = assemble(X, Q, lam, nu, h, elem_frame, joint_hh, joint_k0, K,
-                                     fnode, st_node, st_frame, st_pos_mask, st_pos, st_kind,
-                                     st_axis_b, st_quat, st_moment, st_ffollow, st_mfollow,
-                                     gauge_frame, gauge_quat, ix, ith, ilam, inu, nu_off,
-                                     igauge, n, kl, ku, yes)
+            R, ab, energy = assemble(X, Q, lam, nu, mesh, tg, num, gauge_quat, yes)
             piv, ok = band_lu(ab, kl, ku)
             if not ok:
                 return X, Q, lam, nu, r, it, SINGULAR, energy
@@ -595,9 +661,9 @@ def newton(X, Q, lam, nu, h, elem_frame, joint_hh, joint_k0, K, fnode, st_node, 
 
 
 @njit(cache=True)
-def difference(X1, Q1, l1, n1, X2, Q2, l2, n2, ix, ith, ilam, inu, nu_off, nu_cnt, igauge,
-               n):
+def difference(X1, Q1, l1, n1, X2, Q2, l2, n2, num):
     """The unknowns' change from state 1 to state 2 (frames as rotation vectors)."""
+    ix, ith, ilam, inu, nu_off, nu_cnt, _, igauge, n, _, _ = num
     du = np.zeros(n)
     for i in range(X1.shape[0]):
         for c in range(3):
@@ -675,8 +741,9 @@ def node_outputs(Q, elem_frame, joint_hh, joint_k0, K, node_station_frame):
 
 
 @njit(cache=True)
-def unknown_sizes(X, lam, nu, ix, ilam, inu, nu_off, nu_cnt, n):
+def unknown_sizes(X, lam, nu, num):
     """Each unknown's size floored at 1 (frame rotations count as 1)."""
+    ix, _, ilam, inu, nu_off, nu_cnt, _, _, n, _, _ = num
     out = np.ones(n)
     for i in range(X.shape[0]):
         for c in range(3):
@@ -723,9 +790,8 @@ COMPLIANCE = 1e-9  # a contact's gap per unit normal force, dimensionless (see b
 
 
 @njit(cache=True)
-def contact_terms(X, gam, probe_elem, probe_a, iprobe, ix, L, radius, offset, band, scale,
-                  field, R, ab, kl, ku, want_jac, slot, fric):
-    """Add the contacts to a KKT residual (and its Jacobian), in place.
+def contact_terms(X, gam, con, num, R, ab, want_jac):
+    """Add the contacts (``Contact``) to a KKT residual (and its Jacobian), in place.
 
     Each probe p = (1 - a) x_e + a x_e+1 has the gap g = (D(p L) - radius) / L + offset
     (D the scene's signed distance) and the multiplier gam >= 0, the normal force it takes
@@ -743,8 +809,10 @@ def contact_terms(X, gam, probe_elem, probe_a, iprobe, ix, L, radius, offset, ba
     the disc and slides (t = mu gam opposite the slip) on its rim.
     Returns (gaps (K,), normals (K, 3), obstacles (K,), active (K,) bool).
     """
+    probe_elem, probe_a, iprobe, slot = con.probe_elem, con.probe_a, con.iprobe, con.slot
+    L, radius, offset, scale, field = con.length, con.radius, con.offset, con.scale, con.field
+    ix, kl, ku = num.ix, num.kl, num.ku
     K = probe_elem.shape[0]
-    mu_of, ref, basis = fric
     gaps = np.empty(K)
     which = np.empty(K, dtype=np.int64)
     active = np.zeros(K, dtype=np.bool_)
@@ -755,7 +823,7 @@ def contact_terms(X, gam, probe_elem, probe_a, iprobe, ix, L, radius, offset, ba
         for c in range(3):
             points[k, c] = ((1.0 - a) * X[e, c] + a * X[e + 1, c]) * L
     # One batched query: a call per probe would pay the scene's many arrays each time.
-    dist, normals, found = query_points(points, band, *field)
+    dist, normals, found = query_points(points, con.band, field)
     for k in range(K):
         e = probe_elem[k]
         a = probe_a[k]
@@ -779,9 +847,7 @@ def contact_terms(X, gam, probe_elem, probe_a, iprobe, ix, L, radius, offset, ba
         active[k] = touching
         R[ip] = scale * soft if touching else lam
         if slot == 3:
-            _friction_terms(gam, k, e, w0, w1, ip, ix, points[k] / L, lam,
-                            mu_of[o] if o >= 0 else 0.0, ref[k], basis[k], scale, R, ab,
-                            kl, ku, want_jac)
+            _friction_terms(gam, k, o, points[k] / L, con, num, R, ab, want_jac)
         if not want_jac:
             continue
         if touching or lam != 0.0:
@@ -800,7 +866,7 @@ def contact_terms(X, gam, probe_elem, probe_a, iprobe, ix, L, radius, offset, ba
             _add(ab, kl, ku, ip, ip, 1.0)
         if lam != 0.0:
             # d n / d p, the surface's curvature, exact on the piece p lies on; times L.
-            H = hessian_point(points[k], o, *field) * L
+            H = hessian_point(points[k], o, field) * L
             for c in range(3):
                 for j in range(3):
                     v = -lam * H[c, j]
@@ -813,10 +879,21 @@ def contact_terms(X, gam, probe_elem, probe_a, iprobe, ix, L, radius, offset, ba
 
 
 @njit(cache=True)
-def _friction_terms(gam, k, e, w0, w1, ip, ix, p, lam, mu, p0, tau, scale, R, ab, kl, ku,
-                    want_jac):
-    """A probe's Coulomb friction (see ``contact_terms``): its tangential force on the
-    nodes and its two rows of Alart and Curnier's law, with their semismooth Jacobian."""
+def _friction_terms(gam, k, o, p, con, num, R, ab, want_jac):
+    """Probe k's Coulomb friction (see ``contact_terms``), at p (by L) and nearest
+    obstacle o: its tangential force on the nodes and its two rows of Alart and
+    Curnier's law, with their semismooth Jacobian."""
+    e = con.probe_elem[k]
+    w1 = con.probe_a[k]
+    w0 = 1.0 - w1
+    ip = con.iprobe[k]
+    lam = gam[3 * k]
+    mu_of, ref, basis = con.friction
+    mu = mu_of[o] if o >= 0 else 0.0
+    p0 = ref[k]
+    tau = basis[k]
+    scale = con.scale
+    ix, kl, ku = num.ix, num.kl, num.ku
     t1 = gam[3 * k + 1]
     t2 = gam[3 * k + 2]
     for c in range(3):
@@ -889,31 +966,18 @@ def _friction_terms(gam, k, e, w0, w1, ip, ix, p, lam, mu, p0, tau, scale, R, ab
 
 
 @njit(cache=True)
-def _contact_residual(X, Q, lam, nu, gam, h, elem_frame, joint_hh, joint_k0, K, fnode,
-                      st_node, st_frame, st_pos_mask, st_pos, st_kind, st_axis_b, st_quat,
-                      st_moment, st_ffollow, st_mfollow, gauge_frame, gauge_quat, ix, ith,
-                      ilam, inu, nu_off, igauge, n, kl, ku, probe_elem, probe_a, iprobe,
-                      contact, field, slot, fric):
+def _contact_residual(X, Q, lam, nu, gam, mesh, tg, num, gauge_quat, con):
     """The KKT residual and Jacobian with the contact terms; (R, ab, energy, active)."""
-    yes = n >= 0  # a runtime True (see newton)
-    R, ab, energy = assemble(X, Q, lam, nu, h, elem_frame, joint_hh, joint_k0, K, fnode,
-                             st_node, st_frame, st_pos_mask, st_pos, st_kind, st_axis_b,
-                             st_quat, st_moment, st_ffollow, st_mfollow, gauge_frame,
-                             gauge_quat, ix, ith, ilam, inu, nu_off, igauge, n, kl, ku, yes)
-    L, radius, offset, band, scale = contact
-    active = contact_terms(X, gam, probe_elem, probe_a, iprobe, ix, L, radius, offset, band,
-                           scale, field, R, ab, kl, ku, yes, slot, fric)[3]
+    yes = num.n >= 0  # a runtime True (see newton)
+    R, ab, energy = assemble(X, Q, lam, nu, mesh, tg, num, gauge_quat, yes)
+    active = contact_terms(X, gam, con, num, R, ab, yes)[3]
     return R, ab, energy, active
 
 
 @njit(cache=True)
-def newton_contact(X, Q, lam, nu, gam, h, elem_frame, joint_hh, joint_k0, K, fnode, st_node,
-                   st_frame, st_pos_mask, st_pos, st_kind, st_axis_b, st_quat, st_moment,
-                   st_ffollow, st_mfollow, gauge_frame, gauge_quat, ix, ith, ilam, inu,
-                   nu_off, nu_cnt, igauge, n, kl, ku, probe_elem, probe_a, iprobe, contact,
-                   field, slot, fric, tol, max_iter, contraction, strict, max_switches):
+def newton_contact(X, Q, lam, nu, gam, mesh, tg, num, gauge_quat, con, opts):
     """The semismooth Newton of a problem with obstacles, in one kernel, its Jacobian
-    rebuilt every iteration (the active set may change). Acceptance:
+    rebuilt every iteration (the active set may change). Acceptance (opts: ``Settings``):
 
     - a corrector (strict) with no probe touching: the full step must contract by
       ``contraction``;
@@ -924,12 +988,10 @@ def newton_contact(X, Q, lam, nu, gam, h, elem_frame, joint_hh, joint_k0, K, fno
     - a full step that changes which probes touch, up to ``max_switches`` times.
 
     Returns (X, Q, lam, nu, gam, residual, iterations, status, energy)."""
-    R, ab, energy, active = _contact_residual(
-        X, Q, lam, nu, gam, h, elem_frame, joint_hh, joint_k0, K, fnode, st_node, st_frame,
-        st_pos_mask, st_pos, st_kind, st_axis_b, st_quat, st_moment, st_ffollow, st_mfollow,
-        gauge_frame, gauge_quat, ix, ith, ilam, inu, nu_off, igauge, n, kl, ku, probe_elem,
-        probe_a, iprobe, contact, field, slot,
-        fric)
+    tol, max_iter, contraction, strict, max_switches = opts
+    iprobe, slot = con.iprobe, con.slot
+    R, ab, energy, active = _contact_residual(X, Q, lam, nu, gam, mesh, tg, num, gauge_quat,
+                                              con)
     r = max_abs(R)
     if not math.isfinite(r):
         return X, Q, lam, nu, gam, r, 0, NOT_FINITE, energy
@@ -940,7 +1002,8 @@ def newton_contact(X, Q, lam, nu, gam, h, elem_frame, joint_hh, joint_k0, K, fno
             return X, Q, lam, nu, gam, r, it, MAX_ITERATIONS, energy
         it += 1
         # The free probes' rows are the identity's: they leave the factorisation.
-        du, ok = band_solve_reduced(ab, kl, ku, -R, identity_rows(ab, kl, ku, iprobe, slot))
+        du, ok = band_solve_reduced(ab, num.kl, num.ku, -R,
+                                    identity_rows(ab, num.kl, num.ku, iprobe, slot))
         if not ok:
             return X, Q, lam, nu, gam, r, it, SINGULAR, energy
         damped = not strict
@@ -950,18 +1013,13 @@ def newton_contact(X, Q, lam, nu, gam, h, elem_frame, joint_hh, joint_k0, K, fno
         step = 1.0
         accepted = False
         for _ in range(30 if damped else 1):
-            Xn, Qn, ln, nn = apply_step(X, Q, lam, nu, du, ix, ith, ilam, inu, nu_off, nu_cnt,
-                                        igauge, step)
+            Xn, Qn, ln, nn = apply_step(X, Q, lam, nu, du, num, step)
             gn = gam.copy()
             for k in range(iprobe.shape[0]):
                 for j in range(slot):
                     gn[k * slot + j] += step * du[iprobe[k] + j]
-            Rn, abn, en, an = _contact_residual(
-                Xn, Qn, ln, nn, gn, h, elem_frame, joint_hh, joint_k0, K, fnode, st_node,
-                st_frame, st_pos_mask, st_pos, st_kind, st_axis_b, st_quat, st_moment,
-                st_ffollow, st_mfollow, gauge_frame, gauge_quat, ix, ith, ilam, inu, nu_off,
-                igauge, n, kl, ku, probe_elem, probe_a, iprobe, contact, field, slot,
-        fric)
+            Rn, abn, en, an = _contact_residual(Xn, Qn, ln, nn, gn, mesh, tg, num,
+                                                gauge_quat, con)
             rn = max_abs(Rn)
             finite = math.isfinite(rn)
             if damped:

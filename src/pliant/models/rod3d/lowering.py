@@ -11,10 +11,12 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field, replace
+from functools import cached_property
 
 import numpy as np
 
 from pliant.core.problem import Problem, Station3D
+from pliant.models.rod3d import kernels
 from pliant.models.rod3d.kernels import AXIS, FREE, FULL
 
 
@@ -247,27 +249,34 @@ class Rod:
     def elements(self) -> int:
         return int(self.h.shape[0])
 
-    def args(self, loads: Loads) -> tuple:
-        """The kernel's static and load arguments after (X, Q, lam, nu)."""
+    @cached_property
+    def mesh(self) -> kernels.Mesh:
+        """The kernels' fixed arrays of this discretisation."""
+        return kernels.Mesh(self.h, self.elem_frame, self.joint_hh, self.K, self.st_node,
+                            self.st_frame, self.st_pos_mask, self.st_kind)
+
+    @cached_property
+    def numbering(self) -> kernels.Numbering:
+        """Where the kernels find each unknown."""
+        return kernels.Numbering(self.ix, self.ith, self.ilam, self.inu, self.nu_off,
+                                 self.nu_cnt, self.gauge_frame, self.igauge, self.n,
+                                 self.kl, self.ku)
+
+    def targets(self, loads: Loads) -> kernels.Targets:
+        """The kernels' load- and target-dependent arrays at ``loads``."""
         axis_b = np.zeros((loads.st_tangent.shape[0], 2, 3))
         for k in range(axis_b.shape[0]):
             if self.st_kind[k] == AXIS:
                 axis_b[k] = axis_basis(loads.st_tangent[k])
-        return (self.h, self.elem_frame, self.joint_hh, loads.joint_k0, self.K, loads.fnode,
-                self.st_node, self.st_frame, self.st_pos_mask, loads.st_pos, self.st_kind,
-                axis_b, loads.st_quat, loads.st_moment, loads.st_ffollow, loads.st_mfollow)
-
-    def index_args(self) -> tuple:
-        return (self.ix, self.ith, self.ilam, self.inu, self.nu_off, self.igauge, self.n,
-                self.kl, self.ku)
+        return kernels.Targets(loads.joint_k0, loads.fnode, loads.st_pos, axis_b,
+                               loads.st_quat, loads.st_moment, loads.st_ffollow,
+                               loads.st_mfollow)
 
     # -- the rest state -------------------------------------------------------------------
     def rest_shape(self, joint_k0: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Nodes (N+1, 3) and frames (F, 4) of the unloaded part, from the origin with
         the identity frame (d3 = +z); exactly at rest in the discrete energy."""
-        from pliant.models.rod3d.kernels import rest_shape  # noqa: PLC0415
-
-        return rest_shape(self.h, self.elem_frame, self.joint_hh, joint_k0)
+        return kernels.rest_shape(self.h, self.elem_frame, self.joint_hh, joint_k0)
 
     def placement(self, X: np.ndarray, Q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Rigid motion (G, T) that puts the rest shape where the conditions want it."""

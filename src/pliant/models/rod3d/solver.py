@@ -174,25 +174,22 @@ class _Run:
             gam[:, 1:] = 0.0
         return (*state[:4], gam.ravel())
 
-    def _static(self) -> tuple:
-        rod = self.rod
-        return (rod.gauge_frame, self.gauge_quat, rod.ix, rod.ith, rod.ilam, rod.inu,
-                rod.nu_off, rod.nu_cnt, rod.igauge, rod.n, rod.kl, rod.ku)
-
     def newton(self, state: State, loads: Loads, *, strict: bool, tol: float | None = None):
         opts = self.solver
+        rod = self.rod
         tol = opts.tolerance if tol is None else tol
-        if self.rod.iprobe.shape[0]:
-            rod = self.rod
+        settings = kernels.Settings(float(tol), int(opts.max_iterations),
+                                    float(opts.contraction if strict else 0.0), bool(strict),
+                                    _SWITCHES)
+        if rod.iprobe.shape[0]:
             X, Q, lam, nu, gam, r, it, status, energy = kernels.newton_contact(
-                *state[:5], *rod.args(loads), *self._static(), rod.probe_elem, rod.probe_a,
-                rod.iprobe, self._contact_constants(loads), rod.obstacles.args, rod.slot,
-                self.friction, tol, opts.max_iterations, opts.contraction, strict, _SWITCHES)
+                *state[:5], rod.mesh, rod.targets(loads), rod.numbering, self.gauge_quat,
+                self.contact(loads), settings._replace(contraction=float(opts.contraction)))
             new = (X, Q, lam, nu, gam)
         else:
             X, Q, lam, nu, r, it, status, energy = kernels.newton(
-                *state[:4], *self.rod.args(loads), *self._static(), tol,
-                opts.max_iterations, opts.contraction if strict else 0.0)
+                *state[:4], rod.mesh, rod.targets(loads), rod.numbering, self.gauge_quat,
+                settings)
             new = (X, Q, lam, nu, state[4])
         self.iterations += it
         if status == kernels.CONVERGED and not self._axes_agree(new[1], loads):
@@ -210,10 +207,8 @@ class _Run:
 
     def residual(self, state: State, loads: Loads, want_jac: bool = False):
         rod = self.rod
-        R, ab, energy = kernels.assemble(*state[:4], *rod.args(loads), rod.gauge_frame,
-                                         self.gauge_quat, rod.ix, rod.ith, rod.ilam, rod.inu,
-                                         rod.nu_off, rod.igauge, rod.n, rod.kl, rod.ku,
-                                         want_jac)
+        R, ab, energy = kernels.assemble(*state[:4], rod.mesh, rod.targets(loads),
+                                         rod.numbering, self.gauge_quat, want_jac)
         if rod.iprobe.shape[0]:
             self.contacts(state, loads, R, ab, want_jac)
         return R, ab, energy
@@ -227,10 +222,8 @@ class _Run:
             R = np.zeros(rod.n)
         if ab is None:
             ab = np.zeros((0, 2 * rod.kl + rod.ku + 1))
-        return kernels.contact_terms(state[0], state[4], rod.probe_elem, rod.probe_a,
-                                     rod.iprobe, rod.ix, *self._contact_constants(loads),
-                                     rod.obstacles.args, R, ab, rod.kl, rod.ku, want_jac,
-                                     rod.slot, self.friction)
+        return kernels.contact_terms(state[0], state[4], self.contact(loads), rod.numbering,
+                                     R, ab, want_jac)
 
     def solve_linear(self, ab: np.ndarray, rhs: np.ndarray) -> tuple[np.ndarray, bool]:
         """Solve J du = rhs, J's band in ``ab`` (which may be overwritten). A free probe's
@@ -242,23 +235,23 @@ class _Run:
         drop = kernels.identity_rows(ab, rod.kl, rod.ku, rod.iprobe, rod.slot)
         return kernels.band_solve_reduced(ab, rod.kl, rod.ku, rhs, drop)
 
-    def _contact_constants(self, loads: Loads) -> tuple[float, float, float, float, float]:
-        """(L, tube radius, gap offset, exact-distance band [m], scale) of the contact
-        terms: the band reaches two radii and 5% of L past the tube."""
+    def contact(self, loads: Loads) -> kernels.Contact:
+        """The contact terms' bundle at ``loads``: the band of exact distances reaches two
+        radii and 5% of L past the tube."""
         rod = self.rod
-        return (rod.length, rod.radius, loads.offset, 2.0 * rod.radius + 0.05 * rod.length,
-                CONTACT_SCALE)
+        return kernels.Contact(rod.probe_elem, rod.probe_a, rod.iprobe, rod.slot,
+                               float(rod.length), float(rod.radius), float(loads.offset),
+                               2.0 * rod.radius + 0.05 * rod.length, CONTACT_SCALE,
+                               rod.obstacles.args, self.friction)
 
     def step(self, state: State, du: np.ndarray, scale: float) -> State:
         rod = self.rod
-        X, Q, lam, nu = kernels.apply_step(*state[:4], du, rod.ix, rod.ith, rod.ilam, rod.inu,
-                                           rod.nu_off, rod.nu_cnt, rod.igauge, scale)
+        X, Q, lam, nu = kernels.apply_step(*state[:4], du, rod.numbering, scale)
         return X, Q, lam, nu, state[4] + scale * du[rod.islot]
 
     def difference(self, a: State, b: State) -> np.ndarray:
         rod = self.rod
-        du = kernels.difference(*a[:4], *b[:4], rod.ix, rod.ith, rod.ilam, rod.inu,
-                                rod.nu_off, rod.nu_cnt, rod.igauge, rod.n)
+        du = kernels.difference(*a[:4], *b[:4], rod.numbering)
         du[rod.islot] = b[4] - a[4]
         return du
 
@@ -323,8 +316,7 @@ class _Run:
     def sizes(self, state: State) -> np.ndarray:
         """Each unknown's size, floored at 1 (frame rotations count as 1)."""
         rod = self.rod
-        sizes = kernels.unknown_sizes(state[0], state[2], state[3], rod.ix, rod.ilam, rod.inu,
-                                      rod.nu_off, rod.nu_cnt, rod.n)
+        sizes = kernels.unknown_sizes(state[0], state[2], state[3], rod.numbering)
         sizes[rod.islot] = np.maximum(1.0, np.abs(state[4]))
         return sizes
 
