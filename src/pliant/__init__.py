@@ -6,6 +6,7 @@ numba kernels, so ``solve`` and ``trace`` are imported on first use.
 
 from pliant.core import Branch as Branch
 from pliant.core import Condition as Condition
+from pliant.core import DistributedLoad as DistributedLoad
 from pliant.core import Equilibrium as Equilibrium
 from pliant.core import Equilibrium3D as Equilibrium3D
 from pliant.core import Junction as Junction

@@ -71,10 +71,16 @@ def potential_energy(eq) -> float:
     problem = eq.problem
     s = np.asarray(eq.s)
     r = np.asarray(eq.position)
-    g = np.asarray(problem.gravity, dtype=float)
-    total = float(eq.energy) - problem.part.mass_per_length * float(
-        np.trapezoid(r @ g, s))
     dim = problem.dimension
+    total = float(eq.energy) - float(np.trapezoid(
+        r @ np.asarray(problem.dead_load_per_length, dtype=float), s))
+    for ld in problem.partial_loads:  # a dead load on a stretch: its work there
+        if ld.follower:
+            continue
+        a, b = ld.span(problem.part.length)
+        grid = np.union1d(s[(s > a) & (s < b)], [a, b])
+        on = np.column_stack([np.interp(grid, s, r[:, k]) for k in range(dim)])
+        total -= float(np.trapezoid(on @ np.asarray(ld.force, dtype=float), grid))
     for ld in eq.loads.values():
         at = np.array([np.interp(ld.s, s, r[:, k]) for k in range(dim)])
         for k in range(dim):

@@ -7,6 +7,7 @@ from collections.abc import Iterable
 from dataclasses import dataclass, field, replace
 
 from pliant.core.conditions import Condition, _unit, _vector
+from pliant.core.loads import DistributedLoad
 from pliant.core.part import Part
 from pliant.errors import IllPosedProblemError, InputError, UnreachableTargetError
 
@@ -254,7 +255,8 @@ class Junction:
 
 @dataclass(frozen=True)
 class Problem:
-    """A flexible part, conditions at stations along it, and gravity [m/s^2].
+    """A flexible part, conditions at stations along it, gravity [m/s^2] and
+    distributed loads (``loads``: ``pliant.core.loads.DistributedLoad``).
 
     Stations without a condition are free. The problem must fix the part's rigid motion:
     x and y prescribed somewhere, and the angle prescribed somewhere or positions
@@ -270,6 +272,7 @@ class Problem:
     sliders: tuple[SlidingClip, ...] = ()
     junctions: tuple[Junction, ...] = ()
     pivots: tuple[PivotClip, ...] = ()
+    loads: tuple[DistributedLoad, ...] = ()
     stations: tuple = field(init=False, repr=False, compare=False)
     dimension: int = field(init=False, repr=False, compare=False)
 
@@ -287,12 +290,17 @@ class Problem:
             if len(gravity) not in (2, 3) or not all(math.isfinite(g) for g in gravity):
                 raise InputError("gravity", f"must be 2 (2D) or 3 (3D) finite numbers in m/s^2,"
                                             f" got {self.gravity!r}")
+        loads = tuple(self.loads)
+        if not all(isinstance(ld, DistributedLoad) for ld in loads):
+            raise InputError("loads", "must be DistributedLoad objects")
         dims = {c.dimension for c in conditions} - {0}
         if gravity is not None and any(gravity):
             dims.add(len(gravity))
         if len(dims) > 1:
             raise InputError("conditions", "mix 2D and 3D conditions (or gravity); give every "
                                            "vector with the same number of axes")
+        if not dims and loads:  # only the loads tell (each is checked below)
+            dims.add(loads[0].dimension)
         dimension = dims.pop() if dims else (len(gravity) if gravity else 2)
         if gravity is None or not any(gravity):
             gravity = (0.0,) * dimension
@@ -356,6 +364,9 @@ class Problem:
                 raise InputError(f"{c.name}", "a pivoting clip holds the part by a "
                                  "condition of its name (its position); give one")
         object.__setattr__(self, "pivots", pivots)
+        for ld in loads:
+            ld.check(length, dimension)
+        object.__setattr__(self, "loads", loads)
         merge = _merge if dimension == 2 else _merge3
         object.__setattr__(self, "stations", merge(conditions, length))
         self._check_rigid_motion()
@@ -370,6 +381,25 @@ class Problem:
             getattr(o, "fitted", None) is not None for o in self.obstacles))
 
     @property
+    def dead_load_per_length(self) -> tuple[float, ...]:
+        """The dead load [N/m] on every metre of the part, global frame: its weight
+        (mass per length times gravity) plus the dead ``loads`` that cover it whole."""
+        total = [self.part.mass_per_length * g for g in self.gravity]
+        for ld in self.loads:
+            if not ld.follower and ld.overlap(0.0, self.part.length, self.part.length) \
+                    >= self.part.length * (1.0 - 1e-12):
+                total = [a + b for a, b in zip(total, ld.force)]
+        return tuple(total)
+
+    @property
+    def partial_loads(self) -> tuple[DistributedLoad, ...]:
+        """The ``loads`` that ``dead_load_per_length`` leaves out: followers, and dead
+        loads on a stretch of the part only."""
+        whole = self.part.length * (1.0 - 1e-12)
+        return tuple(ld for ld in self.loads if ld.follower
+                     or ld.overlap(0.0, self.part.length, self.part.length) < whole)
+
+    @property
     def held_stations(self) -> int:
         """How many conditions hold a position component: two or more is a problem in
         configuration space (a hand at a target), where a cold solve looks for the
@@ -378,7 +408,7 @@ class Problem:
 
     def with_conditions(self, conditions: Iterable[Condition]) -> Problem:
         return Problem(self.part, tuple(conditions), self.gravity, self.name, self.obstacles,
-                       self.sliders, self.junctions, self.pivots)
+                       self.sliders, self.junctions, self.pivots, self.loads)
 
     def _located(self, st) -> list[int]:
         """The coordinates a station prescribes."""
@@ -566,7 +596,10 @@ def interpolate(start: Problem, end: Problem, t: float) -> Problem:
             tangent=_lerp_vector(a.tangent, c.tangent, t) if c.tangent else None,
             normal=_lerp_vector(a.normal, c.normal, t) if c.normal else None))
     gravity = tuple(ga + t * (gb - ga) for ga, gb in zip(start.gravity, end.gravity))
-    return Problem(end.part, tuple(conditions), gravity, end.name, end.obstacles)
+    was = {ld.name: ld for ld in start.loads}
+    loads = tuple(replace(ld, force=_lerp_vector(was[ld.name].force, ld.force, t))
+                  if ld.name in was else ld for ld in end.loads)
+    return Problem(end.part, tuple(conditions), gravity, end.name, end.obstacles, loads=loads)
 
 
 def _lerp_vector(a, b, t: float):

@@ -1,7 +1,7 @@
 """Problem files: TOML, validated with pydantic, SI units.
 
-A file holds a ``[part]``, an optional ``gravity``, and one ``[[condition]]`` table per
-station. A 3D file may also be a scene: ``[[obstacle]]`` tables (primitives, or meshes
+A file holds a ``[part]``, an optional ``gravity``, one ``[[condition]]`` table per
+station and a ``[[load]]`` table per distributed load. A 3D file may also be a scene: ``[[obstacle]]`` tables (primitives, or meshes
 read by trimesh from paths relative to the file), ``[[port]]`` tables (a position and an
 axis a condition can name), ``[[clip]]`` tables (the part held at a point along it, by
 position and axis), a ``[path]`` for one grip to follow and a clearance ``margin``.
@@ -33,6 +33,7 @@ from pydantic import (
 )
 
 from pliant.core.conditions import Condition
+from pliant.core.loads import DistributedLoad
 from pliant.core.part import Material, Part
 from pliant.core.planning import PlanSettings
 from pliant.core.problem import Problem
@@ -691,6 +692,30 @@ class SolverModel(_Strict):
     elements: int = Field(100, ge=4, le=100000, description="about how many elements (3D)")
 
 
+class LoadModel(_Strict):
+    """[[load]]: a force per unit length [N/m] on the stretch [start, end] [m] of the part
+    (``pliant.core.loads``): ``force`` dead, in the global frame, or ``follower_force``
+    in the part's material frame (2D: tangential, normal; 3D: d1, d2, d3)."""
+
+    name: str = ""
+    force: tuple[float, float] | Vec3 | None = None
+    follower_force: tuple[float, float] | Vec3 | None = None
+    start: float = 0.0
+    end: float | None = None
+
+    @property
+    def components(self) -> tuple[float, ...]:
+        return self.force if self.force is not None else (self.follower_force or ())
+
+    def build(self, index: int) -> DistributedLoad:
+        name = self.name or f"load{index + 1}"
+        if (self.force is None) == (self.follower_force is None):
+            raise InputError(f"load[{index}]", "give either force (dead, global frame) or "
+                             "follower_force (material frame), in N/m")
+        return DistributedLoad(self.components, follower=self.follower_force is not None,
+                               start=self.start, end=self.end, name=name)
+
+
 class ProblemFile(_Strict):
     """A whole problem file."""
 
@@ -707,6 +732,7 @@ class ProblemFile(_Strict):
     port: list[PortModel] = Field(default_factory=list)
     clip: list[ClipModel] = Field(default_factory=list)
     junction: list[JunctionModel] = Field(default_factory=list)
+    load: list[LoadModel] = Field(default_factory=list)
     path: PathModel | None = None
     margin: float = Field(0.0, ge=0, description="clearance wanted round obstacles [m]")
     units: str | None = Field(None, description="the length unit of the CAD and mesh files "
@@ -718,7 +744,9 @@ class ProblemFile(_Strict):
     @property
     def dimension(self) -> int:
         three = (self.gravity is not None and len(self.gravity) == 3) or any(
-            c.is_3d for c in self.condition) or bool(self.obstacle or self.clip or self.junction
+            c.is_3d for c in self.condition) or any(
+            len(ld.components) == 3 for ld in self.load) or bool(
+            self.obstacle or self.clip or self.junction
                                                      or self.assembled
                                                      or self.cad)
         return 3 if three else 2
@@ -770,9 +798,10 @@ class ProblemFile(_Strict):
             except ValueError as err:
                 raise InputError(f"junction[{i}]", str(err).removeprefix("Value error, ")
                                  ) from None
+        loads = tuple(ld.build(i) for i, ld in enumerate(self.load))
         return Problem(part, tuple(conditions), self.gravity, self.name,
                        obstacles=tuple(obstacles), sliders=tuple(sliders),
-                       junctions=tuple(junctions), pivots=tuple(pivots))
+                       junctions=tuple(junctions), pivots=tuple(pivots), loads=loads)
 
     def _obstacles(self, base: Path | None, nested: bool) -> list[Any]:
         obstacles = []
@@ -1092,6 +1121,12 @@ def dump_problem(problem: Problem, description: str = "", meshes: Path | None = 
         if c.moment is not None:
             moment = c.moment
             lines.append(f"moment = {_vec(moment) if isinstance(moment, tuple) else _num(moment)}")
+    for ld in problem.loads:
+        lines += ["", "[[load]]", f"name = {_toml(ld.name)}",
+                  f"{'follower_force' if ld.follower else 'force'} = {_vec(ld.force)}",
+                  f"start = {_num(ld.start)}"]
+        if ld.end is not None:
+            lines.append(f"end = {_num(ld.end)}")
     for obstacle in problem.obstacles:
         lines += ["", *_obstacle_lines(obstacle, meshes, base)]
     return "\n".join(lines) + "\n"

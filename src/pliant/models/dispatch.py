@@ -93,7 +93,8 @@ def _planar_start(problem: Problem) -> Any:
                                 moment=moment, follower=follower, tangent=tangent,
                                 normal=normal))
     gravity = (*problem.gravity, 0.0)
-    space = Problem(problem.part, tuple(lifted), gravity, problem.name)
+    loads = tuple(replace(ld, force=(*ld.force, 0.0)) for ld in problem.loads)
+    space = Problem(problem.part, tuple(lifted), gravity, problem.name, loads=loads)
     # A route, not the answer: a coarse rod and a short budget (the 2D solve already
     # spent its own), so that a refusal still comes soon.
     eq = rod3d.solve(space, solver=rod3d.RodSolver(elements=80, time_budget=PLANAR_BUDGET))

@@ -241,10 +241,20 @@ class Lowered:
 
 
 def distributed_load(problem: Problem) -> tuple[float, float]:
-    """The self-weight per unit length, dimensionless (by EI / L^3)."""
+    """The dead load per unit length (the weight and the dead loads on the whole part),
+    dimensionless (by EI / L^3). The shooting integrates n' = -f in closed form for a
+    uniform f, so a follower load or one on a stretch only is refused here (the 3D
+    model takes both)."""
     part = problem.part
-    scale = part.mass_per_length * part.length**3 / part.bending_stiffness
-    return scale * problem.gravity[0], scale * problem.gravity[1]
+    if problem.partial_loads:
+        ld = problem.partial_loads[0]
+        raise InputError(f"{ld.name}.{'follower' if ld.follower else 'start'}",
+                         "the 2D model takes distributed loads that are dead and cover the "
+                         "whole part; give the problem 3 components (the 3D model) for a "
+                         f"{'follower load' if ld.follower else 'load on a stretch'}")
+    scale = part.length**3 / part.bending_stiffness
+    fx, fy = problem.dead_load_per_length
+    return scale * fx, scale * fy
 
 
 SOFT = 1e-3  # the axial compliance EI / (EA L^2) an extensible part's homotopy starts at
@@ -263,7 +273,7 @@ def load_wavenumber(problem: Problem) -> float:
     plus the total moment and the largest rest curvature."""
     part = problem.part
     length, stiffness = part.length, part.bending_stiffness
-    force = part.mass_per_length * math.hypot(*problem.gravity) * length
+    force = math.hypot(*problem.dead_load_per_length) * length
     moment = 0.0
     for st in problem.stations:
         force += math.hypot(st.dead_load[0], st.dead_load[1])
@@ -288,9 +298,9 @@ def check_wavenumber(problem: Problem) -> float:
         return wave
     part = problem.part
     length, stiffness = part.length, part.bending_stiffness
-    terms = [(math.sqrt(part.mass_per_length * math.hypot(*problem.gravity) * length
+    terms = [(math.sqrt(math.hypot(*problem.dead_load_per_length) * length
                         * length**2 / stiffness), "part.mass_per_length",
-              "the part's weight")]
+              "the part's weight and distributed loads")]
     for st in problem.stations:
         name = "/".join(c.name for c in st.conditions) or f"s = {st.s:g} m"
         force = math.hypot(st.dead_load[0], st.dead_load[1]) + math.hypot(*st.follower_load)

@@ -84,7 +84,7 @@ class _Discrete:
         kappa0 = np.array([part.rest_curvature_at(x * L) for x in s]) * L
         weight = np.full(n + 1, h)
         weight[[0, -1]] = 0.5 * h
-        q = part.mass_per_length * np.asarray(problem.gravity, float) * L**3 / EI
+        q = np.asarray(problem.dead_load_per_length, float) * L**3 / EI
         f = weight[:, None] * q[None, :]  # dead forces at the nodes
         m = np.zeros(n + 1)  # dead couples at the nodes
         self.position: list[tuple[int, int, float]] = []  # (node, component, value)

@@ -258,7 +258,7 @@ def equilibrium_error(eq) -> float:
     problem = eq.problem
     part = problem.part
     L, EI = part.length, part.bending_stiffness
-    q = part.mass_per_length * np.array(problem.gravity, float)
+    q = np.array(problem.dead_load_per_length, float)
     scale = np.array([L, L, 1.0, EI / L**2, EI / L**2, EI / L])
 
     compliance = 0.0 if part.axial_stiffness is None else 1.0 / part.axial_stiffness

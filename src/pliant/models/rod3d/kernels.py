@@ -85,6 +85,7 @@ class Targets(NamedTuple):
     st_moment: np.ndarray  # (S, 3) dead moments (global)
     st_ffollow: np.ndarray  # (S, 3) follower forces (material)
     st_mfollow: np.ndarray  # (S, 3) follower moments (material)
+    elem_follow: np.ndarray  # (N, 3) follower force per length on each element (material)
 
 
 class Numbering(NamedTuple):
@@ -245,7 +246,7 @@ def assemble(X, Q, lam, nu, mesh, tg, num, gauge_quat, want_jac):
     the gauge holds its frame's twist.
     """
     h, elem_frame, joint_hh, K, st_node, st_frame, st_pos_mask, st_kind = mesh
-    joint_k0, fnode, st_pos, st_axis_b, st_quat, st_moment, st_ffollow, st_mfollow = tg
+    joint_k0, fnode, st_pos, st_axis_b, st_quat, st_moment, st_ffollow, st_mfollow, _ = tg
     ix, ith, ilam, inu, nu_off, _, gauge_frame, igauge, n, kl, ku = num
     R = np.zeros(n)
     ab = np.zeros((n, 2 * kl + ku + 1)) if want_jac else np.zeros((0, 0))
@@ -285,6 +286,22 @@ def assemble(X, Q, lam, nu, mesh, tg, num, gauge_quat, want_jac):
         R[t + 1] -= he * stretch * mu0
         if comp != 0.0:
             energy += 0.5 * he * comp * mu2 * mu2
+        # A distributed follower load q (material, per unloaded length): h R q, half on
+        # each node; d/dtheta (R exp(theta) q) = -R [q]x, so dR_x/dtheta = +(h/2) R [q]x.
+        F0, F1, F2 = tg.elem_follow[e, 0], tg.elem_follow[e, 1], tg.elem_follow[e, 2]
+        if F0 != 0.0 or F1 != 0.0 or F2 != 0.0:
+            g0, g1, g2 = _mul(Rm, F0, F1, F2)
+            for node in (e, e + 1):
+                R[ix[node]] -= 0.5 * he * g0
+                R[ix[node] + 1] -= 0.5 * he * g1
+                R[ix[node] + 2] -= 0.5 * he * g2
+            if want_jac:
+                for a in range(3):
+                    B[a, 0] = 0.5 * he * (Rm[a, 1] * F2 - Rm[a, 2] * F1)
+                    B[a, 1] = 0.5 * he * (Rm[a, 2] * F0 - Rm[a, 0] * F2)
+                    B[a, 2] = 0.5 * he * (Rm[a, 0] * F1 - Rm[a, 1] * F0)
+                _add_block(ab, kl, ku, ix[e], t, B)
+                _add_block(ab, kl, ku, ix[e + 1], t, B)
         if want_jac:
             for c in range(3):
                 ab[ix[e + 1] + c, kv + row - ix[e + 1]] += 1.0

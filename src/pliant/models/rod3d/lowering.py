@@ -103,6 +103,7 @@ class Loads:
     joint_k0: np.ndarray  # (J, 3) rest Darboux vectors (with any bow)
     turn: np.ndarray | None = None  # (S, 3) where to swing a tangent that must reverse
     offset: float = 0.0  # added to every contact gap: obstacles grown back from nothing
+    elem_follow: np.ndarray | None = None  # (N, 3) follower load per length (material); None: 0
 
     def lerp(self, other: Loads, t: float) -> Loads:
         """Linear in everything but the orientations, which turn along the shortest arc
@@ -116,7 +117,19 @@ class Loads:
                      self.st_ffollow + t * (other.st_ffollow - self.st_ffollow),
                      self.st_mfollow + t * (other.st_mfollow - self.st_mfollow),
                      self.joint_k0 + t * (other.joint_k0 - self.joint_k0), hint,
-                     self.offset + t * (other.offset - self.offset))
+                     self.offset + t * (other.offset - self.offset),
+                     _lerp_optional(self.elem_follow, other.elem_follow, t))
+
+
+def _lerp_optional(a: np.ndarray | None, b: np.ndarray | None, t: float) -> np.ndarray | None:
+    """(1 - t) a + t b, where None stands for zeros."""
+    if a is None and b is None:
+        return None
+    if a is None:
+        return t * b
+    if b is None:
+        return (1.0 - t) * a
+    return a + t * (b - a)
 
 
 def _slerp_vectors(a: np.ndarray, b: np.ndarray, t: float,
@@ -219,8 +232,13 @@ class Rod:
         for k in range(quat.shape[0]):
             if np.dot(quat[k], self.target.st_quat[k]) < 0.0:
                 quat[k] = -quat[k]
+        if [(ld.span(self.length), ld.follower) for ld in problem.loads] != [
+                (ld.span(self.length), ld.follower) for ld in self.problem.loads]:
+            return None  # the mesh is cut where each load starts and ends
+        *targets, follow = targets
         return replace(self, problem=problem, stations=problem.stations,
-                       target=Loads(*targets, joint_k0=self.target.joint_k0))
+                       target=Loads(*targets, joint_k0=self.target.joint_k0,
+                                    elem_follow=follow))
 
     @property
     def islot(self) -> np.ndarray:
@@ -268,9 +286,11 @@ class Rod:
         for k in range(axis_b.shape[0]):
             if self.st_kind[k] == AXIS:
                 axis_b[k] = axis_basis(loads.st_tangent[k])
+        follow = (np.zeros((self.elements, 3)) if loads.elem_follow is None
+                  else loads.elem_follow)
         return kernels.Targets(loads.joint_k0, loads.fnode, loads.st_pos, axis_b,
                                loads.st_quat, loads.st_moment, loads.st_ffollow,
-                               loads.st_mfollow)
+                               loads.st_mfollow, follow)
 
     # -- the rest state -------------------------------------------------------------------
     def rest_shape(self, joint_k0: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -396,10 +416,23 @@ def _targets(problem: Problem, st_node: np.ndarray, h: np.ndarray) -> tuple:
         st_ffollow[k] = np.array(st.follower_force) / fs
         st_mfollow[k] = np.array(st.follower_moment) / ms
         fnode[st_node[k]] += np.where(mask, 0.0, st.dead_force) / fs
-    weight = part.mass_per_length * np.asarray(problem.gravity) * L**3 / EI1
-    fnode[:-1] += 0.5 * h[:, None] * weight
-    fnode[1:] += 0.5 * h[:, None] * weight
-    return fnode, st_pos, st_tangent, st_quat, st_moment, st_ffollow, st_mfollow
+    # Distributed loads per element, by L^3 / EI1 (force per length by EI1 / L^3): the
+    # weight and dead loads lumped half on each node, follower loads kept per element
+    # (the kernel turns them with the element's frame). The mesh is cut where each
+    # load starts and ends, so an element is covered whole or not at all.
+    per_length = L**3 / EI1
+    dead = np.tile(part.mass_per_length * np.asarray(problem.gravity) * per_length,
+                   (h.shape[0], 1))
+    follow = np.zeros((h.shape[0], 3))
+    s_node = np.concatenate([[0.0], np.cumsum(h)]) * L
+    for ld in problem.loads:
+        cover = np.array([ld.overlap(a, b, L) for a, b in zip(s_node[:-1], s_node[1:])])
+        share = cover / (h * L)
+        (follow if ld.follower else dead)[:] += share[:, None] * np.asarray(ld.force) \
+            * per_length
+    fnode[:-1] += 0.5 * h[:, None] * dead
+    fnode[1:] += 0.5 * h[:, None] * dead
+    return fnode, st_pos, st_tangent, st_quat, st_moment, st_ffollow, st_mfollow, follow
 
 
 def lower(problem: Problem, elements: int = 100) -> Rod:
@@ -412,7 +445,9 @@ def lower(problem: Problem, elements: int = 100) -> Rod:
     K = np.array([*part.stiffnesses, 0.0 if EA is None else EI1 * EI1 / (EA * L**2)]) / EI1
     stations = problem.stations
     breaks = sorted({0.0, 1.0} | {st.s / L for st in stations}
-                    | {k / L for k in part.knot_positions})
+                    | {k / L for k in part.knot_positions}
+                    | {min(max(x / L, 0.0), 1.0) for ld in problem.loads
+                       for x in ld.span(L)})
     pieces = [np.linspace(a, b, max(2, round(elements * (b - a))) + 1)[1:]
               for a, b in zip(breaks, breaks[1:])]
     s_node = np.concatenate([[0.0], *pieces])
@@ -526,7 +561,8 @@ def lower(problem: Problem, elements: int = 100) -> Rod:
             e = probe_elem[k]
             width = max(width, abs(iprobe[k] + slot - 1 - ix[e]), abs(ix[e + 1] + 2 - iprobe[k]))
         obstacles = field_of(problem.obstacles)
-    target = Loads(*targets, joint_k0=rest_k0.copy())
+    *targets, follow = targets
+    target = Loads(*targets, joint_k0=rest_k0.copy(), elem_follow=follow)
     key = (L, EI1, tuple(K), s_node.tobytes(), st_pos_mask.tobytes(), st_kind.tobytes(),
            rest_k0.tobytes(), iprobe.shape[0], slot)
     return Rod(problem=problem, length=L, stiffness=EI1, s_node=s_node, h=h,

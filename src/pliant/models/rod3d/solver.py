@@ -264,7 +264,7 @@ class _Run:
         tangent, ok = self.solve_linear(ab, -R_eps / eps)
         if not ok or not float(np.abs(tangent).max()) < 1e10:  # singular up to rounding
             raise _Stalled(0.0, math.inf, "the start is singular", singular_start=True)
-        load_f, load_c = _load_size(start, end)
+        load_f, load_c = _load_size(start, end, self.rod.h)
         root_f = math.sqrt(load_f)
         t, dt = 0.0, 1.0
         prev: tuple[float, State] | None = None
@@ -486,7 +486,8 @@ class _Run:
         targets."""
         t = self.rod.target
         loaded = Loads(t.fnode, rest.st_pos, rest.st_tangent, rest.st_quat, t.st_moment,
-                       t.st_ffollow, t.st_mfollow, t.joint_k0, rest.turn)
+                       t.st_ffollow, t.st_mfollow, t.joint_k0, rest.turn,
+                       elem_follow=t.elem_follow)
         return [loaded, t]
 
     def swing(self, rest: Loads, legs: int = 8) -> list[Loads]:
@@ -705,9 +706,16 @@ def _frames_at(old_s: np.ndarray, Q: np.ndarray, new_s: np.ndarray) -> np.ndarra
     return out
 
 
-def _load_size(start: Loads, end: Loads) -> tuple[float, float]:
+def _load_size(start: Loads, end: Loads, h: np.ndarray) -> tuple[float, float]:
+    """How far the homotopy moves the forces and moments (dimensionless): the step
+    control's wavenumber sqrt(force) + moment."""
+    def follow(loads: Loads):
+        return 0.0 if loads.elem_follow is None else loads.elem_follow
+
+    moved = np.abs(follow(end) - follow(start))
     force = float(np.abs(end.fnode - start.fnode).sum(axis=0).max()
-                  + np.abs(end.st_ffollow - start.st_ffollow).sum())
+                  + np.abs(end.st_ffollow - start.st_ffollow).sum()
+                  + float(np.sum(moved * h[:, None])))
     moment = float(np.abs(end.st_moment - start.st_moment).sum()
                    + np.abs(end.st_mfollow - start.st_mfollow).sum())
     return force, moment
@@ -1154,7 +1162,8 @@ def _conservative(run: _Run, state: State | None = None) -> bool:
     t = run.rod.target
     if state is not None and run.rod.friction and np.any(state[4].reshape(-1, 3)[:, 1:]):
         return False
-    return not (np.any(t.st_moment) or np.any(t.st_ffollow) or np.any(t.st_mfollow))
+    return not (np.any(t.st_moment) or np.any(t.st_ffollow) or np.any(t.st_mfollow)
+                or (t.elem_follow is not None and np.any(t.elem_follow)))
 
 
 def _metric(rod: Rod) -> tuple[np.ndarray, np.ndarray]:

@@ -1,0 +1,93 @@
+"""Distributed loads: a force per unit length over a stretch of the part, as a noun.
+
+A ``DistributedLoad`` acts on the arc lengths [start, end] of the unloaded part with the
+force ``force`` [N/m] per metre of it. It is *dead* (``follower=False``: fixed in the
+global frame, as the part's weight is) or a *follower* (``follower=True``: fixed in the
+part's material frame, so it turns with the part: 2D (tangential, normal), the normal
+nu = (-sin theta, cos theta) to the tangent's left; 3D (d1, d2, d3), d3 the tangent).
+A follower load models what presses on the part's surface as it moves (the drag of a
+flow along it, a pressure on one side) and has no potential: a solve with one reports
+its stability as undecided and looks for no lower-energy branch.
+
+Each model lowers the problem's loads once (``pliant.models.elastica2d.lowering``,
+``pliant.models.rod3d.lowering``); the part's weight stays ``Problem.gravity`` times
+``Part.mass_per_length`` and is lowered beside them as a dead load.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+from pliant.errors import InputError
+
+
+@dataclass(frozen=True)
+class DistributedLoad:
+    """A force per unit length on the arc lengths [start, end] [m] of the unloaded part.
+
+    force : (2,) or (3,) float [N/m]: global (dead) or material (follower) components
+    follower : whether it turns with the part (see the module)
+    start, end : where it acts [m]; end None: to the part's end
+    name : what reports and errors call it
+    """
+
+    force: tuple[float, ...]
+    follower: bool = False
+    start: float = 0.0
+    end: float | None = None
+    name: str = "load"
+
+    def __post_init__(self) -> None:
+        label = self.name or "load"
+        try:
+            force = tuple(float(f) for f in self.force)
+        except (TypeError, ValueError):
+            raise InputError(f"{label}.force", f"give 2 (2D) or 3 (3D) numbers in N/m, not "
+                             f"{self.force!r}") from None
+        if len(force) not in (2, 3) or not all(math.isfinite(f) for f in force):
+            raise InputError(f"{label}.force", f"give 2 (2D) or 3 (3D) finite numbers in "
+                             f"N/m, not {self.force!r}")
+        for key in ("start", "end"):
+            value = getattr(self, key)
+            if value is not None and not math.isfinite(float(value)):
+                raise InputError(f"{label}.{key}", f"give an arc length in m, not {value!r}")
+        start = float(self.start)
+        end = None if self.end is None else float(self.end)
+        if end is not None and end <= start:
+            raise InputError(f"{label}.end", f"must lie beyond start = {start} m, not {end} m;"
+                             " give the stretch of part the load acts on")
+        object.__setattr__(self, "force", force)
+        object.__setattr__(self, "follower", bool(self.follower))
+        object.__setattr__(self, "start", start)
+        object.__setattr__(self, "end", end)
+        object.__setattr__(self, "name", label)
+
+    @property
+    def dimension(self) -> int:
+        return len(self.force)
+
+    def span(self, length: float) -> tuple[float, float]:
+        """(start, end) [m] on a part of this length."""
+        return self.start, length if self.end is None else self.end
+
+    def check(self, length: float, dimension: int) -> None:
+        """Raise ``InputError`` unless the load fits a part of ``length`` in a problem
+        of ``dimension``."""
+        if self.dimension != dimension:
+            raise InputError(f"{self.name}.force", f"has {self.dimension} components in a "
+                             f"{dimension}D problem; give {dimension}")
+        a, b = self.span(length)
+        tol = 1e-12 * length
+        if a < -tol or b > length * (1 + 1e-12):
+            raise InputError(f"{self.name}.start", f"the load acts on [{a}, {b}] m, outside "
+                             f"the part [0, {length}] m; move it onto the part")
+
+    def overlap(self, a: float, b: float, length: float) -> float:
+        """How much of [a, b] [m] the load covers [m]."""
+        lo, hi = self.span(length)
+        return max(0.0, min(b, hi) - max(a, lo))
+
+    def to_dict(self) -> dict:
+        return {"name": self.name, "force": list(self.force), "follower": self.follower,
+                "start": self.start, "end": self.end}
