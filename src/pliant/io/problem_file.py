@@ -1,10 +1,11 @@
 """Problem files: TOML, validated with pydantic, SI units.
 
 A file holds a ``[part]``, an optional ``gravity``, one ``[[condition]]`` table per
-station and a ``[[load]]`` table per distributed load. A 3D file may also be a scene: ``[[obstacle]]`` tables (primitives, or meshes
-read by trimesh from paths relative to the file), ``[[port]]`` tables (a position and an
-axis a condition can name), ``[[clip]]`` tables (the part held at a point along it, by
-position and axis), a ``[path]`` for one grip to follow and a clearance ``margin``.
+station and one ``[[load]]`` table per distributed load. A 3D file may also be a scene:
+``[[obstacle]]`` tables (primitives, or meshes read by trimesh from paths relative to
+the file), ``[[port]]`` tables (a position and an axis a condition can name),
+``[[clip]]`` tables (the part held at a point along it, by position and axis), a
+``[path]`` for one grip to follow and a clearance ``margin``.
 
 A condition's keys say which components are prescribed and which are applied: ``x``,
 ``y``, ``angle`` prescribe (the answer is the reaction), ``Fx``, ``Fy``,

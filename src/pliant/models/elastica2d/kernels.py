@@ -45,6 +45,7 @@ columns [lo, hi) of the unknowns that act on it.
 from __future__ import annotations
 
 import math
+from typing import NamedTuple
 
 import numpy as np
 from numba import njit
@@ -59,6 +60,47 @@ NODE = 2  # a restart node of multiple shooting (all of its pairs)
 # The Runge-Kutta tableau, frozen into the compiled kernels as constants.
 _A, _B, _C = dop853()
 
+
+
+class Stations(NamedTuple):
+    """What the lowering fixes: each kernel station's s (nst,), the kind of its three
+    pairs (nst, 3: APPLIED, PRESCRIBED or NODE) and their unknowns' columns (nst, 3),
+    the live sensitivity columns [seg_lo, seg_hi) of each segment (nst - 1,), and the
+    rest curvature at the stations (nst,), linear in between."""
+
+    st_s: np.ndarray
+    st_kind: np.ndarray
+    st_col: np.ndarray
+    seg_lo: np.ndarray
+    seg_hi: np.ndarray
+    st_kappa: np.ndarray
+
+
+class Inputs(NamedTuple):
+    """What a homotopy moves: per station the prescribed kinematics or applied dead
+    loads (nst, 3) and follower forces (nst, 2: tangential, normal); per segment (its
+    first station's row) the distributed loads on it beyond ``prm``'s uniform one
+    (nst, 4: dead fx, fy; follower ft, fn, per unit length); and
+    prm (6,) = [fx, fy, bow, a, b, c] (see ``shoot``)."""
+
+    val: np.ndarray
+    fol: np.ndarray
+    dist: np.ndarray
+    prm: np.ndarray
+
+
+class Work(NamedTuple):
+    """The integrator's scratch and outputs: stage slopes K (nst, 4) of (theta, m, nx,
+    ny) and their sensitivities KY (nst, 4, nz), the trajectory (rows, 7) with its
+    cursor (1,), and the statistics (2,) max|theta'| and max|n|."""
+
+    K: np.ndarray
+    KY: np.ndarray
+    traj: np.ndarray
+    cursor: np.ndarray
+    stats: np.ndarray
+
+
 # Newton status codes, mirrored by ``solver.Status``.
 CONVERGED = 0
 MAX_ITERATIONS = 1
@@ -67,14 +109,14 @@ NOT_CONTRACTING = 3
 NOT_FINITE = 4
 
 
-@njit(cache=True)
-def _apply_station(k, y, Y, lo, hi, z, st_kind, st_val, st_fol, st_col, res, jac, row,
-                   want_jac):
+@njit(cache=True, inline="always")
+def _apply_station(k, y, Y, lo, hi, z, stn, inp, res, jac, row, want_jac):
     """Residuals of station k (k >= 1) and its jump, or its restart for a node.
 
     [lo, hi) are the sensitivity columns live from here on (those of the segment that
     ends here plus the ones this station introduces). Returns the next residual row.
     """
+    st_kind, st_col, st_val, st_fol = stn.st_kind, stn.st_col, inp.val, inp.fol
     if st_kind[k, 0] == NODE:
         c0 = st_col[k, 0]
         for q in range(6):
@@ -128,10 +170,22 @@ def _apply_follower(k, y, Y, lo, hi, st_fol, want_jac):
             Y[4, q] -= dpy * Y[2, q]
 
 
+@njit(cache=True, inline="always")
+def _segment(k, stn, inp):
+    """What ``_integrate`` needs of segment k, as scalars."""
+    prm, dist = inp.prm, inp.dist
+    return (stn.st_s[k], stn.st_s[k + 1], stn.st_kappa[k], stn.st_kappa[k + 1],
+            prm[0] + dist[k, 0], prm[1] + dist[k, 1], dist[k, 2], dist[k, 3], prm[2],
+            prm[3], prm[4], prm[5])
+
+
 @njit(cache=True)
-def _integrate(y, Y, lo, hi, s0, s1, nsteps, prm, kappa0, kappa1, K, KY, traj, tpos,
-               want_jac, stats):
-    """Advance (y, Y) from s0 to s1 in nsteps fixed RK steps; write states to traj.
+def _integrate(y, Y, lo, hi, seg, nsteps, work, want_jac):
+    """Advance (y, Y) over a segment in nsteps fixed RK steps; write states to the
+    trajectory (``Work``). seg = (s0, s1, kappa0, kappa1, fx, fy, ft, fn, bow, a, b, c):
+    where it starts and ends, its rest curvature there, the dead (fx, fy) and follower
+    (ft, fn) loads per length on it, and prm[2:] (see ``shoot``): scalars, which cost
+    nothing to pass, where the bundles' arrays would be counted in and out per call.
 
     Only (theta, m) feed back into the equations, so only they (and their sensitivities)
     are carried through the stages; x, y and the energy are quadratures of the stage
@@ -140,20 +194,22 @@ def _integrate(y, Y, lo, hi, s0, s1, nsteps, prm, kappa0, kappa1, K, KY, traj, t
     rest curvature is linear on the segment, from kappa0 at s0 to kappa1 at s1 (its knots
     are stations); the imperfection bow cos(2 pi (s - a) / (b - a)) acts on [a, b] (both
     stations). stats[0], stats[1] accumulate max|theta'| and max|n| at step ends.
-    K : (nst, 2) and KY : (nst, 2, nz) are work arrays; [lo, hi) the live columns.
+    A follower load f = ft t + fn nu on the segment makes n' = -(g + f) depend on theta:
+    then n is integrated through the stages with theta and m, and so are its
+    sensitivities (d f / d theta = ft nu - fn t). [lo, hi) the live columns.
     """
     a = _A
     b = _B
     c = _C
+    K, KY, traj, stats = work.K, work.KY, work.traj, work.stats
+    tpos = work.cursor[0]
+    s0, s1, kappa0, kappa1, gx, gy, ft, fn, bow, bow_a, bow_b, comp = seg
     h = (s1 - s0) / nsteps
     slope = (kappa1 - kappa0) / (s1 - s0)
-    gx = prm[0]
-    gy = prm[1]
-    bow = prm[2]
-    comp = prm[5]
-    if s0 < prm[3] - 1e-12 or s1 > prm[4] + 1e-12:
+    follower = ft != 0.0 or fn != 0.0
+    if s0 < bow_a - 1e-12 or s1 > bow_b + 1e-12:
         bow = 0.0
-    span = prm[4] - prm[3]
+    span = bow_b - bow_a
     nx0 = y[3]
     ny0 = y[4]
     nst = b.shape[0]
@@ -166,6 +222,8 @@ def _integrate(y, Y, lo, hi, s0, s1, nsteps, prm, kappa0, kappa1, K, KY, traj, t
         s = s0 + step * h
         th0 = y[2]
         m0 = y[5]
+        nxs = y[3]
+        nys = y[4]
         dx = 0.0
         dy = 0.0
         de = 0.0
@@ -178,13 +236,25 @@ def _integrate(y, Y, lo, hi, s0, s1, nsteps, prm, kappa0, kappa1, K, KY, traj, t
                     th += w * K[j, 0]
                     m += w * K[j, 1]
             si = s + c[i] * h
-            nx = nx0 - gx * (si - s0)
-            ny = ny0 - gy * (si - s0)
+            if follower:
+                nx = nxs
+                ny = nys
+                for j in range(i):
+                    w = h * a[i, j]
+                    if w != 0.0:
+                        nx += w * K[j, 2]
+                        ny += w * K[j, 3]
+            else:
+                nx = nx0 - gx * (si - s0)
+                ny = ny0 - gy * (si - s0)
             ct = math.cos(th)
             st = math.sin(th)
+            if follower:  # n' = -(g + ft t + fn nu)
+                K[i, 2] = -(gx + ft * ct - fn * st)
+                K[i, 3] = -(gy + ft * st + fn * ct)
             kappa = kappa0 + slope * (si - s0) + m
             if bow != 0.0:
-                kappa += bow * math.cos(2.0 * math.pi * (si - prm[3]) / span)
+                kappa += bow * math.cos(2.0 * math.pi * (si - bow_a) / span)
             K[i, 0] = kappa
             shear = ct * ny - st * nx
             bi = b[i]
@@ -212,16 +282,27 @@ def _integrate(y, Y, lo, hi, s0, s1, nsteps, prm, kappa0, kappa1, K, KY, traj, t
                         if w != 0.0:
                             yth += w * KY[j, 0, q]
                             ym += w * KY[j, 1, q]
+                    ynx = Y[3, q]
+                    yny = Y[4, q]
+                    if follower:
+                        for j in range(i):
+                            w = h * a[i, j]
+                            if w != 0.0:
+                                ynx += w * KY[j, 2, q]
+                                yny += w * KY[j, 3, q]
+                        # d/dtheta of -(ft t + fn nu) = (ft sin + fn cos, fn sin - ft cos)
+                        KY[i, 2, q] = (ft * st + fn * ct) * yth
+                        KY[i, 3, q] = (fn * st - ft * ct) * yth
                     KY[i, 0, q] = ym
                     if comp == 0.0:
-                        KY[i, 1, q] = dm_dth * yth + st * Y[3, q] - ct * Y[4, q]
+                        KY[i, 1, q] = dm_dth * yth + st * ynx - ct * yny
                         if bi != 0.0:
                             Y[0, q] += h * bi * (-st * yth)
                             Y[1, q] += h * bi * (ct * yth)
                     else:
                         # dN = Q dtheta + t . dn, and lam = 1 + c N
-                        dlam = comp * (shear * yth + ct * Y[3, q] + st * Y[4, q])
-                        KY[i, 1, q] = (lam * (dm_dth * yth + st * Y[3, q] - ct * Y[4, q])
+                        dlam = comp * (shear * yth + ct * ynx + st * yny)
+                        KY[i, 1, q] = (lam * (dm_dth * yth + st * ynx - ct * yny)
                                        - dlam * shear)
                         if bi != 0.0:
                             Y[0, q] += h * bi * (dlam * ct - lam * st * yth)
@@ -231,15 +312,22 @@ def _integrate(y, Y, lo, hi, s0, s1, nsteps, prm, kappa0, kappa1, K, KY, traj, t
             if w != 0.0:
                 y[2] += w * K[i, 0]
                 y[5] += w * K[i, 1]
+                if follower:
+                    y[3] += w * K[i, 2]
+                    y[4] += w * K[i, 3]
                 if want_jac:
                     for q in range(lo, hi):
                         Y[2, q] += w * KY[i, 0, q]
                         Y[5, q] += w * KY[i, 1, q]
+                        if follower:
+                            Y[3, q] += w * KY[i, 2, q]
+                            Y[4, q] += w * KY[i, 3, q]
         y[0] += h * dx
         y[1] += h * dy
         y[6] += h * de
-        y[3] = nx0 - gx * (s + h - s0)
-        y[4] = ny0 - gy * (s + h - s0)
+        if not follower:
+            y[3] = nx0 - gx * (s + h - s0)
+            y[4] = ny0 - gy * (s + h - s0)
         if record:
             for q in range(NSTATE):
                 traj[tpos, q] = y[q]
@@ -250,27 +338,35 @@ def _integrate(y, Y, lo, hi, s0, s1, nsteps, prm, kappa0, kappa1, K, KY, traj, t
         force = math.sqrt(y[3] * y[3] + y[4] * y[4])
         if force > stats[1]:
             stats[1] = force
-    return tpos
+    work.cursor[0] = tpos
 
 
 @njit(cache=True)
-def shoot(z, st_s, st_kind, st_val, st_fol, st_col, seg_steps, seg_lo, seg_hi, prm,
-          st_kappa, want_jac, traj):
-    """Integrate from s = 0 to 1 with unknowns z; return (residual, Jacobian, stats).
+def shoot(z, stations, inputs, seg_steps, want_jac, traj):
+    """``_shoot`` called from Python: stations and inputs the fields of ``Stations``
+    and ``Inputs`` as plain tuples (numba types a plain tuple in C, a NamedTuple in
+    Python, a microsecond a call on the warm path)."""
+    return _shoot(z, Stations(*stations), Inputs(*inputs), seg_steps, want_jac, traj)
+
+
+@njit(cache=True)
+def _shoot(z, stn, inp, seg_steps, want_jac, traj):
+    """Integrate from s = 0 to 1 with unknowns z (the ``Stations`` stn, the ``Inputs``
+    inp, seg_steps RK steps per segment); return (residual, Jacobian, stats).
 
     prm : (6,) float, [fx, fy, bow, a, b, c]: the distributed dead load (fx, fy) per unit
         length, a rest-curvature imperfection bow * cos(2 pi (s - a) / (b - a)) on
         [a, b] that the solver adds, then removes, to leave a singular (symmetric) start,
         and the axial compliance c = EI / (EA L^2) (0: inextensible)
-    st_kappa : (nst,) float, the rest curvature at the stations (linear in between)
-    seg_lo, seg_hi : (nst - 1,) int, the sensitivity columns live on each segment
     stats : (2,) float, max|theta'| and max|n| over the step ends: the wavenumber
         max|theta'| + sqrt(max|n|) tells the caller whether the mesh resolves the solution
     traj : (npts, 7) float, written when it has rows: the state at both ends of every
         step, segment by segment (stations appear twice: before and after their jump)
     """
     nz = z.shape[0]
-    nstations = st_s.shape[0]
+    st_kind, seg_lo, seg_hi = stn.st_kind, stn.seg_lo, stn.seg_hi
+    st_val, st_fol = inp.val, inp.fol
+    nstations = stn.st_s.shape[0]
     res = np.zeros(nz)
     jac = np.zeros((nz, nz))
     y = np.zeros(NSTATE)
@@ -288,18 +384,20 @@ def shoot(z, st_s, st_kind, st_val, st_fol, st_col, seg_steps, seg_lo, seg_hi, p
     first = nstations * 0  # runtime ints, not literals (see newton)
     _apply_follower(first, y, Y, first, first + 3, st_fol, want_jac)
     nst = _B.shape[0]
-    K = np.empty((nst, 2))
-    KY = np.zeros((nst, 2, nz))
+    # The stages carry n (columns 2, 3) only where a follower load acts on a segment.
+    carried = 2
+    for k in range(nstations - 1):
+        if inp.dist[k, 2] != 0.0 or inp.dist[k, 3] != 0.0:
+            carried = 4
+    work = Work(np.empty((nst, carried)), np.zeros((nst, carried, nz)), traj,
+                np.zeros(1, dtype=np.int64), np.zeros(2))
     row = 0
-    tpos = 0
-    stats = np.zeros(2)
     for k in range(nstations - 1):
         lo = seg_lo[k]
-        tpos = _integrate(y, Y, lo, seg_hi[k], st_s[k], st_s[k + 1], seg_steps[k], prm,
-                          st_kappa[k], st_kappa[k + 1], K, KY, traj, tpos, want_jac, stats)
+        _integrate(y, Y, lo, seg_hi[k], _segment(k, stn, inp), seg_steps[k], work,
+                   want_jac)
         hi_next = seg_hi[k + 1] if k + 1 < nstations - 1 else nz
-        row = _apply_station(k + 1, y, Y, lo, hi_next, z, st_kind, st_val, st_fol, st_col,
-                             res, jac, row, want_jac)
+        row = _apply_station(k + 1, y, Y, lo, hi_next, z, stn, inp, res, jac, row, want_jac)
     # Beyond the last end nothing acts: n(1+) = 0 and m(1+) = 0.
     lo = seg_lo[nstations - 2]
     for i in range(3):
@@ -308,7 +406,7 @@ def shoot(z, st_s, st_kind, st_val, st_fol, st_col, seg_steps, seg_lo, seg_hi, p
             for q in range(lo, nz):
                 jac[row, q] = Y[3 + i, q]
         row += 1
-    return res, jac, stats
+    return res, jac, work.stats
 
 
 @njit(cache=True)
@@ -429,8 +527,15 @@ def _broyden(jac, step, res_new, res_old):
 
 
 @njit(cache=True)
-def newton(z0, jac0, st_s, st_kind, st_val, st_fol, st_col, seg_steps, seg_lo, seg_hi,
-           prm, st_kappa, tol, max_iter, contraction):
+def newton(z0, jac0, stations, inputs, seg_steps, tol, max_iter, contraction):
+    """``_newton`` called from Python (stations and inputs as plain tuples, see
+    ``shoot``)."""
+    return _newton(z0, jac0, Stations(*stations), Inputs(*inputs), seg_steps, tol,
+                   max_iter, contraction)
+
+
+@njit(cache=True)
+def _newton(z0, jac0, stn, inp, seg_steps, tol, max_iter, contraction):
     """Newton on the shooting residual, reusing its Jacobian while it contracts fast.
 
     jac0 : a Jacobian near z0 to start with (a warm start's), or an empty array.
@@ -453,8 +558,7 @@ def newton(z0, jac0, st_s, st_kind, st_val, st_fol, st_col, seg_steps, seg_lo, s
     yes, no = nz >= 0, nz < 0
     z = z0.copy()
     fresh = jac0.shape[0] != nz
-    res, jac, stats = shoot(z, st_s, st_kind, st_val, st_fol, st_col, seg_steps, seg_lo,
-                            seg_hi, prm, st_kappa, fresh, empty)
+    res, jac, stats = _shoot(z, stn, inp, seg_steps, fresh, empty)
     if not fresh:
         jac = jac0.copy()
     r = max_abs(res)
@@ -470,16 +574,14 @@ def newton(z0, jac0, st_s, st_kind, st_val, st_fol, st_col, seg_steps, seg_lo, s
         if not ok:
             if fresh:
                 return z, r, it, SINGULAR, jac, stats, 1.0
-            res, jac, stats = shoot(z, st_s, st_kind, st_val, st_fol, st_col, seg_steps,
-                                    seg_lo, seg_hi, prm, st_kappa, yes, empty)
+            res, jac, stats = _shoot(z, stn, inp, seg_steps, yes, empty)
             fresh = True
             continue
         t = 1.0
         accepted = False
         for _ in range(40):
             zt = z + t * dz
-            rt_vec, _, st = shoot(zt, st_s, st_kind, st_val, st_fol, st_col, seg_steps,
-                                  seg_lo, seg_hi, prm, st_kappa, no, empty)
+            rt_vec, _, st = _shoot(zt, stn, inp, seg_steps, no, empty)
             rt = max_abs(rt_vec)
             if it == 1 or not math.isfinite(rt):
                 theta = rt / r if math.isfinite(rt) else 1e3
@@ -502,8 +604,7 @@ def newton(z0, jac0, st_s, st_kind, st_val, st_fol, st_col, seg_steps, seg_lo, s
                     return z, r, it, CONVERGED, jac, stats, theta
                 return z, r, it, NOT_CONTRACTING, jac, stats, max(theta, rt / r)
             # A stale Jacobian may be to blame: refresh it and try again from z.
-            res, jac, stats = shoot(z, st_s, st_kind, st_val, st_fol, st_col, seg_steps,
-                                    seg_lo, seg_hi, prm, st_kappa, yes, empty)
+            res, jac, stats = _shoot(z, stn, inp, seg_steps, yes, empty)
             fresh = True
             continue
         # Round-off floor: a step this small cannot lower the residual any further.
@@ -518,8 +619,7 @@ def newton(z0, jac0, st_s, st_kind, st_val, st_fol, st_col, seg_steps, seg_lo, s
         if stagnant:
             return z, r, it, CONVERGED, jac, stats, theta
         if slow and r > tol:
-            res, jac, stats = shoot(z, st_s, st_kind, st_val, st_fol, st_col, seg_steps,
-                                    seg_lo, seg_hi, prm, st_kappa, yes, empty)
+            res, jac, stats = _shoot(z, stn, inp, seg_steps, yes, empty)
             fresh = True
         else:
             fresh = False
@@ -556,21 +656,43 @@ def needed_density(stats, accuracy, min_density):
 
 
 @njit(cache=True)
-def _lerp_into(val, fol, prm, val0, fol0, prm0, val1, fol1, prm1, t):
-    """The homotopy's inputs at t: (val, fol, prm) = (1 - t) * start + t * end."""
-    for i in range(val.shape[0]):
-        for j in range(3):
-            val[i, j] = val0[i, j] + t * (val1[i, j] - val0[i, j])
-        for j in range(2):
-            fol[i, j] = fol0[i, j] + t * (fol1[i, j] - fol0[i, j])
-    for j in range(prm.shape[0]):
-        prm[j] = prm0[j] + t * (prm1[j] - prm0[j])
+def _lerp_into(out, a, b, t):
+    """The homotopy's ``Inputs`` at t, written into out: (1 - t) * a + t * b."""
+    _lerp_rows(out.val, a.val, b.val, t)
+    _lerp_rows(out.fol, a.fol, b.fol, t)
+    _lerp_rows(out.dist, a.dist, b.dist, t)
+    for j in range(out.prm.shape[0]):
+        out.prm[j] = a.prm[j] + t * (b.prm[j] - a.prm[j])
 
 
 @njit(cache=True)
-def follow(z0, jac0, density, st_s, st_kind, st_col, seg_lo, seg_hi, st_kappa,
-           val0, fol0, prm0, val1, fol1, prm1, opts):
-    """Continuation from (arrays0, z0), an exact solution, to arrays1.
+def _lerp_rows(out, a, b, t):
+    for i in range(out.shape[0]):
+        for j in range(out.shape[1]):
+            out[i, j] = a[i, j] + t * (b[i, j] - a[i, j])
+
+
+@njit(cache=True)
+def _inputs_change(a, b):
+    """The largest change of an input between two ``Inputs`` (loads and targets, not
+    the bow's span [a, b] or the compliance)."""
+    span = 0.0
+    for i in range(a.val.shape[0]):
+        for j in range(3):
+            span = max(span, abs(b.val[i, j] - a.val[i, j]))
+        for j in range(2):
+            span = max(span, abs(b.fol[i, j] - a.fol[i, j]))
+        for j in range(4):
+            span = max(span, abs(b.dist[i, j] - a.dist[i, j]))
+    for j in range(3):
+        span = max(span, abs(b.prm[j] - a.prm[j]))
+    return span
+
+
+@njit(cache=True)
+def follow(z0, jac0, density, stations, start, end, opts):
+    """Continuation from (start, z0), an exact solution, to end (``Inputs``, as plain
+    tuples like the ``Stations``: see ``shoot``).
 
     The homotopy moves every input linearly, t from 0 to 1. The first predictor follows
     the tangent at the start, the later ones the secant through the last two points.
@@ -590,16 +712,10 @@ def follow(z0, jac0, density, st_s, st_kind, st_col, seg_lo, seg_hi, st_kappa,
     crossings); status is CONVERGED, STALLED or BUDGET, last the status of the last
     Newton, crossings the number of genuine sign changes of det J on the way.
     """
+    stn, inp0, inp1 = Stations(*stations), Inputs(*start), Inputs(*end)
     tol = opts[OPT_TOL]
     # Intermediate points converge relative to how far the homotopy moves the inputs.
-    span = 0.0
-    for i in range(val0.shape[0]):
-        for j in range(3):
-            span = max(span, abs(val1[i, j] - val0[i, j]))
-        for j in range(2):
-            span = max(span, abs(fol1[i, j] - fol0[i, j]))
-    for j in range(3):
-        span = max(span, abs(prm1[j] - prm0[j]))  # not the bow's span [a, b]
+    span = _inputs_change(inp0, inp1)
     loose = max(tol, opts[OPT_LOOSE] * span)
     contraction = opts[OPT_CONTRACTION]
     min_step = opts[OPT_MIN_STEP]
@@ -616,6 +732,9 @@ def follow(z0, jac0, density, st_s, st_kind, st_col, seg_lo, seg_hi, st_kappa,
     # homotopy crosses the loads at which buckling modes appear (about pi apart in K),
     # so no step may raise K by more than wave_step, or a step could skip the turn of
     # the branch there and land on another one.
+    st_s, st_kind = stn.st_s, stn.st_kind
+    val0, fol0, prm0 = inp0.val, inp0.fol, inp0.prm
+    val1, fol1, prm1 = inp1.val, inp1.fol, inp1.prm
     load_f = 0.0
     load_c = 0.0
     for i in range(val0.shape[0]):
@@ -628,12 +747,15 @@ def follow(z0, jac0, density, st_s, st_kind, st_col, seg_lo, seg_hi, st_kappa,
         load_f += abs(fol1[i, 0] - fol0[i, 0]) + abs(fol1[i, 1] - fol0[i, 1])
     load_f += math.sqrt((prm1[0] - prm0[0]) ** 2 + (prm1[1] - prm0[1]) ** 2)
     load_c += abs(prm1[2] - prm0[2])
+    for k in range(st_s.shape[0] - 1):  # the distributed loads on stretches: their totals
+        change = 0.0
+        for j in range(4):
+            change += abs(inp1.dist[k, j] - inp0.dist[k, j])
+        load_f += change * (st_s[k + 1] - st_s[k])
     root_f = math.sqrt(load_f)
     k_prev = -1.0
     k_now = -1.0
-    val = val0.copy()
-    fol = fol0.copy()
-    prm = prm0.copy()
+    inp = Inputs(val0.copy(), fol0.copy(), inp0.dist.copy(), prm0.copy())
     z = z0.copy()
     jac = jac0.copy()
     z_prev = z0.copy()
@@ -651,9 +773,8 @@ def follow(z0, jac0, density, st_s, st_kind, st_col, seg_lo, seg_hi, st_kappa,
     empty = np.zeros((0, NSTATE))
     yes = z0.shape[0] >= 0  # a runtime True (see newton)
     eps = 1e-7
-    _lerp_into(val, fol, prm, val0, fol0, prm0, val1, fol1, prm1, eps)
-    g_eps, j_eps, _ = shoot(z, st_s, st_kind, val, fol, st_col, seg_steps, seg_lo, seg_hi,
-                            prm, st_kappa, yes, empty)
+    _lerp_into(inp, inp0, inp1, eps)
+    g_eps, j_eps, _ = _shoot(z, stn, inp, seg_steps, yes, empty)
     tangent, ok = lu_solve(j_eps, -g_eps / eps)
     if not ok:
         return z, jac, density, stats, r, STALLED, SINGULAR, t, iterations, steps, 0
@@ -680,7 +801,7 @@ def follow(z0, jac0, density, st_s, st_kind, st_col, seg_lo, seg_hi, st_kappa,
         if k_prev >= 0.0 and t_prev >= 0.0 and k_now > k_prev:
             dt = min(dt, max(wave_step * (t - t_prev) / (k_now - k_prev), min_step))
         t_next = min(1.0, t + dt)
-        _lerp_into(val, fol, prm, val0, fol0, prm0, val1, fol1, prm1, t_next)
+        _lerp_into(inp, inp0, inp1, t_next)
         predictor = z.copy()
         if t_prev >= 0.0:
             w = (t_next - t) / (t - t_prev)
@@ -693,9 +814,9 @@ def follow(z0, jac0, density, st_s, st_kind, st_col, seg_lo, seg_hi, st_kappa,
         # Re-converging the end point on a finer mesh is no continuation step (the loads
         # do not move: a shorter step cannot help): a damped Newton, not a corrector that
         # must contract (a taut cable's first step there often does not).
-        zn, rn, it, status, jn, st, theta = newton(
-            predictor, jac, st_s, st_kind, val, fol, st_col, seg_steps, seg_lo, seg_hi, prm,
-            st_kappa, tol if final else loose, max_iter, 0.0 if refining else contraction)
+        zn, rn, it, status, jn, st, theta = _newton(
+            predictor, jac, stn, inp, seg_steps, tol if final else loose, max_iter,
+            0.0 if refining else contraction)
         iterations += it
         if status == CONVERGED:
             # How far the corrector travelled from the prediction, each unknown relative
@@ -707,8 +828,7 @@ def follow(z0, jac0, density, st_s, st_kind, st_col, seg_lo, seg_hi, st_kappa,
         if status == CONVERGED:
             new_sign = det_sign(jn)
             if new_sign != sign:
-                _, fresh_jac, _ = shoot(zn, st_s, st_kind, val, fol, st_col, seg_steps, seg_lo,
-                                        seg_hi, prm, st_kappa, yes, empty)
+                _, fresh_jac, _ = _shoot(zn, stn, inp, seg_steps, yes, empty)
                 new_sign = det_sign(fresh_jac)
                 if new_sign != sign:
                     if dt > 1e3 * min_step:
@@ -754,28 +874,28 @@ def follow(z0, jac0, density, st_s, st_kind, st_col, seg_lo, seg_hi, st_kappa,
 
 
 @njit(cache=True)
-def rest_state(st_s, st_kind, st_val, st_col, st_kappa, seg_steps, prm, nz):
+def rest_state(stations, inputs, seg_steps, nz):
     """The unloaded part, placed: (val, z) of the homotopy's exact start.
 
-    The rest shape (kappa0 and the bow in prm, no load) is integrated from the pose
+    The rest shape (kappa0 and the bow in inp.prm, with inp's loads: none) is
+    integrated from the pose
     (0, 0, 0) at s = 0, then moved rigidly: its angle from the first station with a
     prescribed angle, or from the chord between the first and last stations with a
     prescribed position; its origin so that the first prescribed x and y are met.
     val holds the rest values of the prescribed components (zero loads elsewhere);
     z the rest unknowns (the pose where s = 0 is free, and the state at each node).
     """
+    stn, inp = Stations(*stations), Inputs(*inputs)
+    st_s, st_kind, st_col, st_val = stn.st_s, stn.st_kind, stn.st_col, inp.val
     nst = st_s.shape[0]
     shape = np.zeros((nst, 3))
     y = np.zeros(NSTATE)
     Y = np.zeros((6, 0))
-    K = np.empty((_B.shape[0], 2))
-    KY = np.zeros((_B.shape[0], 2, 0))
-    stats = np.zeros(2)
-    empty = np.zeros((0, NSTATE))
+    work = Work(np.zeros((_B.shape[0], 4)), np.zeros((_B.shape[0], 4, 0)),
+                np.zeros((0, NSTATE)), np.zeros(1, dtype=np.int64), np.zeros(2))
     none = nst * 0  # runtime values, not literals (see newton)
     for k in range(nst - 1):
-        _integrate(y, Y, none, none, st_s[k], st_s[k + 1], seg_steps[k], prm, st_kappa[k],
-                   st_kappa[k + 1], K, KY, empty, none, nst < 0, stats)
+        _integrate(y, Y, none, none, _segment(k, stn, inp), seg_steps[k], work, nst < 0)
         shape[k + 1, 0] = y[0]
         shape[k + 1, 1] = y[1]
         shape[k + 1, 2] = y[2]

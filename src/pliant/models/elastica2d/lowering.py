@@ -36,16 +36,36 @@ class Arrays:
     val: np.ndarray  # (nst, 3): prescribed kinematics or applied dead loads
     fol: np.ndarray  # (nst, 2): follower loads (tangential, normal)
     prm: np.ndarray  # (6,): fx, fy, bow, bow from, bow to, axial compliance
+    # (nst, 4): per segment (its first station's row) the distributed loads on a
+    # stretch only, dead (fx, fy) and follower (ft, fn), per unit length
+    dist: np.ndarray
 
     def lerp(self, other: Arrays, t: float) -> Arrays:
         return Arrays(self.val + t * (other.val - self.val),
                       self.fol + t * (other.fol - self.fol),
-                      self.prm + t * (other.prm - self.prm))
+                      self.prm + t * (other.prm - self.prm),
+                      self.dist + t * (other.dist - self.dist))
 
     def with_bow(self, bow: float, span: tuple[float, float]) -> Arrays:
         prm = self.prm.copy()
         prm[2:5] = (bow, span[0], span[1])
-        return Arrays(self.val, self.fol, prm)
+        return Arrays(self.val, self.fol, prm, self.dist)
+
+    def unloaded(self) -> Arrays:
+        """The same targets with every load (point and distributed) removed."""
+        prm = self.prm.copy()
+        prm[:2] = 0.0
+        return Arrays(self.val, np.zeros_like(self.fol), prm, np.zeros_like(self.dist))
+
+    @property
+    def follower(self) -> bool:
+        """Whether any load follows the part (no potential: no stability, no energy)."""
+        return bool(np.any(self.fol) or np.any(self.dist[:, 2:]))
+
+    @property
+    def inputs(self) -> tuple:
+        """The kernels' ``Inputs``, as the plain tuple they take from Python."""
+        return self.val, self.fol, self.dist, self.prm
 
 
 @dataclass(frozen=True, eq=False)
@@ -79,6 +99,19 @@ class Lowered:
     nodes: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=np.int64))
     interval: float = 1.0  # the longest stretch between restarts (dimensionless)
     problem_rows: tuple[int, ...] = ()  # the kernel station of each problem station
+    # The kernels' ``Stations`` of this lowering, as the plain tuple they take from
+    # Python, and zero follower and distributed loads that the rest states share (the
+    # kernels copy what they change): made once, not per solve.
+    stations: tuple = ()
+    unloaded: tuple = ()
+
+    def __post_init__(self) -> None:
+        if not self.stations:
+            object.__setattr__(self, "stations", tuple(kernels.Stations(
+                self.st_s, self.st_kind, self.st_col, self.seg_lo, self.seg_hi,
+                self.st_kappa)))
+            object.__setattr__(self, "unloaded", (np.zeros_like(self.target.fol),
+                                                  np.zeros_like(self.target.dist)))
 
     # -- scales ---------------------------------------------------------------------------
     @property
@@ -109,6 +142,11 @@ class Lowered:
                 val[k, i] = (st.kinematics[i] / scales[i] if st.prescribed[i]
                              else st.dead_load[i] / loads[i])
             fol[k] = (st.follower_load[0] / loads[0], st.follower_load[1] / loads[0])
+        dist = self.target.dist  # zeros without loads on stretches (the warm path)
+        if problem.loads or self.problem.loads:
+            if _load_spans(problem) != _load_spans(self.problem):
+                return None  # the kernel's stations are cut where each load starts and ends
+            dist = segment_loads(problem, self.st_s)
         prm = self.target.prm.copy()
         prm[0], prm[1] = distributed_load(problem)
         station_of = list(self.station_of)
@@ -117,19 +155,20 @@ class Lowered:
         return Lowered(problem=problem, length=length, stiffness=self.stiffness,
                        st_s=self.st_s, st_kind=self.st_kind, st_col=self.st_col,
                        seg_lo=self.seg_lo, seg_hi=self.seg_hi, st_kappa=self.st_kappa,
-                       target=Arrays(val, fol, prm), station_of=tuple(station_of),
+                       target=Arrays(val, fol, prm, dist), station_of=tuple(station_of),
                        nz=self.nz, key=self.key,
-                       inputs=np.concatenate([val.ravel(), fol.ravel(), prm]),
+                       inputs=np.concatenate([val.ravel(), fol.ravel(), prm, dist.ravel()]),
                        nodes=self.nodes, interval=self.interval,
-                       problem_rows=self.problem_rows)
+                       problem_rows=self.problem_rows, stations=self.stations,
+                       unloaded=self.unloaded)
 
     # -- kernel calls ---------------------------------------------------------------------
     def mesh(self, density: int) -> Mesh:
         return Mesh(steps=kernels.mesh_steps(self.st_s, int(density)), density=int(density))
 
     def args(self, arrays: Arrays, mesh: Mesh) -> tuple:
-        return (self.st_s, self.st_kind, arrays.val, arrays.fol, self.st_col, mesh.steps,
-                self.seg_lo, self.seg_hi, arrays.prm, self.st_kappa)
+        """The shooting kernels' arguments after the unknowns: (stations, inputs, steps)."""
+        return self.stations, arrays.inputs, mesh.steps
 
     def shoot(self, z: np.ndarray, arrays: Arrays, mesh: Mesh, want_jac: bool = True,
               trajectory: bool = False) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -160,9 +199,10 @@ class Lowered:
         # homotopy: a stiff part pulled taut from its straight rest state is a stiff path.
         comp = self.target.prm[5]
         prm = np.array([0.0, 0.0, bow, span[0], span[1], max(comp, SOFT) if comp else 0.0])
-        val, z = kernels.rest_state(self.st_s, self.st_kind, self.target.val, self.st_col,
-                                    self.st_kappa, mesh.steps, prm, self.nz)
-        return Arrays(val, np.zeros_like(self.target.fol), prm), z
+        fol, dist = self.unloaded
+        val, z = kernels.rest_state(self.stations, (self.target.val, fol, dist, prm),
+                                    mesh.steps, self.nz)
+        return Arrays(val, fol, prm, dist), z
 
     def chord(self) -> tuple[int, int] | None:
         """The first and last stations whose whole position is prescribed."""
@@ -200,6 +240,8 @@ class Lowered:
         side = float(np.sum(moved @ normal))
         # Distributed load q: deflection ~ q w^4 / 100; point load P: ~ P w^3 / 48.
         side += float(self.target.prm[:2] @ normal) * width**4 / 100.0
+        dist = self.target.dist[:-1, :2] * np.diff(self.st_s)[:, None]  # on stretches
+        side += float(np.sum(dist @ normal)) * width**3 / 48.0
         dead = np.where(kind[:, :2] == APPLIED, self.target.val[:, :2], 0.0)
         side += float(np.sum(dead @ normal)) * width**3 / 48.0
         side += float(np.sum(self.target.fol[:, 1])) * width**3 / 48.0
@@ -241,20 +283,37 @@ class Lowered:
 
 
 def distributed_load(problem: Problem) -> tuple[float, float]:
-    """The dead load per unit length (the weight and the dead loads on the whole part),
-    dimensionless (by EI / L^3). The shooting integrates n' = -f in closed form for a
-    uniform f, so a follower load or one on a stretch only is refused here (the 3D
-    model takes both)."""
-    part = problem.part
-    if problem.partial_loads:
-        ld = problem.partial_loads[0]
-        raise InputError(f"{ld.name}.{'follower' if ld.follower else 'start'}",
-                         "the 2D model takes distributed loads that are dead and cover the "
-                         "whole part; give the problem 3 components (the 3D model) for a "
-                         f"{'follower load' if ld.follower else 'load on a stretch'}")
-    scale = part.length**3 / part.bending_stiffness
+    """The dead load per unit length on the whole part (its weight and the dead loads
+    that cover it), dimensionless (by EI / L^3); ``segment_loads`` has the others."""
+    scale = problem.part.length**3 / problem.part.bending_stiffness
     fx, fy = problem.dead_load_per_length
     return scale * fx, scale * fy
+
+
+def _load_spans(problem: Problem) -> list[tuple[float, float]]:
+    """Where the loads on stretches start and end (dimensionless): kernel stations."""
+    L = problem.part.length
+    return sorted({min(max(x / L, 0.0), 1.0) for ld in problem.partial_loads
+                   for x in ld.span(L)})
+
+
+def segment_loads(problem: Problem, st_s: np.ndarray) -> np.ndarray:
+    """(nst, 4): on each segment [st_s[k], st_s[k + 1]] (the stations cut at each
+    load's ends) the dead (fx, fy) and follower (ft, fn) loads per unit length that
+    ``distributed_load`` leaves out, dimensionless (by EI / L^3)."""
+    dist = np.zeros((st_s.shape[0], 4))
+    if not problem.loads:
+        return dist
+    part = problem.part
+    L = part.length
+    scale = L**3 / part.bending_stiffness
+    mids = 0.5 * (st_s[:-1] + st_s[1:]) * L
+    for ld in problem.partial_loads:
+        a, b = ld.span(L)
+        on = (mids > a) & (mids < b)
+        cols = slice(2, 4) if ld.follower else slice(0, 2)
+        dist[:-1][on, cols] += np.asarray(ld.force) * scale
+    return dist
 
 
 SOFT = 1e-3  # the axial compliance EI / (EA L^2) an extensible part's homotopy starts at
@@ -274,6 +333,9 @@ def load_wavenumber(problem: Problem) -> float:
     part = problem.part
     length, stiffness = part.length, part.bending_stiffness
     force = math.hypot(*problem.dead_load_per_length) * length
+    for ld in problem.partial_loads:
+        a, b = ld.span(length)
+        force += math.hypot(*ld.force) * (b - a)
     moment = 0.0
     for st in problem.stations:
         force += math.hypot(st.dead_load[0], st.dead_load[1])
@@ -301,6 +363,11 @@ def check_wavenumber(problem: Problem) -> float:
     terms = [(math.sqrt(math.hypot(*problem.dead_load_per_length) * length
                         * length**2 / stiffness), "part.mass_per_length",
               "the part's weight and distributed loads")]
+    for ld in problem.partial_loads:
+        a, b = ld.span(length)
+        total = math.hypot(*ld.force) * (b - a)
+        terms.append((math.sqrt(total * length**2 / stiffness), f"{ld.name}.force",
+                      f"a distributed load of {total:.3g} N in all"))
     for st in problem.stations:
         name = "/".join(c.name for c in st.conditions) or f"s = {st.s:g} m"
         force = math.hypot(st.dead_load[0], st.dead_load[1]) + math.hypot(*st.follower_load)
@@ -340,6 +407,7 @@ def lower(problem: Problem, nodes: int | None = None) -> Lowered:
     # two kinks, with constant curvature beyond them): a station, so that the kernel's
     # linear interpolation between stations is the profile's.
     extra = [0.0, 1.0] + [s / length for s, _ in part.rest_knots if 0.0 < s < length]
+    extra += _load_spans(problem)  # a segment is loaded whole or not at all
     for s in extra:
         if not any(abs(s - t) <= 1e-12 for t, _, _ in stations):
             stations.append((s, None, False))
@@ -387,6 +455,7 @@ def lower(problem: Problem, nodes: int | None = None) -> Lowered:
             seg_lo[k] = lo
             seg_hi[k] = col
     prm = np.array([*distributed_load(problem), 0.0, 0.0, 1.0, axial_compliance(part)])
+    dist = segment_loads(problem, st_s)
     if part.straight_at_rest:
         st_kappa = np.zeros(nst)
     else:
@@ -397,9 +466,10 @@ def lower(problem: Problem, nodes: int | None = None) -> Lowered:
     cuts = [0.0] + [float(st_s[k]) for k in node_index] + [1.0]
     return Lowered(problem=problem, length=length, stiffness=stiffness, st_s=st_s,
                    st_kind=st_kind, st_col=st_col, seg_lo=seg_lo, seg_hi=seg_hi,
-                   st_kappa=st_kappa, target=Arrays(val, fol, prm),
+                   st_kappa=st_kappa, target=Arrays(val, fol, prm, dist),
                    station_of=tuple(st for _, st, _ in stations), nz=col, key=key,
-                   inputs=np.concatenate([val.ravel(), fol.ravel(), prm]), nodes=node_index,
+                   inputs=np.concatenate([val.ravel(), fol.ravel(), prm, dist.ravel()]),
+                   nodes=node_index,
                    interval=max(b - a for a, b in zip(cuts, cuts[1:])),
                    problem_rows=tuple(k for k, (_, st, _) in enumerate(stations)
                                       if st is not None))

@@ -45,7 +45,8 @@ MAX_TURN = 1.0  # rad: the largest change of an element's angle in one SQP step 
 def applicable(problem: Problem) -> bool:
     """Whether the problem is one this route can minimise (see the module)."""
     conds = problem.conditions
-    if problem.part.axial_stiffness is not None or any(c.follower for c in conds):
+    if problem.part.axial_stiffness is not None or any(c.follower for c in conds) or any(
+            ld.follower for ld in problem.loads):
         return False
     return any(all(v is not None for v in c.position) and len(c.position) == 2
                for c in conds)
@@ -86,6 +87,11 @@ class _Discrete:
         weight[[0, -1]] = 0.5 * h
         q = np.asarray(problem.dead_load_per_length, float) * L**3 / EI
         f = weight[:, None] * q[None, :]  # dead forces at the nodes
+        for ld in problem.partial_loads:  # a dead load on a stretch: each node's cell
+            lo = np.maximum(s - 0.5 * h, 0.0) * L
+            hi = np.minimum(s + 0.5 * h, 1.0) * L
+            cover = np.array([ld.overlap(a, b, L) for a, b in zip(lo, hi)]) / L
+            f += cover[:, None] * np.asarray(ld.force)[None, :] * L**3 / EI
         m = np.zeros(n + 1)  # dead couples at the nodes
         self.position: list[tuple[int, int, float]] = []  # (node, component, value)
         self.angle: list[tuple[int, float]] = []  # interior: constraints

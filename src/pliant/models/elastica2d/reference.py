@@ -67,6 +67,7 @@ def solve_reference(problem: Problem, guess: object | None = None, *, tol: float
     fx, fy = low.target.prm[0], low.target.prm[1]
     comp = low.target.prm[5]  # EI / (EA L^2): the stretch lam = 1 + comp N
     val, fol, kind = low.target.val, low.target.fol, low.st_kind
+    dist = low.target.dist  # per block: dead (fx, fy) and follower (ft, fn) on stretches
 
     def fun(tau, y):
         out = np.empty_like(y)
@@ -78,8 +79,9 @@ def solve_reference(problem: Problem, guess: object | None = None, *, tol: float
             out[6 * k + 0] = sigma[k] * lam * c
             out[6 * k + 1] = sigma[k] * lam * sn
             out[6 * k + 2] = sigma[k] * (_curvature(low, k, s) + h[5])
-            out[6 * k + 3] = -sigma[k] * fx
-            out[6 * k + 4] = -sigma[k] * fy
+            ft, fn = dist[k, 2], dist[k, 3]  # n' = -(f + ft t + fn nu)
+            out[6 * k + 3] = -sigma[k] * (fx + dist[k, 0] + ft * c - fn * sn)
+            out[6 * k + 4] = -sigma[k] * (fy + dist[k, 1] + ft * sn + fn * c)
             out[6 * k + 5] = -sigma[k] * lam * (c * h[4] - sn * h[3])
         return out
 
@@ -99,6 +101,9 @@ def solve_reference(problem: Problem, guess: object | None = None, *, tol: float
             jac[o + 1, o + 3] = sg * comp * c * sn
             jac[o + 1, o + 4] = sg * comp * sn * sn
             jac[o + 2, o + 5] = sg
+            ft, fn = dist[k, 2], dist[k, 3]
+            jac[o + 3, o + 2] = sg * (ft * sn + fn * c)
+            jac[o + 4, o + 2] = sg * (fn * sn - ft * c)
             jac[o + 5, o + 2] = sg * (lam * axial - comp * shear * shear)
             jac[o + 5, o + 3] = -sg * (comp * c * shear - lam * sn)
             jac[o + 5, o + 4] = -sg * (comp * sn * shear + lam * c)
@@ -246,12 +251,14 @@ def equilibrium_error(eq) -> float:
     fuzz benchmark's and the tests' independent check), relative: lengths by L, forces
     by EI / L^2, moments by EI / L.
 
-    The ODE x' = lam cos theta, y' = lam sin theta, theta' = kappa0 + M / EI, n' = -q,
-    M' = -lam (t x n), lam = 1 + N / EA (1 for an inextensible part) is integrated again by solve_ivp (DOP853, rtol 1e-11) from each
-    returned sample to the next (one long shot from s = 0 would lose its digits on a
-    floppy, heavy part), each condition's load (reactions included) is the jump
-    n(s+) = n(s-) - F, M(s+) = M(s-) - M_load at its station with nothing before s = 0
-    or beyond s = L, and every prescribed value must hold.
+    The ODE x' = lam cos theta, y' = lam sin theta, theta' = kappa0 + M / EI, n' = -q
+    (q the dead loads per length, and the follower ones turned to the tangent),
+    M' = -lam (t x n), lam = 1 + N / EA (1 for an inextensible part) is integrated again
+    by solve_ivp (DOP853, rtol 1e-11) from each returned sample to the next (one long
+    shot from s = 0 would lose its digits on a floppy, heavy part), the loads of the
+    conditions at a station (reactions included) are the jump n(s+) = n(s-) - F,
+    M(s+) = M(s-) - M_load there, with nothing before s = 0 or beyond s = L, and every
+    prescribed value must hold.
     """
     from scipy.integrate import solve_ivp  # noqa: PLC0415
 
@@ -263,15 +270,26 @@ def equilibrium_error(eq) -> float:
 
     compliance = 0.0 if part.axial_stiffness is None else 1.0 / part.axial_stiffness
 
+    partial = problem.partial_loads
+
     def rhs(s, h):
         t = (math.cos(h[2]), math.sin(h[2]))
         stretch = 1.0 + compliance * (t[0] * h[3] + t[1] * h[4])  # 1 + N / EA
+        fx, fy = q
+        for ld in partial:
+            a, b = ld.span(L)
+            if a <= s <= b:
+                f0, f1 = ld.force
+                if ld.follower:  # f0 along t, f1 along nu = (-sin, cos)
+                    f0, f1 = f0 * t[0] - f1 * t[1], f0 * t[1] + f1 * t[0]
+                fx, fy = fx + f0, fy + f1
         return [stretch * t[0], stretch * t[1], part.rest_curvature_at(s) + h[5] / EI,
-                -q[0], -q[1], -stretch * (t[0] * h[4] - t[1] * h[3])]
+                -fx, -fy, -stretch * (t[0] * h[4] - t[1] * h[3])]
 
     s = eq.s
     H = np.column_stack([eq.position, eq.angle, eq.internal_force, eq.bending_moment])
-    knots = sorted(k for k, _ in part.rest_knots if 0.0 < k < L)
+    knots = sorted({k for k, _ in part.rest_knots if 0.0 < k < L}
+                   | {x for ld in partial for x in ld.span(L) if 0.0 < x < L})
     errors = [0.0]
     for i in range(len(s) - 1):
         if s[i + 1] - s[i] <= 1e-14 * L:  # a station's two samples: its jump
@@ -285,11 +303,15 @@ def equilibrium_error(eq) -> float:
         d = state - H[i + 1]
         d[2] = (d[2] + math.pi) % (2 * math.pi) - math.pi
         errors.append(float(np.max(np.abs(d) / scale)))
+    at: dict[float, np.ndarray] = {}  # the loads of the conditions sharing a station
     for ld in eq.loads.values():
-        k = np.flatnonzero(np.abs(s - ld.s) <= 1e-12 * L)
-        before = np.zeros(3) if ld.s <= 1e-12 * L else H[k[0], 3:]
-        after = np.zeros(3) if ld.s >= L * (1 - 1e-12) else H[k[-1], 3:]
-        jump = before - np.array([*ld.force, float(ld.moment)]) - after
+        key = next((x for x in at if abs(x - ld.s) <= 1e-12 * L), ld.s)
+        at[key] = at.get(key, np.zeros(3)) + np.array([*ld.force, float(ld.moment)])
+    for station, load in at.items():
+        k = np.flatnonzero(np.abs(s - station) <= 1e-12 * L)
+        before = np.zeros(3) if station <= 1e-12 * L else H[k[0], 3:]
+        after = np.zeros(3) if station >= L * (1 - 1e-12) else H[k[-1], 3:]
+        jump = before - load - after
         errors.append(float(np.max(np.abs(jump) / scale[3:])))
     for c in problem.conditions:
         k = int(np.argmin(np.abs(s - c.s)))

@@ -189,9 +189,7 @@ class _Run:
                             opts.grow, opts.shrink, opts.path_accuracy, opts.wave_step],
                            dtype=float)
         z, jac, density, stats, r, status, last, t, iterations, steps, crossings = kernels.follow(
-            z0, jac0, mesh.density, low.st_s, low.st_kind, low.st_col, low.seg_lo,
-            low.seg_hi, low.st_kappa, start.val, start.fol, start.prm, end.val, end.fol,
-            end.prm, options)
+            z0, jac0, mesh.density, low.stations, start.inputs, end.inputs, options)
         self.iterations += iterations
         self.steps += steps
         if status == kernels.BUDGET:
@@ -252,7 +250,7 @@ class _Run:
             point = self.through(rest, legs(rest), z, mesh)
             # An extensible part's start is not singular: its chord shortens by
             # compression, and the route stays on the straight branch past buckling.
-            if low.target.prm[5] == 0.0 or np.any(low.target.fol) or self.stable(point):
+            if low.target.prm[5] == 0.0 or low.target.follower or self.stable(point):
                 self.reached = [point]
                 return point
             straight = point
@@ -270,7 +268,7 @@ class _Run:
                 raise
             self.reached = [straight]
             return straight
-        if np.any(low.target.fol):  # no potential to compare the sides by
+        if low.target.follower:  # no potential to compare the sides by
             self.notes.append(
                 f"{why} (a bifurcation: it can buckle to either side); pliant took "
                 f"the branch that bows to the {'left' if pushed > 0 else 'right'} of its "
@@ -368,7 +366,8 @@ class _Run:
         """Positions first, with no load; then the loads."""
         low = self.low
         placed = Arrays(np.where(low.st_kind == PRESCRIBED, low.target.val, 0.0),
-                        np.zeros_like(low.target.fol), rest.prm)
+                        np.zeros_like(low.target.fol), rest.prm,
+                        np.zeros_like(low.target.dist))
         return [placed, low.target]
 
     def swing(self, rest: Arrays, legs: int = 8) -> list[Arrays]:
@@ -397,7 +396,7 @@ class _Run:
                 bearing = math.atan2(a[1], a[0]) + t * turn
                 val[k, :2] = val[pivot, :2] + radius * np.array([math.cos(bearing),
                                                                 math.sin(bearing)])
-            return Arrays(val, arrays.fol, arrays.prm)
+            return Arrays(val, arrays.fol, arrays.prm, arrays.dist)
 
         return [at(i / legs) for i in range(1, legs + 1)]
 

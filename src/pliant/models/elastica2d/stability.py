@@ -59,7 +59,8 @@ def smallest_eigenvalue(eq, elements: int | None = None) -> float | None:
     from scipy.linalg import eigh, null_space  # noqa: PLC0415 (heavy; on demand)
 
     problem = eq.problem
-    if any(st.follower_load != (0.0, 0.0) for st in problem.stations):
+    if any(st.follower_load != (0.0, 0.0) for st in problem.stations) or any(
+            ld.follower for ld in problem.loads):
         return None
     part = problem.part
     L, EI = part.length, part.bending_stiffness
