@@ -16,8 +16,9 @@ from pliant.errors import InputError
 from pliant.io.problem_file import dump_problem, parse_problem
 from pliant.models import elastica2d, rod3d
 from pliant.models.banded import dense
-from pliant.models.rod3d.lowering import lower
+from pliant.models.elastica2d.lowering import lower as lower_2d
 from pliant.models.elastica2d.reference import equilibrium_error, solve_reference
+from pliant.models.rod3d.lowering import lower
 from pliant.models.rod3d.solver import _Run
 
 UNIT = pl.Part(length=1.0, bending_stiffness=1.0, torsional_stiffness=1.0)
@@ -139,6 +140,35 @@ def test_2d_loads_on_a_stretch_match_the_3d_rod_and_an_independent_integration(f
     # And scipy's solve_bvp from the shooting's answer stays on it.
     ref = solve_reference(plane, guess=eq, tol=1e-8)
     assert ref.success and np.allclose(ref.tip, eq.tip, atol=1e-6)
+
+
+@pytest.mark.parametrize("extensible", [False, True])
+def test_2d_shooting_sensitivities_with_loads_on_stretches_match_finite_differences(
+        extensible):
+    """The shooting's Jacobian (sensitivities through the Runge-Kutta stages) against
+    central differences, with a dead and a follower load on overlapping stretches and
+    a restart node: the follower's n carried through the stages is the new term."""
+    part = pl.Part(length=1.0, bending_stiffness=1.0, rest_curvature=0.4,
+                   axial_stiffness=300.0 if extensible else None)
+    problem = pl.Problem(part, (
+        pl.clamp(0.0), pl.grip(1.0, position=(0.6, 0.5), name="hand")),
+        loads=(pl.DistributedLoad((1.5, -3.0), start=0.2, end=0.7, name="dead"),
+               pl.DistributedLoad((2.0, 4.0), follower=True, start=0.4, name="flow")))
+    low = lower_2d(problem, nodes=2)
+    z = np.random.default_rng(7).standard_normal(low.nz)
+    mesh = low.mesh(24)
+    _, jac, _ = low.shoot(z, low.target, mesh)
+    fd = np.empty_like(jac)
+    for j in range(low.nz):
+        h = 1e-6 * max(1.0, abs(z[j]))
+        zp, zm = z.copy(), z.copy()
+        zp[j] += h
+        zm[j] -= h
+        rp, _, _ = low.shoot(zp, low.target, mesh, want_jac=False)
+        rm, _, _ = low.shoot(zm, low.target, mesh, want_jac=False)
+        fd[:, j] = (rp - rm) / (2 * h)
+    assert np.allclose(jac, fd, rtol=1e-6, atol=1e-6 * max(1.0, np.abs(jac).max()))
+    assert np.any(low.target.dist[:, 2:]) and np.any(low.target.dist[:, :2])
 
 
 def test_2d_lowest_equilibrium_with_a_load_on_a_stretch():

@@ -36,13 +36,16 @@ class ConvergenceError(PliantError, RuntimeError):
     residual : the relative residual where it stopped (dimensionless).
     last_good : the last converged state (an ``Equilibrium``) or None.
     progress : how far along its continuation path the solver got, in [0, 1].
+    status : why it stopped (``pliant.core.events.Status``; its ``advice`` says what
+        to do), or None where no solver's path was involved.
     """
 
     def __init__(self, message: str, *, residual: float, last_good: Any = None,
-                 progress: float = 0.0) -> None:
+                 progress: float = 0.0, status: Any = None) -> None:
         self.residual = residual
         self.last_good = last_good
         self.progress = progress
+        self.status = status
         super().__init__(message)
 
 

@@ -41,7 +41,8 @@ from pliant.assembly.checks import (
     zone_of,
 )
 from pliant.assembly.path import PathRun, StepRecord, follow_path
-from pliant.core.equilibrium import WARM_START_LOST, stretch_summary
+from pliant.core.equilibrium import stretch_summary
+from pliant.core.events import WarmStartLost, has
 from pliant.core.rules import Capacity, EvaluationSettings, PartKind, Rules
 from pliant.errors import InputError
 
@@ -425,7 +426,7 @@ def evaluate_pose(scene: Any, pose: Any, clearances: dict[str, float], *,
         moment=tuple(map(float, grip.moment)), clearance=float(nearest[1]),
         nearest=nearest[0], contacts=0 if pose.contacts is None else len(pose.contacts),
         contact_force=0.0, bend_radius=float(radius), bend_at=float(at),
-        stable=pose.stable, snap=WARM_START_LOST in pose.notes, seconds=0.0,
+        stable=pose.stable, snap=has(pose.notes, WarmStartLost), seconds=0.0,
         clearances=tuple(clearances.items()))
     run = PathRun(grip=grips[0], margin=scene.margin, steps=[record], final=pose,
                   equilibria=[pose], problems=[pose.problem])

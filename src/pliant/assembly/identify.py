@@ -35,6 +35,7 @@ from typing import Any
 import numpy as np
 
 from pliant.core.conditions import Condition, clamp
+from pliant.core.events import WarmStartLost, has
 from pliant.core.measurement import (
     UNKNOWNS,
     Deflection,
@@ -768,9 +769,7 @@ class _BucklingModel:
             eq = solve(self._turned(part, phi), warm_start=warm, solver=self.solver)
         except ConvergenceError:
             return None
-        from pliant.core.equilibrium import WARM_START_LOST  # noqa: PLC0415
-
-        if WARM_START_LOST in eq.notes:
+        if has(eq.notes, WarmStartLost):
             return None  # the branch ended: it jumped
         stable, eigen = eq.stability
         if stable is None:

@@ -17,7 +17,7 @@ from typing import Any
 
 import numpy as np
 
-from pliant.core.equilibrium import WARM_START_LOST
+from pliant.core.events import WarmStartLost, has
 from pliant.core.problem import Problem
 from pliant.errors import PliantError
 from pliant.scene.interference import Interference, of_equilibrium
@@ -134,7 +134,8 @@ def follow_path(start: Problem, path: list[Problem], grip: str, *, margin: float
             if k == 0 and start_from is not None:
                 eq = rod3d.solve(problem, warm_start=start_from, solver=solver)
                 # A start solved cold after all is no snap along the path.
-                eq = replace(eq, notes=tuple(n for n in eq.notes if n != WARM_START_LOST))
+                eq = replace(eq, notes=tuple(n for n in eq.notes
+                                             if not isinstance(n, WarmStartLost)))
             else:
                 eq = rod3d.solve(problem, warm_start=eq, solver=solver)
         except PliantError as err:
@@ -171,5 +172,5 @@ def _record(eq: Any, grip: str, progress: float, margin: float,
         contacts=len(contacts),
         contact_force=float(np.linalg.norm(contacts.force, axis=1).sum()),
         bend_radius=float(radius), bend_at=float(at), stable=eq.stable,
-        snap=WARM_START_LOST in eq.notes, seconds=seconds,
+        snap=has(eq.notes, WarmStartLost), seconds=seconds,
         clearances=tuple((c.obstacle, float(c.clearance)) for c in report.clearances))

@@ -18,10 +18,13 @@ from typing import Any
 
 import numpy as np
 
+from pliant.core.events import Event, Status
+from pliant.core.events import events as as_events
 from pliant.core.problem import Problem
 
 # The note of an answer whose warm start could not be followed to its problem: the part
-# was solved afresh, so between the two it jumped (a fold, a snap). Callers test for it.
+# was solved afresh, so between the two it jumped (a fold, a snap): the message of a
+# ``pliant.core.events.WarmStartLost``, which callers test for.
 WARM_START_LOST = ("the warm start could not be followed to this problem; solved from the "
                    "rest state instead")
 
@@ -183,6 +186,16 @@ class Equilibrium:
         """"stable", "neutral" (a mode that costs no energy), "unstable" or "undecided"."""
         return stability_verdict(self.stability, self.problem.part)
 
+    # An answer converged (a solver that cannot converge raises ``ConvergenceError``
+    # with its own ``status``).
+    status = Status.CONVERGED
+
+    @property
+    def events(self) -> tuple[Event, ...]:
+        """The notes as typed records (``pliant.core.events``): the branch taken, a
+        snap, a lost warm start, a lower equilibrium found."""
+        return as_events(self.notes)
+
     @property
     def s(self) -> np.ndarray:
         return self.samples.s
@@ -292,6 +305,8 @@ class Equilibrium:
             "iterations": self.iterations,
             "steps": self.steps,
             "notes": list(self.notes),
+            "status": self.status.value,
+            "events": [e.to_dict() for e in self.events],
             "units": {"length": "m", "force": "N", "moment": "N m", "angle": "rad",
                       "energy": "J", "smallest_eigenvalue": "N m"},
         }
@@ -429,6 +444,13 @@ class Equilibrium3D:
     def reactions(self) -> dict[str, StationLoad]:
         return {k: v for k, v in self.loads.items() if v.is_reaction}
 
+    status = Status.CONVERGED  # as in 2D
+
+    @property
+    def events(self) -> tuple[Event, ...]:
+        """The notes as typed records (see ``Equilibrium.events``)."""
+        return as_events(self.notes)
+
     @property
     def tangent(self) -> np.ndarray:
         return self.frames[:, :, 2]
@@ -510,5 +532,7 @@ class Equilibrium3D:
             "iterations": self.iterations,
             "steps": self.steps,
             "notes": list(self.notes),
+            "status": self.status.value,
+            "events": [e.to_dict() for e in self.events],
             "units": {"length": "m", "force": "N", "moment": "N m", "energy": "J"},
         }

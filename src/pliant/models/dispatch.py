@@ -19,7 +19,7 @@ from typing import Any
 import numpy as np
 
 from pliant.core.conditions import Condition
-from pliant.core.equilibrium import WARM_START_LOST
+from pliant.core.events import PlanarRoute, WarmStartLost, has
 from pliant.core.problem import Problem
 from pliant.errors import ConvergenceError, IllPosedProblemError, PliantError
 
@@ -57,9 +57,9 @@ def solve(problem: Problem, *, warm_start: Any = None, solver: Any = None):
             eq = model.solve(problem, warm_start=start, solver=solver)
         except PliantError:
             raise refused from None
-        if WARM_START_LOST in eq.notes:  # Newton did not take the 3D answer: solved cold
+        if has(eq.notes, WarmStartLost):  # Newton did not take the 3D answer: solved cold
             raise refused from None
-        return replace(eq, notes=(*eq.notes, PLANAR_NOTE))
+        return replace(eq, notes=(*eq.notes, PlanarRoute(PLANAR_NOTE)))
 
 
 def _planar_start(problem: Problem) -> Any:

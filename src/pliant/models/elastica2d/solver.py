@@ -38,6 +38,15 @@ from pliant.core.equilibrium import (
     StationLoad,
     potential_energy,
 )
+from pliant.core.events import (
+    BeyondFold,
+    BranchTaken,
+    CrossedBifurcation,
+    LowestEquilibrium,
+    OthersFound,
+    Status,
+    WarmStartLost,
+)
 from pliant.core.problem import Problem
 from pliant.errors import ConvergenceError
 from pliant.models import clock
@@ -114,6 +123,7 @@ class _Stalled(Exception):
     reason: str
     singular_start: bool = False  # the Jacobian was singular at the homotopy's start
     budget: bool = False  # a step or time budget ran out (not a property of the path)
+    status: Status = Status.FOLD  # why, for the ConvergenceError
 
 
 @dataclass(frozen=True, eq=False)
@@ -146,6 +156,7 @@ _REASONS = {
     kernels.NOT_FINITE: "the shape blew up",
     kernels.MAX_ITERATIONS: "Newton ran out of iterations",
 }
+_STATUS = {kernels.SINGULAR: Status.SINGULAR, kernels.NOT_FINITE: Status.NOT_FINITE}
 
 
 @dataclass
@@ -182,7 +193,8 @@ class _Run:
         opts, low = self.solver, self.low
         if clock.now() > self.deadline:
             raise _Stalled(0.0, z0, math.inf,
-                           f"the time budget of {opts.time_budget} s ran out", budget=True)
+                           f"the time budget of {opts.time_budget} s ran out", budget=True,
+                           status=Status.TIME_BUDGET)
         options = np.array([opts.tolerance, max(opts.tolerance, opts.loose_tolerance),
                             opts.contraction, opts.min_step, opts.max_steps,
                             opts.max_iterations, opts.accuracy, opts.min_density,
@@ -194,17 +206,18 @@ class _Run:
         self.steps += steps
         if status == kernels.BUDGET:
             raise _Stalled(t, z, r, f"the continuation budget of {opts.max_steps} steps "
-                           "ran out", budget=True)
+                           "ran out", budget=True, status=Status.STEP_BUDGET)
         if status != kernels.CONVERGED:
             raise _Stalled(t, z, r, _REASONS.get(
                 last, "Newton stopped contracting however short the step (a fold: the "
                 "branch ends or turns back here)"),
-                singular_start=last == kernels.SINGULAR and steps == 0 and t == 0.0)
+                singular_start=last == kernels.SINGULAR and steps == 0 and t == 0.0,
+                status=_STATUS.get(last, Status.FOLD))
         if crossings:
-            self.notes.append(
+            self.notes.append(CrossedBifurcation(
                 "the path to this problem crosses a bifurcation (det J changes sign); the "
                 "equilibrium continued through it may be unstable, and a neighbouring "
-                "branch may be the one the part takes")
+                "branch may be the one the part takes"))
         return _Point(z, jac, low.mesh(density), stats, r)
 
     # -- routes ---------------------------------------------------------------------------
@@ -269,11 +282,12 @@ class _Run:
             self.reached = [straight]
             return straight
         if low.target.follower:  # no potential to compare the sides by
-            self.notes.append(
+            side = "left" if pushed > 0 else "right"
+            self.notes.append(BranchTaken(
                 f"{why} (a bifurcation: it can buckle to either side); pliant took "
-                f"the branch that bows to the {'left' if pushed > 0 else 'right'} of its "
+                f"the branch that bows to the {side} of its "
                 "chord, the side its targets and loads push it to; another equilibrium may "
-                "exist on the other side")
+                "exist on the other side", side=side))
             self.reached = [found[0][1]]
             return found[0][1]
         try:  # the other side too: keep the lower stable equilibrium, say what else exists
@@ -295,8 +309,11 @@ class _Run:
         took = (f"{why} (a bifurcation: it can buckle to either side); pliant took "
                 f"the branch that bows to the {'left' if best[0] > 0 else 'right'} of its "
                 f"chord (potential energy {best[2]:.6g} J, {word[best[3]]})")
+        side = "left" if best[0] > 0 else "right"
         if len(judged) == 1:
-            self.notes.append(took + "; the route to the other side found no equilibrium")
+            self.notes.append(BranchTaken(
+                took + "; the route to the other side found no equilibrium", side=side,
+                energy=best[2]))
             self.reached = [best[1]]
             return best[1]
         other = next(j for j in judged if j is not best)
@@ -306,7 +323,8 @@ class _Run:
         else:
             took += (f"; the other side's equilibrium has {other[2]:.6g} J and is "
                      f"{word[other[3]]}")
-        self.notes.append(took)
+        self.notes.append(BranchTaken(took, side=side, energy=best[2], other_energy=other[2],
+                                      twin=twins))
         self.reached = [best[1]] + [j[1] for j in judged if j is not best]
         return best[1]
 
@@ -377,7 +395,8 @@ class _Run:
         low = self.low
         ends = low.chord()
         if ends is None:
-            raise _Stalled(0.0, np.zeros(low.nz), math.inf, "nothing to swing around")
+            raise _Stalled(0.0, np.zeros(low.nz), math.inf, "nothing to swing around",
+                           status=Status.NO_ROUTE)
         pivot = ends[0]
         located = np.nonzero((low.st_kind[:, 0] == PRESCRIBED)
                              & (low.st_kind[:, 1] == PRESCRIBED))[0]
@@ -479,18 +498,21 @@ class _Run:
         if best[3] is point:
             self.low, self.notes, self.reached = low, notes, reached
             if len(judged) > 1:
-                self.notes.append("the other equilibria found by minimising the energy "
-                                  "from a few starting shapes: " + self._listed(judged[1:]))
+                self.notes.append(OthersFound(
+                    "the other equilibria found by minimising the energy from a few "
+                    "starting shapes: " + self._listed(judged[1:]),
+                    energies=tuple(j[1] for j in judged[1:])))
             return point
         self.low = best[2]
         route = next(j for j in judged if j[3] is point)
-        self.notes[:] = [n for n in notes if not n.startswith(_BRANCH_NOTE)]
-        self.notes.append(
+        self.notes[:] = [n for n in notes if not isinstance(n, BranchTaken)]
+        self.notes.append(LowestEquilibrium(
             f"pliant took the equilibrium where the part's energy is least "
             f"({'unstable' if best[0] else 'stable'}, potential energy {best[1]:.6g} J, found "
             f"by minimising it from a few starting shapes); the path from the "
             f"unloaded part leads to another: " + self._listed([route])
-            + "".join(f"; also found: {self._listed([j])}" for j in judged[1:] if j is not route))
+            + "".join(f"; also found: {self._listed([j])}" for j in judged[1:] if j is not route),
+            energy=best[1], route_energy=route[1]))
         self.reached = [best[3]]
         return best[3]
 
@@ -508,7 +530,7 @@ class _Run:
                 "starting shapes")
         if len(judged) > 1:
             note += "; the others found: " + self._listed(judged[1:])
-        self.notes.append(note)
+        self.notes.append(LowestEquilibrium(note, energy=energy))
         self.reached = [point]
         return point
 
@@ -524,10 +546,11 @@ class _Run:
             z, r, status, jac, stats = self.newton(z0, low.target, mesh, strict=False,
                                                    tol=self.solver.tolerance)
             if status == kernels.CONVERGED:
-                self.notes.append(
+                self.notes.append(BeyondFold(
                     f"the path from the unloaded part meets a fold at {stall.t:.3g} of the "
                     "way (the part would snap through); this equilibrium lies beyond it, "
-                    "found by a damped Newton: check that it is the one you expect")
+                    "found by a damped Newton: check that it is the one you expect",
+                    at=stall.t))
                 return _Point(z, jac, mesh, stats, r)
         raise stall
 
@@ -667,9 +690,9 @@ def _solve(problem: Problem, warm_start: Equilibrium | None, solver: ShootingSol
             point = run.warm(warm_start, follow_only, history)
             if point is not None:
                 # What was said of the branch still holds along it.
-                run.notes[:0] = [n for n in warm_start.notes if n.startswith(_BRANCH_NOTE)]
+                run.notes[:0] = [n for n in warm_start.notes if isinstance(n, BranchTaken)]
             else:
-                run.notes.append(WARM_START_LOST)
+                run.notes.append(WarmStartLost(WARM_START_LOST))
                 run.low = lower(problem)
         if point is None:
             point = run.polish(run.cold())
@@ -678,7 +701,8 @@ def _solve(problem: Problem, warm_start: Equilibrium | None, solver: ShootingSol
             f"no equilibrium: {stall.reason}; stopped at {stall.t:.3g} of the way "
             f"(relative residual {stall.residual:.2e}); try smaller steps or check "
             "that the targets can be reached",
-            residual=stall.residual, progress=stall.t, last_good=warm_start) from None
+            residual=stall.residual, progress=stall.t, last_good=warm_start,
+            status=stall.status) from None
     return _answer(run, point, problem, solver)
 
 

@@ -45,14 +45,21 @@ from pliant.core.equilibrium import (
     StationLoad,
     potential_energy,
 )
+from pliant.core.events import (
+    BranchTaken,
+    LowestEquilibrium,
+    Snapped,
+    Status,
+    WarmStartLost,
+)
 from pliant.core.problem import Problem
 from pliant.errors import ConvergenceError, IllPosedProblemError, InputError
 from pliant.models import clock
-from pliant.models.settings import check
 from pliant.models.banded import dense
 from pliant.models.rod3d import kernels
 from pliant.models.rod3d.kernels import AXIS, FULL
 from pliant.models.rod3d.lowering import Loads, Rod, axis_basis, lower, quat_matrix
+from pliant.models.settings import check
 
 _SWITCHES = 6  # active-set changes a Newton may take without contracting
 CONTACT_SCALE = 1.0  # weighs a gap against a contact force in min(gam, scale g)
@@ -118,6 +125,7 @@ class _Stalled(Exception):
     gauge: np.ndarray | None = None  # its twist gauge
     loads: Loads | None = None  # its loads and targets
     ahead: tuple[Loads, ...] = ()  # what was left of the route: the leg's end and after
+    status: Status = Status.FOLD  # why, for the ConvergenceError
 
 
 @dataclass(frozen=True, eq=False)
@@ -263,7 +271,8 @@ class _Run:
         R_eps, ab, _ = self.residual(state, start.lerp(end, eps), want_jac=True)
         tangent, ok = self.solve_linear(ab, -R_eps / eps)
         if not ok or not float(np.abs(tangent).max()) < 1e10:  # singular up to rounding
-            raise _Stalled(0.0, math.inf, "the start is singular", singular_start=True)
+            raise _Stalled(0.0, math.inf, "the start is singular", singular_start=True,
+                           status=Status.SINGULAR)
         load_f, load_c = _load_size(start, end, self.rod.h)
         root_f = math.sqrt(load_f)
         t, dt = 0.0, 1.0
@@ -273,10 +282,11 @@ class _Run:
             if steps >= opts.max_steps:
                 raise _Stalled(t, math.inf, f"the continuation budget of {opts.max_steps} "
                                "steps ran out", budget=True, state=state,
-                               gauge=self.gauge_quat.copy())
+                               gauge=self.gauge_quat.copy(), status=Status.STEP_BUDGET)
             if clock.now() > self.deadline:
                 raise _Stalled(t, math.inf, f"the time budget of {opts.time_budget} s ran "
-                               "out", budget=True, state=state, gauge=self.gauge_quat.copy())
+                               "out", budget=True, state=state, gauge=self.gauge_quat.copy(),
+                               status=Status.TIME_BUDGET)
             # No step may raise the loads' wavenumber sqrt(t F) + t C by more than wave_step.
             k_next = math.sqrt(t) * root_f + t * load_c + opts.wave_step
             if load_c > 0.0 or root_f > 0.0:
@@ -311,7 +321,9 @@ class _Run:
                               "Newton stopped contracting however short the step (a fold: "
                               "the branch ends or turns back here)")
                     raise _Stalled(t, r, reason, state=state, gauge=self.gauge_quat.copy(),
-                                   loads=start.lerp(end, t), ahead=(end,))
+                                   loads=start.lerp(end, t), ahead=(end,),
+                                   status=Status.SINGULAR if status == kernels.SINGULAR
+                                   else Status.FOLD)
 
     def sizes(self, state: State) -> np.ndarray:
         """Each unknown's size, floored at 1 (frame rotations count as 1)."""
@@ -450,10 +462,10 @@ class _Run:
         raise best
 
     def _bow_note(self, side: np.ndarray, why: str) -> None:
-        self.notes.append(
+        self.notes.append(BranchTaken(
             f"{self.branch_note} (a bifurcation: it can buckle to any side); pliant took the "
             f"branch that bows toward {np.round(side, 3).tolist()}, {why}; other equilibria "
-            "may exist")
+            "may exist", side=tuple(float(c) for c in side)))
 
     def through(self, start: Loads, targets: list[Loads], state: State) -> State:
         """Follow the homotopies start -> targets[0] -> targets[1] -> ...; a stall's
@@ -497,7 +509,7 @@ class _Run:
         rod = self.rod
         ends = _chord(rod)
         if ends is None:
-            raise _Stalled(0.0, math.inf, "nothing to swing around")
+            raise _Stalled(0.0, math.inf, "nothing to swing around", status=Status.NO_ROUTE)
         pivot = ends[0]
         located = [k for k in range(rod.st_kind.shape[0])
                    if rod.st_pos_mask[k].all() and k != pivot]
@@ -554,11 +566,12 @@ class _Run:
                 stall = again
                 continue
             times = "once" if len(at) == 1 else f"{len(at)} times"
-            self.notes.append(
+            self.notes.append(Snapped(
                 f"every path from the unloaded part meets a fold: loaded along it, the part "
                 f"snaps through ({times}, first at {at[0]:.3g} of the way); this is the "
                 "equilibrium it reaches after the snap, found by letting it settle (a "
-                "pseudo-transient relaxation) and following on: other equilibria may exist")
+                "pseudo-transient relaxation) and following on: other equilibria may exist",
+                at=float(at[0]), count=len(at)))
             return state
 
     def settle(self, state: State, loads: Loads, push: float = 0.05) -> State | None:
@@ -848,12 +861,12 @@ def _solve(problem: Problem, warm_start: Equilibrium3D | None, solver: RodSolver
         if warm_start is not None:
             state = run.warm(warm_start)
             if state is not None:
-                run.notes[:0] = [n for n in warm_start.notes if n.startswith(_BRANCH_NOTE)]
+                run.notes[:0] = [n for n in warm_start.notes if isinstance(n, BranchTaken)]
             elif follow_only:
                 raise run.stall or _Stalled(0.0, math.inf, "the warm start could not be "
                                             "followed to this problem")
             else:
-                run.notes.append(WARM_START_LOST)
+                run.notes.append(WarmStartLost(WARM_START_LOST))
         if state is None:
             state = run.cold()
         if run.rod.gauge_frame >= 0 and run.rod.K[0] != run.rod.K[1]:
@@ -864,7 +877,7 @@ def _solve(problem: Problem, warm_start: Equilibrium3D | None, solver: RodSolver
             f"no equilibrium: {stall.reason}; stopped at {stall.t:.3g} of the way "
             f"(relative residual {stall.residual:.2e}); try smaller steps or check that "
             "the targets can be reached", residual=stall.residual, progress=stall.t,
-            last_good=warm_start) from None
+            last_good=warm_start, status=stall.status) from None
     seed = None
     if warm_start is not None and isinstance(warm_start.state, _WarmState):
         seed = warm_start.state.mode[0] if warm_start.state.mode else None
@@ -898,10 +911,11 @@ def _lowest(run: _Run, eq: Equilibrium3D) -> tuple[Equilibrium3D, _Run]:
         return eq, run
     best = better[0]
     energy = potential_energy(best)
-    kept = [n for n in eq.notes if not n.startswith(_BRANCH_NOTE)]
-    note = (f"pliant took the stable equilibrium of lowest potential energy its routes "
-            f"reach ({energy:.6g} J, {best.notes[0]}); the first route's has {first:.6g} J "
-            f"and is {eq.verdict}")
+    kept = [n for n in eq.notes if not isinstance(n, BranchTaken)]
+    note = LowestEquilibrium(
+        f"pliant took the stable equilibrium of lowest potential energy its routes "
+        f"reach ({energy:.6g} J, {best.notes[0]}); the first route's has {first:.6g} J "
+        f"and is {eq.verdict}", energy=energy, route_energy=first)
     chosen = replace(best, notes=(*kept, note), iterations=eq.iterations + best.iterations)
     again = _Run(best.state.rod, run.solver)
     again.gauge_quat = best.state.gauge_quat
