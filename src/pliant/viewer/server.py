@@ -215,10 +215,11 @@ class Server:
             try:
                 while True:
                     await asyncio.sleep(0.03)
+                    # Sent under the lock, as the replies are: a frame made before a
+                    # move's must not reach the page after it (it would show the old pose).
                     async with lock:
-                        messages = state.take_accurate()
-                    for message in messages:
-                        await self._send(ws, P.dump(message))
+                        for message in state.take_accurate():
+                            await self._send(ws, P.dump(message))
             except (ConnectionClosed, _Dropped):
                 pass  # the reading loop sees it too, and closes the session
 
@@ -226,9 +227,8 @@ class Server:
         try:
             async for raw in ws:
                 async with lock:
-                    replies = await self._reply(state, raw)
-                for reply in replies:
-                    await self._send(ws, reply)
+                    for reply in await self._reply(state, raw):
+                        await self._send(ws, reply)
         except (ConnectionClosed, _Dropped):
             pass
         finally:
