@@ -26,6 +26,7 @@ from pliant.assembly.checks import (
     zone_of,
 )
 from pliant.assembly.evaluate import evaluate, hand_rows
+from pliant.core.numbers import clean
 from pliant.core.rules import EvaluationSettings
 from pliant.errors import FileFormatError, InputError
 from pliant.io.evaluation_file import EvaluationReport, evaluation_json, write_csv
@@ -345,6 +346,29 @@ def test_the_json_validates_against_its_schema_and_the_csv_has_a_row_per_step(en
     lines = path.read_text().splitlines()
     assert len(lines) == 102 and "hand axial [N]" in lines[0]
     assert path.stat().st_mode & 0o044  # colleagues can read it
+
+
+def test_the_table_writes_round_off_as_zero_and_keeps_real_values(engine_bay):
+    """The engine bay's start wrote Mz = 6.4e-109 N m and a twist of -2.8e-124 N m: each
+    grip's force and moment components are now 0 or above 1e-9 of the larger of their
+    vector's size and the part's force or moment scale, and the same table's real
+    values are those of the grip steps (a sample checked)."""
+    part = engine_bay.run.final.problem.part
+    scales = {"F": part.bending_stiffness / part.length**2,
+              "M": part.bending_stiffness / part.length}
+    keys = {"F": ("Fx", "Fy", "Fz", "axial", "lateral"),
+            "M": ("Mx", "My", "Mz", "twist", "bending")}
+    zeros = 0
+    for row in engine_bay.table:
+        for kind, names in keys.items():
+            values = [row[f"hand {n}"] for n in names]
+            floor = 1e-9 * max(max(abs(v) for v in values), scales[kind])
+            assert all(v == 0.0 or abs(v) > floor for v in values)
+            zeros += sum(v == 0.0 for v in values)
+    assert zeros > 0  # there was round-off to clean
+    assert clean([1.0, 1e-12, -3e-10], 0.0) == [1.0, 0.0, 0.0]
+    assert clean([1e-6, 2e-6], 1e-3) == [1e-6, 2e-6]  # small but real: kept
+    assert clean([1e-13], 1e-3) == [0.0]
 
 
 CHROMIUM = shutil.which("chromium") or "/usr/bin/chromium"

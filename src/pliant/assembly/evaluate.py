@@ -43,6 +43,7 @@ from pliant.assembly.checks import (
 from pliant.assembly.path import PathRun, StepRecord, follow_path
 from pliant.core.equilibrium import stretch_summary
 from pliant.core.events import WarmStartLost, has
+from pliant.core.numbers import clean
 from pliant.core.rules import Capacity, EvaluationSettings, PartKind, Rules
 from pliant.errors import InputError
 
@@ -845,16 +846,19 @@ def _table(run: PathRun, grips: tuple[str, ...], grip_steps: dict[str, list[Grip
     if thin:
         a, t = tube_section(part.outer_diameter, part.inner_diameter)
     rows = []
+    # Round-off as 0 (``pliant.core.numbers``): against the part's force and moment scales.
+    forces, moments = part.bending_stiffness / part.length**2, part.bending_stiffness / part.length
     for k, (r, eq) in enumerate(zip(run.steps, run.equilibria)):
         row: dict[str, Any] = {"step": k, "progress": r.progress}
         for g in grips:
             gs = grip_steps[g][k]
             w = gs.wrench
-            row.update({f"{g} Fx": gs.force[0], f"{g} Fy": gs.force[1], f"{g} Fz": gs.force[2],
-                        f"{g} Mx": gs.moment[0], f"{g} My": gs.moment[1],
-                        f"{g} Mz": gs.moment[2], f"{g} axial": w.axial,
-                        f"{g} lateral": w.lateral, f"{g} twist": w.twist,
-                        f"{g} bending": w.bending})
+            fx, fy, fz, axial, lateral = clean((*gs.force, w.axial, w.lateral), forces)
+            mx, my, mz, twist, bending = clean((*gs.moment, w.twist, w.bending), moments)
+            row.update({f"{g} Fx": fx, f"{g} Fy": fy, f"{g} Fz": fz, f"{g} Mx": mx,
+                        f"{g} My": my, f"{g} Mz": mz, f"{g} axial": axial,
+                        f"{g} lateral": lateral, f"{g} twist": twist,
+                        f"{g} bending": bending})
         row.update({"bend radius": r.bend_radius, "bend at": r.bend_at,
                     "clearance": r.clearance, "nearest": r.nearest,
                     "contact force": r.contact_force,

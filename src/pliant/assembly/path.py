@@ -10,7 +10,6 @@ would snap, or the grip asks for something it cannot reach).
 
 from __future__ import annotations
 
-import time
 from collections.abc import Callable
 from dataclasses import dataclass, field, replace
 from typing import Any
@@ -86,6 +85,7 @@ class PathRun:
     planned: int = 0
     equilibria: list[Any] = field(default_factory=list, repr=False)
     problems: list[Problem] = field(default_factory=list, repr=False)
+    compiling: float = 0.0  # s the solvers spent compiling on the way (a first run only)
 
     @property
     def complete(self) -> bool:
@@ -123,13 +123,14 @@ def follow_path(start: Problem, path: list[Problem], grip: str, *, margin: float
     ``start_from``: an equilibrium of a problem like ``start`` (a variation study's
     nominal start) to start from instead of the unloaded part: the same branch, found
     in a few Newton iterations; cold where it cannot be followed."""
-    from pliant.models import rod3d  # noqa: PLC0415 (numba kernels: on demand)
+    from pliant.models import clock, rod3d  # noqa: PLC0415 (numba kernels: on demand)
 
     solver = rod3d.RodSolver(elements=elements)
     run = PathRun(grip=grip, margin=margin, planned=len(path))
     eq = None
+    compiled = clock.compiling()
     for k, problem in enumerate([start, *path]):
-        begin = time.perf_counter()
+        begin = clock.now()  # solve time: a first run's compiling is left out
         try:
             if k == 0 and start_from is not None:
                 eq = rod3d.solve(problem, warm_start=start_from, solver=solver)
@@ -142,8 +143,7 @@ def follow_path(start: Problem, path: list[Problem], grip: str, *, margin: float
             run.stopped = (f"step {k} of {len(path)} (progress {k / max(len(path), 1):.0%}) "
                            f"could not be solved: {err}")
             break
-        record = _record(eq, grip, k / max(len(path), 1), margin,
-                         time.perf_counter() - begin)
+        record = _record(eq, grip, k / max(len(path), 1), margin, clock.now() - begin)
         run.steps.append(record)
         run.equilibria.append(eq)
         run.problems.append(problem)
@@ -152,6 +152,7 @@ def follow_path(start: Problem, path: list[Problem], grip: str, *, margin: float
             on_step(k, record)
     if run.final is not None:
         run.interference = of_equilibrium(run.final, margin=margin)
+    run.compiling = clock.compiling() - compiled
     return run
 
 

@@ -46,14 +46,15 @@ def _main(version: Annotated[bool, typer.Option(
 
 def _first_run_note() -> None:
     """Say so (on stderr) when the numba kernels are not cached yet: a fresh install
-    compiles them once, for about a minute, and should not look hung."""
+    compiles them once (half a minute for the demo on two cores) and should not look
+    hung."""
     source = Path(__file__).resolve().parents[1] / "models" / "rod3d"
     cache = source / "__pycache__"
     pattern = "kernels.*.nbi"
     if os.environ.get("NUMBA_CACHE_DIR"):  # numba keeps a folder per source folder there
         cache, pattern = Path(os.environ["NUMBA_CACHE_DIR"]), f"rod3d_*/{pattern}"
     if not any(cache.glob(pattern)):
-        typer.echo("compiling the solvers (first run only, about a minute)…", err=True)
+        typer.echo("compiling the solvers (first run only, about half a minute)…", err=True)
 
 
 class _ReadingBar:
@@ -373,6 +374,7 @@ def _evaluate_scene(file: Path, report: Path | None, json_out: Path | None,
     from pliant.io.rules_file import load_rules  # noqa: PLC0415
 
     elements = _elements(elements)
+    _first_run_note()  # before the scene: its fitted parts are solved as it is read
     scene = _load_scene(file)
     if operator is not None:  # checked as the file's would be (EvaluationSettings)
         scene = replace(scene, evaluation=replace(scene.evaluation, operator=operator))

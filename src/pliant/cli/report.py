@@ -12,6 +12,7 @@ from rich.console import Console
 from rich.table import Table
 
 from pliant.core.equilibrium import stretch_summary
+from pliant.core.numbers import clean
 from pliant.core.problem import Problem
 from pliant.io.jsontext import finite
 
@@ -131,9 +132,7 @@ def _bend_radius_line(eq: Any) -> str:
 def _vec(v, scale: float = 0.0) -> str:
     """A vector in 5 figures, its round-off printed as 0: components below 1e-9 of the
     larger of its own size and ``scale`` (the problem's force or moment scale)."""
-    v = [float(x) for x in v]
-    floor = 1e-9 * max(max((abs(x) for x in v), default=0.0), scale)
-    return "(" + ", ".join(f"{0.0 if abs(x) <= floor else x:.5g}" for x in v) + ")"
+    return "(" + ", ".join(f"{x:.5g}" for x in clean(v, scale)) + ")"
 
 
 def _summary_3d(eq: Any, seconds: float, console: Console) -> None:
@@ -282,4 +281,6 @@ def print_path(run: Any, part: Any, console: Console | None = None, rows: int = 
     total = sum(r.seconds for r in run.steps[1:])
     if len(run.steps) > 1:
         console.print(f"solve time: {total * 1e3 / (len(run.steps) - 1):.1f} ms per step "
-                      f"(warm), {run.steps[0].seconds * 1e3:.0f} ms for the start")
+                      f"(warm), {run.steps[0].seconds * 1e3:.0f} ms for the start"
+                      + (f"; compiling the solvers took {run.compiling:.0f} s more (a first "
+                         "run only: they are cached now)" if run.compiling >= 0.5 else ""))

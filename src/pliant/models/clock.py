@@ -40,6 +40,12 @@ _TIMER = _CompileTimer()
 event.register("numba:compile", _TIMER)
 
 
+def compiling() -> float:
+    """Seconds spent compiling kernels in this process so far (0 once they are cached)."""
+    with _TIMER._lock:
+        return _TIMER.total + (time.perf_counter() - _TIMER._start if _TIMER._depth else 0.0)
+
+
 def now() -> float:
     """Seconds on the solvers' clock: ``time.perf_counter()`` less compile time."""
     with _TIMER._lock:

@@ -1,0 +1,21 @@
+"""Round-off shown as what it is: zero.
+
+A solver's answer carries components that should vanish but come out as 1e-17 or
+6e-109 (a force along an axis nothing pushes along, a twist nothing applies). Printed or
+written, they read as tiny real values. ``clean`` sets a component to 0 where it lies
+below ``ROUND_OFF`` of the larger of its vector's size and a physical scale (the
+problem's force EI / L^2, moment EI / L or length L): real small values stay.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterable
+
+ROUND_OFF = 1e-9
+
+
+def clean(values: Iterable[float], scale: float = 0.0) -> list[float]:
+    """The components as floats, those below ROUND_OFF of max(|vector|, scale) as 0."""
+    v = [float(x) for x in values]
+    floor = ROUND_OFF * max(max((abs(x) for x in v), default=0.0), abs(scale))
+    return [0.0 if abs(x) <= floor else x for x in v]
