@@ -1,16 +1,33 @@
-"""Banded linear algebra in numba: LU with partial pivoting (LAPACK's dgbtf2/dgbtrs) on
-LAPACK's band layout transposed, so that each matrix column is one contiguous row:
-A[i, j] = ab[j, kl + ku + i - j], ab of shape (n, 2 kl + ku + 1). The accurate 3D rod
-and the real-time network both number their unknowns along the part, so their Jacobians
-are banded and a solve costs O(n (kl + ku)^2).
+"""Banded linear algebra in numba: LU with partial pivoting on LAPACK's band layout,
+A[i, j] = ab[j, kl + ku + i - j], ab of shape (n, 2 kl + ku + 1) in C order, which is
+LAPACK's AB (ldab = 2 kl + ku + 1, column-major) itself: each matrix column one
+contiguous row. The accurate 3D rod and the real-time network both number their
+unknowns along the part, so their Jacobians are banded and a solve costs
+O(n (kl + ku)^2).
+
+``band_lu`` and ``band_lu_solve`` call LAPACK's dgbtrf and dgbtrs (scipy's
+cython_lapack, the BLAS numpy uses) from the compiled kernels: their addresses are
+registered as named symbols when this module loads, so the kernels that call them
+still cache (an address compiled in would not). The hand-written LU they replaced
+(dgbtf2's algorithm, ``band_lu_twin`` and ``band_lu_solve_twin``) stays as the tested
+twin.
 """
 
 from __future__ import annotations
 
 import math
 
+import llvmlite.binding as ll
 import numpy as np
-from numba import njit
+from numba import njit, types
+from numba.extending import get_cython_function_address
+
+for _name in ("dgbtrf", "dgbtrs"):
+    ll.add_symbol(f"pliant_{_name}",
+                  get_cython_function_address("scipy.linalg.cython_lapack", _name))
+# Fortran's calling convention: every argument by address.
+_dgbtrf = types.ExternalFunction("pliant_dgbtrf", types.void(*(types.voidptr,) * 8))
+_dgbtrs = types.ExternalFunction("pliant_dgbtrs", types.void(*(types.voidptr,) * 11))
 
 
 @njit(cache=True, inline="always")
@@ -30,9 +47,64 @@ def add_block(ab, kl, ku, i0, j0, block):
 
 
 @njit(cache=True)
+def _scale(ab):
+    """The largest entry's size, or NaN where an entry is not finite; branch-free, so
+    that it vectorises (the sum of the sizes is finite exactly when every entry is,
+    short of 1e308)."""
+    scale = 0.0
+    total = 0.0
+    flat = ab.ravel()
+    for k in range(flat.shape[0]):
+        v = abs(flat[k])
+        scale = max(scale, v)
+        total += v
+    return scale if math.isfinite(total) else math.nan
+
+
+@njit(cache=True)
 def band_lu(ab, kl, ku):
-    """LU with partial pivoting of a band matrix, in place (LAPACK's dgbtf2 on the
-    transposed layout). Returns (pivots, ok); ok is False for a zero pivot."""
+    """LU with partial pivoting of a band matrix, in place (LAPACK's dgbtrf). Returns
+    (pivots, ok); ok is False where a pivot is below 1e-14 of the largest entry (the
+    matrix is singular to round-off: a fold, a bifurcation), as for the twin."""
+    n = ab.shape[0]
+    piv = np.zeros(n, dtype=np.int32)
+    scale = _scale(ab)
+    if n == 0 or scale == 0.0 or not math.isfinite(scale):
+        return piv, n == 0
+    if not ab.flags.c_contiguous:  # LAPACK reads it in place: every caller builds one
+        raise ValueError("band_lu: the band array must be C-contiguous")
+    ints = np.array([n, n, kl, ku, ab.shape[1], 0], dtype=np.int32)  # m n kl ku ldab info
+    _dgbtrf(ints[0:].ctypes, ints[1:].ctypes, ints[2:].ctypes, ints[3:].ctypes,
+            ab.ctypes, ints[4:].ctypes, piv.ctypes, ints[5:].ctypes)
+    if ints[5] < 0:
+        return piv, False
+    kv = kl + ku
+    for j in range(n):  # U's diagonal: the pivots
+        if not abs(ab[j, kv]) > 1e-14 * scale:
+            return piv, False
+    return piv, True
+
+
+@njit(cache=True)
+def band_lu_solve(ab, piv, kl, ku, rhs):
+    """Solve with the factors of ``band_lu`` (LAPACK's dgbtrs)."""
+    n = ab.shape[0]
+    x = rhs.copy()
+    if n == 0:
+        return x
+    ints = np.array([n, kl, ku, 1, ab.shape[1], 0], dtype=np.int32)  # n kl ku nrhs ldab info
+    trans = np.array([78], dtype=np.uint8)  # "N"
+    _dgbtrs(trans.ctypes, ints[0:].ctypes, ints[1:].ctypes, ints[2:].ctypes,
+            ints[3:].ctypes, ab.ctypes, ints[4:].ctypes, piv.ctypes, x.ctypes,
+            ints[0:].ctypes, ints[5:].ctypes)
+    return x
+
+
+@njit(cache=True)
+def band_lu_twin(ab, kl, ku):
+    """LU with partial pivoting of a band matrix, in place: LAPACK's dgbtf2 written out
+    (the twin ``band_lu`` is tested against). Returns (pivots, ok); ok is False for a
+    pivot below 1e-14 of the largest entry."""
     n = ab.shape[0]
     kv = kl + ku
     piv = np.empty(n, dtype=np.int64)
@@ -75,8 +147,8 @@ def band_lu(ab, kl, ku):
 
 
 @njit(cache=True)
-def band_lu_solve(ab, piv, kl, ku, rhs):
-    """Solve with the factors of ``band_lu`` (LAPACK's dgbtrs)."""
+def band_lu_solve_twin(ab, piv, kl, ku, rhs):
+    """Solve with the factors of ``band_lu_twin`` (dgbtrs written out)."""
     n = ab.shape[0]
     kv = kl + ku
     x = rhs.copy()
