@@ -5,6 +5,8 @@ from __future__ import annotations
 from functools import lru_cache
 from pathlib import Path
 
+import numpy as np
+
 import pliant as pl
 from pliant.io.problem_file import load_problem
 
@@ -51,3 +53,30 @@ def cli(*args: str):
         raise result.exception
     return SimpleNamespace(returncode=result.exit_code, stdout=result.stdout,
                            stderr=result.stderr)
+
+
+def shooting_jacobians(low, z, mesh) -> tuple:
+    """(the shooting's Jacobian at z, its central differences) for a 2D lowering."""
+    _, jac, _ = low.shoot(z, low.target, mesh)
+    fd = np.empty_like(jac)
+    for j in range(low.nz):
+        h = 1e-6 * max(1.0, abs(z[j]))
+        zp, zm = z.copy(), z.copy()
+        zp[j] += h
+        zm[j] -= h
+        rp, _, _ = low.shoot(zp, low.target, mesh, want_jac=False)
+        rm, _, _ = low.shoot(zm, low.target, mesh, want_jac=False)
+        fd[:, j] = (rp - rm) / (2 * h)
+    return jac, fd
+
+
+def precurved_3d() -> pl.Problem:
+    """A pre-curved part held by its axis at both ends where a cold solve's first route
+    found a stable equilibrium of 11.47 J and another of 9.85 J exists."""
+    part = pl.Part(1.0, 1.0, rest_curvature=-1.8746682220224526,
+                   rest_curvature_2=-2.110183111379974)
+    return pl.Problem(part, (
+        pl.clamp(0.0, (0.0, 0.0, 0.0), tangent=(1.0, 0.0, 0.0), normal=(0.0, 0.0, 1.0)),
+        pl.grip(1.0, (0.037373700440417025, 0.428805391043273, -0.09993627965470883),
+                tangent=(0.11971269704277052, 0.46351305555694045, -0.877966125482649),
+                name="hand")))

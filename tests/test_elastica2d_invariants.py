@@ -14,7 +14,7 @@ from pliant.models.elastica2d import ShootingSolver, kernels, solve, trace
 from pliant.models.elastica2d.lowering import lower
 from pliant.models.elastica2d.reference import solve_reference
 
-from .helpers import EXAMPLES, zoo
+from .helpers import EXAMPLES, shooting_jacobians, zoo
 
 
 def balance(eq: pl.Equilibrium) -> tuple[np.ndarray, float]:
@@ -170,17 +170,7 @@ def test_jacobian_matches_finite_differences(name):
     low = eq.state.low  # the lowering it was solved with (restart nodes included)
     rng = np.random.default_rng(7)
     z = eq.state.z + 0.05 * rng.standard_normal(low.nz)
-    mesh = low.mesh(24)
-    _, jac, _ = low.shoot(z, low.target, mesh)
-    fd = np.empty_like(jac)
-    for j in range(low.nz):
-        h = 1e-6 * max(1.0, abs(z[j]))
-        zp, zm = z.copy(), z.copy()
-        zp[j] += h
-        zm[j] -= h
-        rp, _, _ = low.shoot(zp, low.target, mesh, want_jac=False)
-        rm, _, _ = low.shoot(zm, low.target, mesh, want_jac=False)
-        fd[:, j] = (rp - rm) / (2 * h)
+    jac, fd = shooting_jacobians(low, z, low.mesh(24))
     assert np.allclose(jac, fd, rtol=1e-6, atol=1e-6 * max(1.0, np.abs(jac).max()))
 
 

@@ -24,6 +24,8 @@ from pliant.core.events import (
 from pliant.errors import ConvergenceError
 from pliant.models import elastica2d, rod3d
 
+from .helpers import precurved_3d
+
 
 def test_a_singular_start_says_which_side_it_took_with_both_energies():
     """2D: the tip held near the clamp's axis (tests/test_stability.py: 20.86 J and
@@ -50,14 +52,7 @@ def test_a_singular_start_says_which_side_it_took_with_both_energies():
 def test_the_3d_lowest_equilibrium_event_carries_both_energies():
     """The pre-curved part of tests/test_rod3d.py: 9.85 J taken where the first route
     gave 11.47 J."""
-    part = pl.Part(1.0, 1.0, rest_curvature=-1.8746682220224526,
-                   rest_curvature_2=-2.110183111379974)
-    problem = pl.Problem(part, (
-        pl.clamp(0.0, (0.0, 0.0, 0.0), tangent=(1.0, 0.0, 0.0), normal=(0.0, 0.0, 1.0)),
-        pl.grip(1.0, (0.037373700440417025, 0.428805391043273, -0.09993627965470883),
-                tangent=(0.11971269704277052, 0.46351305555694045, -0.877966125482649),
-                name="hand")))
-    eq = rod3d.solve(problem, solver=rod3d.RodSolver(elements=40))
+    eq = rod3d.solve(precurved_3d(), solver=rod3d.RodSolver(elements=40))
     lowest = next(e for e in eq.events if isinstance(e, LowestEquilibrium))
     assert lowest.energy == pytest.approx(potential_energy(eq), rel=1e-9)
     assert lowest.route_energy == pytest.approx(11.47, abs=0.01)

@@ -21,6 +21,8 @@ from pliant.models.elastica2d.reference import equilibrium_error, solve_referenc
 from pliant.models.rod3d.lowering import lower
 from pliant.models.rod3d.solver import _Run
 
+from .helpers import shooting_jacobians
+
 UNIT = pl.Part(length=1.0, bending_stiffness=1.0, torsional_stiffness=1.0)
 CLAMP = pl.clamp(0.0, (0.0, 0.0, 0.0), tangent=(1.0, 0.0, 0.0), normal=(0.0, 0.0, 1.0))
 
@@ -156,17 +158,7 @@ def test_2d_shooting_sensitivities_with_loads_on_stretches_match_finite_differen
                pl.DistributedLoad((2.0, 4.0), follower=True, start=0.4, name="flow")))
     low = lower_2d(problem, nodes=2)
     z = np.random.default_rng(7).standard_normal(low.nz)
-    mesh = low.mesh(24)
-    _, jac, _ = low.shoot(z, low.target, mesh)
-    fd = np.empty_like(jac)
-    for j in range(low.nz):
-        h = 1e-6 * max(1.0, abs(z[j]))
-        zp, zm = z.copy(), z.copy()
-        zp[j] += h
-        zm[j] -= h
-        rp, _, _ = low.shoot(zp, low.target, mesh, want_jac=False)
-        rm, _, _ = low.shoot(zm, low.target, mesh, want_jac=False)
-        fd[:, j] = (rp - rm) / (2 * h)
+    jac, fd = shooting_jacobians(low, z, low.mesh(24))
     assert np.allclose(jac, fd, rtol=1e-6, atol=1e-6 * max(1.0, np.abs(jac).max()))
     assert np.any(low.target.dist[:, 2:]) and np.any(low.target.dist[:, :2])
 

@@ -26,7 +26,7 @@ from pliant.models.rod3d.solver import _Run, _Stalled
 from pliant.models.rod3d.solver import _stability as stability_of
 from pliant.models.rod3d.solver import _stability_dense as stability_dense
 
-from .helpers import EXAMPLES, zoo
+from .helpers import EXAMPLES, precurved_3d, zoo
 
 UNIT = pl.Part(length=1.0, bending_stiffness=1.0, torsional_stiffness=0.8)
 
@@ -170,13 +170,7 @@ def test_a_cold_solve_in_configuration_space_takes_the_lowest_stable_equilibrium
     every route's, in balance, and its note names the first route's."""
     from pliant.core.equilibrium import potential_energy
 
-    part = pl.Part(1.0, 1.0, rest_curvature=-1.8746682220224526,
-                   rest_curvature_2=-2.110183111379974)
-    problem = pl.Problem(part, (
-        pl.clamp(0.0, (0.0, 0.0, 0.0), tangent=(1.0, 0.0, 0.0), normal=(0.0, 0.0, 1.0)),
-        pl.grip(1.0, (0.037373700440417025, 0.428805391043273, -0.09993627965470883),
-                tangent=(0.11971269704277052, 0.46351305555694045, -0.877966125482649),
-                name="hand")))
+    problem = precurved_3d()
     solver = rod3d.RodSolver(elements=40)
     eq = rod3d.solve(problem, solver=solver)
     assert eq.verdict == "stable"
