@@ -138,6 +138,34 @@ def test_clearance_to_a_fitted_part_is_measured_as_it_deformed(draped):
     assert not report.penetrations
 
 
+def test_a_fitted_parts_shape_is_read_from_the_cache_the_second_time(tmp_path,
+                                                                      monkeypatch):
+    """Reading a scene solves its fitted parts (about a second each, with the search for
+    the lowest equilibrium); read again, their shape comes from the disk cache, exactly
+    the one solved, and their equilibrium is found only when a part touches them (the
+    same one). Another part's file is another key: solved afresh."""
+    monkeypatch.setenv("PLIANT_CACHE", str(tmp_path / "cache"))
+    folder = tmp_path / "scene"
+    folder.mkdir()
+    for name in ("line_over_hose.toml", "coolant_hose.toml"):
+        (folder / name).write_text((EXAMPLES / "scenes" / name).read_text())
+    first = load_scene(folder / "line_over_hose.toml").problem.obstacles[0]
+    again = load_scene(folder / "line_over_hose.toml").problem.obstacles[0]
+    assert first.fitted.solved is not None and again.fitted.solved is None
+    assert np.array_equal(again.fitted.rest_line, first.fitted.equilibrium.position)
+    assert np.array_equal(again.mesh.tri, first.mesh.tri)
+    assert np.allclose(again.fitted.equilibrium.position, first.fitted.rest_line,
+                       atol=1e-12)  # found on first use: the same equilibrium
+    hose = folder / "coolant_hose.toml"
+    hose.write_text(hose.read_text() + "\n# a comment: the same problem\n")
+    same = load_scene(folder / "line_over_hose.toml").problem.obstacles[0]
+    assert same.fitted.solved is None  # keyed by the problem, not the file's bytes
+    hose.write_text(hose.read_text().replace("length = 0.5", "length = 0.51", 1))
+    longer = load_scene(folder / "line_over_hose.toml").problem.obstacles[0]
+    assert longer.fitted.solved is not None  # another problem: solved afresh
+    assert longer.fitted.problem.part.length == 0.51
+
+
 def test_a_fitted_part_not_touched_stays_a_plain_solve():
     scene = load_scene(EXAMPLES / "scenes" / "line_over_hose.toml")
     eq = rod3d.solve(scene.problem, solver=rod3d.RodSolver(elements=60))

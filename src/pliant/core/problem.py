@@ -169,6 +169,14 @@ class FittedPart(_SolvedAlone):
     elements: int
     solved: object = field(default=None, repr=False)  # its Equilibrium3D, alone
     friction: float = 0.0  # Coulomb's coefficient between it and the part that touches it
+    # (N+1, 3) [m] its neutral line alone, where known without its equilibrium (a scene
+    # file's cache of it): clearances to it need no solve.
+    line: object = field(default=None, repr=False)
+
+    @property
+    def rest_line(self):
+        """(N+1, 3) [m]: its neutral line alone, untouched."""
+        return self.line if self.line is not None else self.equilibrium.position
 
 
 

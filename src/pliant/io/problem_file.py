@@ -19,6 +19,7 @@ from __future__ import annotations
 import math
 import re
 from dataclasses import dataclass, field, replace
+from functools import lru_cache
 from pathlib import Path
 from typing import Any, Literal
 
@@ -445,7 +446,11 @@ def _nested_problem(name: str, base: Path | None, what: str) -> tuple[Path, Prob
 
 class AssembledModel(_Strict):
     """[[assembled]]: a flexible part already fitted, in its clamps: its own problem file
-    (3D, relative to this one) is solved once and its tube becomes an obstacle."""
+    (3D, relative to this one) is solved once and its tube becomes an obstacle. Its
+    shape is kept in pliant's disk cache (``pliant.io.cache``) under the hash of its
+    problem, its element count and the model's source: a scene read again does not
+    solve it again (its equilibrium is then found on first use, by a part that touches
+    it)."""
 
     name: str
     file: str = Field(description="its problem file, relative to this file")
@@ -463,18 +468,48 @@ class AssembledModel(_Strict):
         from pliant.scene.distance import Obstacle  # noqa: PLC0415
 
         path, problem = _nested_problem(self.file, base, "an assembled part")
-        try:
-            eq = rod3d.solve(problem, solver=rod3d.RodSolver(elements=self.elements))
-        except PliantError as err:
-            raise ValueError(f"file: {str(path)!r} could not be solved: {err}") from None
+        key = _fitted_key(problem, self.elements)
+        kept = cache.load_arrays("fitted", key) if key else None
+        eq = None
+        if kept is not None and kept.keys() >= {"position", "frames"}:
+            position, frames = kept["position"], kept["frames"]
+        else:
+            try:
+                eq = rod3d.solve(problem, solver=rod3d.RodSolver(elements=self.elements))
+            except PliantError as err:
+                raise ValueError(f"file: {str(path)!r} could not be solved: {err}") from None
+            position, frames = eq.position, eq.frames
+            if key:
+                cache.save_arrays("fitted", key, position=position, frames=frames)
         part = problem.part
         radius = 0.5 * part.outer_diameter if part.outer_diameter else 0.01 * part.length
-        vertices, faces = tube_mesh(eq.position, radius, eq.frames, sides=16, caps=True)
+        vertices, faces = tube_mesh(position, radius, frames, sides=16, caps=True)
         obstacle = Obstacle.from_mesh(self.name, vertices, faces).with_friction(self.friction)
         if self.flexible:
             obstacle = replace(obstacle, fitted=FittedPart(self.name, problem, self.elements,
-                                                           solved=eq, friction=self.friction))
+                                                           solved=eq, friction=self.friction,
+                                                           line=position))
         return obstacle
+
+
+def _fitted_key(problem: Problem, elements: int) -> str | None:
+    """The cache key of a fitted part's shape: its problem as this module writes it,
+    its element count and the source of the code that solves it (a changed solver is
+    a new key); None where the problem cannot be written (a mesh obstacle of its own)."""
+    try:
+        text = dump_problem(problem)
+    except OutputError:
+        return None
+    return cache.digest(text.encode(), str(elements).encode(), _solver_source())
+
+
+@lru_cache(maxsize=1)
+def _solver_source() -> bytes:
+    """The hash of the modules an equilibrium of a 3D part depends on."""
+    root = Path(__file__).resolve().parents[1]
+    files = sorted([*(root / "core").glob("*.py"), *(root / "models").glob("*.py"),
+                    *(root / "models" / "rod3d").glob("*.py"), root / "scene" / "distance.py"])
+    return cache.digest(*(f.read_bytes() for f in files)).encode()
 
 
 class PortModel(_Strict):

@@ -156,11 +156,12 @@ def fitted_tubes(eq: Any, obstacles) -> dict[str, tuple[np.ndarray, float, float
         fit = getattr(o, "fitted", None)
         if fit is None:
             continue
-        shape = deformed.get(id(fit.problem), fit.equilibrium)
+        touched = deformed.get(id(fit.problem))
+        line = touched.position if touched is not None else fit.rest_line
         outer = fit.problem.part.tube_radius
         allowed = (PROBE_SAG * (outer + eq.problem.part.tube_radius)
                    + WALL_COMPLIANCE * float(np.linalg.norm(forces.get(o.name, np.zeros(3)))))
-        out[o.name] = (shape.position, outer, allowed)
+        out[o.name] = (line, outer, allowed)
     return out
 
 
