@@ -1,0 +1,92 @@
+"""The wheel runs everything on its own: built from this checkout, installed in a fresh
+virtual environment outside it (no repository, no npm, no Node on the path), it prints
+its version, runs the main job on its bundled scene and serves the page with the
+libraries it carries. About a minute and a half: the install, and the fresh
+environment's one compile of the solvers."""
+
+from __future__ import annotations
+
+import json
+import os
+import shutil
+import signal
+import subprocess
+import sys
+import time
+import urllib.request
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parents[1]
+NODE_MODULES = ROOT / "web" / "node_modules"
+
+
+@pytest.fixture(scope="module")
+def installed(tmp_path_factory) -> Path:
+    """The bin folder of a fresh venv with the wheel built from this checkout."""
+    if not (NODE_MODULES / "three" / "build" / "three.module.js").is_file():
+        pytest.skip("the wheel carries web/node_modules' libraries: run npm ci --prefix web")
+    top = tmp_path_factory.mktemp("wheel")
+    subprocess.run([sys.executable, "-m", "pip", "wheel", "-q", str(ROOT), "--no-deps",
+                    "-w", str(top / "dist")], check=True, capture_output=True, timeout=600)
+    (wheel,) = (top / "dist").glob("pliant-*.whl")
+    subprocess.run([sys.executable, "-m", "venv", str(top / "venv")], check=True,
+                   timeout=300)
+    bin_ = top / "venv" / "bin"
+    subprocess.run([str(bin_ / "pip"), "install", "-q", str(wheel)], check=True,
+                   capture_output=True, timeout=900)
+    return bin_
+
+
+def _env(bin_: Path, home: Path) -> dict[str, str]:
+    """The wheel's venv first on a path with no Node or npm; its own caches."""
+    path = [str(bin_)] + [p for p in os.environ.get("PATH", "").split(os.pathsep)
+                          if p and not (Path(p) / "node").exists()
+                          and not (Path(p) / "npm").exists()]
+    env = {k: v for k, v in os.environ.items()
+           if k not in ("PYTHONPATH", "NUMBA_CACHE_DIR", "PLIANT_CACHE", "VIRTUAL_ENV")}
+    env.update(PATH=os.pathsep.join(path), PLIANT_CACHE=str(home / "cache"), HOME=str(home))
+    return env
+
+
+def test_the_wheel_runs_the_demo_and_serves_the_page(installed, tmp_path):
+    env = _env(installed, tmp_path)
+    assert shutil.which("node", path=env["PATH"]) is None
+    version = subprocess.run([str(installed / "pliant"), "--version"], cwd=tmp_path,
+                             env=env, capture_output=True, text=True, timeout=120)
+    assert version.returncode == 0 and version.stdout.startswith("pliant ")
+    demo = subprocess.run([str(installed / "pliant"), "demo", "--out", "out"], cwd=tmp_path,
+                          env=env, capture_output=True, text=True, timeout=900)
+    assert demo.returncode == 0, demo.stderr[-2000:]
+    assert "compiling the solvers (first run only" in demo.stderr
+    for suffix in ("html", "json", "csv", "png", "glb"):
+        assert (tmp_path / "out" / f"engine_bay.{suffix}").stat().st_size > 0
+    report = json.loads((tmp_path / "out" / "engine_bay.json").read_text())
+    assert report["steps_solved"] == 101 and report["verdict"]["passes"]
+    # The page, with the three.js it carries (no web/node_modules out here).
+    view = subprocess.Popen([str(installed / "pliant"), "view", "--port", "0"],
+                            cwd=tmp_path, env=env, stdout=subprocess.PIPE,
+                            stderr=subprocess.STDOUT, text=True)
+    try:
+        line = ""
+        deadline = time.monotonic() + 120
+        while "http://127.0.0.1:" not in line and time.monotonic() < deadline:
+            line = view.stdout.readline()
+        url = line[line.index("http://127.0.0.1:"):].split()[0]
+        with urllib.request.urlopen(url, timeout=30) as page:
+            assert b"importmap" in page.read()
+        with urllib.request.urlopen(url.rstrip("/") + "/vendor/three/build/three.module.js",
+                                    timeout=30) as lib:
+            assert lib.status == 200 and len(lib.read()) > 100_000
+    finally:
+        view.send_signal(signal.SIGINT)
+        try:
+            view.wait(timeout=60)
+        except subprocess.TimeoutExpired:
+            view.kill()
+            view.wait()
+            raise
+        finally:
+            view.stdout.close()
+    assert view.returncode in (0, 130)
