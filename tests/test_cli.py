@@ -208,3 +208,25 @@ def test_vectors_print_round_off_as_zero_and_keep_small_values():
     assert _vec((-1.9e-17, -0.44208, -1.96e-18), 2.5) == "(0, -0.44208, 0)"
     assert _vec((1e-6, 1.0)) == "(1e-06, 1)"
     assert _vec((3e-12, 0.0), 1.0) == "(0, 0)"  # noise against the problem's scale
+
+
+def test_the_path_table_fits_80_columns_with_its_units():
+    """A path's table at 80 columns: one line per step (no cell wrapped onto three), the
+    units shown in the headers (rich read "[m]" and "[mm]" as markup and dropped them)."""
+    from typer.testing import CliRunner
+
+    from pliant.cli.app import app
+
+    scene = EXAMPLES / "scenes" / "cable_through_clip.toml"
+    result = CliRunner().invoke(app, ["run", str(scene)], env={"COLUMNS": "80"})
+    assert result.exit_code == 0, result.output
+    lines = result.output.splitlines()
+    start = next(i for i, line in enumerate(lines) if line.startswith("along the path"))
+    table = lines[start:next(i for i in range(start, len(lines))
+                             if lines[i].startswith("peak force"))]
+    assert max(len(line.rstrip()) for line in table) <= 80
+    header = "\n".join(table[:5])
+    for unit in ("x y z [m]", "[N]", "[N m]", "[mm]"):
+        assert unit in header
+    rows = [line for line in table if line.strip()[:1].isdigit()]
+    assert len(rows) >= 2 and all(len(line.split()) >= 7 for line in rows)

@@ -8,7 +8,9 @@ import time
 from typing import Any
 
 import numpy as np
+from rich import box
 from rich.console import Console
+from rich.markup import escape
 from rich.table import Table
 
 from pliant.core.equilibrium import stretch_summary
@@ -234,18 +236,25 @@ def print_interference(report: Any, console: Console | None = None) -> None:
 def print_path(run: Any, part: Any, console: Console | None = None, rows: int = 12) -> None:
     """A manipulation's record (about ``rows`` steps) and its verdict."""
     console = console or Console()
-    table = Table(title=f"along the path ({len(run.steps) - 1} of {run.planned} steps "
-                        "solved; force and moment the grip applies)", title_justify="left")
-    for column in ("step", "%", f"{run.grip} x y z [m]", "|F| [N]", "|M| [N m]",
-                   "clear. [mm]", "nearest", "contact [N]", "bend R [mm]"):
-        table.add_column(column)
+    # 80 columns: light rules, headers on two lines with their units, numbers right-aligned
+    # and never wrapped, the obstacle's name cut to fit (the clearance table has it whole).
+    table = Table(title=f"along the path: {len(run.steps) - 1} of {run.planned} steps "
+                        "solved; the grip's force and moment",
+                  title_justify="left", box=box.SIMPLE_HEAD, pad_edge=False,
+                  collapse_padding=True)
+    for column, width in (("step", 4), (f"{run.grip}\nx y z [m]", 16), ("|F|\n[N]", 4),
+                          ("|M|\n[N m]", 5), ("clear.\n[mm]", 6), ("nearest", None),
+                          ("contact\n[N]", 7), ("bend R\n[mm]", 6)):
+        table.add_column(escape(column), justify="right" if width else "left", no_wrap=True,
+                         min_width=width, max_width=None if width else 14,
+                         overflow="ellipsis")
     every = max(1, (len(run.steps) - 1) // rows)
     shown = sorted(set(range(0, len(run.steps), every)) | {len(run.steps) - 1})
     for k in shown:
         r = run.steps[k]
-        table.add_row(str(k), f"{r.progress * 100:.0f}",
-                      " ".join(f"{x:.2f}" for x in r.grip_position), f"{r.force_norm:.3g}",
-                      f"{r.moment_norm:.3g}", f"{max(r.clearance, 0.0) * 1e3:.1f}"
+        table.add_row(str(k), " ".join(f"{x:.2f}" for x in r.grip_position),
+                      f"{r.force_norm:.3g}", f"{r.moment_norm:.3g}",
+                      f"{max(r.clearance, 0.0) * 1e3:.1f}"
                       if r.clearance > -1e-6 else f"[red]{r.clearance * 1e3:.1f}[/red]",
                       r.nearest, f"{r.contact_force:.3g}" if r.contacts else "",
                       f"{r.bend_radius * 1e3:.0f}")
