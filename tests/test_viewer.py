@@ -749,3 +749,40 @@ def test_a_scene_whose_start_pose_fails_still_opens_with_the_reason(folder):
         np.testing.assert_allclose(answer.position[-1], [0.55, 0.35, 0.15], atol=1e-9)
     finally:
         viewer.close()
+
+
+def test_the_page_the_cli_and_the_frames_warn_in_the_same_words(folder):
+    """Warnings are made once (``checks.shape_warnings``): a pose bent below the part's
+    minimum radius (raised to 0.5 m here) warns in the same words in the viewer's
+    accurate answer and in ``pliant solve``'s summary of the same pose, and the frame
+    carries the preview's own, from its curvature (the page only shows them)."""
+    from rich.console import Console
+
+    from pliant.assembly.checks import PREVIEW, shape_warnings
+    from pliant.cli.report import print_summary
+    from pliant.models import rod3d
+    from pliant.scene import interference
+
+    (folder / "tight.toml").write_text(SCENE.replace("min_bend_radius = 0.08",
+                                                     "min_bend_radius = 0.5"))
+    viewer = ViewerState(Path("tight.toml"), folder, live=False)
+    try:
+        replies = viewer.handle(msg(type="hello"))
+        accurate = by_type(replies, "accurate")[-1]
+        frame = by_type(replies, "frame")[-1]
+    finally:
+        viewer.close()
+    assert accurate.ok and any("below the part's minimum 500.0 mm" in w
+                               for w in accurate.warnings)
+    scene = load_scene(folder / "tight.toml")
+    eq = rod3d.solve(scene.problem, solver=rod3d.RodSolver(elements=30))
+    console = Console(record=True, width=200)
+    print_summary(eq, 0.0, console, report=interference(eq, margin=scene.margin))
+    printed = [line.removeprefix("warning: ") for line in console.export_text().splitlines()
+               if line.startswith("warning: ")]
+    assert printed == accurate.warnings
+    k = int(np.argmax(frame.curvature))
+    assert frame.warnings == shape_warnings(
+        bend_radius=1.0 / frame.curvature[k], bend_at=frame.s[k], allowed=0.5,
+        penetrations=frame.interference.penetrations, preview=True)
+    assert frame.warnings and all(w.startswith(PREVIEW) for w in frame.warnings)

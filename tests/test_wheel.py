@@ -28,14 +28,17 @@ def installed(tmp_path_factory) -> Path:
     if not (NODE_MODULES / "three" / "build" / "three.module.js").is_file():
         pytest.skip("the wheel carries web/node_modules' libraries: run npm ci --prefix web")
     top = tmp_path_factory.mktemp("wheel")
+    # No PYTHONPATH: a checkout on it would be taken for pliant already installed.
+    env = {k: v for k, v in os.environ.items() if k not in ("PYTHONPATH", "VIRTUAL_ENV")}
     subprocess.run([sys.executable, "-m", "pip", "wheel", "-q", str(ROOT), "--no-deps",
-                    "-w", str(top / "dist")], check=True, capture_output=True, timeout=600)
+                    "-w", str(top / "dist")], check=True, capture_output=True, timeout=600,
+                   env=env)
     (wheel,) = (top / "dist").glob("pliant-*.whl")
     subprocess.run([sys.executable, "-m", "venv", str(top / "venv")], check=True,
-                   timeout=300)
+                   timeout=300, env=env)
     bin_ = top / "venv" / "bin"
     subprocess.run([str(bin_ / "pip"), "install", "-q", str(wheel)], check=True,
-                   capture_output=True, timeout=900)
+                   capture_output=True, timeout=900, env=env)
     return bin_
 
 

@@ -20,8 +20,10 @@ kappa_B = (sqrt 2 / 3) t / (a^2 sqrt(1 - nu^2)). Past it the section kinks.
 from __future__ import annotations
 
 import math
+from collections.abc import Iterable
 from dataclasses import dataclass
 from enum import Enum
+from typing import Any
 
 import numpy as np
 
@@ -164,3 +166,36 @@ def tight_near(s: np.ndarray, curvature: np.ndarray, s_fitting: float,
     k = np.where(near, curvature, 0.0)
     i = int(np.argmax(k))
     return (math.inf if k[i] == 0.0 else 1.0 / float(k[i])), float(s[i])
+
+
+# -- warnings ------------------------------------------------------------------------------
+# What a shape should warn a fitter of, said the same way everywhere: the CLI's summary,
+# the viewer's accurate answers and its real-time frames (the page only shows what
+# arrives) take their warnings from ``shape_warnings``. A real-time frame's are marked as
+# the preview's: its shape is the bar network's, not the accurate model's.
+PREVIEW = "the real-time preview: "  # how a real-time frame's warnings begin
+
+
+def shape_warnings(*, bend_radius: float, bend_at: float, allowed: float | None,
+                   stable: bool | None = None, eigenvalue: float | None = None,
+                   penetrations: Iterable[Any] = (), preview: bool = False) -> list[str]:
+    """The warnings of one shape, in plain words with their values and thresholds.
+
+    bend_radius, bend_at : the smallest bend radius [m] and where [m]; allowed : the
+        part's minimum [m] (None: unchecked); stable, eigenvalue : the stability verdict
+        and smallest eigenvalue [N m] (None: undecided or not computed); penetrations :
+        spans (``obstacle``, ``s_start``, ``s_end``, ``worst`` [m], negative inside);
+        preview : the shape is the real-time model's.
+    """
+    out = []
+    if allowed and math.isfinite(bend_radius) and bend_radius < allowed:
+        out.append(f"bend radius {bend_radius * 1e3:.1f} mm at s = {bend_at:.3f} m is "
+                   f"below the part's minimum {allowed * 1e3:.1f} mm")
+    if stable is False:
+        detail = "" if eigenvalue is None else (
+            f" (smallest stiffness eigenvalue {eigenvalue:.3g} N m)")
+        out.append(f"unstable shape: the part would snap to another one{detail}")
+    for span in penetrations:
+        out.append(f"enters {span.obstacle} by {-span.worst * 1e3:.1f} mm over s = "
+                   f"{span.s_start:.3f} to {span.s_end:.3f} m")
+    return [PREVIEW + w for w in out] if preview else out

@@ -165,7 +165,7 @@ def solve(
     if json:
         print_json(eq, seconds, report)
     else:
-        print_summary(eq, seconds)
+        print_summary(eq, seconds, report=report)
         if report is not None:
             print_interference(report)
     if plot is not None:

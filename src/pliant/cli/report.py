@@ -13,6 +13,7 @@ from rich.console import Console
 from rich.markup import escape
 from rich.table import Table
 
+from pliant.assembly.checks import shape_warnings
 from pliant.core.equilibrium import stretch_summary
 from pliant.core.numbers import clean
 from pliant.core.problem import Problem
@@ -47,11 +48,25 @@ def _fmt(value: float, unit: str) -> str:
     return f"{value:.6g} {unit}"
 
 
-def print_summary(eq: Any, seconds: float, console: Console | None = None) -> None:
+def print_summary(eq: Any, seconds: float, console: Console | None = None,
+                  report: Any = None) -> None:
+    """An answer in words and tables, then its warnings (``checks.shape_warnings``, the
+    viewer's words); ``report``: its interference report, for what it enters."""
     console = console or Console()
     if eq.problem.dimension == 3:
         _summary_3d(eq, seconds, console)
-        return
+    else:
+        _summary_2d(eq, seconds, console)
+    radius, at = eq.min_bend_radius()
+    stable, eigen = eq.stability
+    for warning in shape_warnings(bend_radius=radius, bend_at=at,
+                                  allowed=eq.problem.part.min_bend_radius, stable=stable,
+                                  eigenvalue=eigen,
+                                  penetrations=() if report is None else report.penetrations):
+        console.print(f"[red]warning[/red]: {escape(warning)}")
+
+
+def _summary_2d(eq: Any, seconds: float, console: Console) -> None:
     problem = eq.problem
     x, y, angle = eq.tip
     console.print(f"[bold]{problem.name or 'problem'}[/bold]: solved in "

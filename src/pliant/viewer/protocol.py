@@ -169,6 +169,7 @@ class ServerFrame(_Message):
     drift: float
     pending: bool
     seconds: float
+    warnings: list[str] = []  # the preview's (``pliant.assembly.checks.shape_warnings``)
 
 
 class VerdictItem(BaseModel):

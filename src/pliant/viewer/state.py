@@ -16,6 +16,7 @@ from pathlib import Path
 import numpy as np
 from pydantic import BaseModel, ConfigDict, ValidationError
 
+from pliant.assembly.checks import shape_warnings
 from pliant.core.conditions import Condition
 from pliant.errors import PliantError
 from pliant.io.jsontext import finite
@@ -358,14 +359,9 @@ class ViewerState:
         interference = self._interference(result.s, position, fitted)
         radius, s_radius = result.min_bend_radius
         allowed = self.session.problem.part.min_bend_radius
-        warnings = []
-        if allowed and radius < allowed:
-            warnings.append(f"bend radius {radius * 1e3:.1f} mm at s = {s_radius:.3f} m is "
-                            f"below the part's minimum {allowed * 1e3:.1f} mm")
-        if result.stable is False:
-            warnings.append("unstable shape: the part would snap to another one "
-                            f"(smallest stiffness eigenvalue {result.smallest_eigenvalue:.3g})")
-        warnings += _interference_warnings(interference)
+        warnings = shape_warnings(bend_radius=radius, bend_at=s_radius, allowed=allowed,
+                                  stable=result.stable, eigenvalue=result.smallest_eigenvalue,
+                                  penetrations=interference.penetrations)
         verdict = self._verdict(result, interference)
         return P.ServerAccurate(
             index=result.index, ok=True, s=result.s.tolist(), position=position.tolist(),
@@ -406,13 +402,21 @@ class ViewerState:
         rt = frame.realtime
         curve = np.asarray(rt.curve, float)
         s = np.asarray(rt.s_curve, float)
+        curvature = _curvature(s, curve)
+        interference = self._interference(s, curve)
+        i = int(np.argmax(curvature)) if curvature.size else 0
+        tightest = 1.0 / curvature[i] if curvature.size and curvature[i] > 0 else np.inf
+        warnings = shape_warnings(
+            bend_radius=float(tightest), bend_at=float(s[i]) if s.size else 0.0,
+            allowed=self.session.problem.part.min_bend_radius,
+            penetrations=interference.penetrations, preview=True)
         return P.ServerFrame(
             seq=seq, index=frame.index, s=s.tolist(), curve=np.round(curve, 7).tolist(),
-            curvature=_curvature(s, curve).tolist(),
+            curvature=curvature.tolist(),
             contacts=_pad3(np.asarray(rt.contact_points, float)).tolist(),
-            interference=self._interference(s, curve), converged=bool(rt.converged),
+            interference=interference, converged=bool(rt.converged),
             drift=float(frame.drift.distance_to_accurate), pending=bool(frame.pending),
-            seconds=float(frame.seconds))
+            seconds=float(frame.seconds), warnings=warnings)
 
     def _interference(self, s: np.ndarray, points: np.ndarray,
                       fitted: dict | None = None) -> P.Interference:
@@ -519,8 +523,4 @@ def _span(span) -> P.Span:
     return P.Span(obstacle=span.obstacle, s_start=span.s_start, s_end=span.s_end,
                   worst=span.worst)
 
-
-def _interference_warnings(report: P.Interference) -> list[str]:
-    return [f"penetrates {p.obstacle} by {-p.worst * 1e3:.1f} mm over s = "
-            f"{p.s_start:.3f} to {p.s_end:.3f} m" for p in report.penetrations]
 

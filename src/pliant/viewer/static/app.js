@@ -749,12 +749,7 @@ function showWarnings() {
   const frame = state.frame, acc = state.accurate;
   if (state.failed) out.push(`no accurate equilibrium at this pose: ${state.failed.error}`);
   if (acc?.ok) out.push(...acc.warnings);
-  if (frame) {
-    const allowed = state.scene.part.min_bend_radius;
-    const kappa = Math.max(...frame.curvature);
-    if (allowed && kappa > 0 && 1 / kappa < allowed) out.push(`real-time shape bends to ${(1e3 / kappa).toFixed(1)} mm, below the minimum ${(allowed * 1e3).toFixed(0)} mm`);
-    for (const p of frame.interference.penetrations) out.push(`real-time shape enters ${p.obstacle} at s = ${p.s_start.toFixed(3)}–${p.s_end.toFixed(3)} m`);
-  }
+  if (frame) out.push(...frame.warnings);  // the server's words (assembly/checks.py), as the CLI's
   $('notes').innerHTML = (acc?.ok ? acc.notes : []).map((n) => `<li>${esc(n)}</li>`).join('');
   $('warnings').innerHTML = out.length ? out.map((w) => `<li>${esc(w)}</li>`).join('') : '<li class="muted">none</li>';
 }
