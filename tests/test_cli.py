@@ -210,13 +210,14 @@ def test_vectors_print_round_off_as_zero_and_keep_small_values():
     assert _vec((3e-12, 0.0), 1.0) == "(0, 0)"  # noise against the problem's scale
 
 
-def test_the_path_table_fits_80_columns_with_its_units():
+def test_the_path_table_fits_80_columns_with_its_units(tmp_path, monkeypatch):
     """A path's table at 80 columns: one line per step (no cell wrapped onto three), the
     units shown in the headers (rich read "[m]" and "[mm]" as markup and dropped them)."""
     from typer.testing import CliRunner
 
     from pliant.cli.app import app
 
+    monkeypatch.chdir(tmp_path)  # pliant run writes its files into pliant-out/ here
     scene = EXAMPLES / "scenes" / "cable_through_clip.toml"
     result = CliRunner().invoke(app, ["run", str(scene)], env={"COLUMNS": "80"})
     assert result.exit_code == 0, result.output
