@@ -258,3 +258,64 @@ def test_dump_keeps_the_obstacles_and_their_meshes(tmp_path):
     d0, g0, o0 = DistanceField(list(obstacles)).query(points, band=0.05)
     d1, g1, o1 = DistanceField(list(again.obstacles)).query(points, band=0.05)
     assert np.abs(d0 - d1).max() < 1e-12 and np.array_equal(o0, o1)
+
+
+@st.composite
+def _problems(draw) -> pl.Problem:
+    """A random 3D problem with what a file can hold: a part (its rest curvature a number
+    or knots), a clamp and a push or a grip, gravity, distributed loads on stretches and
+    primitive obstacles turned and placed anywhere."""
+    from pliant.core.loads import DistributedLoad
+    from pliant.scene.distance import Obstacle
+
+    finite = st.floats(-5.0, 5.0, allow_nan=False, width=64)
+    length = draw(st.floats(0.2, 3.0))
+    curvature = draw(st.one_of(st.floats(-2.0, 2.0), st.just(((0.0, 0.3), (length, -0.4)))))
+    part = pl.Part(length=length, bending_stiffness=draw(st.floats(0.01, 50.0)),
+                   torsional_stiffness=draw(st.floats(0.01, 50.0)),
+                   mass_per_length=draw(st.floats(0.0, 2.0)), rest_curvature=curvature)
+    end = (pl.push(length, force=tuple(draw(finite) for _ in range(3)), name="hand")
+           if draw(st.booleans()) else
+           pl.grip(length, position=(0.5 * length, 0.1 * length, 0.0), name="hand"))
+    loads = []
+    for i in range(draw(st.integers(0, 2))):
+        a = draw(st.floats(0.0, 0.8)) * length
+        b = draw(st.one_of(st.none(), st.floats(0.85, 1.0).map(lambda f: f * length)))
+        loads.append(DistributedLoad(tuple(draw(finite) for _ in range(3)),
+                                     follower=draw(st.booleans()), start=a, end=b,
+                                     name=f"load{i}"))
+    angle = draw(st.floats(-3.0, 3.0))
+    turn = np.array([[math.cos(angle), -math.sin(angle), 0.0],
+                     [math.sin(angle), math.cos(angle), 0.0], [0.0, 0.0, 1.0]])
+    where = tuple(draw(finite) for _ in range(3))
+    obstacles = [draw(st.sampled_from([
+        Obstacle.sphere("ball", 0.1, where), Obstacle.box("block", (0.1, 0.2, 0.3), where, turn),
+        Obstacle.cylinder("pipe", 0.05, 0.4, where, turn),
+        Obstacle.halfspace("floor", where, turn[:, 0])]))]
+    return pl.Problem(part, (pl.clamp(0.0, (0.0, 0.0, 0.0)), end),
+                      gravity=(0.0, 0.0, -draw(st.floats(0.0, 20.0))), name="random",
+                      obstacles=tuple(obstacles), loads=tuple(loads))
+
+
+@settings(max_examples=60, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(_problems())
+def test_a_problem_written_reads_back_as_itself(problem):
+    """Load, dump, load: the same problem (conditions, gravity, loads, the part's
+    stiffness and rest curvature, and its obstacles' shapes and poses), and writing it
+    again gives the same text."""
+    text = dump_problem(problem)
+    again = parse_problem(text)
+    assert again.conditions == problem.conditions
+    assert again.gravity == problem.gravity and again.loads == problem.loads
+    assert again.part.rest_knots == problem.part.rest_knots
+    assert again.part.stiffnesses == problem.part.stiffnesses
+    assert len(again.obstacles) == len(problem.obstacles)
+    for a, b in zip(again.obstacles, problem.obstacles):
+        assert (a.name, a.kind) == (b.name, b.kind)
+        np.testing.assert_allclose(a.translation, b.translation, atol=1e-12)
+        np.testing.assert_allclose(a.param, b.param, atol=1e-12)
+        if a.kind != 3:  # a half-space is its plane: the turn about its normal is free
+            np.testing.assert_allclose(a.rotation, b.rotation, atol=1e-12)
+        else:
+            np.testing.assert_allclose(a.rotation[:, 2], b.rotation[:, 2], atol=1e-12)
+    assert dump_problem(again) == text
