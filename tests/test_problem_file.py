@@ -301,8 +301,8 @@ def _problems(draw) -> pl.Problem:
 @given(_problems())
 def test_a_problem_written_reads_back_as_itself(problem):
     """Load, dump, load: the same problem (conditions, gravity, loads, the part's
-    stiffness and rest curvature, and its obstacles' shapes and poses), and writing it
-    again gives the same text."""
+    stiffness and rest curvature, and its obstacles' shapes and poses), equal as a whole
+    (parts and obstacles compare by value), and writing it again gives the same text."""
     text = dump_problem(problem)
     again = parse_problem(text)
     assert again.conditions == problem.conditions
@@ -319,3 +319,4 @@ def test_a_problem_written_reads_back_as_itself(problem):
         else:
             np.testing.assert_allclose(a.rotation[:, 2], b.rotation[:, 2], atol=1e-12)
     assert dump_problem(again) == text
+    assert again == problem  # by value, obstacles included

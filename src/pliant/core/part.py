@@ -148,9 +148,15 @@ class Part:
             if not -1.0 < nu <= 0.5:
                 raise InputError("poisson_ratio", f"must lie in (-1, 0.5], got {nu!r}")
             set_(self, "poisson_ratio", nu)
-        set_(self, "rest_knots", self._knots(self.rest_curvature, "rest_curvature"))
-        set_(self, "rest_knots_2", self._knots(self.rest_curvature_2, "rest_curvature_2"))
-        set_(self, "twist_knots", self._knots(self.rest_twist, "rest_twist"))
+        for given, knots in (("rest_curvature", "rest_knots"), ("rest_curvature_2", "rest_knots_2"),
+                             ("rest_twist", "twist_knots")):
+            profile = self._knots(getattr(self, given), given)
+            set_(self, knots, profile)
+            # A constant profile over the whole part is that number, however it was given
+            # (a file writes it as knots): the same part compares equal.
+            if len(profile) == 2 and profile[0] == (0.0, profile[1][1]) and \
+                    profile[1][0] == self.length:
+                set_(self, given, profile[1][1])
 
     def _knots(self, rest: float | Sequence[Sequence[float]],
                name: str) -> tuple[tuple[float, float], ...]:

@@ -837,6 +837,24 @@ class Obstacle:
     # this is: the accurate model solves it with the part that touches it.
     fitted: object = None
 
+    # By value (what it is, not which object): a scene read again gives equal obstacles,
+    # so a problem read back from its file equals the one written and a warm start
+    # carries over. The identity test first: the solver compares them at every step.
+    def __eq__(self, other: object) -> bool:
+        if self is other:
+            return True
+        if not isinstance(other, Obstacle):
+            return NotImplemented
+        return (self.name == other.name and self.kind == other.kind
+                and self.friction == other.friction
+                and np.array_equal(self.rotation, other.rotation)
+                and np.array_equal(self.translation, other.translation)
+                and np.array_equal(self.param, other.param)
+                and _same_mesh(self.mesh, other.mesh) and _same_fitted(self.fitted, other.fitted))
+
+    def __hash__(self) -> int:
+        return hash((self.name, self.kind, self.translation.tobytes(), self.param.tobytes()))
+
     def with_friction(self, mu: float) -> Obstacle:
         """This obstacle with Coulomb friction ``mu`` (>= 0) against the part."""
         if not (math.isfinite(mu) and mu >= 0.0):
@@ -870,6 +888,22 @@ class Obstacle:
                   resolution: int = 64) -> Obstacle:
         return Obstacle(name, MESH, _rot(rotation), np.asarray(position, float),
                         np.zeros(4), prepare_mesh(vertices, faces, resolution))
+
+
+def _same_mesh(a: MeshData | None, b: MeshData | None) -> bool:
+    """The same triangles (and so the same mesh: the rest is made from them)."""
+    if a is b:
+        return True
+    return a is not None and b is not None and a.solid == b.solid and np.array_equal(
+        a.tri, b.tri)
+
+
+def _same_fitted(a, b) -> bool:
+    """The same part already fitted: its problem, element count and friction."""
+    if a is b:
+        return True
+    return a is not None and b is not None and (a.name, a.elements, a.friction) == (
+        b.name, b.elements, b.friction) and a.problem == b.problem
 
 
 def _rot(rotation) -> np.ndarray:
