@@ -75,12 +75,12 @@ def main() -> None:
 
         def lapack(ab=ab, kl=kl, ku=ku, b=b):
             work = ab.copy()
-            piv, ok = band_lu(work, kl, ku)
+            piv, _ok = band_lu(work, kl, ku)
             return band_lu_solve(work, piv, kl, ku, b)
 
         def twin(ab=ab, kl=kl, ku=ku, b=b):
             work = ab.copy()
-            piv, ok = band_lu_twin(work, kl, ku)
+            piv, _ok = band_lu_twin(work, kl, ku)
             return band_lu_solve_twin(work, piv, kl, ku, b)
 
         # scipy's layout: rows are diagonals (ku above, kl below), ab_s[ku + i - j, j].

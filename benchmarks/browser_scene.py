@@ -17,7 +17,8 @@ Five views: the bundled engine bay; the large scene as pliant draws it (decimate
 the default display budget), then opened again (its parse and drawing from the disk
 cache), and with ``pliant view --triangles 100000``; and the same scene drawn whole
 (budgets lifted), which is what the budget saves. The large scene's files are written
-afresh each run, so its first opening pays for parsing and decimating them. Software rendering makes every figure slow in absolute terms;
+afresh each run, so its first opening pays for parsing and decimating them. Software rendering
+makes every figure slow in absolute terms;
 the ratios between the three, measured in the same run, are the figures.
 """
 

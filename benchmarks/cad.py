@@ -10,7 +10,8 @@ its peak memory is its own:
 
 - pliant: ``Obstacle.from_mesh`` (pseudonormals, box tree, signed distance grid) from an
   empty cache, and again from the disk cache (the same file loaded a second time: the
-  grid, and for a large mesh the tree and pseudonormals, read back), and ``DistanceField.query`` of 200 points near the surface (exact
+  grid, and for a large mesh the tree and pseudonormals, read back), and ``DistanceField.query`` of
+  200 points near the surface (exact
   there), then of the same points again (warm);
 - libigl: ``AABB.init`` and ``AABB.squared_distance`` (unsigned), and
   ``signed_distance`` with pseudonormals (its tree built inside each call);
@@ -61,7 +62,7 @@ def one(tool: str, million: float, n: int) -> dict:
     """Run one tool on one mesh size in this process."""
     start = time.perf_counter()
     V, F = _sphere(million)
-    out = {"tool": tool, "triangles": int(len(F)), "load": time.perf_counter() - start}
+    out = {"tool": tool, "triangles": len(F), "load": time.perf_counter() - start}
     P = _points(n)
     exact = np.linalg.norm(P, axis=1) - RADIUS
     if tool == "pliant":

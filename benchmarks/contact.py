@@ -190,7 +190,8 @@ def resolution(counts: tuple[int, ...] = (100, 400, 1600)) -> None:
             if len(eq.contacts):
                 touching.append(eq.iterations)
         print(f"    {count:5d} elements: {len(iterations)} steps, iterations median "
-              f"{statistics.median(iterations):.1f} (touching {statistics.median(touching or [0]):.1f}), "
+              f"{statistics.median(iterations):.1f} "
+              f"(touching {statistics.median(touching or [0]):.1f}), "
               f"max {max(iterations)}; {time.perf_counter() - start:.1f} s"
               + (f"; {failed}" if failed else ""))
 

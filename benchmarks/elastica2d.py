@@ -73,7 +73,7 @@ def cold(repeat: int) -> None:
     # starting shapes for a lower stable equilibrium; lowest=False is the route alone.
     rows.append((rows[-1][0], "reference", route_only, ", route only"))
     for problem, against, settings, label in rows:
-        t_pl, eq = median_time(lambda: solve(problem, solver=settings), repeat)
+        t_pl, eq = median_time(lambda p=problem, s=settings: solve(p, solver=s), repeat)
         if against == "closed form":
             alpha = problem.condition("tip").force[1]
             exact = np.array(cantilever_tip(alpha))
@@ -91,11 +91,11 @@ def cold(repeat: int) -> None:
         straight = solve_reference(problem)
         note = ""
         if straight.success:
-            t_bvp, bvp = median_time(lambda: solve_reference(problem), max(3, repeat // 10))
+            t_bvp, bvp = median_time(lambda p=problem: solve_reference(p), max(3, repeat // 10))
         else:
             note = f"  solve_bvp from the straight shape: {straight.message.split('.')[0]};" \
                    " timed from pliant's answer instead"
-            t_bvp, bvp = median_time(lambda: solve_reference(problem, guess=eq),
+            t_bvp, bvp = median_time(lambda p=problem, g=eq: solve_reference(p, guess=g),
                                      max(3, repeat // 10))
         bvp_value = np.array(bvp.tip)
         if problem.name == "paper case 3":
@@ -157,8 +157,8 @@ def manipulation(steps: int, repeat: int) -> None:
 def enumeration(repeat: int) -> None:
     """equilibria() on the paper's case 3 (the issue's target: 50 ms) and on a tip held
     near the clamp's axis, where the two bow sides differ."""
-    from pliant.core.equilibrium import potential_energy  # noqa: PLC0415
-    from pliant.models.elastica2d import equilibria  # noqa: PLC0415
+    from pliant.core.equilibrium import potential_energy
+    from pliant.models.elastica2d import equilibria
 
     near = pl.Problem(pl.Part(1.0, 1.0), (pl.clamp(0.0), pl.grip(1.0, (0.333, -0.002),
                                                                   angle=-1.106)))

@@ -162,7 +162,7 @@ def run(kind: str, count: int, seed: int, tolerance: float) -> dict[str, Counter
         except PliantError:
             row["typed error"] += 1
             continue
-        except Exception:  # noqa: BLE001 (counted: there should be none)
+        except Exception:
             row["untyped"] += 1
             continue
         finally:

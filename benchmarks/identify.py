@@ -13,7 +13,8 @@ C. a pre-curved 0.6 m hose (2.5 1/m) sagging out of its plane (3D, 100 elements)
 
 For A and B, the tool a user would pick instead, in the same run: scipy.optimize's
 curve_fit around scipy.integrate.solve_bvp of the same elastica (theta' = M / EI,
-M' = (w (L - s) + P) cos theta (theta counter-clockwise), theta(0) = 0, M(L) = 0; the points' distance to the
+M' = (w (L - s) + P) cos theta (theta counter-clockwise), theta(0) = 0, M(L) = 0; the points'
+distance to the
 densely sampled curve), tolerance 1e-8.
 
     .venv/bin/python benchmarks/identify.py

@@ -99,7 +99,7 @@ def elastica_tip(elements: int, tip_force: np.ndarray, tip_moment: np.ndarray,
                  mass_per_length: float, gravity: np.ndarray, final_time: float = 6.0,
                  damping: float = 2.6) -> tuple[np.ndarray, float]:
     """Static tip position of a clamped rod by damped dynamics; (tip, wall seconds)."""
-    import elastica as ea  # noqa: PLC0415
+    import elastica as ea
 
     class Simulator(ea.BaseSystemCollection, ea.Constraints, ea.Forcing, ea.Damping):
         pass
@@ -151,7 +151,7 @@ def main() -> None:
     print(f"pliant {pl.__version__}, python {sys.version.split()[0]}, {os.cpu_count()} cpus, "
           f"{args.elements} elements\n")
     try:
-        import elastica  # noqa: F401, PLC0415
+        import elastica  # noqa: F401
 
         have_elastica = True
         elastica_tip(10, np.zeros(3), np.ones(3), 0.1, np.zeros(3), final_time=1e-3)  # its JIT
@@ -166,7 +166,7 @@ def main() -> None:
     cold_a, eq_a = median_time(lambda: rod3d.solve(case1(), solver=solver), args.repeat)
     err_a = float(np.abs(eq_a.tip[0][:2] - np.array(exact2d.tip[:2])).max())
     ramp = [case1(f) for f in np.linspace(1.0 / args.steps, 1.0, args.steps)]
-    first_a, warm_a, _ = warm_steps(ramp, solver)
+    _first_a, warm_a, _ = warm_steps(ramp, solver)
     print("(a) paper case 1 as a 3D problem")
     print(f"    pliant: cold {cold_a * 1e3:.2f} ms, warm step (100-step load ramp) "
           f"{warm_a * 1e3:.3f} ms, tip error {err_a:.1e} L")
@@ -187,8 +187,8 @@ def main() -> None:
 
     # (b) the hose carried by a hand
     path = [hose(t) for t in np.linspace(1.0 / args.steps, 1.0, args.steps)]
-    cold_b, eq_b = median_time(lambda: rod3d.solve(path[-1], solver=solver), args.repeat)
-    first_b, warm_b, last = warm_steps(path, solver)
+    cold_b, _eq_b = median_time(lambda: rod3d.solve(path[-1], solver=solver), args.repeat)
+    _first_b, warm_b, last = warm_steps(path, solver)
     print("\n(b) 1 m rubber hose (20 mm, EI = 0.050 N m^2, 0.3 kg/m), clamped, carried by a hand")
     print(f"    pliant: cold {cold_b * 1e3:.2f} ms, warm step (100-step path) "
           f"{warm_b * 1e3:.3f} ms, stable: {last.stable}")

@@ -134,8 +134,9 @@ def main() -> int:
         time.sleep(0.05)  # the closed tabs' sessions freed
 
     # 4. a tab that never reads
-    from pliant.viewer import server as server_module
     from test_viewer import _raw_websocket
+
+    from pliant.viewer import server as server_module
 
     server_module.SEND_TIMEOUT = 2.0
     sock, send = _raw_websocket(server.port)

@@ -31,7 +31,7 @@ def compiled_kernels():
                        gravity=(0.0, 0.0, -9.81),
                        obstacles=(Obstacle.sphere("ball", 0.1, (0.4, 0.0, -0.2)),))
     try:
-        rod3d.solve(space, solver=rod3d.RodSolver(elements=12, time_budget=3600.0)).stability
+        _ = rod3d.solve(space, solver=rod3d.RodSolver(elements=12, time_budget=3600.0)).stability
     except PliantError:
         pass
     yield

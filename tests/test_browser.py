@@ -305,7 +305,7 @@ def test_two_vr_controllers_each_hold_their_own_grip_and_feel_its_force(browser,
         page.wait_for_function("window.pliant.hands.filter(h => h.userData.held).length === 2")
         held = page.evaluate("window.pliant.hands.map(h => h.userData.held.name)")
         assert sorted(held) == ["left hand", "right hand"]
-        for k in range(1, 11):  # both at once: left 3 cm along -x, right 4 cm up (XR's y)
+        for _ in range(1, 11):  # both at once: left 3 cm along -x, right 4 cm up (XR's y)
             page.evaluate(f"""(() => {{
                 const l = {device}.left.position, r = {device}.right.position;
                 l.set(l.x - 0.003, l.y, l.z); r.set(r.x, r.y + 0.004, r.z); }})()""")

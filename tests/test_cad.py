@@ -56,14 +56,14 @@ def test_name_patterns_keep_and_drop_solids():
     assert names == {"bolt", "bolt_1"}
     names = {s.name for s in read_assembly(STEP, drop=["BOLT*"])}  # patterns are case-blind
     assert names == {"bracket", "manifold"}
-    with pytest.raises(InputError, match="its solids: .*manifold"):
+    with pytest.raises(InputError, match=r"its solids: .*manifold"):
         read_assembly(STEP, keep=["exhaust*"])
 
 
 def test_a_broken_step_file_is_a_typed_error_naming_it(tmp_path, capfd):
     bad = tmp_path / "truncated.step"
     bad.write_bytes(STEP.read_bytes()[:3000])
-    with pytest.raises(FileFormatError, match="truncated.step"):
+    with pytest.raises(FileFormatError, match=r"truncated.step"):
         read_assembly(bad)
     out, err = capfd.readouterr()
     assert "StepFile" not in out + err  # OpenCASCADE's own chatter is kept off the terminal

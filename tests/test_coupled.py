@@ -411,7 +411,7 @@ def test_a_ring_with_friction_sticks_then_slides_at_mu_times_the_force_across():
     (s0, a0, n0), (s1, a1, n1), (s2, a2, n2), (s3, a3, n3) = seen
     assert abs(a0) < 0.01 * n0  # installed where it slides freely (a cold start)
     assert s1 == s0 and abs(a1) < 2.0 * n1  # sticks
-    for s, a, n in ((s2, a2, n2), (s3, a3, n3)):  # slides, at the friction limit
+    for _s, a, n in ((s2, a2, n2), (s3, a3, n3)):  # slides, at the friction limit
         assert abs(a) == pytest.approx(2.0 * n, rel=0.01)
     assert s3 < s2 < s1
 

@@ -103,7 +103,7 @@ def test_gradients_match_finite_differences():
                            Obstacle.sphere("s", 0.05, (0.0, 0.3, 0.0))])
     rng = np.random.default_rng(2)
     points = rng.uniform(-0.4, 0.4, size=(200, 3))
-    d, g, _ = field.query(points, band=1.0)
+    _d, g, _ = field.query(points, band=1.0)
     eps = 1e-7
     fd = np.column_stack([(field.query(points + eps * e, band=1.0)[0]
                            - field.query(points - eps * e, band=1.0)[0]) / (2 * eps)

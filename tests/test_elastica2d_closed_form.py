@@ -39,7 +39,7 @@ def cantilever_tip(alpha: float) -> tuple[float, float, float]:
 
 def test_closed_form_matches_small_deflection_limit():
     # The helper itself: for a small load the tip deflection is P L^3 / 3 EI.
-    x, y, phi = cantilever_tip(1e-4)
+    _x, y, phi = cantilever_tip(1e-4)
     assert y == pytest.approx(1e-4 / 3.0, rel=1e-6)
     assert phi == pytest.approx(1e-4 / 2.0, rel=1e-6)
 

@@ -70,7 +70,7 @@ def test_arrays_satisfy_the_elastica(name):
         s = eq.s[idx]
         h = s[1] - s[0]
 
-        def d(f):  # 4th-order central difference at the interior samples
+        def d(f, h=h):  # 4th-order central difference at the interior samples
             return (f[:-4] - 8 * f[1:-3] + 8 * f[3:-1] - f[4:]) / (12 * h)
 
         inner = slice(2, -2)

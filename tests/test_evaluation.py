@@ -453,9 +453,9 @@ def test_a_users_own_table_replaces_the_bundled_one(tmp_path):
 
 
 def test_evaluation_settings_reject_nonsense_naming_the_field():
-    with pytest.raises(InputError, match="evaluation.operator"):
+    with pytest.raises(InputError, match=r"evaluation.operator"):
         EvaluationSettings(operator="octopus")
-    with pytest.raises(InputError, match="evaluation.rating"):
+    with pytest.raises(InputError, match=r"evaluation.rating"):
         EvaluationSettings(operator="robot")
     with pytest.raises(FileFormatError, match=r"evaluation\.multipliers"):
         parse_scene(_arc_scene("wire", 0.19).replace(

@@ -253,7 +253,7 @@ def test_a_hanging_shape_cannot_tell_the_weight_from_the_stiffness():
     hanging = pl.Problem(pl.Part(0.5, 0.02, mass_per_length=0.05), (pl.clamp(0.0),),
                          gravity=(0.0, -9.81))
     points = shape_points(hanging, 20)
-    with pytest.raises(NotIdentifiableError, match="cannot tell bending_stiffness from "
+    with pytest.raises(NotIdentifiableError, match=r"cannot tell bending_stiffness from "
                        "mass_per_length.*bending_stiffness\\^\\+1.00 · mass_per_length"):
         identify(StiffnessTest(hanging, ("bending_stiffness", "mass_per_length"),
                                (Shape(points),)))

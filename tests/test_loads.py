@@ -5,6 +5,7 @@ errors."""
 
 from __future__ import annotations
 
+import itertools
 import math
 
 import numpy as np
@@ -55,7 +56,7 @@ def test_a_follower_pressure_bends_a_cantilever_into_the_exact_arc():
                            atol=2e-3 * (25 / n) ** 2 * q / kappa)
         assert eq.verdict == "undecided"  # a follower load has no potential
     assert errors[-1] < 3e-5
-    orders = [math.log2(a / b) for a, b in zip(errors, errors[1:])]
+    orders = [math.log2(a / b) for a, b in itertools.pairwise(errors)]
     assert min(orders) > 1.9  # second order, as the rod's discretisation
 
 
@@ -200,7 +201,7 @@ def test_the_jacobian_with_distributed_loads_matches_finite_differences():
     _, state = rod.rest()
     run.gauge_quat = state[1][0].copy()
     state = run.step(state, 0.05 * np.random.default_rng(3).standard_normal(rod.n), 1.0)
-    R, ab, _ = run.residual(state, rod.target, want_jac=True)
+    _R, ab, _ = run.residual(state, rod.target, want_jac=True)
     J = dense(ab, rod.kl, rod.ku, rod.n)
     fd = np.empty_like(J)
     for j in range(rod.n):

@@ -37,7 +37,7 @@ def test_the_discrete_gradient_and_hessian_match_finite_differences():
     rng = np.random.default_rng(3)
     u = disc.start(0.7) + 0.1 * rng.normal(size=26)
     lam = rng.normal(size=len(disc.position) + len(disc.angle))
-    e, g = disc.energy(u)
+    _e, g = disc.energy(u)
     eps = 1e-6
     basis = np.eye(u.size)
     fd = np.array([(disc.energy(u + eps * b)[0] - disc.energy(u - eps * b)[0]) / (2 * eps)
@@ -110,10 +110,11 @@ def twin_lowest(problem: pl.Problem) -> float:
     lowest = math.inf
     for bow in np.linspace(-3.0, 3.0, 5):
         energies = []
+        coarse = None  # the coarser part's minimum starts the finer one
         for n in (48, 96):
             disc = minimum._Discrete(problem, n)
-            start = disc.start(bow) if not energies else np.concatenate(
-                [found.x[:2], np.repeat(found.x[2:], 2)])
+            start = disc.start(bow) if coarse is None else np.concatenate(
+                [coarse[:2], np.repeat(coarse[2:], 2)])
             found = minimize(disc.energy, start, jac=True, method="SLSQP",
                              constraints=[{"type": "eq", "fun": disc.constraints,
                                            "jac": disc.jacobian}],
@@ -122,6 +123,7 @@ def twin_lowest(problem: pl.Problem) -> float:
                     or not _is_minimum(disc, found.x)):
                 break
             energies.append(found.fun)
+            coarse = found.x
         if len(energies) == 2 and abs(energies[1] - energies[0]) <= 0.05 * (
                 abs(energies[0]) + 1.0):
             lowest = min(lowest, (4.0 * energies[1] - energies[0]) / 3.0)

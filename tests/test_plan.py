@@ -135,13 +135,13 @@ def test_a_walled_in_port_is_a_typed_error_inside_its_budget():
 
 def test_bad_requests_name_the_field():
     scene = load_scene(EXAMPLE)
-    with pytest.raises(InputError, match="plan.goal: no \\[\\[port\\]\\] named 'nowhere'"):
+    with pytest.raises(InputError, match=r"plan.goal: no \[\[port\]\] named 'nowhere'"):
         plan(scene, "nowhere")
-    with pytest.raises(InputError, match="plan.grip: no condition named 'elbow'"):
+    with pytest.raises(InputError, match=r"plan.grip: no condition named 'elbow'"):
         Planner(scene, grip="elbow")
     data = read_toml(read_text(EXAMPLE), str(EXAMPLE))
     del data["condition"][1]["tangent"]  # the hand holds a position only
-    with pytest.raises(InputError, match="plan.grip: 'hand' must hold x, y, z and a tangent"):
+    with pytest.raises(InputError, match=r"plan.grip: 'hand' must hold x, y, z and a tangent"):
         Planner(scene_from_data(data, "x"))
     free = replace(scene, problem=scene.problem.with_conditions(
         [scene.problem.condition("hand")]))
@@ -158,10 +158,10 @@ def test_the_scene_file_reads_its_plan_table():
     assert scene.plan.goal == "port" and scene.plan.budget == 30.0
     data = read_toml(read_text(EXAMPLE), str(EXAMPLE))
     data["plan"]["budget"] = -1
-    with pytest.raises(FileFormatError, match="plan.budget"):
+    with pytest.raises(FileFormatError, match=r"plan.budget"):
         scene_from_data(data, "x")
     data["plan"] = {"goal": "port", "speed": 2}
-    with pytest.raises(FileFormatError, match="plan.speed"):
+    with pytest.raises(FileFormatError, match=r"plan.speed"):
         scene_from_data(data, "x")
 
 

@@ -211,7 +211,7 @@ def test_a_misspelt_key_is_named_with_the_nearest_the_table_takes():
 def test_a_diameter_given_in_millimetres_is_refused_with_the_units():
     from pliant.io.problem_file import parse_scene
 
-    with pytest.raises(FileFormatError, match="part: outer_diameter 20 m is more than half "
+    with pytest.raises(FileFormatError, match=r"part: outer_diameter 20 m is more than half "
                                               "the part's length \\(1 m\\).*20 mm is 0.02"):
         parse_scene("[part]\nlength = 1.0\nbending_stiffness = 1.0\nouter_diameter = 20\n",
                     "x.toml")
@@ -255,8 +255,8 @@ def test_dump_keeps_the_obstacles_and_their_meshes(tmp_path):
             assert np.array_equal(a.mesh.tri, b.mesh.tri)
             assert np.array_equal(a.mesh.g_values, b.mesh.g_values)
     points = np.random.default_rng(2).uniform(-0.6, 0.8, (300, 3))
-    d0, g0, o0 = DistanceField(list(obstacles)).query(points, band=0.05)
-    d1, g1, o1 = DistanceField(list(again.obstacles)).query(points, band=0.05)
+    d0, _g0, o0 = DistanceField(list(obstacles)).query(points, band=0.05)
+    d1, _g1, o1 = DistanceField(list(again.obstacles)).query(points, band=0.05)
     assert np.abs(d0 - d1).max() < 1e-12 and np.array_equal(o0, o1)
 
 

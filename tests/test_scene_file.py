@@ -175,7 +175,7 @@ steps = 7
     assert np.allclose(tangents[2], (0.0, 0.0, 1.0))
     # Every other condition stays as it was.
     assert all(p.conditions[0] == scene.problem.conditions[0] for p in scene.path)
-    with pytest.raises(FileFormatError, match="path.grip"):
+    with pytest.raises(FileFormatError, match=r"path.grip"):
         parse_scene(text.replace('grip = "hand"', 'grip = "foot"'), "path.toml")
     with pytest.raises(FileFormatError, match="turns right round"):
         parse_scene(text.replace("[[0.0, 0.0, 1.0], [0.0, 1.0, 0.0]]",
@@ -188,7 +188,7 @@ def test_the_library_has_sources_and_sane_values():
         assert entry["source"] and entry["description"], name
         assert 1e5 < entry["youngs_modulus"] < 3e11 and 800 < entry["density"] < 9000, name
     assert material("Steel").youngs_modulus == 2.0e11
-    with pytest.raises(InputError, match="known: .*PA12"):
+    with pytest.raises(InputError, match=r"known: .*PA12"):
         material("kevlar")
 
 

@@ -30,7 +30,7 @@ _LAZY = {"solve": "pliant.models.dispatch", "trace": "pliant.models.dispatch",
 
 def __getattr__(name: str):
     if name in _LAZY:
-        import importlib
+        import importlib  # noqa: PLC0415 (only for a lazy name)
 
         return getattr(importlib.import_module(_LAZY[name]), name)
     raise AttributeError(f"module 'pliant' has no attribute {name!r}")

@@ -28,7 +28,7 @@ from typing import Any
 import numpy as np
 
 
-class Zone(str, Enum):
+class Zone(str, Enum):  # noqa: UP042 (str() and format() stay as they print now)
     """A check's result: green (acceptable), yellow (acceptable with reservations: a
     margin is used up, or a risk to watch), red (not acceptable), unchecked (the rule
     could not be applied: a value is missing, and the report says which), info (a

@@ -22,7 +22,7 @@ from __future__ import annotations
 
 import itertools
 import math
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -43,7 +43,7 @@ from pliant.assembly.checks import (
 from pliant.assembly.path import PathRun, StepRecord, follow_path
 from pliant.core.equilibrium import stretch_summary
 from pliant.core.events import WarmStartLost, has
-from pliant.core.numbers import clean
+from pliant.core.numbers import clean, triple
 from pliant.core.rules import Capacity, EvaluationSettings, PartKind, Rules
 from pliant.errors import InputError
 
@@ -153,7 +153,7 @@ def _ranges(steps: tuple[int, ...]) -> str:
 def series_check(rule: str, title: str, family: str, values: list[float], unit: str,
                  worse: str, yellow_at: float | None, red_at: float | None, source: str,
                  provenance: str, *, grip: str | None = None,
-                 where: list[float | None] | None = None, unscored_below: float = 0.0,
+                 where: Sequence[float | None] | None = None, unscored_below: float = 0.0,
                  note: str = "", steps: list[int] | None = None) -> Check:
     """A rule applied at each step's value, reported at the worst step (the highest
     zone, then the worst value)."""
@@ -217,8 +217,7 @@ def grip_step(eq: Any, name: str, extra_push: float = 0.0,
         force = force + extra_push * push_axis
     moment = np.array(load.moment, float)
     return GripStep(split_wrench(force, moment, tangent, outward),
-                    tuple(float(x) for x in force), tuple(float(x) for x in moment),
-                    tuple(float(x) for x in tangent), float(load.s))
+                    triple(force), triple(moment), triple(tangent), float(load.s))
 
 
 def hand_rows(rules: Rules, settings: EvaluationSettings, hold: str,
@@ -423,8 +422,8 @@ def evaluate_pose(scene: Any, pose: Any, clearances: dict[str, float], *,
     nearest = min(clearances.items(), key=lambda kv: kv[1], default=("", math.inf))
     grip = pose.loads[grips[0]]
     record = StepRecord(
-        progress=0.0, grip_position=(0.0, 0.0, 0.0), force=tuple(map(float, grip.force)),
-        moment=tuple(map(float, grip.moment)), clearance=float(nearest[1]),
+        progress=0.0, grip_position=(0.0, 0.0, 0.0), force=triple(grip.force),
+        moment=triple(grip.moment), clearance=float(nearest[1]),
         nearest=nearest[0], contacts=0 if pose.contacts is None else len(pose.contacts),
         contact_force=0.0, bend_radius=float(radius), bend_at=float(at),
         stable=pose.stable, snap=has(pose.notes, WarmStartLost), seconds=0.0,
@@ -683,7 +682,8 @@ def _stretch_checks(run: PathRun, part: Any, rules: Rules) -> list[Check]:
     part."""
     if part.axial_stiffness is None:
         return []
-    summaries = [stretch_summary(eq) for eq in run.equilibria]
+    # An extensible part's equilibria all have one.
+    summaries = [x for eq in run.equilibria if (x := stretch_summary(eq)) is not None]
     strains = [100.0 * abs(x["max_axial_strain"]) for x in summaries]
     where = [x["at"] for x in summaries]
     allowed = part.max_axial_strain
@@ -762,8 +762,10 @@ def _operators(scene: Any, run: PathRun, rules: Rules, settings: EvaluationSetti
     if wanted == "two hands" or (wanted == "auto" and out[0].zone == Zone.RED):
         out += _two_hands(scene, run, rules, settings, grips, grip_steps, elements, search)
     if wanted in ("tool", "robot"):
+        rating = settings.rating_force
+        assert rating is not None  # EvaluationSettings asks a tool or robot for one
         checks = [c for g in grips for c in tool_checks(
-            g, grip_steps[g], rules, settings.rating_force, settings.rating_moment)]
+            g, grip_steps[g], rules, rating, settings.rating_moment)]
         out.append(OperatorResult(wanted, checks, f"a {wanted} rated for "
                                   f"{settings.rating_force:g} N"))
     elif wanted == "auto" and all(o.zone == Zone.RED for o in out):

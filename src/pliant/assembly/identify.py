@@ -225,7 +225,7 @@ def identify(test: StiffnessTest, *, solver: Any = None, time_budget: float = 12
                          "unknown(s); an interval needs at least one more (measure more "
                          "points or loads), or as many with their uncertainties")
     # the last values whose residual was computed, with it (errors name them)
-    state = {"solves": 0, "at": (x0, None)}
+    state: dict[str, Any] = {"solves": 0, "at": (x0, None)}
 
     def part_at(x: np.ndarray) -> Part:
         values = dict(zip(names, np.exp(x).tolist()))
@@ -353,7 +353,8 @@ def _check_identifiable(names: tuple[str, ...], J: np.ndarray, models: list,
         v = vt[-1] / vt[-1][np.argmax(np.abs(vt[-1]))]
         together = " · ".join(f"{n}^{c:+.2f}" for n, c in zip(names, v) if abs(c) > 0.05)
         raise NotIdentifiableError(
-            f"the measurements cannot tell {' from '.join(n for n, c in zip(names, v) if abs(c) > 0.05)}"
+            "the measurements cannot tell "
+            f"{' from '.join(n for n, c in zip(names, v) if abs(c) > 0.05)}"
             f" ({where}): changing them together as {together} leaves the fit unchanged; "
             "fix one of them in [part], or add a measurement that separates them (a known "
             "load for a weight and a stiffness, a twist for a torsional stiffness)")
@@ -620,7 +621,8 @@ def _support_force(half: float, a: float, delta: float, label: str) -> float:
 
 
 def _support_contact(half: float, a: float, delta: float, label: str) -> tuple[float, float]:
-    """(force, curvature under the ram [1/m]); the vertical force [N] a frictionless support ``a`` from the middle and ``delta``
+    """(force, curvature under the ram [1/m]); the vertical force [N] a frictionless support ``a``
+    from the middle and ``delta``
     above it applies to a half part of length ``half`` and unit stiffness, clamped level
     at the middle. Up to the contact the half part is a cantilever of length l loaded at
     its tip by the support's force, normal to it (a normal follower force F); beyond, it is
@@ -775,7 +777,7 @@ class _BucklingModel:
         if stable is None:
             raise InputError(self.label, "the test's loads are not conservative (a follower "
                              "load or a dead moment): stability is undecided")
-        return eq, float(eigen)
+        return eq, float(eigen or 0.0)  # decided: stable is not None
 
     def critical(self, part: Part) -> float:
         self.solves = 0

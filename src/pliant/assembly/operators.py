@@ -36,11 +36,13 @@ from pliant.assembly.evaluate import (
     tangent_at,
 )
 from pliant.core.conditions import push
+from pliant.core.numbers import triple
 from pliant.core.rules import Capacity, EvaluationSettings, Rules
 from pliant.errors import PliantError
 
 SECOND = "second hand"
-CANDIDATES = (1 / 6, 2 / 6, 3 / 6, 4 / 6, 5 / 6)  # fractions of the free span from the support to the grip
+# Fractions of the free span from the support to the grip.
+CANDIDATES = (1 / 6, 2 / 6, 3 / 6, 4 / 6, 5 / 6)
 
 
 def _ratio(wrench: Any, rows: list[Capacity], friction: float) -> float:
@@ -64,7 +66,7 @@ def _candidates(run: Any, grip: str) -> list[float]:
     else:
         a = problem.part.length - s_grip
     nodes = eq.s
-    out = []
+    out: list[float] = []
     for frac in CANDIDATES:
         s = a + frac * (s_grip - a)
         node = float(nodes[int(np.argmin(np.abs(nodes - s)))])
@@ -186,7 +188,7 @@ def place_second_hand(scene: Any, run: Any, rules: Rules, settings: EvaluationSe
         return None
     worst = max(red, key=lambda k: ratios[k])
     solver = rod3d.RodSolver(elements=elements)
-    found: list[tuple[float, float, Any, np.ndarray]] = []
+    found: list[tuple[float, float, Any, np.ndarray | None]] = []
     solves = 0
     for s2 in _candidates(run, grip):
         result, A, used = _at_worst(run, worst, grip, s2, solver, rows, friction)
@@ -197,7 +199,7 @@ def place_second_hand(scene: Any, run: Any, rules: Rules, settings: EvaluationSe
         return None
     _, s2, (f_worst, eq_worst, _), A_worst = min(found, key=lambda x: x[0])
     first = list(steps)
-    pushes: dict[int, tuple[float, float, float]] = {worst: tuple(float(x) for x in f_worst)}
+    pushes: dict[int, tuple[float, float, float]] = {worst: triple(f_worst)}
     equilibria: dict[int, Any] = {worst: eq_worst}
     failed = []
     # Out from the worst step, each red step from its neighbour's: the push there and its
@@ -216,7 +218,7 @@ def place_second_hand(scene: Any, run: Any, rules: Rules, settings: EvaluationSe
                 base = place.solve(f_near)
             except PliantError:
                 base = None
-            result = None if base is None else place.best_push(base, f_near, A)
+            result = None if base is None or A is None else place.best_push(base, f_near, A)
             if result is not None and result[2] > 1.0:
                 A_here = place.sensitivity(result[1], result[0])
                 if A_here is not None:
@@ -227,7 +229,7 @@ def place_second_hand(scene: Any, run: Any, rules: Rules, settings: EvaluationSe
             if result is None:
                 failed.append(k)
             else:
-                pushes[k] = tuple(float(x) for x in result[0])
+                pushes[k] = triple(result[0])
                 equilibria[k] = result[1]
                 near = (result[1], result[0], A)
             k += side
@@ -239,7 +241,7 @@ def place_second_hand(scene: Any, run: Any, rules: Rules, settings: EvaluationSe
     for k in indices:
         tangent = tangent_at(equilibria[k], s2)
         second.append(GripStep(split_wrench(np.array(pushes[k]), np.zeros(3), tangent),
-                               pushes[k], (0.0, 0.0, 0.0), tuple(float(x) for x in tangent),
+                               pushes[k], (0.0, 0.0, 0.0), triple(tangent),
                                s2))
     checks += hand_checks(f"{SECOND} (s = {s2:.3g} m)", second, rows, friction,
                           indices=indices)

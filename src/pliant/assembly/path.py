@@ -17,6 +17,7 @@ from typing import Any
 import numpy as np
 
 from pliant.core.events import WarmStartLost, has
+from pliant.core.numbers import triple
 from pliant.core.problem import Problem
 from pliant.errors import PliantError
 from pliant.scene.interference import Interference, of_equilibrium
@@ -166,8 +167,8 @@ def _record(eq: Any, grip: str, progress: float, margin: float,
     station = next(c for c in eq.problem.conditions if c.name == grip)
     position = eq.position[int(np.argmin(np.abs(eq.s - station.s)))]
     return StepRecord(
-        progress=progress, grip_position=tuple(float(x) for x in position),
-        force=tuple(float(x) for x in load.force), moment=tuple(float(x) for x in load.moment),
+        progress=progress, grip_position=triple(position),
+        force=triple(load.force), moment=triple(load.moment),
         clearance=float(nearest.clearance) if nearest else float("inf"),
         nearest=nearest.obstacle if nearest else "",
         contacts=len(contacts),

@@ -31,7 +31,8 @@ part is flexible:
   ``allow_contact``), no obstacle presses harder than ``max_contact_force``, and the
   part keeps the evaluation's damage limits that apply along a path: its bend radius,
   a thin-walled tube's flattening (Brazier, as a radius) and a cable's twist rate (when
-  ``max_twist_rate`` is given); the edge's last pose must be stable. What blocked each rejected edge is counted: the error of a failed plan says
+  ``max_twist_rate`` is given); the edge's last pose must be stable. What blocked each rejected
+  edge is counted: the error of a failed plan says
   what stood in the way.
 - **The cost is the evaluation's ergonomic demand**: at each step, the largest ratio of
   a hand demand (push or pull, grip force, wrist twist, bending at the hand) to its red
@@ -70,11 +71,24 @@ from typing import Any
 
 import numpy as np
 
-from pliant.assembly.evaluate import PENETRATION
+from pliant.assembly.checks import tube_section
+from pliant.assembly.evaluate import (
+    PENETRATION,
+    bend_limit,
+    grip_step,
+    hand_rows,
+    prepare,
+    twist_rate,
+)
+from pliant.assembly.path import follow_path
+from pliant.core.numbers import triple
 from pliant.core.planning import PlanSettings
 from pliant.core.problem import Problem
 from pliant.errors import ConvergenceError, InputError, PliantError, UnreachableTargetError
 from pliant.io.problem_file import along_legs, slerp
+from pliant.models import rod3d
+from pliant.scene.distance import DistanceField
+from pliant.scene.interference import of_equilibrium
 
 
 class NoPathError(PliantError):
@@ -226,7 +240,7 @@ class _Turning:
         lon, lat = u / self.metre, v / self.metre
         t, n = self.start, self.normal
         along = t * math.cos(lon) + np.cross(n, t) * math.sin(lon)
-        return tuple(float(x) for x in _unit(math.cos(lat) * along + math.sin(lat) * n))
+        return triple(_unit(math.cos(lat) * along + math.sin(lat) * n))
 
 
 # -- the search tree ----------------------------------------------------------------------
@@ -245,7 +259,8 @@ class _Node:
 
     def chain(self) -> list[_Node]:
         """The nodes from the start to this one."""
-        out, node = [], self
+        out: list[_Node] = []
+        node: _Node | None = self
         while node is not None:
             out.append(node)
             node = node.parent
@@ -300,7 +315,6 @@ class _Tree:
 
     def demand(self, eq: Any) -> float:
         """The largest ratio of a hand demand at the grip to its red onset."""
-        from pliant.assembly.evaluate import grip_step, hand_rows
 
         settings = self.scene.evaluation
         wrench = grip_step(eq, self.grip).wrench
@@ -310,7 +324,6 @@ class _Tree:
 
     def check_step(self, eq: Any, near_port: bool = False) -> None:
         """Raise ``_Blocked`` naming why the step ``eq`` is not acceptable."""
-        from pliant.scene.interference import of_equilibrium
 
         if self.bend_limit is not None or self.kink_limit is not None:
             radius, _ = eq.min_bend_radius()
@@ -320,7 +333,6 @@ class _Tree:
                 raise _Blocked(f"a kink (Brazier: bend radius below "
                                f"{self.kink_limit * 1e3:.3g} mm)")
         if self.twist_limit is not None:
-            from pliant.assembly.evaluate import twist_rate
 
             if twist_rate(eq, self.scene.problem.part.stiffnesses[2]) > self.twist_limit:
                 raise _Blocked(f"a twist rate above {self.twist_limit:.3g} deg/m")
@@ -339,7 +351,6 @@ class _Tree:
     def _solve(self, problem: Problem, eq: Any) -> Any:
         """One step, followed from ``eq`` only: where its branch ends, the part would
         snap, and the step is refused rather than solved afresh."""
-        from pliant.models import rod3d
 
         if time.perf_counter() > self.deadline:
             raise _Blocked("out of time")
@@ -368,7 +379,7 @@ class _Tree:
         poses = []
         for k in range(1, n + 1):
             x = a + (k / n) * (b - a)
-            poses.append(Pose(tuple(float(v) for v in x[:3]), self.turning.axis(x[3], x[4])))
+            poses.append(Pose(triple(x[:3]), self.turning.axis(x[3], x[4])))
         return self._walk(start, poses, poses[-1], near_port=False)
 
     def turn_in(self, start: _Node, end: Pose, near_port: bool) -> _Node:
@@ -381,8 +392,8 @@ class _Tree:
             raise _Blocked("a half turn of the hand's axis in the last leg")
         n = max(1, math.ceil(float(np.linalg.norm(b - a)) / self.settings.step),
                 math.ceil(angle / self.settings.turn))
-        poses = [Pose(tuple(float(x) for x in a + (k / n) * (b - a)),
-                      tuple(float(x) for x in _unit(slerp(ta, tb, k / n))))
+        poses = [Pose(triple(a + (k / n) * (b - a)),
+                      triple(_unit(slerp(ta, tb, k / n))))
                  for k in range(1, n + 1)]
         return self._walk(start, poses, end, near_port)
 
@@ -411,9 +422,9 @@ def _key(position) -> tuple:
 # -- OMPL ---------------------------------------------------------------------------------
 def _ompl():
     try:
-        from ompl import base as ob
-        from ompl import geometric as og
-        from ompl import util as ou
+        from ompl import base as ob  # noqa: PLC0415 (optional: only for planning)
+        from ompl import geometric as og  # noqa: PLC0415
+        from ompl import util as ou  # noqa: PLC0415
     except ImportError as err:  # pragma: no cover (a dependency of the package)
         raise PliantError(f"planning needs OMPL (pip install ompl): {err}") from None
     return ob, og, ou
@@ -427,8 +438,6 @@ class Planner:
 
     def __init__(self, scene: Any, settings: PlanSettings | None = None, *,
                  rules: Any = None, grip: str | None = None) -> None:
-        from pliant.assembly.evaluate import bend_limit, prepare
-        from pliant.models import rod3d
 
         self.scene = scene
         self.settings = settings or PlanSettings()
@@ -462,7 +471,7 @@ class Planner:
     # -- the start and the goal -----------------------------------------------------------
     def start_pose(self) -> Pose:
         c = self.scene.problem.condition(self.grip)
-        return Pose(tuple(map(float, c.position)), tuple(map(float, _unit(c.tangent))))
+        return Pose(triple(c.position), triple(_unit(c.tangent)))
 
     def goal_pose(self, port_name: str) -> tuple[Pose, np.ndarray]:
         """(the seated pose, the point ``approach`` out along the port's axis)."""
@@ -474,8 +483,8 @@ class Planner:
         axis = _unit(port.axis)
         c = self.scene.problem.condition(self.grip)
         arriving = c.s > 0.5 * self.scene.problem.part.length
-        tangent = tuple(float(x) for x in (-axis if arriving else axis))
-        seated = Pose(tuple(map(float, port.position)), tangent)
+        tangent = triple(-axis if arriving else axis)
+        seated = Pose(triple(port.position), tangent)
         return seated, np.asarray(port.position) + self.settings.approach * axis
 
     def _tree(self, goal: str) -> _Tree:
@@ -490,7 +499,6 @@ class Planner:
                      self.bend_limit, turning, self.kink_limit,
                      self.scene.evaluation.max_twist_rate)
         if self._start_eq is None:
-            from pliant.models import rod3d
 
             tree.solves += 1
             eq = rod3d.solve(tree.problem_at(start.position, start.tangent), solver=self.solver)
@@ -543,7 +551,7 @@ class Planner:
             if found is None:
                 continue
             try:  # to the point before the port, then straight in along its axis
-                ready = Pose(tuple(float(x) for x in before), seated.tangent)
+                ready = Pose(triple(before), seated.tangent)
                 nodes = list(found)
                 if np.linalg.norm(np.subtract(found[-1].pose.position, before)) > 1e-9:
                     nodes.append(tree.turn_in(found[-1], ready, near_port=False))
@@ -720,7 +728,6 @@ class Planner:
     # -- helpers --------------------------------------------------------------------------
     def _hand_field(self):
         if self._field is None and self.scene.problem.obstacles:
-            from pliant.scene.distance import DistanceField
 
             self._field = DistanceField(list(self.scene.problem.obstacles))
         return self._field
@@ -762,7 +769,6 @@ class Planner:
     def _result(self, tree: _Tree, nodes: list[_Node], goal: str) -> Plan:
         """Write the nodes as the scene's path (a waypoint at every step of every edge)
         and follow it again as ``pliant run`` would."""
-        from pliant.assembly.path import follow_path
 
         poses = [p for n in nodes[1:] for p in n.via]
         start = self.start_pose()
@@ -805,7 +811,6 @@ def kink_radius(part: Any, kind: Any, rules: Any) -> float | None:
     past the rules' red limit (Brazier: zeta = (1 - nu^2) a^4 / (t^2 R^2)), None where the
     rule does not apply (not thin-walled, or a/t below the rules' ratio: the evaluation's
     own test). nu not given: 0, the larger flattening, as the evaluation assumes."""
-    from pliant.assembly.checks import tube_section
 
     if kind is None or not kind.thin_walled or part.outer_diameter is None or not (
             part.inner_diameter and part.inner_diameter > 0.0):

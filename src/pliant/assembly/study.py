@@ -349,7 +349,7 @@ def _run(spec: StudySpec, deviations: np.ndarray, todo: list[int], store: Store,
         for future in as_completed(futures):
             try:
                 results = future.result()
-            except Exception as err:  # noqa: BLE001 (a worker died: record, go on)
+            except Exception as err:
                 results = [({"index": k, "deviations": deviations[k].tolist(), "values": {},
                              "status": "failed", "seconds": 0.0,
                              "error": f"the worker failed: {type(err).__name__}: {err}"},
@@ -403,7 +403,7 @@ def summarize(result: StudyResult) -> dict[str, Any]:
                                  float) for key, _, _ in OUTPUTS}
         outputs["passes"] = np.array([1.0 if r["passes"] else 0.0 for r in ok])
         for j, column in enumerate(result.columns):
-            row = {"parameter": column}
+            row: dict[str, Any] = {"parameter": column}
             for key, y in outputs.items():
                 good = np.isfinite(y)
                 if good.sum() < 3 or np.ptp(y[good]) == 0.0 or np.ptp(X[good, j]) == 0.0:

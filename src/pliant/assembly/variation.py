@@ -203,7 +203,7 @@ def apply(data: dict[str, Any], variations: list[Variation], nominal: dict[str, 
     for v in variations:
         base = nominal[v.name]
         if v.vector:
-            delta = row[k:k + 3]
+            delta: Any = row[k:k + 3]
             k += 3
             value = [float(b + d) for b, d in zip(base, delta)]
             if v.path[0] == "port":

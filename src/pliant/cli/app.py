@@ -197,7 +197,8 @@ def _all_equilibria(problem, as_json: bool, elements: int | None = None) -> None
     else:
         from pliant.models import rod3d  # noqa: PLC0415
 
-        found = rod3d.equilibria(problem, solver=rod3d.RodSolver(elements=elements or 100))
+        found = rod3d.equilibria(  # type: ignore[assignment]  # an Equilibrium3D list
+            problem, solver=rod3d.RodSolver(elements=elements or 100))
     seconds = time.perf_counter() - start
     if as_json:
         import json as _json  # noqa: PLC0415

@@ -318,9 +318,11 @@ def render_html(ev: Any) -> str:
     columns = list(ev.table[0]) if ev.table else []
     parts += [f"<th>{e(c)}</th>" for c in columns]
     parts.append("</tr>")
+    metres = ("bend r", "clearance")  # the columns in metres
     for row in ev.table:
-        cells = "".join(f"<td class=num>{_num(row.get(c), 'm' if c.startswith(('bend r', 'clearance')) else '')}</td>"
-                        for c in columns)
+        cells = "".join(
+            f"<td class=num>{_num(row.get(c), 'm' if c.startswith(metres) else '')}</td>"
+            for c in columns)
         parts.append(f"<tr>{cells}</tr>")
     parts.append("</table></div></details>")
     if ev.run.stopped:

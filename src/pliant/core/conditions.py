@@ -63,7 +63,7 @@ def _vector(field: str, value, allow_none: bool = True) -> Vector:
 def _unit(field: str, value: Vector) -> tuple[float, float, float]:
     # Scaled by its largest component first: (1e200, 1e200, 0) squared overflows to inf,
     # and dividing by that norm would turn the direction into (0, 0, 0).
-    big = max(abs(v) for v in value)  # type: ignore[type-var,arg-type]
+    big = max(abs(v) for v in value)  # type: ignore[arg-type]
     if not big > 0.0:
         raise InputError(field, f"must be a non-zero direction, got {value!r}")
     scaled = [v / big for v in value]  # type: ignore[operator]
@@ -130,7 +130,7 @@ class Condition:
                 raise IllPosedProblemError(
                     f"{label}: a normal fixes the twist about a tangent; give the tangent too")
             n = _vector(f"{label}.normal", self.normal, allow_none=False)
-            dot = sum(a * b for a, b in zip(n, tangent))  # type: ignore[operator]
+            dot = sum(a * b for a, b in zip(n, tangent))  # type: ignore[operator,misc]
             normal = _unit(f"{label}.normal", tuple(a - dot * b for a, b in zip(n, tangent)))  # type: ignore[operator]
         # The dimension: what the given vectors say, and it must say one thing.
         dims = set()
@@ -249,4 +249,5 @@ def push(s: float, force: tuple[float, ...] | None = None,
          moment: float | tuple[float, float, float] | None = None, follower: bool = False,
          name: str = "push") -> Condition:
     """A hand pushing, or any point load: force (and moment) applied, position found."""
-    return Condition(s=s, name=name, force=force, moment=moment, follower=follower)
+    return Condition(s=s, name=name, force=() if force is None else force, moment=moment,
+                     follower=follower)

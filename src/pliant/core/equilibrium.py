@@ -344,7 +344,7 @@ class Contacts:
 
     def to_dict(self) -> dict[str, Any]:
         return {"s": self.s.tolist(), "point": self.point.tolist(),
-                "force": self.force.tolist(), "friction": self.friction.tolist(),
+                "force": self.force.tolist(), "friction": np.asarray(self.friction).tolist(),
                 "obstacle": list(self.obstacle)}
 
 

@@ -134,7 +134,7 @@ class Snapped(Event):
 
     kind = "snap"
     at: float = 0.0
-    count: int = 1
+    count: int = 1  # type: ignore[assignment]  # a field, over str.count
 
 
 class CrossedBifurcation(Event):

@@ -19,3 +19,9 @@ def clean(values: Iterable[float], scale: float = 0.0) -> list[float]:
     v = [float(x) for x in values]
     floor = ROUND_OFF * max(max((abs(x) for x in v), default=0.0), abs(scale))
     return [0.0 if abs(x) <= floor else x for x in v]
+
+
+def triple(values: Iterable[float]) -> tuple[float, float, float]:
+    """Three components as a typed 3-vector of floats (a position, force or moment)."""
+    x, y, z = (float(v) for v in values)
+    return (x, y, z)

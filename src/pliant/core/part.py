@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import itertools
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass, field
@@ -244,7 +245,7 @@ class Part:
     @property
     def knot_positions(self) -> tuple[float, ...]:
         """Interior arc lengths [m] where a rest-curvature profile has a kink."""
-        out = set()
+        out: set[float] = set()
         for knots in (self.rest_knots, self.rest_knots_2, self.twist_knots):
             out.update(s for s, _ in knots if 0.0 < s < self.length)
         return tuple(sorted(out))
@@ -253,7 +254,7 @@ class Part:
 def _interpolate(knots: tuple[tuple[float, float], ...], s: float) -> float:
     if s <= knots[0][0]:
         return knots[0][1]
-    for (s0, k0), (s1, k1) in zip(knots, knots[1:]):
+    for (s0, k0), (s1, k1) in itertools.pairwise(knots):
         if s <= s1:
             return k0 + (k1 - k0) * (s - s0) / (s1 - s0)
     return knots[-1][1]

@@ -25,7 +25,8 @@ class PlanSettings:
     weighs against a move in the metric (default a tenth of the part's length);
     attempts: paths found per query at most, each from a tree of its own, the least
     peak demand kept (time permitting; it stops early when two give the same demand;
-    a tree whose path cannot be finished into the port is followed by another); simplify: shortcut the found path; elements: the accurate model's
+    a tree whose path cannot be finished into the port is followed by another); simplify: shortcut
+    the found path; elements: the accurate model's
     resolution (default the scene's); goal: the port to seat the part's end in (a
     scene's [plan] goal; the command line's --goal overrides it)."""
 

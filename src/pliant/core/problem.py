@@ -49,7 +49,7 @@ class Station:
             else:
                 dead[0] += c.force[0] or 0.0
                 dead[1] += c.force[1] or 0.0
-            dead[2] += c.moment or 0.0
+            dead[2] += c.moment or 0.0  # type: ignore[operator]  # 2D: a number
         set_ = object.__setattr__
         set_(self, "prescribed", tuple(o is not None for o in self.owner))
         set_(self, "kinematics", tuple(kin))
@@ -89,7 +89,7 @@ class Station3D:
     def __post_init__(self) -> None:
         pos = [0.0, 0.0, 0.0]
         tangent = normal = None
-        loads = {"dead_force": [0.0] * 3, "dead_moment": [0.0] * 3,
+        loads: dict[str, list[float]] = {"dead_force": [0.0] * 3, "dead_moment": [0.0] * 3,
                  "follower_force": [0.0] * 3, "follower_moment": [0.0] * 3}
         for c in self.conditions:
             for i, value in enumerate(c.position):
@@ -103,14 +103,14 @@ class Station3D:
             for i, value in enumerate(c.force):
                 loads[f"{kind}_force"][i] += value or 0.0
             if c.moment is not None:
-                for i, value in enumerate(c.moment):  # type: ignore[arg-type]
-                    loads[f"{kind}_moment"][i] += value
+                for i, m in enumerate(c.moment):  # type: ignore[arg-type]
+                    loads[f"{kind}_moment"][i] += m or 0.0
         set_ = object.__setattr__
         set_(self, "position", tuple(pos))
         set_(self, "tangent", tangent)
         set_(self, "normal", normal)
-        for key, value in loads.items():
-            set_(self, key, tuple(value))
+        for key, total in loads.items():
+            set_(self, key, tuple(total))
 
     @property
     def prescribed(self) -> tuple[bool, ...]:
@@ -186,7 +186,8 @@ class SlidingClip:
     ``position`` [m] and, with ``holds_axis``, its direction along ``axis``, whatever
     point of the part is there; the part slides along the axis, freely or, with
     ``friction`` > 0, against Coulomb's friction (it sticks while the axial force is
-    below friction times the force across the clip). ``s`` [m] is where along the part the clip is at the start; the solve
+    below friction times the force across the clip). ``s`` [m] is where along the part the clip is
+    at the start; the solve
     finds where it ends (the slide). Without ``holds_axis`` it is a ring or grommet that
     holds the position only."""
 
@@ -339,14 +340,14 @@ class Problem:
         if sliders and dimension != 3:
             raise InputError("sliders", "a sliding clip is 3D; give the conditions and "
                              "gravity three components")
-        for c in sliders:
-            if not isinstance(c, SlidingClip):
+        for clip in sliders:
+            if not isinstance(clip, SlidingClip):
                 raise InputError("sliders", "must be SlidingClip objects")
-            if not 0.0 < c.s < length:
-                raise InputError(f"{c.name}.s", f"the clip must hold the part inside it: "
-                                 f"s = {c.s} m is not within (0, {length}) m")
-            if c.name in names or [x.name for x in sliders].count(c.name) > 1:
-                raise InputError(f"{c.name}.name", "a sliding clip needs a name of its own "
+            if not 0.0 < clip.s < length:
+                raise InputError(f"{clip.name}.s", f"the clip must hold the part inside it: "
+                                 f"s = {clip.s} m is not within (0, {length}) m")
+            if clip.name in names or [x.name for x in sliders].count(clip.name) > 1:
+                raise InputError(f"{clip.name}.name", "a sliding clip needs a name of its own "
                                  "(its reaction is reported by name)")
         object.__setattr__(self, "sliders", sliders)
         junctions = tuple(self.junctions)
@@ -363,13 +364,13 @@ class Problem:
                 raise InputError(f"{jn.name}.branch", "give its branches ([[junction.branch]])")
         object.__setattr__(self, "junctions", junctions)
         pivots = tuple(self.pivots)
-        for c in pivots:
-            if not isinstance(c, PivotClip):
+        for pivot in pivots:
+            if not isinstance(pivot, PivotClip):
                 raise InputError("pivots", "must be PivotClip objects")
             if dimension != 3:
-                raise InputError(f"{c.name}", "a pivoting clip is 3D")
-            if c.name not in names:
-                raise InputError(f"{c.name}", "a pivoting clip holds the part by a "
+                raise InputError(f"{pivot.name}", "a pivoting clip is 3D")
+            if pivot.name not in names:
+                raise InputError(f"{pivot.name}", "a pivoting clip holds the part by a "
                                  "condition of its name (its position); give one")
         object.__setattr__(self, "pivots", pivots)
         for ld in loads:
@@ -392,7 +393,7 @@ class Problem:
     def dead_load_per_length(self) -> tuple[float, ...]:
         """The dead load [N/m] on every metre of the part, global frame: its weight
         (mass per length times gravity) plus the dead ``loads`` that cover it whole."""
-        total = [self.part.mass_per_length * g for g in self.gravity]
+        total = [self.part.mass_per_length * g for g in self.gravity or ()]
         for ld in self.loads:
             if not ld.follower and ld.overlap(0.0, self.part.length, self.part.length) \
                     >= self.part.length * (1.0 - 1e-12):
@@ -528,7 +529,7 @@ def _merge(conditions: tuple[Condition, ...], length: float) -> tuple[Station, .
                     f"at s = {group[0].s} m ({names}) {('x', 'y', 'angle')[i]} is both "
                     "prescribed and loaded; a prescribed component's load is the answer")
         s = min(max(group[0].s, 0.0), length)
-        stations.append(Station(s=s, conditions=tuple(group), owner=tuple(owner)))
+        stations.append(Station(s=s, conditions=tuple(group), owner=(owner[0], owner[1], owner[2])))
     return tuple(stations)
 
 
@@ -599,11 +600,11 @@ def interpolate(start: Problem, end: Problem, t: float) -> Problem:
             force=_lerp_vector(a.force, c.force, t),
             moment=(_lerp(a.moment, c.moment, t)  # type: ignore[arg-type]
                     if not isinstance(c.moment, tuple)
-                    else _lerp_vector(a.moment, c.moment, t)),  # type: ignore[arg-type]
+                    else _lerp_vector(a.moment, c.moment, t)),
             follower=c.follower,
             tangent=_lerp_vector(a.tangent, c.tangent, t) if c.tangent else None,
             normal=_lerp_vector(a.normal, c.normal, t) if c.normal else None))
-    gravity = tuple(ga + t * (gb - ga) for ga, gb in zip(start.gravity, end.gravity))
+    gravity = tuple(ga + t * (gb - ga) for ga, gb in zip(start.gravity or (), end.gravity or ()))
     was = {ld.name: ld for ld in start.loads}
     loads = tuple(replace(ld, force=_lerp_vector(was[ld.name].force, ld.force, t))
                   if ld.name in was else ld for ld in end.loads)

@@ -19,7 +19,7 @@ def _umask() -> int:
     return mask
 
 
-def atomic_write(path: str | Path, write: Callable[[BinaryIO], None], what: str) -> Path:
+def atomic_write(path: str | Path, write: Callable[[BinaryIO], object], what: str) -> Path:
     """Call ``write`` with a binary file and move it to ``path`` when it succeeds;
     ``what`` names the result in errors ("the plot", "the mesh")."""
     path = Path(path)

@@ -43,7 +43,7 @@ def save_arrays(kind: str, key: str, **arrays: np.ndarray) -> None:
     try:
         path.parent.mkdir(parents=True, exist_ok=True)
         tmp = path.with_name(f"{path.stem}.{os.getpid()}.tmp.npz")
-        np.savez(tmp, **arrays)
+        np.savez(tmp, **arrays)  # type: ignore[arg-type]  # numpy's stub: names as flags
         os.replace(tmp, path)
     except OSError:
         pass

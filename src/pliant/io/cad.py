@@ -17,6 +17,7 @@ import tempfile
 from collections.abc import Iterator, Sequence
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -94,7 +95,8 @@ def read_assembly(path: Path, *, units: str | None = None, tolerance: float = TO
         units or "m")
     if not tolerance > 0.0:
         raise InputError("tolerance", f"must be a positive length in m, got {tolerance!r}")
-    options = {"tol_linear": tolerance * 1e3} if step else {}  # OpenCASCADE works in mm
+    # OpenCASCADE works in mm.
+    options: dict[str, Any] = {"tol_linear": tolerance * 1e3} if step else {}
     messages: list[str] = []
     try:
         if step:

@@ -125,7 +125,7 @@ def parse_table(text: str, kind: str, source: str, label: str = "") -> dict[str,
         if name in columns:
             raise FileFormatError(f"{source}: column {name!r} is given twice")
         columns[name] = (i, factor)
-    for name, (quantity, required) in wanted.items():
+    for name, (_quantity, required) in wanted.items():
         if required and name not in columns:
             raise FileFormatError(f"{source}: no column {name!r}; a {kind} needs "
                                   + ", ".join(n for n, (_, r) in wanted.items() if r))

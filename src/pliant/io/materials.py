@@ -10,7 +10,6 @@ from importlib import resources
 from pliant.core.part import Material
 from pliant.errors import InputError
 
-
 PROVENANCE = ("measured", "identified", "handbook", "correlation")
 
 

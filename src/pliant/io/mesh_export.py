@@ -157,7 +157,7 @@ def export_scene(eq, path: str | Path, sides: int = 24) -> Path:
     vertices, faces = tube_mesh(points, part_radius(eq), frames, sides=sides)
     scene = trimesh.Scene()
     part = trimesh.Trimesh(vertices=vertices, faces=faces, process=False)
-    part.visual.face_colors = (230, 120, 30, 255)
+    part.visual.face_colors = (230, 120, 30, 255)  # type: ignore[union-attr]  # colour visuals
     scene.add_geometry(part, node_name=eq.problem.part.name or "part", geom_name="part")
     for obstacle in eq.problem.obstacles:
         mesh = obstacle_mesh(obstacle)
@@ -216,7 +216,8 @@ def export_envelope(layers: list[tuple[str, np.ndarray, tuple[int, int, int, int
         if len(faces) == 0:
             continue
         mesh = trimesh.Trimesh(vertices=vertices, faces=faces, process=False)
-        mesh.visual.face_colors = np.tile(np.array(colour, dtype=np.uint8), (len(faces), 1))
+        colours = np.tile(np.array(colour, dtype=np.uint8), (len(faces), 1))
+        mesh.visual.face_colors = colours  # type: ignore[union-attr]  # colour visuals
         scene.add_geometry(mesh, geom_name=name, node_name=name)
     data = scene.export(file_type="glb")
     return atomic_write(path, lambda h: h.write(data), "the envelope")

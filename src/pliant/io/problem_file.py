@@ -36,6 +36,7 @@ from pydantic import (
 
 from pliant.core.conditions import Condition
 from pliant.core.loads import DistributedLoad
+from pliant.core.numbers import triple
 from pliant.core.part import Material, Part
 from pliant.core.planning import PlanSettings
 from pliant.core.problem import Problem
@@ -53,7 +54,8 @@ class _Strict(BaseModel):
     def _no_booleans(cls, value: Any, info: ValidationInfo) -> Any:
         """``length = true`` is not 1 m: a TOML boolean is only taken where a field is
         one (pydantic would read it as 1.0)."""
-        if _has_bool(value) and "bool" not in str(cls.model_fields[info.field_name].annotation):
+        field = cls.model_fields.get(info.field_name or "")
+        if _has_bool(value) and field is not None and "bool" not in str(field.annotation):
             raise ValueError("a number is wanted here, not true or false")
         return value
 
@@ -219,13 +221,16 @@ class ConditionModel(_Strict):
         name = self.name or f"condition{index + 1}"
         if dimension == 2:
             follower = self.Ft is not None or self.Fn is not None
-            force = ((self.Ft or 0.0, self.Fn or 0.0) if follower else (self.Fx, self.Fy))
+            planar: tuple[float | None, ...] = ((self.Ft or 0.0, self.Fn or 0.0) if follower
+                                                else (self.Fx, self.Fy))
             return Condition(s=self.s, name=name, position=(self.x, self.y), angle=self.angle,
-                             force=force, moment=self.moment, follower=follower)
+                             force=planar, moment=self.moment, follower=follower)
         if self.angle is not None or self.Ft is not None or self.Fn is not None:
             raise ValueError("angle, Ft and Fn are 2D; in 3D give tangent (and normal), "
                              "follower_force and follower_moment")
         follower = self.follower_force is not None or self.follower_moment is not None
+        force: tuple[float | None, ...] | None
+        moment: float | tuple[float, ...] | None
         if follower:
             force = self.follower_force
             moment = self.follower_moment
@@ -291,9 +296,10 @@ class ObstacleModel(_Strict):
         if self.shape == "box":
             return Obstacle.box(self.name, self.size, self.position, rotation)
         if self.shape == "sphere":
-            return Obstacle.sphere(self.name, self.radius, self.position)
+            return Obstacle.sphere(self.name, _given(self.radius, "radius"), self.position)
         if self.shape == "cylinder":
-            return Obstacle.cylinder(self.name, self.radius, self.length, self.position,
+            return Obstacle.cylinder(self.name, _given(self.radius, "radius"),
+                                     _given(self.length, "length"), self.position,
                                      rotation)
         if self.shape in ("halfspace", "plane"):
             normal = (0.0, 0.0, 1.0) if rotation is None else rotation[:, 2]
@@ -411,7 +417,7 @@ class CadModel(_Strict):
             offsets = np.cumsum([0] + [len(s.vertices) for s in solids[:-1]])
             vertices = np.concatenate([s.vertices for s in solids])
             faces = np.concatenate([s.faces + o for s, o in zip(solids, offsets)])
-            pieces = [(self.name, vertices, faces)]
+            pieces = [(_given(self.name, "name"), vertices, faces)]
         else:
             prefix = f"{self.name}/" if self.name else ""
             pieces = [(prefix + s.name, s.vertices, s.faces) for s in solids]
@@ -542,6 +548,14 @@ def _solid_vertices(obstacles: dict[str, Any], name: str) -> np.ndarray:
     return obstacle.mesh.tri.reshape(-1, 3) @ obstacle.rotation.T + obstacle.translation
 
 
+def _given(value: Any, name: str) -> Any:
+    """A field the validators ask for at this point (a clip's position from its solid, a
+    sphere's radius): present, or a clear error if not."""
+    if value is None:
+        raise ValueError(f"{name}: give it")
+    return value
+
+
 def _end_face_centre(vertices: np.ndarray, axis: Vec3) -> tuple[float, float, float]:
     """The centre of a solid's face farthest along ``axis`` (a port stub's mouth): the
     middle of the box of its vertices on that face."""
@@ -550,7 +564,7 @@ def _end_face_centre(vertices: np.ndarray, axis: Vec3) -> tuple[float, float, fl
     along = vertices @ a
     extent = float(np.ptp(vertices, axis=0).max())
     face = vertices[along >= along.max() - 1e-6 * extent]
-    return tuple(float(x) for x in 0.5 * (face.min(axis=0) + face.max(axis=0)))
+    return triple(0.5 * (face.min(axis=0) + face.max(axis=0)))
 
 
 class ClipModel(_Strict):
@@ -593,18 +607,22 @@ class ClipModel(_Strict):
         if self.kind == "pivot":
             from pliant.core.problem import PivotClip  # noqa: PLC0415
 
-            return (Condition(s=self.s, name=self.name, position=self.position),
-                    PivotClip(self.name, self.s, tuple(self.position), tuple(self.pivot)))
+            return (Condition(s=self.s, name=self.name, position=self._at()),
+                    PivotClip(self.name, self.s, self._at(), triple(_given(self.pivot, "pivot"))))
         if self.kind in ("sliding", "ring"):
             from pliant.core.problem import SlidingClip  # noqa: PLC0415
 
-            return SlidingClip(self.name, self.s, tuple(self.position), tuple(self.axis),
+            return SlidingClip(self.name, self.s, self._at(), triple(self.axis),
                                holds_axis=self.kind == "sliding", friction=self.friction)
         if self.friction:
             raise ValueError(f"friction: a {self.kind} clip does not slide; friction is for "
                              "kind = \"sliding\" or \"ring\"")
-        return Condition(s=self.s, name=self.name, position=self.position,
+        return Condition(s=self.s, name=self.name, position=self._at(),
                          tangent=self.axis, normal=self.normal)
+
+    def _at(self) -> tuple[float, float, float]:
+        """Its position: given, or its solid's, found before it is built."""
+        return triple(_given(self.position, "position"))
 
 
 class BranchModel(_Strict):
@@ -625,7 +643,7 @@ class BranchModel(_Strict):
         from pliant.core.problem import Branch  # noqa: PLC0415
 
         _, problem = _nested_problem(self.file, base, "a branch")
-        return Branch(self.name, problem, 0 if self.end == "first" else 1, tuple(self.axis),
+        return Branch(self.name, problem, 0 if self.end == "first" else 1, triple(self.axis),
                       self.elements)
 
 
@@ -807,14 +825,15 @@ class ProblemFile(_Strict):
                     # the axis, the last end's (arriving) its opposite.
                     axis = (port.axis if c.s < 0.5 * part.length
                             else tuple(-a for a in port.axis))
-                    c = c.model_copy(update={"x": port.position[0], "y": port.position[1],
-                                             "z": port.position[2], "tangent": axis})
+                    x, y, z = _given(port.position, "position")
+                    c = c.model_copy(update={"x": x, "y": y, "z": z, "tangent": axis})
                 conditions.append(c.build(i, dimension))
             except ValueError as err:
                 if isinstance(err, PliantError):
                     raise
                 raise InputError(f"condition[{i}]", str(err)) from None
-        sliders, pivots = [], []
+        sliders: list[Any] = []
+        pivots: list[Any] = []
         for i, clip in enumerate(self.clip):
             try:
                 built = clip.build()
@@ -872,7 +891,8 @@ class ProblemFile(_Strict):
         solids leave the obstacles: they hold the part."""
         by_name = {o.name: o for o in obstacles}
         used: set[str] = set()
-        for table, rows in (("port", self.port), ("clip", self.clip)):
+        placed: tuple[tuple[str, list[Any]], ...] = (("port", self.port), ("clip", self.clip))
+        for table, rows in placed:
             for i, row in enumerate(rows):
                 if row.solid is None:
                     continue
@@ -884,8 +904,7 @@ class ProblemFile(_Strict):
                 if table == "port":
                     at = _end_face_centre(vertices, row.axis)
                 else:
-                    at = tuple(float(x) for x in 0.5 * (vertices.min(axis=0)
-                                                         + vertices.max(axis=0)))
+                    at = triple(0.5 * (vertices.min(axis=0) + vertices.max(axis=0)))
                 rows[i] = row.model_copy(update={"position": at})
                 used.add(row.solid)
         return [o for o in obstacles if o.name not in used]
@@ -906,7 +925,8 @@ class ProblemFile(_Strict):
                              "carried along a path")
         points = np.array([grip.position, *path.waypoints], dtype=float)
         turn = path.tangents is not None and grip.tangent is not None
-        tangents = (np.array([grip.tangent, *path.tangents], dtype=float) if turn else None)
+        tangents = (np.array([grip.tangent, *(path.tangents or [])], dtype=np.float64) if turn
+                    else None)
         if float(np.linalg.norm(np.diff(points, axis=0), axis=1).sum()) == 0.0:
             raise InputError("path.waypoints", "the path has no length: move the grip")
         problems = []
@@ -1004,13 +1024,13 @@ def _unknown_key(loc: tuple) -> str:
 
     names = [x for x in loc if isinstance(x, str)]
     key = names[-1]
-    tables = {"part": PartModel, "condition": ConditionModel, "obstacle": ObstacleModel,
-              "cad": CadModel,
-              "assembled": AssembledModel, "port": PortModel, "clip": ClipModel,
-              "junction": JunctionModel, "junction.branch": BranchModel,
-              "path": PathModel, "evaluation": EvaluationModel, "solver": SolverModel,
-              "plan": PlanModel, "part.material": MaterialModel,
-              "evaluation.rating": RatingModel}
+    tables: dict[str, type[BaseModel]] = {
+        "part": PartModel, "condition": ConditionModel, "obstacle": ObstacleModel, "cad": CadModel,
+        "assembled": AssembledModel, "port": PortModel, "clip": ClipModel,
+        "junction": JunctionModel, "junction.branch": BranchModel,
+        "path": PathModel, "evaluation": EvaluationModel, "solver": SolverModel,
+        "plan": PlanModel, "part.material": MaterialModel,
+        "evaluation.rating": RatingModel}
     table = ".".join(names[:-1])
     model = tables.get(table, ProblemFile if not table else None)
     if model is None:
@@ -1114,7 +1134,7 @@ def dump_problem(problem: Problem, description: str = "", meshes: Path | None = 
     lines = [f"name = {_toml(problem.name)}"]
     if description:
         lines.append(f"description = {_toml(description)}")
-    if any(problem.gravity) or problem.dimension == 3:
+    if any(problem.gravity or ()) or problem.dimension == 3:
         lines.append(f"gravity = {_vec(problem.gravity)}")
     lines += ["", "[part]", f"name = {_toml(part.name)}", f"length = {_num(part.length)}",
               f"bending_stiffness = {_num(part.bending_stiffness)}",

@@ -13,7 +13,7 @@ import contextlib
 from collections.abc import Callable, Iterator
 from contextvars import ContextVar
 from dataclasses import dataclass
-from typing import Protocol
+from typing import Protocol, cast
 
 
 class Listener(Protocol):
@@ -87,7 +87,8 @@ def advance(amount: float) -> None:
 def listening(listener: Listener | Callable[[str], None]) -> Iterator[None]:
     """Send the reports to ``listener`` inside the block (a bare callable gets the
     texts alone)."""
-    token = _LISTENER.set(listener if hasattr(listener, "update") else _Said(listener))
+    token = _LISTENER.set(cast(Listener, listener) if hasattr(listener, "update")
+                          else _Said(listener))
     try:
         yield
     finally:

@@ -70,9 +70,16 @@ class CapacityModel(_SourcedModel):
             raise ValueError("green must be below yellow")
         return self
 
+    def _limit(self, given: float | None, fraction: float) -> float:
+        """A zone's onset: as given, or that fraction of the capacity."""
+        if given is not None:
+            return given
+        assert self.capacity is not None  # _limits asks for one or the other
+        return fraction * self.capacity
+
     def build(self, zones: ZonesModel) -> Capacity:
-        green = self.green if self.green is not None else zones.green * self.capacity
-        yellow = self.yellow if self.yellow is not None else zones.yellow * self.capacity
+        green = self._limit(self.green, zones.green)
+        yellow = self._limit(self.yellow, zones.yellow)
         return Capacity(self.id.lower(), self.title, self.demand, self.unit, green, yellow,
                         self.capacity, self.unscored_below, self.repetitive_yellow,
                         Sourced(self.source, self.provenance))

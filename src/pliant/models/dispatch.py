@@ -69,14 +69,15 @@ def _planar_start(problem: Problem) -> Any:
 
     lifted = []
     for c in problem.conditions:
-        position = ()
+        position: tuple[float | None, ...] = ()
         if any(v is not None for v in c.position):
             position = (*c.position, 0.0)
-        tangent = normal = None
+        tangent: tuple[float, float, float] | None = None
+        normal: tuple[float, float, float] | None = None
         if c.angle is not None:
             tangent, normal = (math.cos(c.angle), math.sin(c.angle), 0.0), (0.0, 0.0, 1.0)
         force: tuple = ()
-        moment = None
+        moment: tuple[float, float, float] | None = None
         if c.follower:
             # 2D (tangential, normal nu); 3D in (d1, d2, d3) with d1 = +z, d2 = -nu.
             ft, fn = (c.force[0] or 0.0), (c.force[1] or 0.0)
@@ -88,32 +89,32 @@ def _planar_start(problem: Problem) -> Any:
             if any(f is not None for f in c.force):
                 force = (c.force[0] or 0.0, c.force[1] or 0.0, 0.0)
             if c.moment is not None:
-                moment = (0.0, 0.0, float(c.moment))
+                moment = (0.0, 0.0, float(c.moment))  # type: ignore[arg-type]  # 2D: a number
         lifted.append(Condition(s=c.s, name=c.name, position=position, force=force,
                                 moment=moment, follower=follower, tangent=tangent,
                                 normal=normal))
-    gravity = (*problem.gravity, 0.0)
-    loads = tuple(replace(ld, force=(*ld.force, 0.0)) for ld in problem.loads)
-    space = Problem(problem.part, tuple(lifted), gravity, problem.name, loads=loads)
+    gravity = (*(problem.gravity or (0.0, 0.0)), 0.0)
+    space = Problem(problem.part, tuple(lifted), gravity, problem.name,
+                    loads=tuple(replace(ld, force=(*ld.force, 0.0)) for ld in problem.loads))
     # A route, not the answer: a coarse rod and a short budget (the 2D solve already
     # spent its own), so that a refusal still comes soon.
     eq = rod3d.solve(space, solver=rod3d.RodSolver(elements=80, time_budget=PLANAR_BUDGET))
     L = problem.part.length
     if np.abs(eq.position[:, 2]).max() > 1e-6 * L:
         raise IllPosedProblemError("the 3D answer left the plane")
-    tangent = eq.tangent
-    angle = np.unwrap(np.arctan2(tangent[:, 1], tangent[:, 0]))
+    angle = np.unwrap(np.arctan2(eq.tangent[:, 1], eq.tangent[:, 0]))
     first = next((c for c in problem.conditions if c.angle is not None and c.s <= 1e-12),
                  None)
     if first is not None:
         angle += 2.0 * math.pi * round((first.angle - angle[0]) / (2.0 * math.pi))
-    force = np.column_stack([np.interp(eq.s, eq.element_s, eq.internal_force[:, i])
-                             for i in range(2)])
-    loads = {name: SimpleNamespace(force=np.asarray(ld.force[:2]), moment=float(ld.moment[2]))
-             for name, ld in eq.loads.items()}
+    internal = np.column_stack([np.interp(eq.s, eq.element_s, eq.internal_force[:, i])
+                                for i in range(2)])
+    reactions = {name: SimpleNamespace(force=np.asarray(ld.force[:2]),
+                                       moment=float(ld.moment[2]))
+                 for name, ld in eq.loads.items()}
     return SimpleNamespace(problem=problem, s=np.asarray(eq.s), position=eq.position[:, :2],
-                           angle=angle, internal_force=force,
-                           bending_moment=np.asarray(eq.internal_moment[:, 2]), loads=loads,
+                           angle=angle, internal_force=internal,
+                           bending_moment=np.asarray(eq.internal_moment[:, 2]), loads=reactions,
                            notes=(), state=None)
 
 

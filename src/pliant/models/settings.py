@@ -14,7 +14,8 @@ MAX_ELEMENTS = 100_000  # beyond this a solve runs for hours: a typo, not a requ
 
 
 def check(config: Any, fractions: tuple[str, ...] = ()) -> None:
-    """Every bool field a bool, every int field a whole number >= 1 (``elements`` from 4 to MAX_ELEMENTS), every
+    """Every bool field a bool, every int field a whole number >= 1 (``elements`` from 4 to
+    MAX_ELEMENTS), every
     float field finite and positive, those in ``fractions`` below 1 too; InputError
     naming the setting otherwise."""
     kind = type(config).__name__
@@ -36,6 +37,6 @@ def check(config: Any, fractions: tuple[str, ...] = ()) -> None:
                                        + f", got {value!r}")
         elif not math.isfinite(value) or value <= 0.0 or (f.name in fractions
                                                           and value >= 1.0):
-            raise InputError(name, f"must be a finite number above 0"
+            raise InputError(name, "must be a finite number above 0"
                                    + (" and below 1" if f.name in fractions else "")
                                    + f", got {value!r}")

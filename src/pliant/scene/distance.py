@@ -29,8 +29,8 @@ from typing import NamedTuple
 import numpy as np
 from numba import njit
 
-from pliant.io import progress
 from pliant.io import cache as disk
+from pliant.io import progress
 
 SPHERE, BOX, CYLINDER, HALFSPACE, MESH = 0, 1, 2, 3, 4
 
@@ -58,7 +58,7 @@ class Field(NamedTuple):
     left: np.ndarray
     right: np.ndarray
     start: np.ndarray
-    count: np.ndarray
+    count: np.ndarray  # type: ignore[assignment]  # a field, over tuple.count
     node_off: np.ndarray
     g_values: np.ndarray
     g_off: np.ndarray
@@ -143,7 +143,8 @@ def _select(order, key, lo, hi, target):
 @njit(cache=True)
 def build_bvh(tri, leaf_size=4):
     """An axis-aligned bounding box tree over the triangles (median splits on the
-    longest axis of the centroids, by selection). Returns (order, lo, hi, left, right, start, count):
+    longest axis of the centroids, by selection). Returns (order, lo, hi, left, right, start,
+    count):
     triangles order[start:start + count] in each leaf; left = -1 marks a leaf."""
     T = tri.shape[0]
     centroid = np.empty((T, 3))

@@ -21,6 +21,7 @@ from typing import Any
 import numpy as np
 from numba import njit
 
+from pliant.core.numbers import triple
 from pliant.core.problem import PROBE_SAG, WALL_COMPLIANCE
 from pliant.errors import InputError
 from pliant.scene.distance import Obstacle, field_of
@@ -123,7 +124,7 @@ def of_curve(s: np.ndarray, points: np.ndarray, radius: float,
         gap = d - radius
         k = int(np.argmin(gap))
         clearances.append(Clearance(obstacle.name, float(gap[k]), float(ds[k]),
-                                    tuple(float(x) for x in dense[k])))
+                                    triple(dense[k])))
         penetrations += _spans(obstacle.name, ds, gap, gap < -deep)
         too_close += _spans(obstacle.name, ds, gap, (gap >= -deep) & (gap < margin))
     return Interference(margin, tolerance, tuple(clearances), tuple(penetrations),
@@ -196,7 +197,7 @@ def _polyline_distance(points, line):
 
 def _spans(name: str, s: np.ndarray, gap: np.ndarray, mask: np.ndarray) -> list[Span]:
     """The runs of True in mask as spans, each with its worst gap."""
-    out = []
+    out: list[Span] = []
     if not mask.any():
         return out
     edges = np.diff(np.concatenate([[0], mask.astype(np.int8), [0]]))

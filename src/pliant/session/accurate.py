@@ -40,7 +40,7 @@ class AccurateResult:
     """
 
     index: int
-    problem: Problem
+    problem: Problem | None  # None on the way back from the worker (the session has it)
     s: np.ndarray
     position: np.ndarray
     loads: dict[str, StationLoad]
@@ -105,6 +105,11 @@ class AccurateSolver:
                                   solve_seconds=time.perf_counter() - start)
         self.last = eq
         stable, smallest = (eq.stability if problem.dimension == 3 else (None, None))
+        three: dict[str, Any] = {  # what only the 3D model has
+            "tangent": np.array(eq.tangent), "torque": np.array(eq.torque),
+            "fitted": fitted_tubes(eq, problem.obstacles),
+            "branches": {b.problem.name: (np.array(b.position), b.problem.part.tube_radius)
+                         for b in eq.branches}} if problem.dimension == 3 else {}
         return AccurateResult(index=index, problem=problem, s=np.array(eq.s),
                               position=np.array(eq.position), loads=dict(eq.loads),
                               residual=float(eq.residual), iterations=int(eq.iterations),
@@ -115,12 +120,7 @@ class AccurateSolver:
                               bending_moment=_bending_moment(eq),
                               contacts=getattr(eq, "contacts", None),
                               min_bend_radius=eq.min_bend_radius(),
-                              **({"tangent": np.array(eq.tangent), "torque": np.array(eq.torque),
-                                  "fitted": fitted_tubes(eq, problem.obstacles),
-                                  "branches": {b.problem.name: (np.array(b.position),
-                                                                b.problem.part.tube_radius)
-                                               for b in eq.branches}}
-                                 if problem.dimension == 3 else {}))
+                              **three)
 
 
 def _bending_moment(eq) -> np.ndarray:
@@ -280,12 +280,13 @@ class ProcessExecutor:
         else:
             try:
                 write_message(process.stdin, None)
-                process.stdin.close()
+                if process.stdin is not None:
+                    process.stdin.close()
             except (OSError, ValueError):
                 pass
         try:
             process.wait(timeout=2.0)
-        except Exception:  # noqa: BLE001 (it must end whatever happened)
+        except Exception:
             process.kill()
             process.wait()
         _close_pipes(process)
@@ -321,4 +322,4 @@ def read_message(stream):
     payload = stream.read(size)
     if len(payload) < size:
         return None
-    return pickle.loads(payload)  # noqa: S301 (our own worker's answers)
+    return pickle.loads(payload)

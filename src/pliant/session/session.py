@@ -16,6 +16,7 @@ import dataclasses
 import time
 from collections.abc import Callable, Iterable
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 
@@ -33,7 +34,7 @@ class GripEvent:
     ``t`` is when it happened [s] (recorded; replays ignore it)."""
 
     grip: str
-    position: tuple[float, ...] | None = None
+    position: tuple[float | None, ...] | None = None
     tangent: tuple[float, float, float] | None = None
     normal: tuple[float, float, float] | None = None
     angle: float | None = None
@@ -240,7 +241,7 @@ def replay(problem: Problem, events: Iterable[GripEvent], **options) -> list[Fra
 
 
 def _moved(cond: Condition, event: GripEvent) -> Condition:
-    changes = {}
+    changes: dict[str, Any] = {}
     if event.position is not None:
         changes["position"] = tuple(event.position)
     if event.tangent is not None:

@@ -1,5 +1,6 @@
 """The accurate-model worker of a live session: ``python -m pliant.session.worker N``
-(N: the 3D resolution, 0 for the default). It reads (index, problem, same obstacles) messages on stdin
+(N: the 3D resolution, 0 for the default). It reads (index, problem, same obstacles) messages on
+stdin
 and writes ``AccurateResult``s on stdout, warm-starting each solve from the last."""
 
 from __future__ import annotations

@@ -12,13 +12,13 @@ message passes ``MAX_FRAME``, and the server goes on serving the others).
 from __future__ import annotations
 
 import json
-from typing import Annotated, Any, Literal
+from typing import Annotated, Any, Final, Literal
 
 from pydantic import BaseModel, ConfigDict, Field, TypeAdapter, ValidationError
 
 from pliant.io.jsontext import finite
 
-VERSION = 1
+VERSION: Final = 1
 MAX_MESSAGE = 64 * 1024  # bytes: the largest client message parsed
 MAX_FRAME = 1024 * 1024  # bytes: the websocket layer closes a connection past this
 NAME = r"^[A-Za-z0-9][A-Za-z0-9 _.-]{0,63}$"  # a session file's name (in the scene folder)

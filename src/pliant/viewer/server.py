@@ -3,7 +3,8 @@ websocket connection (each browser tab its own), on loopback unless told otherwi
 
 Files served: the page (``static/``, part of the package) and three.js and the WebXR
 emulator (copied into a wheel at build time; in a checkout, from ``web/node_modules``);
-every other path is refused. The scene, its meshes and saved sessions are read from the scene's folder
+every other path is refused. The scene, its meshes and saved sessions are read from the scene's
+folder
 only (``state.inside``). A cross-site page cannot drive a session: the websocket's Origin
 must be the server's own address.
 """
@@ -16,6 +17,7 @@ import mimetypes
 import os
 import threading
 from pathlib import Path
+from typing import Any
 from urllib.parse import unquote, urlsplit
 
 from pliant.errors import InputError, PliantError
@@ -84,7 +86,7 @@ class Server:
             self.envelopes = load_envelope(envelope)
         self.modules = node_modules()
         self.connections = 0
-        self._server = None
+        self._server: Any = None  # a websockets Server once started
         self._loop: asyncio.AbstractEventLoop | None = None
         self._thread: threading.Thread | None = None
 
@@ -174,9 +176,7 @@ class Server:
 
     # -- websocket -------------------------------------------------------------------------
     async def _handle(self, ws) -> None:
-        from websockets.exceptions import ConnectionClosed  # noqa: PLC0415
 
-        from pliant.viewer.state import ViewerState  # noqa: PLC0415
 
         self.connections += 1
         try:
@@ -259,7 +259,7 @@ class Server:
         except PliantError as err:
             return [P.dump(P.ServerError(message=str(err),
                                          field=getattr(err, "field", None)))]
-        except Exception as err:  # noqa: BLE001 (one bad message must not end the server)
+        except Exception as err:
             log.exception("internal error on a message")
             return [P.dump(P.ServerError(message=f"internal error: {err!r}"))]
 
@@ -295,7 +295,7 @@ class Server:
             self._loop = asyncio.new_event_loop()
             try:
                 self._loop.run_until_complete(self._start())
-            except BaseException as err:  # noqa: BLE001 (handed to the caller)
+            except BaseException as err:
                 failure.append(err)
                 ready.set()
                 return

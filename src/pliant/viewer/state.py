@@ -12,6 +12,7 @@ import json
 import math
 import os
 from pathlib import Path
+from typing import TYPE_CHECKING, Literal
 
 import numpy as np
 from pydantic import BaseModel, ConfigDict, ValidationError
@@ -22,6 +23,11 @@ from pliant.errors import PliantError
 from pliant.io.jsontext import finite
 from pliant.viewer import protocol as P
 from pliant.viewer.protocol import ProtocolError
+
+if TYPE_CHECKING:
+    from pliant.session import Session
+
+GripMode = Literal["position", "force", "fixed"]
 
 
 class SessionFile(BaseModel):
@@ -73,7 +79,6 @@ class ViewerState:
         self.live = live
         self.elements = elements
         self.envelopes = list(envelopes or [])
-        self.session = None
         self._open(inside(self.root, str(scene_path), "scene"))
 
     # -- opening a scene -------------------------------------------------------------------
@@ -85,9 +90,11 @@ class ViewerState:
         problem = scene.problem
         session = Session(problem, live=self.live,
                           elements=self.elements or scene.solver.elements)
-        if self.session is not None:
-            self.session.close()
-        self.session, self.scene, self.path = session, scene, path
+        old: Session | None = getattr(self, "session", None)
+        if old is not None:
+            old.close()
+        self.session: Session = session
+        self.scene, self.path = scene, path
         self.original = {c.name: c for c in problem.conditions}
         self.modes = {c.name: _mode(c, scene.fixed) for c in problem.conditions}
         self.radius = (0.5 * problem.part.outer_diameter if problem.part.outer_diameter
@@ -96,8 +103,7 @@ class ViewerState:
         self._meshes: list[P.ObstacleMesh] | None = None
 
     def close(self) -> None:
-        if self.session is not None:
-            self.session.close()
+        self.session.close()
 
     @property
     def dimension(self) -> int:
@@ -164,7 +170,7 @@ class ViewerState:
             load = last.loads.get(name) if last is not None else None
             force = (message.force if message.force is not None
                      else (tuple(load.force[:d]) if load is not None else (0.0,) * d))
-            moment = None
+            moment: float | tuple[float, ...] | None = None
             if d == 3:
                 if message.moment is not None:
                     moment = tuple(message.moment)
@@ -267,17 +273,17 @@ class ViewerState:
                 position = _pad(_at(last.s, last.position, cond.s)[0])
             else:
                 position = [0.0, 0.0, 0.0]
-            tangent = None
+            tangent: list[float] | None = None
             if d == 3 and cond.tangent is not None:
-                tangent = list(cond.tangent)
+                tangent = [float(x or 0.0) for x in cond.tangent]
             elif d == 2 and cond.angle is not None:
                 tangent = [math.cos(cond.angle), math.sin(cond.angle), 0.0]
             force = moment = None
             if mode == "force":
                 force = _pad(tuple(v or 0.0 for v in cond.force))
                 m = cond.moment
-                moment = ([0.0, 0.0, float(m or 0.0)] if d == 2 or not isinstance(m, tuple)
-                          else [float(x) for x in m])
+                moment = ([0.0, 0.0, float(m or 0.0)] if not isinstance(m, tuple)
+                          else [float(x or 0.0) for x in m])
             out.append(P.Grip(name=cond.name, s=cond.s, position=position, tangent=tangent,
                               mode=mode, force=force, moment=moment))
         return out
@@ -322,9 +328,10 @@ class ViewerState:
         poses = [scene.path[k].condition(scene.grip) for k in keep]
         tangents = None
         if all(c.tangent is not None for c in poses):
-            tangents = [[round(float(x), 9) for x in c.tangent] for c in poses]
+            tangents = [[round(float(x or 0.0), 9) for x in c.tangent or ()] for c in poses]
         return P.PathPlay(grip=scene.grip, tangents=tangents,
-                          positions=[[round(float(x), 9) for x in c.position] for c in poses])
+                          positions=[[round(float(x or 0.0), 9) for x in c.position]
+                                     for c in poses])
 
     def accurate_message(self) -> P.ServerAccurate:
         if self.session.accurate is None:
@@ -437,8 +444,11 @@ class ViewerState:
             penetrations=[_span(x) for x in report.penetrations],
             too_close=[_span(x) for x in report.too_close])
 
-    def _condition(self, name: str) -> Condition | None:
-        return next((c for c in self.session.problem.conditions if c.name == name), None)
+    def _condition(self, name: str) -> Condition:
+        found = next((c for c in self.session.problem.conditions if c.name == name), None)
+        if found is None:
+            raise ProtocolError(f"no condition is named {name!r}", "grip")
+        return found
 
 
 # -- helpers ---------------------------------------------------------------------------------
@@ -453,7 +463,7 @@ def load_envelope(path: Path) -> list[P.ObstacleMesh]:
     if path.is_dir():
         path = path / "envelope.glb"
     try:
-        loaded = trimesh.load(path, force="scene")
+        loaded = trimesh.load_scene(path)
     except (OSError, ValueError, NotImplementedError) as err:
         raise InputError("envelope", f"{path}: cannot be read as a GLB ({err}); give the "
                          "envelope.glb of a pliant study, or its folder") from None
@@ -462,7 +472,7 @@ def load_envelope(path: Path) -> list[P.ObstacleMesh]:
             for name, mesh in loaded.geometry.items()]
 
 
-def _mode(cond: Condition, fixed: tuple[str, ...]) -> str:
+def _mode(cond: Condition, fixed: tuple[str, ...]) -> GripMode:
     if cond.name in fixed or cond.normal is not None:
         return "fixed"
     if all(v is not None for v in cond.position):

@@ -814,7 +814,7 @@ def follow(z0, jac0, density, stations, start, end, opts):
         # Re-converging the end point on a finer mesh is no continuation step (the loads
         # do not move: a shorter step cannot help): a damped Newton, not a corrector that
         # must contract (a taut cable's first step there often does not).
-        zn, rn, it, status, jn, st, theta = _newton(
+        zn, rn, it, status, jn, st, _theta = _newton(
             predictor, jac, stn, inp, seg_steps, tol if final else loose, max_iter,
             0.0 if refining else contraction)
         iterations += it

@@ -13,6 +13,7 @@ component at its rest value) and ends at the problem.
 
 from __future__ import annotations
 
+import itertools
 import math
 from dataclasses import dataclass, field
 
@@ -174,7 +175,7 @@ class Lowered:
               trajectory: bool = False) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """(residual, Jacobian, trajectory); the trajectory is empty unless asked for."""
         traj = np.zeros((mesh.npoints if trajectory else 0, kernels.NSTATE))
-        res, jac, _ = kernels.shoot(z, *self.args(arrays, mesh), want_jac, traj)
+        res, jac, _ = kernels.shoot(z, *self.args(arrays, mesh), want_jac, traj)  # type: ignore[call-arg]
         return res, jac, traj
 
     def station_rows(self, mesh: Mesh) -> np.ndarray:
@@ -290,7 +291,7 @@ def distributed_load(problem: Problem) -> tuple[float, float]:
     return scale * fx, scale * fy
 
 
-def _load_spans(problem: Problem) -> list[tuple[float, float]]:
+def _load_spans(problem: Problem) -> list[float]:
     """Where the loads on stretches start and end (dimensionless): kernel stations."""
     L = problem.part.length
     return sorted({min(max(x / L, 0.0), 1.0) for ld in problem.partial_loads
@@ -470,6 +471,6 @@ def lower(problem: Problem, nodes: int | None = None) -> Lowered:
                    station_of=tuple(st for _, st, _ in stations), nz=col, key=key,
                    inputs=np.concatenate([val.ravel(), fol.ravel(), prm, dist.ravel()]),
                    nodes=node_index,
-                   interval=max(b - a for a, b in zip(cuts, cuts[1:])),
+                   interval=max(b - a for a, b in itertools.pairwise(cuts)),
                    problem_rows=tuple(k for k, (_, st, _) in enumerate(stations)
                                       if st is not None))

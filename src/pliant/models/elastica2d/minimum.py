@@ -105,13 +105,13 @@ class _Discrete:
                 if v is not None:
                     self.position.append((k, i, float(v) / L))
                 elif c.force and c.force[i] is not None:
-                    f[k, i] += float(c.force[i]) * L**2 / EI
+                    f[k, i] += float(c.force[i] or 0.0) * L**2 / EI
             if c.angle is not None and k in (0, n):
                 self.ends.append((k, float(c.angle)))
             elif c.angle is not None:
                 self.angle.append((k, float(c.angle)))
             elif c.moment is not None:
-                m[k] += float(c.moment) * L / EI
+                m[k] += float(c.moment) * L / EI  # type: ignore[arg-type]  # 2D: a number
         ints = np.int64
         self.arrays = Arrays(
             h, kappa0, f, np.cumsum(f[::-1], axis=0)[::-1].copy(), m,
@@ -540,10 +540,10 @@ def _state(disc: _Discrete, u: np.ndarray) -> SimpleNamespace:
     loads = {}
     for index, c in enumerate(problem.conditions):
         k = disc.node_of[index]
-        applied = [float(c.force[i]) * L**2 / EI if c.force and c.force[i] is not None
+        applied = [float(c.force[i] or 0.0) * L**2 / EI if c.force and c.force[i] is not None
                    else 0.0 for i in range(2)]
         f = np.array([reactions.get((k, i), applied[i]) for i in range(2)])
-        m = reactions.get((k, 2), float(c.moment or 0.0) * L / EI)
+        m = reactions.get((k, 2), float(c.moment or 0.0) * L / EI)  # type: ignore[arg-type]
         loads[c.name] = SimpleNamespace(force=f * EI / L**2, moment=m * EI / L)
     return SimpleNamespace(problem=problem, s=disc.s * L, position=x * L, angle=node_theta,
                            internal_force=beyond * EI / L**2, bending_moment=moment * EI / L,

@@ -13,6 +13,7 @@ the extensible elastica's equations (the kernels' docstring), so that it checks 
 
 from __future__ import annotations
 
+import itertools
 import math
 from dataclasses import dataclass
 
@@ -297,7 +298,7 @@ def equilibrium_error(eq) -> float:
         a, b = s[i], s[i + 1]
         cuts = [a, *[k for k in knots if a < k < b], b]
         state = H[i].copy()
-        for lo, hi in zip(cuts, cuts[1:]):
+        for lo, hi in itertools.pairwise(cuts):
             state = solve_ivp(rhs, (lo, hi), state, rtol=1e-11, atol=1e-13,
                               method="DOP853").y[:, -1]
         d = state - H[i + 1]
@@ -308,9 +309,9 @@ def equilibrium_error(eq) -> float:
         key = next((x for x in at if abs(x - ld.s) <= 1e-12 * L), ld.s)
         at[key] = at.get(key, np.zeros(3)) + np.array([*ld.force, float(ld.moment)])
     for station, load in at.items():
-        k = np.flatnonzero(np.abs(s - station) <= 1e-12 * L)
-        before = np.zeros(3) if station <= 1e-12 * L else H[k[0], 3:]
-        after = np.zeros(3) if station >= L * (1 - 1e-12) else H[k[-1], 3:]
+        near = np.flatnonzero(np.abs(s - station) <= 1e-12 * L)
+        before = np.zeros(3) if station <= 1e-12 * L else H[near[0], 3:]
+        after = np.zeros(3) if station >= L * (1 - 1e-12) else H[near[-1], 3:]
         jump = before - load - after
         errors.append(float(np.max(np.abs(jump) / scale[3:])))
     for c in problem.conditions:

@@ -24,10 +24,12 @@ The route, for a problem with no warm start:
 
 from __future__ import annotations
 
+import itertools
 import math
 from collections.abc import Callable, Iterable, Iterator
 from dataclasses import dataclass, field, replace
 from functools import cmp_to_key
+from typing import Any
 
 import numpy as np
 
@@ -175,7 +177,7 @@ class _Run:
     def newton(self, z0: np.ndarray, arrays: Arrays, mesh: Mesh, *, strict: bool,
                tol: float, jac0: np.ndarray = _EMPTY_JAC):
         opts = self.solver
-        z, r, it, status, jac, stats, _ = kernels.newton(
+        z, r, it, status, jac, stats, _ = kernels.newton(  # type: ignore[call-arg]
             z0, jac0, *self.low.args(arrays, mesh), tol, opts.max_iterations,
             opts.contraction if strict else 0.0)
         self.iterations += it
@@ -640,19 +642,19 @@ def _extrapolate(history: tuple[Equilibrium, ...], old: _WarmState,
         return None
     points = states + [old]  # oldest first; at most three
     taus = [0.0]
-    for a, b in zip(points, points[1:]):
+    for a, b in itertools.pairwise(points):
         taus.append(taus[-1] + _distance(a.low, b.low))
     target = taus[-1] + _distance(old.low, low)
-    if any(b - a <= 0.0 for a, b in zip(taus, taus[1:])):
+    if any(b - a <= 0.0 for a, b in itertools.pairwise(taus)):
         return None
-    z = 0.0
+    z: Any = 0.0
     for i, (ti, pi) in enumerate(zip(taus, points)):
         weight = 1.0
         for j, tj in enumerate(taus):
             if j != i:
                 weight *= (target - tj) / (ti - tj)
         z = z + weight * pi.z
-    return z  # type: ignore[return-value]
+    return z
 
 
 def _distance(a: Lowered, b: Lowered) -> float:

@@ -131,7 +131,7 @@ class RealtimeModel:
         g_start = np.zeros(len(self.rows), dtype=np.int64)
         g_val = np.zeros((len(self.rows), width))
         for r, row in enumerate(self.rows):
-            full = basis([row.u], n, derivative=1 if row.kind == "tangent" else 0)[0]
+            full = basis(np.array([row.u]), n, derivative=1 if row.kind == "tangent" else 0)[0]
             nz = np.nonzero(full)[0]
             start = int(min(nz.min(), n - width)) if nz.size else 0
             g_start[r] = start
@@ -333,7 +333,7 @@ class RealtimeModel:
     # -- a frame ---------------------------------------------------------------------------
     def frame(self, problem: Problem) -> RealtimeFrame:
         """Move the grips to the problem's targets and return the display frame."""
-        X, mu, lam, alpha, gam, residual, iterations, status = kernels.newton(
+        X, mu, lam, alpha, gam, _residual, iterations, status = kernels.newton(
             self.X, self.mu, self.lam, self.alpha, self.gam, *self.bundles(self.targets(problem)),
             self.keep_lengths, self.tolerance, self.max_iterations)
         converged = status == kernels.CONVERGED

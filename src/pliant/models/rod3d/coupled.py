@@ -33,27 +33,27 @@ EI / L^2); gaps are by the first part's length and contact forces by its force s
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field, replace
 
 import numpy as np
 
 from pliant.core.equilibrium import Contacts, Equilibrium3D, Samples3D, StationLoad
-from pliant.core.problem import PROBE_SAG, WALL_COMPLIANCE
+from pliant.core.problem import PROBE_SAG, WALL_COMPLIANCE, PivotClip, SlidingClip
 from pliant.errors import ConvergenceError
 from pliant.models import clock
 from pliant.models.banded import band_lu, band_lu_solve, band_reduce
 from pliant.models.rod3d import kernels, spline
-from pliant.models.rod3d.lowering import Loads, Rod, quat_matrix
 from pliant.models.rod3d.kernels import qexp as _qexp
-from pliant.models.rod3d.solver import _qconj, _qmul
+from pliant.models.rod3d.lowering import Loads, Rod, quat_matrix
 from pliant.models.rod3d.solver import (
     CONTACT_SCALE,
     RodSolver,
     State,
     _build,
+    _qconj,
+    _qmul,
     _Run,
-    _Sampler,
 )
 
 # Contact between parts is compliant (core.problem.WALL_COMPLIANCE: a hose wall's give;
@@ -158,7 +158,7 @@ class Slider:
     at the clip) and the multipliers of position (3) and direction (2)."""
 
     part: int
-    clip: object
+    clip: SlidingClip
     point: np.ndarray
     basis: np.ndarray
     s0: float
@@ -198,7 +198,7 @@ class Pivot:
     starts, as the weight goes 0 to 1). Its unknowns (2): the multipliers, moments
     across the pin (by the part's moment scale)."""
 
-    clip: object
+    clip: PivotClip
     frame: int  # the station's frame in the part's rod
     start: np.ndarray
     pin: np.ndarray
@@ -357,7 +357,10 @@ class Coupling:
             r, a, _ = run.residual(state, load, want_jac)
             R.append(r)
             ab.append(a if want_jac else None)
-        Rmu, geos, actives, slopes = [], [], [], []
+        Rmu: list[np.ndarray] = []
+        geos: list[_Geometry | None] = []
+        actives: list[np.ndarray] = []
+        slopes: list = []
         deep = False
         for pair, mu, only in zip(self.pairs, mus, near):
             if not only.shape[0]:
@@ -448,7 +451,7 @@ class Coupling:
             self._pivot_terms(k, ev.states, mus, weight, want_jac=True)[2]
             for k in range(len(self.pivots))] + self._friction_blocks(ev, mus, weight)
         # The coupling coordinates: x of every node a block touches, part by part.
-        slot = [dict() for _ in range(P)]
+        slot: list[dict[int, int]] = [{} for _ in range(P)]
         coords: list[list[int]] = [[] for _ in range(P)]
         for b in blocks:
             for part, first in b.coords:
@@ -464,7 +467,9 @@ class Coupling:
         Z = np.zeros((nc, nc))
         z = np.zeros(nc)
         for i, run in enumerate(self.runs):
-            fac = _factor(run, ev.ab[i])
+            ab = ev.ab[i]
+            assert ab is not None  # evaluated with its Jacobian
+            fac = _factor(run, ab)
             if fac is None:
                 return None
             base.append(_solve(fac, -ev.R[i]))
@@ -489,11 +494,11 @@ class Coupling:
             idx = np.array([offset[part] + 3 * slot[part][first] + c
                             for part, first in b.coords for c in range(3)])
             nb = r.shape[0]
-            cols = slice(at, at + nb)
+            block = slice(at, at + nb)
             np.add.at(E, (idx[:, None], np.arange(at, at + nb)[None, :]), b.E)
             np.add.at(Fm, (np.arange(at, at + nb)[:, None], idx[None, :]), b.F)
             np.add.at(Kc, (idx[:, None], idx[None, :]), b.K)
-            D[cols, cols] = b.D
+            D[block, block] = b.D
             at += nb
         A = np.block([[np.eye(nc) + Z @ Kc, Z @ E], [Fm, D]])
         try:
@@ -1186,7 +1191,7 @@ class _WithContacts:
     """A part's sampler with its contacts with the other parts added, and the loads of
     its sliding clips (which the part's own stations do not hold)."""
 
-    inner: _Sampler
+    inner: Callable[[], Samples3D]
     extra: Contacts
     loads: dict = field(default_factory=dict)
     moments: dict = field(default_factory=dict)  # added to conditions' (pivoting clips)
@@ -1207,7 +1212,7 @@ class _WithContacts:
                           point=np.concatenate([c.point.reshape(-1, 3), self.extra.point]),
                           force=np.concatenate([c.force.reshape(-1, 3), self.extra.force]),
                           obstacle=tuple(c.obstacle) + tuple(self.extra.obstacle),
-                          friction=np.concatenate([c.friction.reshape(-1, 3),
+                          friction=np.concatenate([np.asarray(c.friction).reshape(-1, 3),
                                                    self.extra.friction]))
         return replace(samples, contacts=merged)
 
@@ -1248,8 +1253,8 @@ def equilibria(coupling: Coupling, states: Sequence[State], mus: Sequence[np.nda
     residual = coupling.evaluate(states, mus, loads, 1.0, near, False).residual
     contacts = part_contacts(coupling, states, mus, names)
     held = slider_loads(coupling, states, mus)
-    for part, extra in enumerate(joint_loads(coupling, states, mus)):
-        held[part].update(extra)
+    for part, joint in enumerate(joint_loads(coupling, states, mus)):
+        held[part].update(joint)
     pins = {}
     rod = coupling.runs[0].rod
     for k, pv in enumerate(coupling.pivots):

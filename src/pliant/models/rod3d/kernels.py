@@ -717,7 +717,7 @@ def node_outputs(Q, elem_frame, joint_hh, joint_k0, K, node_station_frame):
     for j in range(J):
         p = Q[j]
         q = Q[j + 1]
-        r0, r1, r2, r3 = _qm(p[0], -p[1], -p[2], -p[3], q[0], q[1], q[2], q[3])
+        _r0, r1, r2, r3 = _qm(p[0], -p[1], -p[2], -p[3], q[0], q[1], q[2], q[3])
         inv = 2.0 / joint_hh[j]
         l0 = K[0] * (inv * r1 - joint_k0[j, 0])
         l1 = K[1] * (inv * r2 - joint_k0[j, 1])

@@ -9,15 +9,20 @@ element that starts there (frame and multiplier).
 
 from __future__ import annotations
 
+import itertools
 import math
 from dataclasses import dataclass, field, replace
 from functools import cached_property
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from pliant.core.problem import Problem, Station3D
 from pliant.models.rod3d import kernels
 from pliant.models.rod3d.kernels import AXIS, FREE, FULL
+
+if TYPE_CHECKING:
+    from pliant.scene.distance import DistanceField
 
 
 def quat_from_matrix(R: np.ndarray) -> np.ndarray:
@@ -126,7 +131,7 @@ def _lerp_optional(a: np.ndarray | None, b: np.ndarray | None, t: float) -> np.n
     if a is None and b is None:
         return None
     if a is None:
-        return t * b
+        return t * np.asarray(b)
     if b is None:
         return (1.0 - t) * a
     return a + t * (b - a)
@@ -209,7 +214,7 @@ class Rod:
     iprobe: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=np.int64))
     # Unknowns per probe: its normal force, and with friction two tangential ones after it.
     slot: int = 1
-    obstacles: object = None  # a pliant.scene.DistanceField, or None
+    obstacles: DistanceField | None = None
     radius: float = 0.0  # the part's outer radius [m]
 
     def retarget(self, problem: Problem, elements: int) -> Rod | None:
@@ -235,16 +240,21 @@ class Rod:
         if [(ld.span(self.length), ld.follower) for ld in problem.loads] != [
                 (ld.span(self.length), ld.follower) for ld in self.problem.loads]:
             return None  # the mesh is cut where each load starts and ends
-        *targets, follow = targets
         return replace(self, problem=problem, stations=problem.stations,
-                       target=Loads(*targets, joint_k0=self.target.joint_k0,
-                                    elem_follow=follow))
+                       target=_loads(targets, self.target.joint_k0))
 
     @property
     def islot(self) -> np.ndarray:
         """Every probe's unknowns in order: normal (and tangential) forces, probe by
         probe; the state's last array holds their values."""
         return (self.iprobe[:, None] + np.arange(self.slot)).ravel()
+
+    @property
+    def distance_field(self) -> DistanceField:
+        """The obstacles' distance field: a rod with contact probes has one."""
+        if self.obstacles is None:
+            raise ValueError("this rod has no obstacles (no contact probes)")
+        return self.obstacles
 
     def probe_points(self, X: np.ndarray) -> np.ndarray:
         """The probes' points (K, 3) on the nodes X, in X's units."""
@@ -390,7 +400,18 @@ def _profile(knots: tuple[tuple[float, float], ...], s: np.ndarray) -> np.ndarra
     return np.interp(s, ks, kv)
 
 
-def _targets(problem: Problem, st_node: np.ndarray, h: np.ndarray) -> tuple:
+_Targets = tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray,
+                 np.ndarray, np.ndarray | None]
+
+
+def _loads(targets: _Targets, joint_k0: np.ndarray) -> Loads:
+    """The kernel's loads from ``_targets`` and the rest Darboux vectors."""
+    fnode, st_pos, st_tangent, st_quat, st_moment, st_ffollow, st_mfollow, follow = targets
+    return Loads(fnode, st_pos, st_tangent, st_quat, st_moment, st_ffollow, st_mfollow,
+                 joint_k0=joint_k0, elem_follow=follow)
+
+
+def _targets(problem: Problem, st_node: np.ndarray, h: np.ndarray) -> _Targets:
     """The load- and target-dependent arrays of a problem on a mesh (dimensionless):
     nodal dead forces, prescribed positions, tangents and orientations, moments and
     follower loads."""
@@ -426,7 +447,7 @@ def _targets(problem: Problem, st_node: np.ndarray, h: np.ndarray) -> tuple:
     follow = np.zeros((h.shape[0], 3))
     s_node = np.concatenate([[0.0], np.cumsum(h)]) * L
     for ld in problem.loads:
-        cover = np.array([ld.overlap(a, b, L) for a, b in zip(s_node[:-1], s_node[1:])])
+        cover = np.array([ld.overlap(a, b, L) for a, b in itertools.pairwise(s_node)])
         share = cover / (h * L)
         (follow if ld.follower else dead)[:] += share[:, None] * np.asarray(ld.force) \
             * per_length
@@ -449,7 +470,7 @@ def lower(problem: Problem, elements: int = 100) -> Rod:
                     | {min(max(x / L, 0.0), 1.0) for ld in problem.loads
                        for x in ld.span(L)})
     pieces = [np.linspace(a, b, max(2, round(elements * (b - a))) + 1)[1:]
-              for a, b in zip(breaks, breaks[1:])]
+              for a, b in itertools.pairwise(breaks)]
     s_node = np.concatenate([[0.0], *pieces])
     s_node[-1] = 1.0
     N = s_node.shape[0] - 1
@@ -561,8 +582,7 @@ def lower(problem: Problem, elements: int = 100) -> Rod:
             e = probe_elem[k]
             width = max(width, abs(iprobe[k] + slot - 1 - ix[e]), abs(ix[e + 1] + 2 - iprobe[k]))
         obstacles = field_of(problem.obstacles)
-    *targets, follow = targets
-    target = Loads(*targets, joint_k0=rest_k0.copy(), elem_follow=follow)
+    target = _loads(targets, rest_k0.copy())
     key = (L, EI1, tuple(K), s_node.tobytes(), st_pos_mask.tobytes(), st_kind.tobytes(),
            rest_k0.tobytes(), iprobe.shape[0], slot)
     return Rod(problem=problem, length=L, stiffness=EI1, s_node=s_node, h=h,

@@ -171,9 +171,9 @@ class _Run:
         if not rod.friction:
             return state
         points = rod.probe_points(state[0])
-        _, normals, _ = rod.obstacles.query(points * rod.length, band=math.inf)
+        _, normals, _ = rod.distance_field.query(points * rod.length, band=math.inf)
         basis = axis_basis(normals)
-        self.friction = (rod.obstacles.friction, points, basis)
+        self.friction = (rod.distance_field.friction, points, basis)
         gam = state[4].reshape(-1, 3).copy()
         if previous:
             force = np.einsum("ki,kic->kc", gam[:, 1:], previous[2])
@@ -250,7 +250,7 @@ class _Run:
         return kernels.Contact(rod.probe_elem, rod.probe_a, rod.iprobe, rod.slot,
                                float(rod.length), float(rod.radius), float(loads.offset),
                                2.0 * rod.radius + 0.05 * rod.length, CONTACT_SCALE,
-                               rod.obstacles.args, self.friction)
+                               rod.distance_field.args, self.friction)
 
     def step(self, state: State, du: np.ndarray, scale: float) -> State:
         rod = self.rod
@@ -436,13 +436,13 @@ class _Run:
             # Of the first two stable branches, the lower potential energy; the side the
             # targets push to keeps a tie (mirror twins).
             first = stable[0]
-            best = first
+            chosen = first
             if len(stable) == 2 and stable[1][3] < first[3] - 1e-9 * abs(first[3]) - 1e-300:
-                best = stable[1]
-            found, bow_side, self.gauge_quat, energy = best
-            if best is first and first[1] is side:
+                chosen = stable[1]
+            found, bow_side, self.gauge_quat, energy = chosen
+            if chosen is first and first[1] is side:
                 why = "where its targets and loads push it"
-            elif best is first:
+            elif chosen is first:
                 why = "as the side its targets and loads push it to gives no stable branch"
             else:
                 why = (f"whose potential energy {energy:.6g} J is below the "
@@ -513,7 +513,7 @@ class _Run:
         pivot = ends[0]
         located = [k for k in range(rod.st_kind.shape[0])
                    if rod.st_pos_mask[k].all() and k != pivot]
-        arcs = []
+        arcs: list[tuple[np.ndarray, float, float, np.ndarray, float] | None] = []
         for k in located:
             a = rest.st_pos[k] - rest.st_pos[pivot]
             b = rod.target.st_pos[k] - rod.target.st_pos[pivot]
@@ -548,10 +548,10 @@ class _Run:
         what it does: just past the fold, let it settle by a pseudo-transient relaxation
         (an implicit gradient flow under the constraints) from the last state before the
         fold, then go on along the route; up to ``snaps`` times. Say so."""
-        at = []
+        at: list[float] = []
         while True:
-            if (stall.state is None or stall.loads is None or not stall.ahead
-                    or len(at) >= snaps):
+            if (stall.state is None or stall.loads is None or stall.gauge is None
+                    or not stall.ahead or len(at) >= snaps):
                 raise stall
             at.append(stall.t)
             self.gauge_quat = stall.gauge
@@ -580,24 +580,24 @@ class _Run:
         the saddle's unstable mode by ``push`` L, one way then the other, and relax
         again, so that the snap cannot stall at a saddle: the state it settles in is
         stable (or neutral), or None."""
-        state = self.relax(state, loads)
+        current = self.relax(state, loads)
         for _ in range(3):
-            if state is None:
+            if current is None:
                 return None
             mode: list = []
-            stable, _ = _stability(self, state, found=mode, loads=loads)
+            stable, _ = _stability(self, current, found=mode, loads=loads)
             if stable or not mode:
-                return state
+                return current
             primal, _ = _metric(self.rod)
             du = np.zeros(self.rod.n)
             du[np.flatnonzero(primal)] = mode[0]
             du *= push / max(float(np.abs(du).max()), 1e-300)
             pushed = None
             for sign in (1.0, -1.0):
-                pushed = self.relax(self.step(state, sign * du, 1.0), loads)
+                pushed = self.relax(self.step(current, sign * du, 1.0), loads)
                 if pushed is not None:
                     break
-            state = pushed
+            current = pushed
         return None
 
     def relax(self, state: State, loads: Loads, max_steps: int = 600,
@@ -640,7 +640,7 @@ class _Run:
                 sigma *= 2.0
         else:
             return None
-        state, r, status, _ = self.newton(state, loads, strict=False)
+        state, _r, status, _ = self.newton(state, loads, strict=False)
         return state if status == kernels.CONVERGED else None
 
     def warm(self, warm: Equilibrium3D) -> State | None:
@@ -657,7 +657,7 @@ class _Run:
         # from it converges in two or three iterations, in half the time. Without them
         # Newton from the old state converges as fast on one factorisation.
         if not self.rod.iprobe.shape[0]:
-            state, r, status, _ = self.newton(start, self.rod.target, strict=True)
+            state, _r, status, _ = self.newton(start, self.rod.target, strict=True)
             if status == kernels.CONVERGED:
                 self.steps += 1
                 return state
@@ -1120,7 +1120,7 @@ def _contacts(run: _Run, state: State) -> Contacts:
     on = np.nonzero(normal > 1e-10 * max(1.0, float(normal.max())))[0]
     e, a = rod.probe_elem[on], rod.probe_a[on]
     points = rod.probe_points(state[0])[on] * rod.length
-    names = tuple(rod.obstacles.obstacles[o].name for o in which[on])
+    names = tuple(rod.distance_field.obstacles[o].name for o in which[on])
     friction = np.zeros((on.shape[0], 3))
     if rod.friction:
         t = gam.reshape(-1, 3)[on, 1:]
@@ -1228,7 +1228,7 @@ def _stability(run: _Run, state: State, seed: np.ndarray | None = None,
     from pliant.models.lanczos import softest_mode  # noqa: PLC0415 (its own kernel)
 
     rod = run.rod
-    X, Q, lam = state[:3]
+    _X, Q, lam = state[:3]
     _, moments = kernels.node_outputs(Q, rod.elem_frame, rod.joint_hh, rod.target.joint_k0,
                                       rod.K, rod.node_frame)
     force = float(np.abs(lam).max(initial=0.0))
@@ -1236,7 +1236,7 @@ def _stability(run: _Run, state: State, seed: np.ndarray | None = None,
     c = 2.0 * (1.0 + force + moment**2 / (2.0 * float(rod.K[:3].min())))
     primal, weight = _metric(rod)
     _, ab, _ = run.residual(state, rod.target if loads is None else loads, want_jac=True)
-    n, kl, ku = rod.n, rod.kl, rod.ku
+    kl, ku = rod.kl, rod.ku
     ab[:, kl + ku] += c * np.where(primal, weight, 0.0)
     # A free probe's row and column are the identity's and its part of every solve is 0:
     # they leave the factorisation (a narrower band, as in the Newton steps).

@@ -156,7 +156,7 @@ def _start_together(problem, own, rigid: Equilibrium3D, parts: list, solver: Rod
     names: list[str] = []
     if old.rod.iprobe.shape[0]:
         _, _, which, _ = _Run(old.rod, solver).contacts(old.state, old.rod.target)
-        names = [old.rod.obstacles.obstacles[o].name if o >= 0 else "" for o in which]
+        names = [old.rod.distance_field.obstacles[o].name if o >= 0 else "" for o in which]
     on_part = np.array([n in {p.name for p in parts} for n in names], dtype=bool)
     if rod.islot.shape[0] == old.rod.islot.shape[0] and rod.slot == old.rod.slot:
         # The same probes: keep their forces on the rigid obstacles, drop those on the
@@ -180,7 +180,8 @@ def _start_together(problem, own, rigid: Equilibrium3D, parts: list, solver: Rod
     # probe's force on the nearest probe of the pair (the part is first in its pairs).
     mus = no_contact_forces(pairs)
     s_old = old.rod.s_node[old.rod.probe_elem] + old.rod.probe_a * old.rod.h[old.rod.probe_elem]
-    force = old.state[4].reshape(-1, old.rod.slot)[:, 0] if old.rod.iprobe.shape[0] else []
+    force = old.state[4].reshape(-1, old.rod.slot)[:, 0] if old.rod.iprobe.shape[0] else \
+        np.zeros(0)
     for pair, mu in zip(pairs, mus):
         if pair.a != 0:
             continue
@@ -201,9 +202,9 @@ def _start_together(problem, own, rigid: Equilibrium3D, parts: list, solver: Rod
     mus += [np.zeros(6) for _ in joints]
     pivots = []
     for clip in problem.pivots:
-        k = next(i for i, st in enumerate(rod.stations)
-                 if any(c.name == clip.name for c in st.conditions))
-        frame = int(rod.st_frame[k])
+        at = next(i for i, st in enumerate(rod.stations)
+                  if any(c.name == clip.name for c in st.conditions))
+        frame = int(rod.st_frame[at])
         pivots.append(Pivot(clip, frame, quat_matrix(states[0][1][frame])[:, 0].copy(),
                             np.asarray(clip.pivot, float)))
         mus.append(np.zeros(2))
@@ -275,8 +276,8 @@ def _follow_together(problem, own, old: _TogetherState, solver: RodSolver) -> Eq
     for run, gauge in zip(runs, old.gauges):
         run.gauge_quat = gauge
     start = [old.rods[0].target] + [r.target for r in old.rods[1:]]
-    coupling, states, mus = coupled.solve_coupled(runs, list(old.states), solver=solver, start=start,
-                                          mus=[m.copy() for m in old.mus],
+    coupling, states, mus = coupled.solve_coupled(runs, list(old.states), solver=solver,
+                                          start=start, mus=[m.copy() for m in old.mus],
                                           pairs=list(old.pairs), sliders=list(old.sliders),
                                           joints=list(old.joints), pivots=list(old.pivots),
                                           held_first=False, friction=old.friction)
