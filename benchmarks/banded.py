@@ -33,7 +33,7 @@ from pliant.models.banded import (
     dense,
 )
 from pliant.models.rod3d import RodSolver, kernels
-from pliant.models.rod3d.solver import _Run
+from pliant.models.rod3d.solver import Run
 
 SCENE = Path(__file__).resolve().parents[1] / "examples" / "scenes" / "engine_bay.toml"
 
@@ -45,7 +45,7 @@ def matrices() -> list[tuple[np.ndarray, int, int]]:
                       elements=scene.solver.elements)
     out = []
     for eq in run.equilibria:
-        r = _Run(eq.state.rod, RodSolver(elements=scene.solver.elements))
+        r = Run(eq.state.rod, RodSolver(elements=scene.solver.elements))
         r.gauge_quat = eq.state.gauge_quat
         rod = r.rod
         _, ab, _ = r.residual(eq.state.state, rod.target, want_jac=True)

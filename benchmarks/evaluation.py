@@ -80,7 +80,7 @@ def stability() -> None:
     from pliant.models.banded import band_reduce
     from pliant.models.lanczos import softest_mode
     from pliant.models.rod3d import RodSolver, kernels
-    from pliant.models.rod3d.solver import _metric, _Run, _stability_arpack
+    from pliant.models.rod3d.solver import Run, _metric, _stability_arpack
 
     scene = load_scene(SCENE)
     run = follow_path(scene.problem, scene.path, scene.grip, margin=scene.margin,
@@ -88,7 +88,7 @@ def stability() -> None:
     t_lanczos = t_arpack = 0.0
     worst = 0.0
     for eq in run.equilibria:
-        r = _Run(eq.state.rod, RodSolver(elements=scene.solver.elements))
+        r = Run(eq.state.rod, RodSolver(elements=scene.solver.elements))
         r.gauge_quat = eq.state.gauge_quat
         state = eq.state.state
         rod = r.rod

@@ -36,7 +36,7 @@ EXAMPLES = Path(__file__).resolve().parents[1] / "examples" / "scenes"
 def engine_bay() -> None:
     scene = load_scene(EXAMPLES / "engine_bay.toml")
     planner = Planner(scene, scene.plan)
-    tree = planner._tree(scene.plan.goal)
+    tree = planner.tree(scene.plan.goal)
     hand = follow_path(scene.problem, scene.path, scene.grip, margin=scene.margin,
                        elements=scene.solver.elements)
     demands = [tree.demand(eq) for eq in hand.equilibria]
@@ -99,7 +99,7 @@ def scenes(count: int) -> list[tuple[object, bool]]:
         planner = Planner(scene, scene.plan)
         seated, before = planner.goal_pose("port")
         try:
-            tree = planner._tree("port")
+            tree = planner.tree("port")
         except InputError:
             continue  # the start is not clear of it
         if not planner._valid_state([*seated.position, 0.0, 0.0]):
@@ -126,7 +126,7 @@ def _seated(scene) -> str:
 
     planner = Planner(scene, scene.plan)
     seated, _ = planner.goal_pose("port")
-    tree = planner._tree("port")
+    tree = planner.tree("port")
     eq = rod3d.solve(tree.problem_at(seated.position, seated.tangent), solver=planner.solver)
     worst = min(of_equilibrium(eq).clearances, key=lambda c: c.clearance)
     return (f"the seated shape solved afresh comes {worst.clearance * 1e3:.1f} mm from "

@@ -202,12 +202,12 @@ def test_solve_a_harness_reports_its_branches():
 def test_vectors_print_round_off_as_zero_and_keep_small_values():
     """Issue: numerical noise was printed (-2.06e-17 beside 4.93 N). Below 1e-9 of the
     vector's size or the problem's scale it prints as 0; a small but real value stays."""
-    from pliant.cli.report import _vec
+    from pliant.cli.report import vector_text
 
-    assert _vec((4.932, -2.0604e-17, 0.6461), 1.0) == "(4.932, 0, 0.6461)"
-    assert _vec((-1.9e-17, -0.44208, -1.96e-18), 2.5) == "(0, -0.44208, 0)"
-    assert _vec((1e-6, 1.0)) == "(1e-06, 1)"
-    assert _vec((3e-12, 0.0), 1.0) == "(0, 0)"  # noise against the problem's scale
+    assert vector_text((4.932, -2.0604e-17, 0.6461), 1.0) == "(4.932, 0, 0.6461)"
+    assert vector_text((-1.9e-17, -0.44208, -1.96e-18), 2.5) == "(0, -0.44208, 0)"
+    assert vector_text((1e-6, 1.0)) == "(1e-06, 1)"
+    assert vector_text((3e-12, 0.0), 1.0) == "(0, 0)"  # noise against the problem's scale
 
 
 def test_the_path_table_fits_80_columns_with_its_units(tmp_path, monkeypatch):

@@ -202,7 +202,7 @@ def test_contact_jacobian_matches_finite_differences():
                                 pl.pin(1.0, position=(0.95, 0.0, -0.05), name="hand")),
                          gravity=(0.0, 0.0, -9.81), obstacles=(block, drum))
     rod = lower(problem, 12)
-    run = rod_solver._Run(rod, rod3d.RodSolver())
+    run = rod_solver.Run(rod, rod3d.RodSolver())
     _, rest = rod.rest()
     run.gauge_quat = rest[1][0].copy()
     X = rest[0].copy()
@@ -294,7 +294,7 @@ def test_contact_jacobian_with_friction_matches_finite_differences():
                          gravity=(0.0, 0.0, -9.81), obstacles=(drum,))
     rod = lower(problem, 12)
     assert rod.friction
-    run = rod_solver._Run(rod, rod3d.RodSolver())
+    run = rod_solver.Run(rod, rod3d.RodSolver())
     _, rest = rod.rest()
     run.gauge_quat = rest[1][0].copy()
     X = rest[0].copy()

@@ -25,7 +25,7 @@ from pliant.io.problem_file import load_scene
 from pliant.models import rod3d
 from pliant.models.rod3d import coupled
 from pliant.models.rod3d.lowering import lower
-from pliant.models.rod3d.solver import _Run
+from pliant.models.rod3d.solver import Run
 from pliant.scene.interference import of_equilibrium
 
 EXAMPLES = Path(__file__).resolve().parents[1] / "examples"
@@ -49,8 +49,8 @@ def cantilevers(tilt: float) -> list[Problem]:
 @pytest.fixture(scope="module")
 def pressed():
     """The two cantilevers turned in from parallel until they press tip to tip."""
-    runs = [_Run(lower(p, elements=40), SOLVER) for p in cantilevers(TILT)]
-    starts = [_Run(r.rod.retarget(p, 40), SOLVER) for r, p in zip(runs, cantilevers(0.0))]
+    runs = [Run(lower(p, elements=40), SOLVER) for p in cantilevers(TILT)]
+    starts = [Run(r.rod.retarget(p, 40), SOLVER) for r, p in zip(runs, cantilevers(0.0))]
     states = [r.cold() for r in starts]
     coupling, states, mus = coupled.solve_coupled(
         runs, states, solver=SOLVER, start=[r.rod.target for r in starts], held_first=False)

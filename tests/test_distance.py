@@ -271,15 +271,15 @@ def test_mesh_files_and_display_meshes_are_kept_by_content(tmp_path, monkeypatch
     ball = tm.creation.icosphere(subdivisions=4, radius=0.1)
     path = tmp_path / "ball.stl"
     ball.export(path)
-    vertices, faces = problem_file._read_mesh("ball.stl", tmp_path)
+    vertices, faces = problem_file.read_mesh("ball.stl", tmp_path)
     calls = []
     real = tm.load
     monkeypatch.setattr(tm, "load", lambda *a, **k: (calls.append(a), real(*a, **k))[1])
-    again = problem_file._read_mesh("ball.stl", tmp_path)
+    again = problem_file.read_mesh("ball.stl", tmp_path)
     assert calls == [] and np.array_equal(again[0], vertices) and np.array_equal(
         again[1], faces)
     tm.creation.icosphere(subdivisions=3, radius=0.2).export(path)  # the file changes
-    changed = problem_file._read_mesh("ball.stl", tmp_path)
+    changed = problem_file.read_mesh("ball.stl", tmp_path)
     assert len(calls) == 1 and len(changed[1]) == 1280
     obstacle = Obstacle.from_mesh("ball", ball.vertices, ball.faces, (0.1, 0.0, 0.0))
     decimated = []

@@ -265,7 +265,7 @@ def test_targets_the_2d_routes_missed_are_reached_and_the_3d_model_agrees(hand, 
     fold by minimising the energy); the answer is checked by integrating the ODE again
     (solve_ivp) and by the conditions, and the 3D model, solving the same problem in
     the plane by its own routes, leads the 2D Newton to the same shape."""
-    from pliant.models.dispatch import _planar_start
+    from pliant.models.dispatch import planar_start
     from pliant.models.elastica2d.reference import equilibrium_error
 
     problem = pl.Problem(pl.Part(1.0, 1.0), (pl.clamp(0.0), hand))
@@ -274,6 +274,6 @@ def test_targets_the_2d_routes_missed_are_reached_and_the_3d_model_agrees(hand, 
     assert eq.residual < 1e-9
     assert eq.verdict == "stable"
     np.testing.assert_allclose(eq.position[-1], hand.position, atol=1e-9)
-    other = pl.solve(problem, warm_start=_planar_start(problem))
+    other = pl.solve(problem, warm_start=planar_start(problem))
     assert equilibrium_error(other) < 1e-8
     np.testing.assert_allclose(other.position, eq.position, atol=1e-7)

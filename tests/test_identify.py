@@ -18,9 +18,9 @@ from scipy.optimize import fsolve
 import pliant as pl
 from pliant.assembly.identify import (
     NotIdentifiableError,
-    _support_force,
     identify,
     project,
+    support_force,
 )
 from pliant.core.measurement import Deflection, Shape, StiffnessTest, ThreePointBending, Twist
 from pliant.errors import FileFormatError, InputError
@@ -61,7 +61,7 @@ def test_projection_onto_a_sampled_circle_is_the_radial_distance():
 def test_three_point_bending_small_deflection_is_the_beam_formula():
     """P = 48 EI d / span^3 as d / span -> 0 (EI = 1), the departure from it of second
     order in d (the geometric nonlinearity): halving d quarters it."""
-    departure = [2.0 * _support_force(0.25, 0.1, d, "t") / (48.0 * d / 0.2 ** 3) - 1.0
+    departure = [2.0 * support_force(0.25, 0.1, d, "t") / (48.0 * d / 0.2 ** 3) - 1.0
                  for d in (1e-4, 2e-4, 4e-4)]
     assert abs(departure[0]) < 1e-5
     assert departure[1] / departure[0] == pytest.approx(4.0, rel=0.02)
@@ -73,7 +73,7 @@ def test_three_point_bending_large_deflection_against_an_independent_integration
     is normal to it: shooting with scipy's solve_ivp on EI theta'' = F_x sin - F_y cos,
     unknowns (contact arc, force, contact angle, clamp curvature)."""
     a, half, delta = 0.1, 0.25, 0.06
-    load = 2.0 * _support_force(half, a, delta, "t")
+    load = 2.0 * support_force(half, a, delta, "t")
 
     def shoot(u):
         ell, force, angle, k0 = u
@@ -98,7 +98,7 @@ def test_three_point_bending_large_deflection_against_an_independent_integration
 def test_three_point_bending_identifies_the_stiffness_that_made_the_curve():
     part = pl.Part(0.3, 0.02)
     d = np.linspace(2e-3, 40e-3, 8)
-    load = np.array([0.037 * 2.0 * _support_force(0.15, 0.1, float(x), "t") for x in d])
+    load = np.array([0.037 * 2.0 * support_force(0.15, 0.1, float(x), "t") for x in d])
     problem = pl.Problem(part, (pl.clamp(0.0),))
     result = identify(StiffnessTest(problem, ("bending_stiffness",),
                                     (ThreePointBending(0.2, d, load),)))

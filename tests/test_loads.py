@@ -20,7 +20,7 @@ from pliant.models.banded import dense
 from pliant.models.elastica2d.lowering import lower as lower_2d
 from pliant.models.elastica2d.reference import equilibrium_error, solve_reference
 from pliant.models.rod3d.lowering import lower
-from pliant.models.rod3d.solver import _Run
+from pliant.models.rod3d.solver import Run
 
 from .helpers import shooting_jacobians
 
@@ -197,7 +197,7 @@ def test_the_jacobian_with_distributed_loads_matches_finite_differences():
         loads=(pl.DistributedLoad((0.3, -0.4, 0.2), start=0.1, end=0.6, name="dead"),
                pl.DistributedLoad((0.5, -0.2, 0.4), follower=True, start=0.3, name="flow")))
     rod = lower(problem, elements=12)
-    run = _Run(rod, rod3d.RodSolver())
+    run = Run(rod, rod3d.RodSolver())
     _, state = rod.rest()
     run.gauge_quat = state[1][0].copy()
     state = run.step(state, 0.05 * np.random.default_rng(3).standard_normal(rod.n), 1.0)

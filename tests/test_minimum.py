@@ -33,7 +33,7 @@ def loaded() -> pl.Problem:
 
 
 def test_the_discrete_gradient_and_hessian_match_finite_differences():
-    disc = minimum._Discrete(loaded(), 24)
+    disc = minimum.Discrete(loaded(), 24)
     rng = np.random.default_rng(3)
     u = disc.start(0.7) + 0.1 * rng.normal(size=26)
     lam = rng.normal(size=len(disc.position) + len(disc.angle))
@@ -112,7 +112,7 @@ def twin_lowest(problem: pl.Problem) -> float:
         energies = []
         coarse = None  # the coarser part's minimum starts the finer one
         for n in (48, 96):
-            disc = minimum._Discrete(problem, n)
+            disc = minimum.Discrete(problem, n)
             start = disc.start(bow) if coarse is None else np.concatenate(
                 [coarse[:2], np.repeat(coarse[2:], 2)])
             found = minimize(disc.energy, start, jac=True, method="SLSQP",

@@ -39,7 +39,7 @@ def _straight(scene):
     """The problems of the straight move from the start to the seated pose."""
     planner = Planner(scene, PlanSettings())
     seated, _ = planner.goal_pose("port")
-    tree = planner._tree("port")
+    tree = planner.tree("port")
     return path_problems(tree.problem_at, planner.start_pose(), [seated], 40)
 
 

@@ -109,8 +109,8 @@ def _jacobian_check(model, rhs, gam):
     for j in range(n):
         du = np.zeros(n)
         du[j] = 1e-6
-        plus = kernels._apply(X, mu, lam, alpha, gam, du, numbering, 1.0)
-        minus = kernels._apply(X, mu, lam, alpha, gam, du, numbering, -1.0)
+        plus = kernels.apply_step(X, mu, lam, alpha, gam, du, numbering, 1.0)
+        minus = kernels.apply_step(X, mu, lam, alpha, gam, du, numbering, -1.0)
         fd[:, j] = (kernels.assemble(*plus, *head, False)[0]
                     - kernels.assemble(*minus, *head, False)[0]) / 2e-6
     assert np.allclose(J, fd, atol=1e-6)  # and every nonzero lies in the band

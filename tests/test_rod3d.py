@@ -21,10 +21,8 @@ from pliant.io.problem_file import load_problem
 from pliant.models import rod3d
 from pliant.models.banded import dense
 from pliant.models.rod3d import kernels
-from pliant.models.rod3d.lowering import _slerp_vectors, lower
-from pliant.models.rod3d.solver import _Run, _Stalled
-from pliant.models.rod3d.solver import _stability as stability_of
-from pliant.models.rod3d.solver import _stability_dense as stability_dense
+from pliant.models.rod3d.lowering import lower, slerp_vectors
+from pliant.models.rod3d.solver import Run, Stalled, stability_dense, stability_of
 
 from .helpers import EXAMPLES, precurved_3d, zoo
 
@@ -95,7 +93,7 @@ def test_isotropic_case3_leaves_the_plane():
     values = []
     for elements in (40, 80):
         strip = rod3d.solve(to_3d(zoo()["case3"]), solver=rod3d.RodSolver(elements=elements))
-        run = _Run(strip.state.rod.retarget(problem, elements) or lower(problem, elements),
+        run = Run(strip.state.rod.retarget(problem, elements) or lower(problem, elements),
                    rod3d.RodSolver(elements=elements))
         state, _, status, _ = run.newton(strip.state.state, run.rod.target, strict=False)
         assert status == kernels.CONVERGED
@@ -118,7 +116,7 @@ def test_a_snap_that_ends_on_a_saddle_is_pushed_off_it():
                          to_3d(zoo()["case3"]).conditions)
     solver = rod3d.RodSolver(elements=40)
     strip = rod3d.solve(to_3d(zoo()["case3"]), solver=solver)
-    run = _Run(strip.state.rod.retarget(problem, 40) or lower(problem, 40), solver)
+    run = Run(strip.state.rod.retarget(problem, 40) or lower(problem, 40), solver)
     saddle, _, status, _ = run.newton(strip.state.state, run.rod.target, strict=False)
     assert status == kernels.CONVERGED and not stability_of(run, saddle)[0]
     stayed = run.relax(saddle, run.rod.target)
@@ -354,7 +352,7 @@ def test_jacobian_matches_finite_differences(curvature):
         pl.grip(1.0, position=(0.7, 0.3, 0.2), name="hand")), gravity=(0.0, 0.0, -9.81))
     rod = lower(problem, elements=12)
     assert (rod.gauge_frame >= 0) == (curvature == 0.0)
-    run = _Run(rod, rod3d.RodSolver())
+    run = Run(rod, rod3d.RodSolver())
     _, state = rod.rest()
     run.gauge_quat = state[1][0].copy()
     rng = np.random.default_rng(3)
@@ -515,8 +513,8 @@ def test_past_a_fold_the_part_snaps_and_settles():
                              start=rod3d.solve(strip_turned(-0.01))):
             pass
     last = err.value.last_good
-    run = _Run(last.state.rod.retarget(strip_turned(0.8), 100), rod3d.RodSolver())
-    fold = _Stalled(0.6, 1e-6, "a fold", state=last.state.state, gauge=last.state.gauge_quat,
+    run = Run(last.state.rod.retarget(strip_turned(0.8), 100), rod3d.RodSolver())
+    fold = Stalled(0.6, 1e-6, "a fold", state=last.state.state, gauge=last.state.gauge_quat,
                     loads=last.state.rod.target, ahead=(run.rod.target,))
     state = run.beyond_fold(fold)
     assert "snaps through" in run.notes[0]
@@ -540,7 +538,7 @@ def test_stability_by_lanczos_matches_the_dense_eigensolver(factor, side, weight
                                 pl.push(1.0, force=(-factor * math.pi**2 / 4, 0.0, side),
                                         name="tip")), gravity=(0.0, 0.0, -9.81))
     eq = rod3d.solve(problem, solver=rod3d.RodSolver(elements=30))
-    run = _Run(eq.state.rod, rod3d.RodSolver(elements=30))
+    run = Run(eq.state.rod, rod3d.RodSolver(elements=30))
     run.gauge_quat = eq.state.gauge_quat
     fast, dense = stability_of(run, eq.state.state), stability_dense(run, eq.state.state)
     assert fast[0] == dense[0] == stable
@@ -576,12 +574,12 @@ def test_a_reversed_tangent_swings_toward_the_station_motion():
     a = np.array([[0.0, 0.0, 1.0]])
     hint = np.array([[0.4, 0.3, 0.7]])
     for t in (0.0, 0.25, 0.5, 1.0):
-        v = _slerp_vectors(a, -a, t, hint)[0]
+        v = slerp_vectors(a, -a, t, hint)[0]
         assert np.linalg.norm(v) == pytest.approx(1.0)
         assert v[2] == pytest.approx(math.cos(math.pi * t))
-    assert np.allclose(_slerp_vectors(a, -a, 0.5, hint)[0], (0.8, 0.6, 0.0))
-    assert np.allclose(_slerp_vectors(a, -a, 1.0, hint)[0], -a[0])
-    v = _slerp_vectors(a, -a, 0.5, None)[0]  # no hint: still a unit vector across a
+    assert np.allclose(slerp_vectors(a, -a, 0.5, hint)[0], (0.8, 0.6, 0.0))
+    assert np.allclose(slerp_vectors(a, -a, 1.0, hint)[0], -a[0])
+    v = slerp_vectors(a, -a, 0.5, None)[0]  # no hint: still a unit vector across a
     assert abs(v @ a[0]) < 1e-12 and np.linalg.norm(v) == pytest.approx(1.0)
 
 
@@ -681,7 +679,7 @@ def test_equilibria_lists_every_bow_side_of_a_buckled_strip():
     same potential energy (the section is round), each neutral (it can roll about its
     chord), bowing along +-y and +-z; solve's answer is one of them."""
     from pliant.core.equilibrium import potential_energy
-    from pliant.models.rod3d.solver import _same_shape
+    from pliant.models.rod3d.solver import same_shape
 
     part = pl.Part(length=1.0, bending_stiffness=1.0)
     problem = pl.Problem(part, (
@@ -700,4 +698,4 @@ def test_equilibria_lists_every_bow_side_of_a_buckled_strip():
         sides.add((axis, float(np.sign(mid[axis]))))
     assert sides == {(1, 1.0), (1, -1.0), (2, 1.0), (2, -1.0)}
     answer = rod3d.solve(problem, solver=solver)
-    assert any(_same_shape(answer, eq) for eq in found)
+    assert any(same_shape(answer, eq) for eq in found)

@@ -247,12 +247,12 @@ def test_demo_follows_the_bundled_scene_and_writes_its_report(tmp_path):
 
 
 def test_run_writes_its_records_with_their_units(tmp_path):
-    from pliant.cli.app import _run_scene
+    from pliant.cli.app import run_scene
 
     text = SMALL.replace('port = "outlet"', 'x = 0.8\ny = 0.0\nz = 0.0')
     text += '[path]\ngrip = "hand"\nwaypoints = [[0.75, 0.0, 0.05]]\nsteps = 3\n'
     (tmp_path / "s.toml").write_text(text)
-    _run_scene(tmp_path / "s.toml", tmp_path / "out", 30)
+    run_scene(tmp_path / "s.toml", tmp_path / "out", 30)
     record = json.loads((tmp_path / "out" / "s.json").read_text())
     assert record["schema_version"] == 1 and record["complete"]
     assert record["units"]["force"] == "N" and record["units"]["clearance"] == "m"

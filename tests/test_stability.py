@@ -113,7 +113,7 @@ def test_a_singular_start_returns_the_lower_of_the_two_bow_sides():
 
 
 def test_equilibria_lists_what_the_routes_reach_the_answer_first(capsys):
-    from pliant.cli.app import _all_equilibria
+    from pliant.cli.app import all_equilibria
     from pliant.core.equilibrium import potential_energy
     from pliant.models.elastica2d import equilibria
 
@@ -132,7 +132,7 @@ def test_equilibria_lists_what_the_routes_reach_the_answer_first(capsys):
         assert np.abs(eq.position[-1] - (0.333, -0.002)).max() < 1e-8
     shapes = [e.position[len(e.position) // 2] for e in found]
     assert all(np.abs(a - b).max() > 1e-3 for i, a in enumerate(shapes) for b in shapes[:i])
-    _all_equilibria(problem, as_json=True)
+    all_equilibria(problem, as_json=True)
     import json
 
     listed = json.loads(capsys.readouterr().out)["equilibria"]

@@ -201,7 +201,7 @@ def test_the_evaluation_judges_the_strain_against_what_the_part_tolerates():
     from types import SimpleNamespace
 
     from pliant.assembly.checks import Zone
-    from pliant.assembly.evaluate import _stretch_checks
+    from pliant.assembly.evaluate import stretch_checks
     from pliant.io.rules_file import bundled_rules
 
     rules = bundled_rules()
@@ -212,13 +212,13 @@ def test_the_evaluation_judges_the_strain_against_what_the_part_tolerates():
                        max_axial_strain=0.001)
         eq = solve_2d(pl.Problem(part, (pl.clamp(0.0), pl.clamp(L, position=(L + delta, 0.0),
                                                                 name="connector"))))
-        (check,) = _stretch_checks(SimpleNamespace(equilibria=[eq]), part, rules)
+        (check,) = stretch_checks(SimpleNamespace(equilibria=[eq]), part, rules)
         # the solver meets positions to 1e-10 L: the strain to about that, absolutely
         assert check.value == pytest.approx(100.0 * delta / L, abs=1e-7)
         assert check.red_at == pytest.approx(0.1) and check.family == "damage"
         zones.append(check.zone)
     assert zones == [Zone.GREEN, Zone.YELLOW, Zone.RED]
-    assert _stretch_checks(SimpleNamespace(equilibria=[eq]), pl.Part(L, 1.0), rules) == []
+    assert stretch_checks(SimpleNamespace(equilibria=[eq]), pl.Part(L, 1.0), rules) == []
 
 
 def test_the_short_cable_example_reports_the_pull_and_the_strain_over_its_limit():

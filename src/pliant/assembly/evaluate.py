@@ -519,7 +519,7 @@ def _part_checks(scene: Any, run: PathRun, rules: Rules, kind: PartKind | None,
     checks += _bend_checks(run, part, kind, rules, scene, grips, port)
     checks += _kink_checks(run, part, kind, rules)
     checks += _twist_checks(run, part, kind, rules, settings, scene, grips)
-    checks += _stretch_checks(run, part, rules)
+    checks += stretch_checks(run, part, rules)
     checks.append(_stability_check(run))
     checks += _interference_checks(run, scene)
     checks += _contact_checks(run, settings)
@@ -676,7 +676,7 @@ def _twist_checks(run: PathRun, part: Any, kind: PartKind | None, rules: Rules,
                          note="" if limit else "give [evaluation] max_twist_rate to judge it")]
 
 
-def _stretch_checks(run: PathRun, part: Any, rules: Rules) -> list[Check]:
+def stretch_checks(run: PathRun, part: Any, rules: Rules) -> list[Check]:
     """An extensible part's largest axial strain [%] at each step, against the strain it
     tolerates (red) and that over the rules' margin (yellow); none for an inextensible
     part."""

@@ -615,7 +615,7 @@ class _BendingModel:
                       curvature=self.curvature)
 
 
-def _support_force(half: float, a: float, delta: float, label: str) -> float:
+def support_force(half: float, a: float, delta: float, label: str) -> float:
     """The vertical force [N] of ``_support_contact``."""
     return _support_contact(half, a, delta, label)[0]
 

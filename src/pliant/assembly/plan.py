@@ -487,7 +487,7 @@ class Planner:
         seated = Pose(triple(port.position), tangent)
         return seated, np.asarray(port.position) + self.settings.approach * axis
 
-    def _tree(self, goal: str) -> _Tree:
+    def tree(self, goal: str) -> _Tree:
         """The tree toward port ``goal``, its root the start pose (solved once)."""
         if goal in self.trees:
             return self.trees[goal]
@@ -521,7 +521,7 @@ class Planner:
         """A path for the grip to the port ``goal``; ``NoPathError`` within the budget
         when none is found; KeyboardInterrupt at once on Ctrl+C."""
         begin = time.perf_counter()
-        tree = self._tree(goal)  # checks the port first
+        tree = self.tree(goal)  # checks the port first
         tree.deadline = begin + self.settings.budget
         tree.interrupted = False
         self.queries += 1

@@ -154,7 +154,7 @@ def solve(
     problem = scene.problem
     _first_run_note()
     if all_:
-        _all_equilibria(problem, json, elements or scene.solver.elements)
+        all_equilibria(problem, json, elements or scene.solver.elements)
         return
     eq, seconds = timed_solve(problem, elements or scene.solver.elements)
     report = None
@@ -183,7 +183,7 @@ def solve(
             typer.echo(f"mesh written to {mesh}, radius {part_radius(eq):.4g} m{note}")
 
 
-def _all_equilibria(problem, as_json: bool, elements: int | None = None) -> None:
+def all_equilibria(problem, as_json: bool, elements: int | None = None) -> None:
     """``pliant solve --all``: the equilibria the routes reach (2D or 3D), best first."""
     import time  # noqa: PLC0415
 
@@ -262,7 +262,7 @@ def run(
 ) -> None:
     """Follow a scene's manipulation: solve every step of its \\[path], report the force and
     moment at the grip, contacts, clearances and bend radius, and write them out."""
-    _run_scene(file, out, _elements(elements))
+    run_scene(file, out, _elements(elements))
 
 
 def _with_progress(console, scene, file: Path, work):
@@ -279,7 +279,7 @@ def _with_progress(console, scene, file: Path, work):
         return work(lambda k, r: bar.advance(task))
 
 
-def _run_scene(file: Path, out: Path, elements: int | None) -> None:
+def run_scene(file: Path, out: Path, elements: int | None) -> None:
     import json as _json  # noqa: PLC0415
 
     from rich.console import Console  # noqa: PLC0415

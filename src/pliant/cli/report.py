@@ -146,7 +146,7 @@ def _bend_radius_line(eq: Any) -> str:
     return line
 
 
-def _vec(v, scale: float = 0.0) -> str:
+def vector_text(v, scale: float = 0.0) -> str:
     """A vector in 5 figures, its round-off printed as 0: components below 1e-9 of the
     larger of its own size and ``scale`` (the problem's force or moment scale)."""
     return "(" + ", ".join(f"{x:.5g}" for x in clean(v, scale)) + ")"
@@ -161,8 +161,8 @@ def _summary_3d(eq: Any, seconds: float, console: Console) -> None:
     part = problem.part
     length, forces, moments = (part.length, part.bending_stiffness / part.length**2,
                                part.bending_stiffness / part.length)
-    console.print(f"tip (s = {length:g} m): position {_vec(position, length)} m, "
-                  f"tangent {_vec(tangent, 1.0)}")
+    console.print(f"tip (s = {length:g} m): position {vector_text(position, length)} m, "
+                  f"tangent {vector_text(tangent, 1.0)}")
     table = Table(title="loads on the part (global frame)", title_justify="left")
     for column in ("condition", "s [m]", "force [N]", "moment [N m]", "kind"):
         table.add_column(column)
@@ -170,8 +170,8 @@ def _summary_3d(eq: Any, seconds: float, console: Console) -> None:
         names = ("Fx", "Fy", "Fz", "M (axis)", "M (twist)")
         kind = ("applied" if not any(load.prescribed) else "reaction (" + ", ".join(
             n for n, p in zip(names, load.prescribed) if p) + ")")
-        table.add_row(load.name, f"{load.s:g}", _vec(load.force, forces),
-                      _vec(load.moment, moments), kind)
+        table.add_row(load.name, f"{load.s:g}", vector_text(load.force, forces),
+                      vector_text(load.moment, moments), kind)
     console.print(table)
     moment, at = eq.max_moment()
     console.print(f"max |M| = {_fmt(moment, 'N m')} at s = {at:.4g} m; max |torque| = "
@@ -192,7 +192,7 @@ def _print_others(eq: Any, console: Console) -> None:
     for kind, key in (("branch", "branches"), ("fitted part", "fitted")):
         for other in getattr(eq, key, ()):
             name = other.problem.name or other.problem.part.name
-            rows = ", ".join(f"{load.name}: {_vec(load.force)} N" for load in
+            rows = ", ".join(f"{load.name}: {vector_text(load.force)} N" for load in
                              other.loads.values() if load.is_reaction)
             console.print(f"{kind} {name!r}: {rows}")
 
@@ -220,7 +220,7 @@ def print_contacts(eq: Any, console: Console) -> None:
     for name, force in eq.contacts.by_obstacle().items():
         points = sum(1 for o in eq.contacts.obstacle if o == name)
         console.print(f"contact: {name} pushes on the part with {np.linalg.norm(force):.3g} "
-                      f"N, {_vec(force)} N ({points} points)")
+                      f"N, {vector_text(force)} N ({points} points)")
 
 
 def print_interference(report: Any, console: Console | None = None) -> None:

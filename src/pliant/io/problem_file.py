@@ -305,7 +305,7 @@ class ObstacleModel(_Strict):
             normal = (0.0, 0.0, 1.0) if rotation is None else rotation[:, 2]
             return Obstacle.halfspace(self.name, self.position, normal)
         try:
-            vertices, faces = _read_mesh(self.file, base)
+            vertices, faces = read_mesh(self.file, base)
             if self.scale is not None:
                 scale = self.scale
             else:
@@ -331,7 +331,7 @@ def _referenced(name: str | None, base: Path | None, what: str) -> Path:
     return path
 
 
-def _read_mesh(name: str | None, base: Path | None) -> tuple[np.ndarray, np.ndarray]:
+def read_mesh(name: str | None, base: Path | None) -> tuple[np.ndarray, np.ndarray]:
     """A mesh file's vertices and faces, checked and merged; kept in the disk cache under
     the hash of the file's bytes (a 65 MB STL parses in seconds, loads in a tenth)."""
     path = _referenced(name, base, "mesh")

@@ -53,7 +53,7 @@ def solve(problem: Problem, *, warm_start: Any = None, solver: Any = None):
         return model.solve(problem, solver=solver)
     except ConvergenceError as refused:
         try:
-            start = _planar_start(problem)
+            start = planar_start(problem)
             eq = model.solve(problem, warm_start=start, solver=solver)
         except PliantError:
             raise refused from None
@@ -62,7 +62,7 @@ def solve(problem: Problem, *, warm_start: Any = None, solver: Any = None):
         return replace(eq, notes=(*eq.notes, PlanarRoute(PLANAR_NOTE)))
 
 
-def _planar_start(problem: Problem) -> Any:
+def planar_start(problem: Problem) -> Any:
     """The 3D rod's equilibrium of a 2D problem lifted into z = 0, as the arrays a 2D
     warm start reads (s, position, angle, internal force, bending moment, loads)."""
     from pliant.models import rod3d  # noqa: PLC0415 (numba kernels: on demand)

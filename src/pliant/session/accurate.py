@@ -143,6 +143,11 @@ class InlineExecutor:
     def busy(self) -> bool:
         return False
 
+    @property
+    def answered(self) -> bool:
+        """An answer waits to be taken in (by ``poll``)."""
+        return self._done is not None
+
     def submit(self, index: int, problem: Problem) -> None:
         self._done = self.solver.solve(index, problem)
 
@@ -202,6 +207,11 @@ class ProcessExecutor:
     @property
     def busy(self) -> bool:
         return self._busy
+
+    @property
+    def answered(self) -> bool:
+        """The worker's answer waits to be taken in (by ``poll``)."""
+        return not self._answers.empty()
 
     @property
     def pid(self) -> int:

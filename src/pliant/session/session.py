@@ -162,6 +162,11 @@ class Session:
         """An accurate solve is running (its answer comes with a later frame)."""
         return self._executor.busy
 
+    @property
+    def answered(self) -> bool:
+        """The accurate answer has arrived; the next event or ``poll`` takes it in."""
+        return self._executor.answered
+
     def request_accurate(self) -> None:
         """Ask for an accurate solve at the next event (or ``poll``), drift or not."""
         self._requested = True

@@ -272,6 +272,13 @@ class Server:
                                    max_size=P.MAX_FRAME, max_queue=64)
         self.port = self._server.sockets[0].getsockname()[1]
 
+    @property
+    def addresses(self) -> list[str]:
+        """The addresses its sockets are bound to (empty before it starts)."""
+        if self._server is None:
+            return []
+        return [sock.getsockname()[0] for sock in self._server.sockets]
+
     def run(self, on_ready=None) -> None:
         """Serve until interrupted (Ctrl+C); ``on_ready(url)`` once listening."""
         async def main() -> None:

@@ -17,7 +17,7 @@ the held positions and interior angles as equality constraints. The minimiser is
 with the exact Hessian of the Lagrangian (``_sqp``), scipy's SLSQP where it fails. The
 reactions are the constraints' Lagrange multipliers (least squares on the stationarity
 condition). Each minimum is only a start: the shooting Newton then converges to the
-part's own equilibrium with its own accuracy (``solver._Run.minima``).
+part's own equilibrium with its own accuracy (``solver.Run.minima``).
 
 Only conservative, inextensible problems with at least one prescribed position: a
 follower load has no potential, and an extensible part's start would miss its stretch.
@@ -72,7 +72,7 @@ class Arrays(NamedTuple):
     end_v: np.ndarray
 
 
-class _Discrete:
+class Discrete:
     """The discrete part in units of L (lengths), EI / L (energies)."""
 
     def __init__(self, problem: Problem, elements: int) -> None:
@@ -172,7 +172,7 @@ def minima(problem: Problem, *, elements: int = ELEMENTS, deadline: float | None
     """Local minima of the discrete part's energy under the problem's conditions, one per
     start that converged, lowest first, as the arrays a 2D warm start reads (s, position,
     angle, internal_force, bending_moment, loads by name)."""
-    disc = _Discrete(problem, elements)
+    disc = Discrete(problem, elements)
     found: list[SimpleNamespace] = []
     for bow in bows:
         if deadline is not None and clock.now() > deadline:
@@ -194,14 +194,14 @@ def refined(state: SimpleNamespace, factor: int = 4) -> SimpleNamespace | None:
     the part bends sharply (a taut part's U-turn) a coarse start is too far from the
     part's own equilibrium for Newton."""
     coarse = state.disc
-    disc = _Discrete(coarse.problem, factor * coarse.n)
+    disc = Discrete(coarse.problem, factor * coarse.n)
     theta = np.repeat(state.u[2:], factor)
     u = np.concatenate([state.u[:2], theta])
     with np.errstate(over="ignore", invalid="ignore"):
         return _minimise(disc, u)
 
 
-def _minimise(disc: _Discrete, u0: np.ndarray) -> SimpleNamespace | None:
+def _minimise(disc: Discrete, u0: np.ndarray) -> SimpleNamespace | None:
     """The minimum from u0: the exact-Hessian SQP (``_sqp``, a few milliseconds), or
     where it fails, scipy's SLSQP (quasi-Newton, slower, but it gets through the tangled
     shapes a bad start leads the SQP into)."""
@@ -219,7 +219,7 @@ def _minimise(disc: _Discrete, u0: np.ndarray) -> SimpleNamespace | None:
     return _state(disc, result.x)
 
 
-def _sqp(disc: _Discrete, u: np.ndarray, iterations: int = 60,
+def _sqp(disc: Discrete, u: np.ndarray, iterations: int = 60,
          tolerance: float = 1e-10) -> SimpleNamespace | None:
     """The compiled SQP (``_sqp_kernel``) from u; None when it does not converge."""
     found, ok = _sqp_kernel(np.ascontiguousarray(u, float), disc.arrays, iterations,
@@ -508,7 +508,7 @@ def _sqp_kernel(u, a, iterations, tolerance, max_turn):
     return u, False
 
 
-def _state(disc: _Discrete, u: np.ndarray) -> SimpleNamespace:
+def _state(disc: Discrete, u: np.ndarray) -> SimpleNamespace:
     """The discrete minimum as physical arrays, with the reactions from the multipliers."""
     problem = disc.problem
     part = problem.part

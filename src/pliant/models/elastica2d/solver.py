@@ -118,7 +118,7 @@ class ShootingSolver:
 
 
 @dataclass
-class _Stalled(Exception):
+class Stalled(Exception):
     t: float
     z: np.ndarray
     residual: float
@@ -162,7 +162,7 @@ _STATUS = {kernels.SINGULAR: Status.SINGULAR, kernels.NOT_FINITE: Status.NOT_FIN
 
 
 @dataclass
-class _Run:
+class Run:
     low: Lowered
     solver: ShootingSolver
     iterations: int = 0
@@ -194,7 +194,7 @@ class _Run:
         ``kernels.follow``)."""
         opts, low = self.solver, self.low
         if clock.now() > self.deadline:
-            raise _Stalled(0.0, z0, math.inf,
+            raise Stalled(0.0, z0, math.inf,
                            f"the time budget of {opts.time_budget} s ran out", budget=True,
                            status=Status.TIME_BUDGET)
         options = np.array([opts.tolerance, max(opts.tolerance, opts.loose_tolerance),
@@ -207,10 +207,10 @@ class _Run:
         self.iterations += iterations
         self.steps += steps
         if status == kernels.BUDGET:
-            raise _Stalled(t, z, r, f"the continuation budget of {opts.max_steps} steps "
+            raise Stalled(t, z, r, f"the continuation budget of {opts.max_steps} steps "
                            "ran out", budget=True, status=Status.STEP_BUDGET)
         if status != kernels.CONVERGED:
-            raise _Stalled(t, z, r, _REASONS.get(
+            raise Stalled(t, z, r, _REASONS.get(
                 last, "Newton stopped contracting however short the step (a fold: the "
                 "branch ends or turns back here)"),
                 singular_start=last == kernels.SINGULAR and steps == 0 and t == 0.0,
@@ -226,7 +226,7 @@ class _Run:
     def cold(self) -> _Point:
         """Try the routes in turn; raise the furthest stall when all fail."""
         problem = self.low.problem
-        best: _Stalled | None = None
+        best: Stalled | None = None
         nodes = len(self.low.nodes) + 1
         attempts = [(nodes, self.straight), (4 * nodes, self.straight),
                     (nodes, self.two_stage), (nodes, self.swing)]
@@ -236,7 +236,7 @@ class _Run:
             said = len(self.notes)
             try:
                 return self.lowest(self.route(legs))
-            except _Stalled as stall:
+            except Stalled as stall:
                 del self.notes[said:]  # what a failed route found does not hold
                 if best is None or stall.t > best.t:
                     best = stall
@@ -269,7 +269,7 @@ class _Run:
                 self.reached = [point]
                 return point
             straight = point
-        except _Stalled as stall:
+        except Stalled as stall:
             if not stall.singular_start:
                 raise
         why = _BRANCH_NOTE if straight is None else (
@@ -278,7 +278,7 @@ class _Run:
         pushed = low.lateral_side(rest)
         try:
             found = [(pushed, self.bowed(pushed, legs, mesh))]
-        except _Stalled:
+        except Stalled:
             if straight is None:
                 raise
             self.reached = [straight]
@@ -294,7 +294,7 @@ class _Run:
             return found[0][1]
         try:  # the other side too: keep the lower stable equilibrium, say what else exists
             found.append((-pushed, self.bowed(-pushed, legs, mesh)))
-        except _Stalled as stall:
+        except Stalled as stall:
             if stall.budget:
                 raise
         energies = [self.energy(point) for _, point in found]
@@ -397,7 +397,7 @@ class _Run:
         low = self.low
         ends = low.chord()
         if ends is None:
-            raise _Stalled(0.0, np.zeros(low.nz), math.inf, "nothing to swing around",
+            raise Stalled(0.0, np.zeros(low.nz), math.inf, "nothing to swing around",
                            status=Status.NO_ROUTE)
         pivot = ends[0]
         located = np.nonzero((low.st_kind[:, 0] == PRESCRIBED)
@@ -443,7 +443,7 @@ class _Run:
                 if status == kernels.CONVERGED:
                     try:
                         return low, self.polish(_Point(z, jac, mesh, stats, r))
-                    except _Stalled:
+                    except Stalled:
                         pass
             return None
 
@@ -518,7 +518,7 @@ class _Run:
         self.reached = [best[3]]
         return best[3]
 
-    def minimised(self, stall: _Stalled) -> _Point | None:
+    def minimised(self, stall: Stalled) -> _Point | None:
         """Every path met a fold: the lowest stable equilibrium among those the energy
         minima lead to (``minima``), or None. Say so, and what else was found."""
         judged = self._judged(self.minima())
@@ -536,7 +536,7 @@ class _Run:
         self.reached = [point]
         return point
 
-    def beyond_fold(self, stall: _Stalled) -> _Point:
+    def beyond_fold(self, stall: Stalled) -> _Point:
         """Every path met a fold (the part would snap through): look for an equilibrium
         of the problem itself with a damped Newton, from the last state before the fold,
         then from the rest state. Say so: it lies beyond a snap, on another branch."""
@@ -601,7 +601,7 @@ class _Run:
         assert old is not None
         try:
             return self.follow(old.low.target, low.target, z0, mesh, jac0)
-        except _Stalled as stall:
+        except Stalled as stall:
             if not stall.budget:
                 # Perhaps the shooting intervals are too long for the forces on the way:
                 # follow again with twice the restart nodes (both problems re-lowered,
@@ -612,7 +612,7 @@ class _Run:
                 try:
                     return self.follow(start.target, low.target, start.unknowns_from(warm),
                                        low.mesh(mesh.density))
-                except _Stalled:
+                except Stalled:
                     pass
             if follow_only:
                 raise
@@ -627,7 +627,7 @@ class _Run:
         z, r, status, jac, stats = self.newton(point.z, self.low.target, mesh, strict=False,
                                                tol=self.solver.tolerance, jac0=point.jac)
         if status != kernels.CONVERGED:
-            raise _Stalled(1.0, point.z, r, "the refined mesh did not converge")
+            raise Stalled(1.0, point.z, r, "the refined mesh did not converge")
         return _Point(z, jac, mesh, stats, r)
 
 
@@ -685,7 +685,7 @@ def _solve(problem: Problem, warm_start: Equilibrium | None, solver: ShootingSol
     if low is None:
         low = lower(problem, nodes=len(old.low.nodes) + 1 if isinstance(old, _WarmState)
                     else None)
-    run = _Run(low, solver)
+    run = Run(low, solver)
     point = None
     try:
         if warm_start is not None:
@@ -698,7 +698,7 @@ def _solve(problem: Problem, warm_start: Equilibrium | None, solver: ShootingSol
                 run.low = lower(problem)
         if point is None:
             point = run.polish(run.cold())
-    except _Stalled as stall:
+    except Stalled as stall:
         raise ConvergenceError(
             f"no equilibrium: {stall.reason}; stopped at {stall.t:.3g} of the way "
             f"(relative residual {stall.residual:.2e}); try smaller steps or check "
@@ -708,7 +708,7 @@ def _solve(problem: Problem, warm_start: Equilibrium | None, solver: ShootingSol
     return _answer(run, point, problem, solver)
 
 
-def _answer(run: _Run, point: _Point, problem: Problem, solver: ShootingSolver,
+def _answer(run: Run, point: _Point, problem: Problem, solver: ShootingSolver,
             notes: tuple[str, ...] | None = None) -> Equilibrium:
     point = _renode(run, point)
     low = run.low
@@ -738,10 +738,10 @@ def equilibria(problem: Problem, *, solver: ShootingSolver | None = None,
         left = deadline - clock.now()
         if left <= 0.0:
             break
-        run = _Run(lower(problem, nodes=count), replace(solver, time_budget=left))
+        run = Run(lower(problem, nodes=count), replace(solver, time_budget=left))
         try:
             run.route(getattr(run, name))
-        except _Stalled:
+        except Stalled:
             continue
         low = run.low
         for point in run.reached:
@@ -749,13 +749,13 @@ def equilibria(problem: Problem, *, solver: ShootingSolver | None = None,
             try:
                 eq = _answer(run, run.polish(point), problem, solver, notes=(
                     f"reached by the {name.replace('_', ' ')} route",))
-            except _Stalled:
+            except Stalled:
                 continue
             if not any(_same(eq, other) for other in found):
                 found.append(eq)
     left = deadline - clock.now()
     if left > 0.0:  # and where the energy is least, from a few starting shapes
-        run = _Run(lower(problem), replace(solver, time_budget=left))
+        run = Run(lower(problem), replace(solver, time_budget=left))
         for low, point in run.minima():
             run.low = low
             eq = _answer(run, point, problem, solver,
@@ -786,7 +786,7 @@ def _same(a: Equilibrium, b: Equilibrium) -> bool:
     return float(np.abs(pa - pb).max()) <= 1e-6 * L
 
 
-def _renode(run: _Run, point: _Point) -> _Point:
+def _renode(run: Run, point: _Point) -> _Point:
     """More restart nodes when the solution's force outgrew the shooting intervals (a
     part pulled taut, a cable hanging): the answer is the same, but later warm starts
     from it stay well conditioned."""

@@ -220,7 +220,7 @@ def max_abs(v):
 
 
 @njit(cache=True)
-def _apply(X, mu, lam, alpha, gam, du, num, step):
+def apply_step(X, mu, lam, alpha, gam, du, num, step):
     ix, imu, icon, ialpha, igam = num.ix, num.imu, num.icon, num.ialpha, num.igam
     n, d = X.shape
     Xn = X.copy()
@@ -270,7 +270,7 @@ def newton(X, mu, lam, alpha, gam, net, num, touch, keep, tol, max_iter):
             step = 0.1 / move
         accepted = False
         for _ in range(12):
-            Xn, mun, lamn, alphan, gamn = _apply(X, mu, lam, alpha, gam, du, num, step)
+            Xn, mun, lamn, alphan, gamn = apply_step(X, mu, lam, alpha, gam, du, num, step)
             Rn, abn = assemble(Xn, mun, lamn, alphan, gamn, net, num, touch, keep, yes)
             rn = max_abs(Rn)
             if rn < r or rn <= tol:

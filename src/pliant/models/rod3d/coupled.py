@@ -49,11 +49,11 @@ from pliant.models.rod3d.lowering import Loads, Rod, quat_matrix
 from pliant.models.rod3d.solver import (
     CONTACT_SCALE,
     RodSolver,
+    Run,
     State,
     _build,
     _qconj,
     _qmul,
-    _Run,
 )
 
 # Contact between parts is compliant (core.problem.WALL_COMPLIANCE: a hose wall's give;
@@ -113,7 +113,7 @@ class _Geometry:
 
 @dataclass
 class _Member:
-    run: _Run
+    run: Run
     start: Loads  # the loads at the homotopy's start
     end: Loads  # and at its end
 
@@ -211,7 +211,7 @@ class Coupling:
     forces on the second part of every pair (the homotopy from it held still, 0, to the
     physical problem, 1)."""
 
-    runs: list[_Run]
+    runs: list[Run]
     pairs: list[Pair]
     solver: RodSolver
     sliders: list[Slider] = field(default_factory=list)
@@ -711,10 +711,10 @@ class Coupling:
         """(c (2,), J (2, 3)): d1 across the pin's direction (turned from where the part
         starts), and its change per material increment of the frame (d1 <- R (e1 +
         theta x e1))."""
-        from pliant.models.rod3d.lowering import _slerp_vectors, axis_basis  # noqa: PLC0415
+        from pliant.models.rod3d.lowering import axis_basis, slerp_vectors  # noqa: PLC0415
 
         pv = self.pivots[k]
-        target = _slerp_vectors(pv.start[None], pv.pin[None], weight)[0]
+        target = slerp_vectors(pv.start[None], pv.pin[None], weight)[0]
         basis = axis_basis(target / np.linalg.norm(target))
         R = quat_matrix(q)
         d1 = R[:, 0]
@@ -1127,7 +1127,7 @@ def _frame_hessian(jacobian, frames: tuple[np.ndarray, ...], mult: np.ndarray,
     return 0.5 * (H + H.T)
 
 
-def _factor(run: _Run, ab: np.ndarray):
+def _factor(run: Run, ab: np.ndarray):
     rod = run.rod
     drop = np.zeros(rod.n, dtype=bool)
     if rod.iprobe.shape[0]:
@@ -1307,7 +1307,7 @@ def no_contact_forces(pairs: Sequence[Pair]) -> list[np.ndarray]:
     return [np.zeros(p.elem.shape[0]) for p in pairs]
 
 
-def solve_coupled(runs: list[_Run], states: list[State], *, solver: RodSolver,
+def solve_coupled(runs: list[Run], states: list[State], *, solver: RodSolver,
                   start: list[Loads] | None = None, mus: list[np.ndarray] | None = None,
                   pairs: list[Pair] | None = None, sliders: list[Slider] | None = None,
                   joints: list[Joint] | None = None, pivots: list[Pivot] | None = None,

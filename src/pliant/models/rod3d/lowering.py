@@ -114,7 +114,7 @@ class Loads:
         """Linear in everything but the orientations, which turn along the shortest arc
         (a tangent that must reverse turns toward ``turn``)."""
         hint = self.turn if self.turn is not None else other.turn
-        tangent = _slerp_vectors(self.st_tangent, other.st_tangent, t, hint)
+        tangent = slerp_vectors(self.st_tangent, other.st_tangent, t, hint)
         quat = _slerp_quats(self.st_quat, other.st_quat, t)
         return Loads(self.fnode + t * (other.fnode - self.fnode),
                      self.st_pos + t * (other.st_pos - self.st_pos), tangent, quat,
@@ -137,7 +137,7 @@ def _lerp_optional(a: np.ndarray | None, b: np.ndarray | None, t: float) -> np.n
     return a + t * (b - a)
 
 
-def _slerp_vectors(a: np.ndarray, b: np.ndarray, t: float,
+def slerp_vectors(a: np.ndarray, b: np.ndarray, t: float,
                    hint: np.ndarray | None = None) -> np.ndarray:
     """Rows of a turned toward the rows of b by the fraction t of their angle. Opposite
     rows have no shortest arc: they turn about the axis that swings a toward the hint's
@@ -168,7 +168,7 @@ def _slerp_quats(a: np.ndarray, b: np.ndarray, t: float) -> np.ndarray:
     out = np.empty_like(a)
     for k in range(a.shape[0]):
         bk = b[k] if np.dot(a[k], b[k]) >= 0.0 else -b[k]
-        out[k] = _slerp_vectors(a[k:k + 1], bk[None, :], t)[0]
+        out[k] = slerp_vectors(a[k:k + 1], bk[None, :], t)[0]
     return out
 
 

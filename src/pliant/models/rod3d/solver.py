@@ -115,7 +115,7 @@ _BRANCH_NOTE = "the unloaded part was a singular start"
 
 
 @dataclass
-class _Stalled(Exception):
+class Stalled(Exception):
     t: float
     residual: float
     reason: str
@@ -133,14 +133,14 @@ class _WarmState:
     rod: Rod
     state: State
     gauge_quat: np.ndarray
-    friction: tuple = ()  # the friction reference it was found with (see _Run.hold)
+    friction: tuple = ()  # the friction reference it was found with (see Run.hold)
     # The softest mode, once the stability test has found it: the next warm step's
     # Lanczos starts from it (a list, filled on first access of the stability).
     mode: list = field(default_factory=list, compare=False)
 
 
 @dataclass
-class _Run:
+class Run:
     rod: Rod
     solver: RodSolver
     gauge_quat: np.ndarray = field(default_factory=lambda: np.array([1.0, 0.0, 0.0, 0.0]))
@@ -148,7 +148,7 @@ class _Run:
     steps: int = 0
     notes: list[str] = field(default_factory=list)
     deadline: float = 0.0
-    stall: _Stalled | None = None  # why the last follow from a warm start stopped
+    stall: Stalled | None = None  # why the last follow from a warm start stopped
     # Friction's reference (see kernels.contact_terms): none yet, so no friction.
     friction: tuple = ()
     branch_note: str = _BRANCH_NOTE  # how a note on the buckling side begins
@@ -271,7 +271,7 @@ class _Run:
         R_eps, ab, _ = self.residual(state, start.lerp(end, eps), want_jac=True)
         tangent, ok = self.solve_linear(ab, -R_eps / eps)
         if not ok or not float(np.abs(tangent).max()) < 1e10:  # singular up to rounding
-            raise _Stalled(0.0, math.inf, "the start is singular", singular_start=True,
+            raise Stalled(0.0, math.inf, "the start is singular", singular_start=True,
                            status=Status.SINGULAR)
         load_f, load_c = _load_size(start, end, self.rod.h)
         root_f = math.sqrt(load_f)
@@ -280,11 +280,11 @@ class _Run:
         steps = 0
         while True:
             if steps >= opts.max_steps:
-                raise _Stalled(t, math.inf, f"the continuation budget of {opts.max_steps} "
+                raise Stalled(t, math.inf, f"the continuation budget of {opts.max_steps} "
                                "steps ran out", budget=True, state=state,
                                gauge=self.gauge_quat.copy(), status=Status.STEP_BUDGET)
             if clock.now() > self.deadline:
-                raise _Stalled(t, math.inf, f"the time budget of {opts.time_budget} s ran "
+                raise Stalled(t, math.inf, f"the time budget of {opts.time_budget} s ran "
                                "out", budget=True, state=state, gauge=self.gauge_quat.copy(),
                                status=Status.TIME_BUDGET)
             # No step may raise the loads' wavenumber sqrt(t F) + t C by more than wave_step.
@@ -320,7 +320,7 @@ class _Run:
                               "ends or turns back here)" if status == kernels.SINGULAR else
                               "Newton stopped contracting however short the step (a fold: "
                               "the branch ends or turns back here)")
-                    raise _Stalled(t, r, reason, state=state, gauge=self.gauge_quat.copy(),
+                    raise Stalled(t, r, reason, state=state, gauge=self.gauge_quat.copy(),
                                    loads=start.lerp(end, t), ahead=(end,),
                                    status=Status.SINGULAR if status == kernels.SINGULAR
                                    else Status.FOLD)
@@ -336,12 +336,12 @@ class _Run:
     def cold(self) -> State:
         """Try the routes in turn; past a fold on all, look beyond it; else raise the
         furthest stall."""
-        best: _Stalled | None = None
+        best: Stalled | None = None
         for legs in (self.straight, self.two_stage, self.swing, self.loads_first):
             said = len(self.notes)
             try:
                 return self.route(legs)
-            except _Stalled as stall:
+            except Stalled as stall:
                 del self.notes[said:]  # what a failed route found does not hold
                 if best is None or stall.t > best.t:
                     best = stall
@@ -367,11 +367,11 @@ class _Run:
                 self.reached.append((found, self.gauge_quat.copy(), "the straight branch"))
             # An extensible part's start is not singular: its chord shortens by
             # compression, and the route stays on the straight branch past buckling.
-            if rod.K[3] == 0.0 or not _conservative(self, found) or _stability(
+            if rod.K[3] == 0.0 or not _conservative(self, found) or stability_of(
                     self, found)[0]:
                 return found
             straight = (found, self.gauge_quat)
-        except _Stalled as stall:
+        except Stalled as stall:
             if not stall.singular_start:
                 raise
         self.branch_note = _BRANCH_NOTE if straight is None else (
@@ -389,7 +389,7 @@ class _Run:
         across = np.cross(chord, side)
         # The side the targets and loads push it to first; if that branch meets a fold,
         # the opposite side, then the two across.
-        best: _Stalled | None = None
+        best: Stalled | None = None
         unstable: tuple[State, np.ndarray, np.ndarray] | None = None
         stable: list[tuple[State, np.ndarray, np.ndarray, float]] = []
         sides = []
@@ -408,7 +408,7 @@ class _Run:
             targets = [replace(leg, joint_k0=bowed_k0) for leg in legs(rest_b)] + [rod.target]
             try:
                 found = self.through(rest_b, targets, bowed)
-            except _Stalled as stall:
+            except Stalled as stall:
                 if best is None or stall.t > best.t:
                     best = stall
                 if stall.budget:
@@ -424,7 +424,7 @@ class _Run:
                                is side else "as the side its targets and loads push it to "
                                "gives no branch")
                 return found
-            if not _stability(self, found)[0]:
+            if not stability_of(self, found)[0]:
                 if unstable is None:
                     unstable = (found, bow_side, self.gauge_quat)
                 continue
@@ -473,7 +473,7 @@ class _Run:
         for i, end in enumerate(targets):
             try:
                 state = self.follow(start, end, state)
-            except _Stalled as stall:
+            except Stalled as stall:
                 stall.t = (i + stall.t) / len(targets)
                 stall.ahead = stall.ahead + tuple(targets[i + 1:])
                 raise
@@ -509,7 +509,7 @@ class _Run:
         rod = self.rod
         ends = _chord(rod)
         if ends is None:
-            raise _Stalled(0.0, math.inf, "nothing to swing around", status=Status.NO_ROUTE)
+            raise Stalled(0.0, math.inf, "nothing to swing around", status=Status.NO_ROUTE)
         pivot = ends[0]
         located = [k for k in range(rod.st_kind.shape[0])
                    if rod.st_pos_mask[k].all() and k != pivot]
@@ -543,7 +543,7 @@ class _Run:
 
         return [at(i / legs) for i in range(1, legs)] + [rod.target]
 
-    def beyond_fold(self, stall: _Stalled, snaps: int = 4) -> State:
+    def beyond_fold(self, stall: Stalled, snaps: int = 4) -> State:
         """Every route met a fold: a part loaded that way snaps through there. Follow
         what it does: just past the fold, let it settle by a pseudo-transient relaxation
         (an implicit gradient flow under the constraints) from the last state before the
@@ -562,7 +562,7 @@ class _Run:
                 raise stall
             try:
                 state = self.through(past, [end, *rest], state)
-            except _Stalled as again:
+            except Stalled as again:
                 stall = again
                 continue
             times = "once" if len(at) == 1 else f"{len(at)} times"
@@ -585,7 +585,7 @@ class _Run:
             if current is None:
                 return None
             mode: list = []
-            stable, _ = _stability(self, current, found=mode, loads=loads)
+            stable, _ = stability_of(self, current, found=mode, loads=loads)
             if stable or not mode:
                 return current
             primal, _ = _metric(self.rod)
@@ -663,7 +663,7 @@ class _Run:
                 return state
         try:
             return self.follow(old.rod.target, self.rod.target, start)
-        except _Stalled as stall:
+        except Stalled as stall:
             self.stall = stall
             return None
 
@@ -809,11 +809,11 @@ def equilibria(problem: Problem, *, solver: RodSolver | None = None,
         left = deadline - clock.now()
         if left <= 0.0:
             break
-        run = _Run(rod, replace(solver, time_budget=left))
+        run = Run(rod, replace(solver, time_budget=left))
         run.reached = []
         try:
             run.route(getattr(run, name))
-        except _Stalled:
+        except Stalled:
             pass
         for state, gauge, how in run.reached:
             run.gauge_quat = gauge
@@ -821,18 +821,18 @@ def equilibria(problem: Problem, *, solver: RodSolver | None = None,
                 if rod.gauge_frame >= 0 and rod.K[0] != rod.K[1]:
                     state = _release_roll(run, state)
                 eq = _build(run, state)
-            except (_Stalled, IllPosedProblemError):
+            except (Stalled, IllPosedProblemError):
                 continue
             eq = replace(eq, notes=(f"reached by the {name.replace('_', ' ')} route, "
                                     f"{how}",))
-            if not any(_same_shape(eq, other) for other in found):
+            if not any(same_shape(eq, other) for other in found):
                 found.append(eq)
     energy = {id(e): potential_energy(e) for e in found}
     found.sort(key=lambda e: (e.verdict == "unstable", energy[id(e)]))
     return found
 
 
-def _same_shape(a: Equilibrium3D, b: Equilibrium3D) -> bool:
+def same_shape(a: Equilibrium3D, b: Equilibrium3D) -> bool:
     """One equilibrium reached twice: the same neutral line to 1e-6 of the part's length
     (sampled at 41 points)."""
     L = a.problem.part.length
@@ -855,7 +855,7 @@ def _solve(problem: Problem, warm_start: Equilibrium3D | None, solver: RodSolver
     rod = None
     if warm_start is not None and isinstance(warm_start.state, _WarmState):
         rod = warm_start.state.rod.retarget(problem, solver.elements)  # skips re-meshing
-    run = _Run(rod or lower(problem, elements=solver.elements), solver)
+    run = Run(rod or lower(problem, elements=solver.elements), solver)
     state = None
     try:
         if warm_start is not None:
@@ -863,7 +863,7 @@ def _solve(problem: Problem, warm_start: Equilibrium3D | None, solver: RodSolver
             if state is not None:
                 run.notes[:0] = [n for n in warm_start.notes if isinstance(n, BranchTaken)]
             elif follow_only:
-                raise run.stall or _Stalled(0.0, math.inf, "the warm start could not be "
+                raise run.stall or Stalled(0.0, math.inf, "the warm start could not be "
                                             "followed to this problem")
             else:
                 run.notes.append(WarmStartLost(WARM_START_LOST))
@@ -871,7 +871,7 @@ def _solve(problem: Problem, warm_start: Equilibrium3D | None, solver: RodSolver
             state = run.cold()
         if run.rod.gauge_frame >= 0 and run.rod.K[0] != run.rod.K[1]:
             state = _release_roll(run, state)
-    except _Stalled as stall:
+    except Stalled as stall:
         _held_inside(problem)  # the likeliest cause, named, where it is the cause
         raise ConvergenceError(
             f"no equilibrium: {stall.reason}; stopped at {stall.t:.3g} of the way "
@@ -888,7 +888,7 @@ def _solve(problem: Problem, warm_start: Equilibrium3D | None, solver: RodSolver
     return eq
 
 
-def _lowest(run: _Run, eq: Equilibrium3D) -> tuple[Equilibrium3D, _Run]:
+def _lowest(run: Run, eq: Equilibrium3D) -> tuple[Equilibrium3D, Run]:
     """A cold answer in configuration space (positions held at two stations or more,
     no contact): the stable equilibrium of lowest potential energy among every route's
     (``equilibria``), not the first route's, which is kept on a tie; the note names the
@@ -917,12 +917,12 @@ def _lowest(run: _Run, eq: Equilibrium3D) -> tuple[Equilibrium3D, _Run]:
         f"reach ({energy:.6g} J, {best.notes[0]}); the first route's has {first:.6g} J "
         f"and is {eq.verdict}", energy=energy, route_energy=first)
     chosen = replace(best, notes=(*kept, note), iterations=eq.iterations + best.iterations)
-    again = _Run(best.state.rod, run.solver)
+    again = Run(best.state.rod, run.solver)
     again.gauge_quat = best.state.gauge_quat
     return chosen, again
 
 
-def _twin(run: _Run, state: State) -> tuple[int, dict[str, StationLoad]] | None:
+def _twin(run: Run, state: State) -> tuple[int, dict[str, StationLoad]] | None:
     """The same equilibrium on twice the elements (element count, station loads), by a
     damped Newton from this one carried over (positions and internal forces interpolated,
     frames from their neighbours): the same branch. None where there is contact (the
@@ -937,7 +937,7 @@ def _twin(run: _Run, state: State) -> tuple[int, dict[str, StationLoad]] | None:
     Xf = np.column_stack([np.interp(fine.s_node, rod.s_node, X[:, k]) for k in range(3)])
     mid, mid_f = (0.5 * (s[1:] + s[:-1]) for s in (rod.s_node, fine.s_node))
     lam_f = np.column_stack([np.interp(mid_f, mid, lam[:, k]) for k in range(3)])
-    twin = _Run(fine, run.solver)
+    twin = Run(fine, run.solver)
     twin.gauge_quat = run.gauge_quat
     start = (Xf, _frames_at(rod.frame_s, Q, fine.frame_s), lam_f, nu.copy(),
              np.zeros(fine.islot.shape[0]))
@@ -947,7 +947,7 @@ def _twin(run: _Run, state: State) -> tuple[int, dict[str, StationLoad]] | None:
     return fine.elements, _station_loads(twin, found)
 
 
-def _with_reaction_error(run: _Run, state: State, eq: Equilibrium3D) -> Equilibrium3D:
+def _with_reaction_error(run: Run, state: State, eq: Equilibrium3D) -> Equilibrium3D:
     """The answer with its reactions' discretisation error estimated, relative to the
     largest reaction, and a note where it exceeds the solver's accuracy with the element
     count that would meet it. Richardson's rule on the same equilibrium with twice the
@@ -983,7 +983,7 @@ def _with_reaction_error(run: _Run, state: State, eq: Equilibrium3D) -> Equilibr
     return out
 
 
-def _release_roll(run: _Run, state: State) -> State:
+def _release_roll(run: Run, state: State) -> State:
     """A flat section that nothing holds in twist, straight at rest: its start has a free
     roll, so the solve ran with the twist gauge, which the loads must not lean on. Roll
     the gauge about the part's axis until it holds no moment (a secant on its multiplier,
@@ -1030,7 +1030,7 @@ def _release_roll(run: _Run, state: State) -> State:
                 found = other
     if found is None:
         run.gauge_quat = base
-        raise _Stalled(1.0, math.inf, "the roll of the flat section that nothing holds in "
+        raise Stalled(1.0, math.inf, "the roll of the flat section that nothing holds in "
                        "twist could not be found; hold the section's orientation "
                        "(tangent and normal) somewhere", state=state, gauge=base)
     phi, s, _ = found
@@ -1062,7 +1062,7 @@ def _held_inside(problem: Problem) -> None:
                              "out of it")
 
 
-def _build(run: _Run, state: State, seed: np.ndarray | None = None) -> Equilibrium3D:
+def _build(run: Run, state: State, seed: np.ndarray | None = None) -> Equilibrium3D:
     rod = run.rod
     nu = state[3]
     R, _, _ = run.residual(state, rod.target)
@@ -1075,11 +1075,11 @@ def _build(run: _Run, state: State, seed: np.ndarray | None = None) -> Equilibri
         problem=rod.problem, residual=float(np.abs(R).max()), iterations=run.iterations,
         steps=run.steps, sampler=_Sampler(run, state), notes=tuple(run.notes),
         state=warm,
-        stability_check=(lambda: _stability(run, state, seed, warm.mode))
+        stability_check=(lambda: stability_of(run, state, seed, warm.mode))
         if _conservative(run, state) else None)
 
 
-def _probe(run: _Run, state: State) -> Equilibrium3D:
+def _probe(run: Run, state: State) -> Equilibrium3D:
     """A state reached as an equilibrium to measure (not the answer: no notes, no
     stability)."""
     return Equilibrium3D(problem=run.rod.problem, residual=0.0, iterations=0, steps=0,
@@ -1090,7 +1090,7 @@ def _probe(run: _Run, state: State) -> Equilibrium3D:
 class _Sampler:
     """The arrays of an equilibrium, in SI units, made on first access."""
 
-    run: _Run
+    run: Run
     state: State
 
     def __call__(self) -> Samples3D:
@@ -1108,7 +1108,7 @@ class _Sampler:
                          contacts=_contacts(self.run, self.state))
 
 
-def _contacts(run: _Run, state: State) -> Contacts:
+def _contacts(run: Run, state: State) -> Contacts:
     """The probes that push on the part: where, with what force, from which obstacle."""
     rod = run.rod
     gam = state[4]
@@ -1130,7 +1130,7 @@ def _contacts(run: _Run, state: State) -> Contacts:
                     obstacle=names, friction=friction)
 
 
-def _station_loads(run: _Run, state: State) -> dict[str, StationLoad]:
+def _station_loads(run: Run, state: State) -> dict[str, StationLoad]:
     """Each condition's load on the part [N, N m]: its reactions from the multipliers,
     its applied loads from the problem (followers resolved in their deformed frames)."""
     rod = run.rod
@@ -1170,7 +1170,7 @@ def _station_loads(run: _Run, state: State) -> dict[str, StationLoad]:
     return out
 
 
-def _conservative(run: _Run, state: State | None = None) -> bool:
+def _conservative(run: Run, state: State | None = None) -> bool:
     """Loads with a potential (no follower, no applied moment) and, at ``state``, no
     friction force: only then is stability the energy's minimum."""
     t = run.rod.target
@@ -1205,7 +1205,7 @@ def _metric(rod: Rod) -> tuple[np.ndarray, np.ndarray]:
     return primal, weight
 
 
-def _stability(run: _Run, state: State, seed: np.ndarray | None = None,
+def stability_of(run: Run, state: State, seed: np.ndarray | None = None,
                found: list | None = None, loads: Loads | None = None) -> tuple[bool, float]:
     """(stable, smallest eigenvalue [N m]) of the Hessian of the Lagrangian on the
     constraints' tangent space (positions and frame rotations, weighed by the metric of
@@ -1244,7 +1244,7 @@ def _stability(run: _Run, state: State, seed: np.ndarray | None = None,
     reduced, lo, up, new = band_reduce(ab, kl, ku, drop)
     piv, ok = kernels.band_lu(reduced, lo, up)
     if not ok:
-        return _stability_dense(run, state, loads)
+        return stability_dense(run, state, loads)
     size = int(primal.sum())
 
     primal_index = new[np.flatnonzero(primal)]
@@ -1264,7 +1264,7 @@ def _stability(run: _Run, state: State, seed: np.ndarray | None = None,
         value, vector = _stability_arpack(reduced, piv, int(keep.sum()), lo, up,
                                           primal[keep], weight[keep], c, size)
         if value is None:
-            return _stability_dense(run, state, loads)
+            return stability_dense(run, state, loads)
     if found is not None:
         found[:] = [vector]
     # Neutral (zero to the solver's accuracy: a free family) is not unstable.
@@ -1319,7 +1319,7 @@ def _stability_arpack(ab, piv, n, kl, ku, primal, weight, c, size):
     return smallest_by_arpack(solve, weight[primal], -c)
 
 
-def _stability_dense(run: _Run, state: State,
+def stability_dense(run: Run, state: State,
                      loads: Loads | None = None) -> tuple[bool, float]:
     """The same test with a dense null space and eigensolver (the fallback)."""
     from scipy.linalg import eigh, null_space  # noqa: PLC0415 (heavy; on demand)

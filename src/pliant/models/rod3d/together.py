@@ -30,7 +30,7 @@ from pliant.models.rod3d.coupled import (
     no_contact_forces,
 )
 from pliant.models.rod3d.lowering import Rod, quat_matrix
-from pliant.models.rod3d.solver import RodSolver, State, _qconj, _qmul, _Run
+from pliant.models.rod3d.solver import RodSolver, Run, State, _qconj, _qmul
 
 
 @dataclass(frozen=True, eq=False)
@@ -146,7 +146,7 @@ def _start_together(problem, own, rigid: Equilibrium3D, parts: list, solver: Rod
     from pliant.models.rod3d.lowering import axis_basis, lower  # noqa: PLC0415
     from pliant.models.rod3d.solver import _WarmState  # noqa: PLC0415
 
-    first = _Run(lower(own, elements=solver.elements), solver)
+    first = Run(lower(own, elements=solver.elements), solver)
     old = rigid.state
     assert isinstance(old, _WarmState)
     X, Q, lam, _, gam = old.state
@@ -155,7 +155,7 @@ def _start_together(problem, own, rigid: Equilibrium3D, parts: list, solver: Rod
     nu = _station_multipliers(old.rod, old.state[3], rod)
     names: list[str] = []
     if old.rod.iprobe.shape[0]:
-        _, _, which, _ = _Run(old.rod, solver).contacts(old.state, old.rod.target)
+        _, _, which, _ = Run(old.rod, solver).contacts(old.state, old.rod.target)
         names = [old.rod.distance_field.obstacles[o].name if o >= 0 else "" for o in which]
     on_part = np.array([n in {p.name for p in parts} for n in names], dtype=bool)
     if rod.islot.shape[0] == old.rod.islot.shape[0] and rod.slot == old.rod.slot:
@@ -214,7 +214,7 @@ def _start_together(problem, own, rigid: Equilibrium3D, parts: list, solver: Rod
     return _result(problem, coupling, states, mus, parts, rigid.iterations, rigid.steps)
 
 
-def _joints(problem, runs: list[_Run], states: list[State]) -> list[Joint]:
+def _joints(problem, runs: list[Run], states: list[State]) -> list[Joint]:
     """The problem's junctions as joints between the part (run 0) and its branches (the
     runs after it, in order), each closing from where the parts start apart."""
     from pliant.models.rod3d.lowering import (  # noqa: PLC0415
@@ -259,9 +259,9 @@ def _station_multipliers(old: Rod, nu: np.ndarray, rod: Rod) -> np.ndarray:
     return out
 
 
-def _fitted_run(part, solver: RodSolver) -> _Run:
+def _fitted_run(part, solver: RodSolver) -> Run:
     warm = part.equilibrium.state
-    run = _Run(warm.rod, replace(solver, elements=part.elements))
+    run = Run(warm.rod, replace(solver, elements=part.elements))
     run.gauge_quat = warm.gauge_quat
     return run
 
@@ -272,7 +272,7 @@ def _follow_together(problem, own, old: _TogetherState, solver: RodSolver) -> Eq
     rod = old.rods[0].retarget(own, solver.elements) or lower(own, elements=solver.elements)
     if rod.key != old.rods[0].key:
         raise ConvergenceError("the mesh changed", residual=math.inf)
-    runs = [_Run(rod, solver)] + [_Run(r, solver) for r in old.rods[1:]]
+    runs = [Run(rod, solver)] + [Run(r, solver) for r in old.rods[1:]]
     for run, gauge in zip(runs, old.gauges):
         run.gauge_quat = gauge
     start = [old.rods[0].target] + [r.target for r in old.rods[1:]]
