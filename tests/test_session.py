@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 
 import pliant as pl
+from pliant.core.equilibrium import Result
 from pliant.errors import FileFormatError, InputError, UnreachableTargetError
 from pliant.io.recording import load_recording, save_recording
 from pliant.session import GripEvent, Session, replay
@@ -55,6 +56,12 @@ def test_replay_is_deterministic_and_publishes_real_forces(problem):
     direct = pl.solve(last.problem)
     assert np.allclose(last.reactions["hand"].force, direct.reactions["hand"].force,
                        rtol=1e-6, atol=1e-9)
+    # the same answer as the direct solve's in both models, its stability included (a
+    # 2D session had none), through the one interface both equilibria give
+    assert isinstance(direct, Result)
+    assert last.stable is direct.stable is True
+    assert last.smallest_eigenvalue == pytest.approx(direct.stability[1], rel=1e-6)
+    assert np.allclose(last.bending_moment, direct.bending_magnitude, rtol=1e-6, atol=1e-9)
 
 
 def test_drift_tolerance_and_requests_set_when_to_solve():

@@ -41,7 +41,7 @@ from pliant.assembly.checks import (
     zone_of,
 )
 from pliant.assembly.path import PathRun, StepRecord, follow_path
-from pliant.core.equilibrium import stretch_summary
+from pliant.core.equilibrium import Equilibrium3D, Result, stretch_summary
 from pliant.core.events import WarmStartLost, has
 from pliant.core.numbers import clean, triple
 from pliant.core.rules import Capacity, EvaluationSettings, PartKind, Rules
@@ -194,7 +194,7 @@ class GripStep:
     s: float
 
 
-def tangent_at(eq: Any, s: float) -> np.ndarray:
+def tangent_at(eq: Result, s: float) -> np.ndarray:
     """The part's unit tangent (3,) at its node nearest arc length s [m]."""
     return eq.tangent[int(np.argmin(np.abs(eq.s - s)))]
 
@@ -205,7 +205,7 @@ def outward_sign(s: float, length: float) -> float:
     return 1.0 if s > 0.5 * length else -1.0
 
 
-def grip_step(eq: Any, name: str, extra_push: float = 0.0,
+def grip_step(eq: Result, name: str, extra_push: float = 0.0,
               push_axis: np.ndarray | None = None) -> GripStep:
     """The grip ``name`` at equilibrium ``eq``. ``extra_push`` [N] along ``push_axis`` is
     added to the force the grip applies (a connector's own mating force)."""
@@ -543,7 +543,7 @@ def _arrival(port: Any) -> np.ndarray:
     return -np.asarray(port.axis, float) / np.linalg.norm(port.axis)
 
 
-def twist_rate(eq: Any, torsional_stiffness: float) -> float:
+def twist_rate(eq: Equilibrium3D, torsional_stiffness: float) -> float:
     """The largest twist rate [deg/m] along a shape: torque / GJ."""
     return math.degrees(float(np.abs(eq.torque).max()) / torsional_stiffness)
 

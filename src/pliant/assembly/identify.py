@@ -641,7 +641,8 @@ def _support_contact(half: float, a: float, delta: float, label: str) -> tuple[f
             eq = solve(Problem(unit, (clamp(0.0, (0.0, 0.0), 0.0, "middle"),
                                       push(1.0, (0.0, beta), follower=True, name="support"))))
             x, y = eq.position[-1]
-            cache[beta] = (float(x), float(y), float(eq.angle[-1]), float(eq.curvature[0]))
+            tx, ty = eq.tangent[-1]
+            cache[beta] = (float(x), float(y), math.atan2(ty, tx), float(eq.curvature[0]))
         return cache[beta]
 
     def gap(beta: float) -> float:

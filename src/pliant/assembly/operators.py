@@ -36,6 +36,7 @@ from pliant.assembly.evaluate import (
     tangent_at,
 )
 from pliant.core.conditions import push
+from pliant.core.equilibrium import Equilibrium3D
 from pliant.core.numbers import triple
 from pliant.core.rules import Capacity, EvaluationSettings, Rules
 from pliant.errors import PliantError
@@ -86,7 +87,7 @@ class _Placement:
         self.solver, self.rows, self.friction = solver, rows, friction
         self.solves = 0
 
-    def solve(self, f: np.ndarray) -> Any:
+    def solve(self, f: np.ndarray) -> Equilibrium3D:
         """The equilibrium with the push f, warm-started from the last one solved here
         (the first from ``warm``: the one-hand equilibrium, or a neighbouring step's
         with the second hand)."""
@@ -107,7 +108,7 @@ class _Placement:
         return max(_ratio(first, self.rows, self.friction),
                    _ratio(second, self.rows, self.friction))
 
-    def objective(self, eq: Any, f: np.ndarray) -> float:
+    def objective(self, eq: Equilibrium3D, f: np.ndarray) -> float:
         return self.worst(grip_step(eq, self.grip).wrench, f, tangent_at(eq, self.s2))
 
     def sensitivity(self, eq0: Any, f0: np.ndarray) -> np.ndarray | None:

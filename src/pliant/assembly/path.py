@@ -16,6 +16,7 @@ from typing import Any
 
 import numpy as np
 
+from pliant.core.equilibrium import Equilibrium3D
 from pliant.core.events import WarmStartLost, has
 from pliant.core.numbers import triple
 from pliant.core.problem import Problem
@@ -157,7 +158,7 @@ def follow_path(start: Problem, path: list[Problem], grip: str, *, margin: float
     return run
 
 
-def _record(eq: Any, grip: str, progress: float, margin: float,
+def _record(eq: Equilibrium3D, grip: str, progress: float, margin: float,
             seconds: float) -> StepRecord:
     load = eq.loads[grip]
     report = of_equilibrium(eq, margin=margin, subdivide=4)

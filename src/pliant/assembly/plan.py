@@ -81,6 +81,7 @@ from pliant.assembly.evaluate import (
     twist_rate,
 )
 from pliant.assembly.path import follow_path
+from pliant.core.equilibrium import Equilibrium3D
 from pliant.core.numbers import triple
 from pliant.core.planning import PlanSettings
 from pliant.core.problem import Problem
@@ -251,7 +252,7 @@ class _Node:
     path), and the node it was reached from (None: the start)."""
 
     pose: Pose
-    eq: Any
+    eq: Equilibrium3D
     peak: float
     via: tuple[Pose, ...] = ()
     parent: _Node | None = field(default=None, repr=False)
@@ -313,7 +314,7 @@ class _Tree:
                            tangent=tuple(map(float, tangent)))
         return replace(problem, conditions=tuple(moved(c) for c in problem.conditions))
 
-    def demand(self, eq: Any) -> float:
+    def demand(self, eq: Equilibrium3D) -> float:
         """The largest ratio of a hand demand at the grip to its red onset."""
 
         settings = self.scene.evaluation
@@ -322,7 +323,7 @@ class _Tree:
         return max(wrench.demand(r.demand, self.rules.hand_friction) / r.yellow
                    for r in rows)
 
-    def check_step(self, eq: Any, near_port: bool = False) -> None:
+    def check_step(self, eq: Equilibrium3D, near_port: bool = False) -> None:
         """Raise ``_Blocked`` naming why the step ``eq`` is not acceptable."""
 
         if self.bend_limit is not None or self.kink_limit is not None:
@@ -348,7 +349,7 @@ class _Tree:
                 if float(np.linalg.norm(f)) > limit:
                     raise _Blocked(f"contact force from {name}")
 
-    def _solve(self, problem: Problem, eq: Any) -> Any:
+    def _solve(self, problem: Problem, eq: Equilibrium3D) -> Equilibrium3D:
         """One step, followed from ``eq`` only: where its branch ends, the part would
         snap, and the step is refused rather than solved afresh."""
 
@@ -465,7 +466,7 @@ class Planner:
         self.trees: dict[str, _Tree] = {}
         self.forest: list[_Node] = []  # every pose reached from the start, any tree
         self.queries = 0
-        self._start_eq: Any = None
+        self._start_eq: Equilibrium3D | None = None
         self._field: Any = None
 
     # -- the start and the goal -----------------------------------------------------------

@@ -31,6 +31,7 @@ from typing import Any
 import numpy as np
 
 from pliant.assembly.variation import Variation, apply, nominal_values, parse_variation, plan
+from pliant.core.equilibrium import Equilibrium3D
 from pliant.errors import InputError, PliantError
 
 STUDY_VERSION = 1
@@ -73,7 +74,7 @@ def _heap_kept() -> None:
 _NOMINAL: dict[tuple, Any] = {}  # per process: each study's nominal start, solved once
 
 
-def nominal_start(spec: StudySpec) -> Any:
+def nominal_start(spec: StudySpec) -> Equilibrium3D:
     """The nominal scene's start pose, solved once per process: every sample starts from
     it (the same branch, in a few Newton iterations where a cold start takes about a
     second). None where it has no equilibrium (the samples then start cold)."""

@@ -14,13 +14,14 @@ from rich.markup import escape
 from rich.table import Table
 
 from pliant.assembly.checks import shape_warnings
-from pliant.core.equilibrium import stretch_summary
+from pliant.core.equilibrium import Equilibrium, Equilibrium3D, Result, stretch_summary
+from pliant.core.events import SolvedTogether, has
 from pliant.core.numbers import clean
 from pliant.core.problem import Problem
 from pliant.io.jsontext import finite
 
 
-def timed_solve(problem: Problem, elements: int = 100) -> tuple[Any, float]:
+def timed_solve(problem: Problem, elements: int = 100) -> tuple[Result, float]:
     """Solve, timed without the first load of the compiled kernels (which is not the
     solver's speed): a coarse copy of the problem loads them first (8 elements in 3D,
     a few milliseconds; in 2D the problem itself, which costs about as little), then the
@@ -48,14 +49,14 @@ def _fmt(value: float, unit: str) -> str:
     return f"{value:.6g} {unit}"
 
 
-def print_summary(eq: Any, seconds: float, console: Console | None = None,
+def print_summary(eq: Result, seconds: float, console: Console | None = None,
                   report: Any = None) -> None:
     """An answer in words and tables, then its warnings (``checks.shape_warnings``, the
     viewer's words); ``report``: its interference report, for what it enters."""
     console = console or Console()
-    if eq.problem.dimension == 3:
+    if isinstance(eq, Equilibrium3D):
         _summary_3d(eq, seconds, console)
-    else:
+    elif isinstance(eq, Equilibrium):
         _summary_2d(eq, seconds, console)
     radius, at = eq.min_bend_radius()
     stable, eigen = eq.stability
@@ -66,7 +67,7 @@ def print_summary(eq: Any, seconds: float, console: Console | None = None,
         console.print(f"[red]warning[/red]: {escape(warning)}")
 
 
-def _summary_2d(eq: Any, seconds: float, console: Console) -> None:
+def _summary_2d(eq: Equilibrium, seconds: float, console: Console) -> None:
     problem = eq.problem
     x, y, angle = eq.tip
     console.print(f"[bold]{problem.name or 'problem'}[/bold]: solved in "
@@ -95,11 +96,11 @@ def _summary_2d(eq: Any, seconds: float, console: Console) -> None:
         console.print(f"note: {note}")
 
 
-def _stability_line(eq: Any) -> str:
+def _stability_line(eq: Result) -> str:
     """The stability verdict in words, with the smallest eigenvalue."""
     verdict = eq.verdict
-    if verdict == "undecided" and (getattr(eq, "fitted", ()) or getattr(eq, "branches", ())
-                                   or any(n.startswith("solved together") for n in eq.notes)):
+    if verdict == "undecided" and (getattr(eq, "fitted", None) or getattr(eq, "branches", None)
+                                   or has(eq.notes, SolvedTogether)):
         return ("stability: not assessed (solved together with other parts or sliding "
                 "clips; see the note)")
     if verdict == "undecided":
@@ -111,14 +112,14 @@ def _stability_line(eq: Any) -> str:
             "neutral": "[yellow]neutral[/yellow] (a mode that costs no energy: the part "
                        "can drift along a family of equilibria)"}[verdict]
     what = "Hessian" if eq.problem.dimension == 3 else "second variation"
-    if verdict == "neutral" and eq.problem.dimension == 3:
+    if verdict == "neutral" and isinstance(eq, Equilibrium3D):
         from pliant.models.rod3d.solver import describe_mode  # noqa: PLC0415
 
         word += f"; its free mode: {describe_mode(eq)}"
     return f"stability: {word}; smallest eigenvalue of the constrained {what} {eigen:.4g} N m"
 
 
-def _print_stretch(eq: Any, console: Console) -> None:
+def _print_stretch(eq: Result, console: Console) -> None:
     """An extensible part's elongation and largest axial force and strain, against the
     strain it tolerates."""
     stretch = stretch_summary(eq)
@@ -135,7 +136,7 @@ def _print_stretch(eq: Any, console: Console) -> None:
     console.print(line)
 
 
-def _bend_radius_line(eq: Any) -> str:
+def _bend_radius_line(eq: Result) -> str:
     """The smallest bend radius, where, and against the part's minimum."""
     radius, at = eq.min_bend_radius()
     line = f"smallest bend radius = {_fmt(radius, 'm')} at s = {at:.4g} m"
@@ -152,7 +153,7 @@ def vector_text(v, scale: float = 0.0) -> str:
     return "(" + ", ".join(f"{x:.5g}" for x in clean(v, scale)) + ")"
 
 
-def _summary_3d(eq: Any, seconds: float, console: Console) -> None:
+def _summary_3d(eq: Equilibrium3D, seconds: float, console: Console) -> None:
     problem = eq.problem
     console.print(f"[bold]{problem.name or 'problem'}[/bold] (3D, {len(eq.s) - 1} "
                   f"elements): solved in {seconds * 1e3:.2f} ms ({eq.iterations} Newton "
@@ -186,7 +187,7 @@ def _summary_3d(eq: Any, seconds: float, console: Console) -> None:
         console.print(f"note: {note}")
 
 
-def _print_others(eq: Any, console: Console) -> None:
+def _print_others(eq: Result, console: Console) -> None:
     """The parts solved with this one (a harness's branches, flexible parts it touched):
     what holds each of them (their clamps' reactions), and what they take from it."""
     for kind, key in (("branch", "branches"), ("fitted part", "fitted")):
@@ -197,9 +198,9 @@ def _print_others(eq: Any, console: Console) -> None:
             console.print(f"{kind} {name!r}: {rows}")
 
 
-def print_json(eq: Any, seconds: float, interference: Any = None) -> None:
+def print_json(eq: Result, seconds: float, interference: Any = None) -> None:
     data = eq.to_dict()
-    if eq.problem.dimension == 3 and eq.verdict == "neutral":
+    if isinstance(eq, Equilibrium3D) and eq.verdict == "neutral":
         from pliant.models.rod3d.solver import describe_mode  # noqa: PLC0415
 
         data["neutral_mode"] = describe_mode(eq)
@@ -215,7 +216,7 @@ def print_json(eq: Any, seconds: float, interference: Any = None) -> None:
     print(json.dumps(finite(data), indent=1, allow_nan=False))
 
 
-def print_contacts(eq: Any, console: Console) -> None:
+def print_contacts(eq: Equilibrium3D, console: Console) -> None:
     """What each obstacle applies to a 3D equilibrium's part, and at how many points."""
     for name, force in eq.contacts.by_obstacle().items():
         points = sum(1 for o in eq.contacts.obstacle if o == name)

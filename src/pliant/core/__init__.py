@@ -7,6 +7,7 @@ from pliant.core.conditions import pin as pin
 from pliant.core.conditions import push as push
 from pliant.core.equilibrium import Equilibrium as Equilibrium
 from pliant.core.equilibrium import Equilibrium3D as Equilibrium3D
+from pliant.core.equilibrium import Result as Result
 from pliant.core.equilibrium import StationLoad as StationLoad
 from pliant.core.loads import DistributedLoad as DistributedLoad
 from pliant.core.part import Material as Material

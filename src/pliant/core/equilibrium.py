@@ -14,7 +14,7 @@ import math
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from functools import cached_property
-from typing import Any
+from typing import Any, Protocol, runtime_checkable
 
 import numpy as np
 
@@ -42,6 +42,61 @@ def stability_verdict(stability: tuple[bool | None, float | None], part) -> str:
     if abs(eigen) <= NEUTRAL * part.bending_stiffness / part.length:
         return "neutral"
     return "stable" if stable else "unstable"
+
+
+@runtime_checkable
+class Result(Protocol):
+    """What every equilibrium gives, 2D (``Equilibrium``) or 3D (``Equilibrium3D``):
+    the interface the CLI, the session, the evaluation and the reports read, so that
+    none of them asks which model answered. Arrays along s are per node; moments
+    [N m] and forces [N] in the global frame; ``bending_magnitude`` is |M| without the
+    twist (what bends the part), ``curvature`` the bending curvature's size."""
+
+    @property
+    def problem(self) -> Problem: ...
+    @property
+    def residual(self) -> float: ...
+    @property
+    def iterations(self) -> int: ...
+    @property
+    def steps(self) -> int: ...
+    @property
+    def notes(self) -> tuple[str, ...]: ...
+    @property
+    def state(self) -> Any: ...
+    @property
+    def status(self) -> Status: ...
+    @property
+    def events(self) -> tuple[Event, ...]: ...
+    @property
+    def stability(self) -> tuple[bool | None, float | None]: ...
+    @property
+    def stable(self) -> bool | None: ...
+    @property
+    def verdict(self) -> str: ...
+    @property
+    def s(self) -> np.ndarray: ...
+    @property
+    def position(self) -> np.ndarray: ...
+    @property
+    def tangent(self) -> np.ndarray: ...
+    @property
+    def energy(self) -> float: ...
+    @property
+    def loads(self) -> dict[str, StationLoad]: ...
+    @property
+    def reactions(self) -> dict[str, StationLoad]: ...
+    @property
+    def axial_force(self) -> np.ndarray: ...
+    @property
+    def elongation(self) -> float: ...
+    @property
+    def curvature(self) -> np.ndarray: ...
+    @property
+    def bending_magnitude(self) -> np.ndarray: ...
+    def max_moment(self) -> tuple[float, float]: ...
+    def min_bend_radius(self) -> tuple[float, float]: ...
+    def to_dict(self) -> dict[str, Any]: ...
 
 
 def _strain(part, axial: np.ndarray) -> np.ndarray:
@@ -215,6 +270,11 @@ class Equilibrium:
     @property
     def bending_moment(self) -> np.ndarray:
         return self.samples.bending_moment
+
+    @property
+    def bending_magnitude(self) -> np.ndarray:
+        """|M| along s [N m] (see ``Result``)."""
+        return np.abs(np.asarray(self.bending_moment, float))
 
     @property
     def energy(self) -> float:
@@ -407,15 +467,41 @@ class Equilibrium3D:
     def samples(self) -> Samples3D:
         return self.sampler()
 
-    s = property(lambda self: self.samples.s)
-    position = property(lambda self: self.samples.position)
-    frames = property(lambda self: self.samples.frames)
-    element_s = property(lambda self: self.samples.element_s)
-    internal_force = property(lambda self: self.samples.internal_force)
-    internal_moment = property(lambda self: self.samples.internal_moment)
-    energy = property(lambda self: self.samples.energy)
-    loads = property(lambda self: self.samples.loads)
-    contacts = property(lambda self: self.samples.contacts)
+    @property
+    def s(self) -> np.ndarray:
+        return self.samples.s
+
+    @property
+    def position(self) -> np.ndarray:
+        return self.samples.position
+
+    @property
+    def frames(self) -> np.ndarray:
+        return self.samples.frames
+
+    @property
+    def element_s(self) -> np.ndarray:
+        return self.samples.element_s
+
+    @property
+    def internal_force(self) -> np.ndarray:
+        return self.samples.internal_force
+
+    @property
+    def internal_moment(self) -> np.ndarray:
+        return self.samples.internal_moment
+
+    @property
+    def energy(self) -> float:
+        return self.samples.energy
+
+    @property
+    def loads(self) -> dict[str, StationLoad]:
+        return self.samples.loads
+
+    @property
+    def contacts(self) -> Contacts:
+        return self.samples.contacts
 
     @cached_property
     def stability(self) -> tuple[bool | None, float | None]:
@@ -493,6 +579,13 @@ class Equilibrium3D:
         k1 = local[:, 0] / ei1 + rest[:, 0]
         k2 = local[:, 1] / ei2 + rest[:, 1]
         return np.hypot(k1, k2)
+
+    @property
+    def bending_magnitude(self) -> np.ndarray:
+        """(N+1,) [N m], |M| at the nodes without the twist (what bends the part)."""
+        m = np.asarray(self.internal_moment, float)
+        t = np.asarray(self.tangent, float)
+        return np.linalg.norm(m - np.einsum("ij,ij->i", m, t)[:, None] * t, axis=1)
 
     def max_moment(self) -> tuple[float, float]:
         """(|M| max [N m] (bending and torsion), s [m] where it occurs)."""

@@ -150,6 +150,14 @@ class PlanarRoute(Event):
     kind = "planar_route"
 
 
+class SolvedTogether(Event):
+    """The part was solved together with others (parts in contact, sliding clips, a
+    harness's junctions): its stability is not assessed, since that of one part with the
+    others' forces held as loads is not the coupled system's."""
+
+    kind = "solved_together"
+
+
 def has(notes, kind: type[Event]) -> bool:
     """Whether any of an answer's notes is an event of this kind."""
     return any(isinstance(n, kind) for n in notes)

@@ -19,6 +19,7 @@ from typing import Any
 import numpy as np
 
 from pliant.core.conditions import Condition
+from pliant.core.equilibrium import Result
 from pliant.core.events import PlanarRoute, WarmStartLost, has
 from pliant.core.problem import Problem
 from pliant.errors import ConvergenceError, IllPosedProblemError, PliantError
@@ -39,7 +40,7 @@ PLANAR_NOTE = ("found from the 3D model's equilibrium of the same problem in the
                "(the 2D routes did not reach one)")
 
 
-def solve(problem: Problem, *, warm_start: Any = None, solver: Any = None):
+def solve(problem: Problem, *, warm_start: Any = None, solver: Any = None) -> Result:
     """The equilibrium of a problem (``Equilibrium`` in 2D, ``Equilibrium3D`` in 3D).
 
     warm_start : an earlier equilibrium to start from; solver : the model's settings
@@ -119,7 +120,7 @@ def planar_start(problem: Problem) -> Any:
 
 
 def trace(problems: Iterable[Problem], *, start: Any = None,
-          solver: Any = None) -> Iterator[Any]:
+          solver: Any = None) -> Iterator[Result]:
     """Follow a sequence of problems, warm-starting each from the last (see the models'
     ``trace``); a fold raises ConvergenceError with the last good equilibrium."""
     iterator = iter(problems)

@@ -21,6 +21,7 @@ from typing import Any
 import numpy as np
 from numba import njit
 
+from pliant.core.equilibrium import Equilibrium3D, Result
 from pliant.core.numbers import triple
 from pliant.core.problem import PROBE_SAG, WALL_COMPLIANCE
 from pliant.errors import InputError
@@ -131,14 +132,14 @@ def of_curve(s: np.ndarray, points: np.ndarray, radius: float,
                         tuple(too_close))
 
 
-def of_equilibrium(eq: Any, obstacles: tuple[Obstacle, ...] | None = None, *,
+def of_equilibrium(eq: Result, obstacles: tuple[Obstacle, ...] | None = None, *,
                    margin: float = 0.0, tolerance: float = 1e-6,
                    subdivide: int = 8) -> Interference:
     """The interference of a 3D equilibrium with its problem's obstacles (or others).
     The tube's radius is the part's outer radius (0: a line, when it has none). A
     flexible part already fitted is measured as it is in this answer: deformed where
     the part touched it (``eq.fitted``), else at rest."""
-    if eq.problem.dimension != 3:
+    if not isinstance(eq, Equilibrium3D):
         raise InputError("eq", "interference is checked in 3D scenes; this is a 2D answer")
     obstacles = eq.problem.obstacles if obstacles is None else obstacles
     return of_curve(eq.s, eq.position, eq.problem.part.tube_radius, obstacles,
@@ -146,12 +147,12 @@ def of_equilibrium(eq: Any, obstacles: tuple[Obstacle, ...] | None = None, *,
                     tubes=fitted_tubes(eq, obstacles))
 
 
-def fitted_tubes(eq: Any, obstacles) -> dict[str, tuple[np.ndarray, float, float]]:
+def fitted_tubes(eq: Equilibrium3D, obstacles) -> dict[str, tuple[np.ndarray, float, float]]:
     """The fitted flexible parts among ``obstacles``, by name: (neutral line [m], outer
     radius [m], allowed overlap [m]), deformed as in ``eq`` where it touched them, else
     at rest (see ``of_curve``)."""
     out = {}
-    deformed = {id(f.problem): f for f in getattr(eq, "fitted", ())}
+    deformed = {id(f.problem): f for f in eq.fitted}
     forces = eq.contacts.by_obstacle() if deformed else {}
     for o in obstacles:
         fit = getattr(o, "fitted", None)

@@ -17,7 +17,7 @@ from typing import Any
 
 import numpy as np
 
-from pliant.core.equilibrium import StationLoad
+from pliant.core.equilibrium import Equilibrium3D, StationLoad
 from pliant.core.problem import Problem
 from pliant.errors import PliantError
 from pliant.scene.interference import fitted_tubes
@@ -104,12 +104,12 @@ class AccurateSolver:
                                   {}, error=str(err),
                                   solve_seconds=time.perf_counter() - start)
         self.last = eq
-        stable, smallest = (eq.stability if problem.dimension == 3 else (None, None))
+        stable, smallest = eq.stability
         three: dict[str, Any] = {  # what only the 3D model has
             "tangent": np.array(eq.tangent), "torque": np.array(eq.torque),
             "fitted": fitted_tubes(eq, problem.obstacles),
             "branches": {b.problem.name: (np.array(b.position), b.problem.part.tube_radius)
-                         for b in eq.branches}} if problem.dimension == 3 else {}
+                         for b in eq.branches}} if isinstance(eq, Equilibrium3D) else {}
         return AccurateResult(index=index, problem=problem, s=np.array(eq.s),
                               position=np.array(eq.position), loads=dict(eq.loads),
                               residual=float(eq.residual), iterations=int(eq.iterations),
@@ -117,19 +117,10 @@ class AccurateSolver:
                               smallest_eigenvalue=smallest,
                               solve_seconds=time.perf_counter() - start,
                               curvature=np.abs(np.asarray(eq.curvature, float)),
-                              bending_moment=_bending_moment(eq),
-                              contacts=getattr(eq, "contacts", None),
+                              bending_moment=eq.bending_magnitude,
+                              contacts=eq.contacts if isinstance(eq, Equilibrium3D) else None,
                               min_bend_radius=eq.min_bend_radius(),
                               **three)
-
-
-def _bending_moment(eq) -> np.ndarray:
-    """|M| along s [N m], the twist left out in 3D (what bends the part)."""
-    if eq.problem.dimension == 2:
-        return np.abs(np.asarray(eq.bending_moment, float))
-    m = np.asarray(eq.internal_moment, float)
-    t = np.asarray(eq.tangent, float)
-    return np.linalg.norm(m - np.einsum("ij,ij->i", m, t)[:, None] * t, axis=1)
 
 
 class InlineExecutor:

@@ -39,6 +39,7 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from pliant.core.equilibrium import Contacts, Equilibrium3D, Samples3D, StationLoad
+from pliant.core.events import SolvedTogether
 from pliant.core.problem import PROBE_SAG, WALL_COMPLIANCE, PivotClip, SlidingClip
 from pliant.errors import ConvergenceError
 from pliant.models import clock
@@ -1237,9 +1238,9 @@ def slider_loads(coupling: Coupling, states: Sequence[State], mus: Sequence[np.n
     return out
 
 
-STABILITY_NOTE = ("solved together (parts in contact or a sliding clip): stability is not "
-                  "assessed; that of each part with the others' forces held as loads would "
-                  "not be the coupled system's")
+STABILITY_NOTE = SolvedTogether(
+    "solved together (parts in contact or a sliding clip): stability is not assessed; that "
+    "of each part with the others' forces held as loads would not be the coupled system's")
 
 
 def equilibria(coupling: Coupling, states: Sequence[State], mus: Sequence[np.ndarray],
