@@ -63,6 +63,9 @@ def test_the_wheel_runs_the_demo_and_serves_the_page(installed, tmp_path):
                           env=env, capture_output=True, text=True, timeout=900)
     assert demo.returncode == 0, demo.stderr[-2000:]
     assert "compiling the solvers (first run only" in demo.stderr
+    # the signatures the first run compiles ahead by, on two cores (models.first_run)
+    assert list(installed.parent.glob("lib/python*/site-packages/pliant/models/"
+                                      "kernel_signatures.pkl"))
     for suffix in ("html", "json", "csv", "png", "glb"):
         assert (tmp_path / "out" / f"engine_bay.{suffix}").stat().st_size > 0
     report = json.loads((tmp_path / "out" / "engine_bay.json").read_text())

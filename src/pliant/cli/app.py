@@ -44,17 +44,30 @@ def _main(version: Annotated[bool, typer.Option(
     """Flexible parts (hoses, pipes, cables) in assembly and disassembly."""
 
 
-def _first_run_note() -> None:
-    """Say so (on stderr) when the numba kernels are not cached yet: a fresh install
-    compiles them once (half a minute for the demo on two cores) and should not look
-    hung."""
-    source = Path(__file__).resolve().parents[1] / "models" / "rod3d"
-    cache = source / "__pycache__"
-    pattern = "kernels.*.nbi"
-    if os.environ.get("NUMBA_CACHE_DIR"):  # numba keeps a folder per source folder there
-        cache, pattern = Path(os.environ["NUMBA_CACHE_DIR"]), f"rod3d_*/{pattern}"
-    if not any(cache.glob(pattern)):
-        typer.echo("compiling the solvers (first run only, about half a minute)…", err=True)
+def _first_run_note(three_d: bool = True) -> None:
+    """On a first run (the numba kernels not cached yet), say so on stderr, so that a
+    fresh install does not look hung, and compile the 3D kernels ahead on two cores
+    (``pliant.models.first_run``), with the kernel being compiled shown on a terminal.
+    A 2D problem's kernels compile as they are first called."""
+    from pliant.models import first_run  # noqa: PLC0415 (light: no numba until used)
+
+    if not first_run.cold():
+        return
+    if not three_d:
+        typer.echo("compiling the solvers (first run only, a few seconds)…", err=True)
+        return
+    cores = min(os.cpu_count() or 1, 2)
+    typer.echo(f"compiling the solvers (first run only, on {cores} "
+               f"core{'s' if cores > 1 else ''}, about {15 if cores > 1 else 25} s)…",
+               err=True)
+    from rich.console import Console  # noqa: PLC0415
+
+    console = Console(stderr=True)
+    if not console.is_terminal:
+        first_run.compile_ahead()
+        return
+    with console.status("compiling…") as status:
+        first_run.compile_ahead(lambda name: status.update(f"compiling {name}…"))
 
 
 class _ReadingBar:
@@ -152,7 +165,7 @@ def solve(
     elements = _elements(elements)
     scene = _load_scene(file)
     problem = scene.problem
-    _first_run_note()
+    _first_run_note(problem.dimension == 3)
     if all_:
         all_equilibria(problem, json, elements or scene.solver.elements)
         return
@@ -273,7 +286,7 @@ def _with_progress(console, scene, file: Path, work):
     problem = scene.problem
     console.print(f"[bold]{problem.name or file.stem}[/bold]: {problem.part.name}, "
                   f"{len(problem.obstacles)} obstacles, {len(scene.path)} steps")
-    _first_run_note()
+    _first_run_note(problem.dimension == 3)
     with Progress(console=console, transient=True) as bar:
         task = bar.add_task("solving the path", total=len(scene.path) + 1)
         return work(lambda k, r: bar.advance(task))
@@ -596,7 +609,7 @@ def identify(
     console = Console()
     console.print(f"[bold]{test.name}[/bold]: fitting {', '.join(test.unknowns)} to "
                   f"{len(test.measured)} measurement(s)")
-    _first_run_note()
+    _first_run_note(three_d=False)
     solver = None
     if test.problem.dimension == 3:
         from pliant.models.rod3d import RodSolver  # noqa: PLC0415

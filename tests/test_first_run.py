@@ -1,0 +1,50 @@
+"""The first run's compile on two cores (``pliant.models.first_run``): after the
+ahead-of-time compile, half in a helper process, the main job compiles nothing (so the
+recorded signatures are those the kernels are called with, and the two halves cover
+them); an unreadable signature file leaves the kernels to compile lazily."""
+
+from __future__ import annotations
+
+import json
+import os
+import subprocess
+import sys
+
+from pliant.models import first_run
+
+SCRIPT = """
+import json, sys
+from typer.testing import CliRunner
+from pliant.cli.app import app
+from pliant.models import clock, first_run
+cold = first_run.cold()
+helped = first_run.compile_ahead(cores=2)
+ahead = clock.compiling()
+result = CliRunner().invoke(app, ["demo", "--out", sys.argv[1]])
+print(json.dumps({"cold": cold, "helped": helped, "ahead": ahead, "exit": result.exit_code,
+                  "compiled": clock.compiling() - ahead, "cold_after": first_run.cold()}))
+"""
+
+
+def test_after_the_compile_ahead_the_main_job_compiles_nothing(tmp_path):
+    env = dict(os.environ, NUMBA_CACHE_DIR=str(tmp_path / "numba"))
+    done = subprocess.run([sys.executable, "-c", SCRIPT, str(tmp_path / "out")], env=env,
+                          capture_output=True, text=True, timeout=600)
+    assert done.returncode == 0, done.stderr[-2000:]
+    facts = json.loads(done.stdout.strip().splitlines()[-1])
+    assert facts["cold"] and facts["helped"] and facts["exit"] == 0
+    assert facts["ahead"] > 0.0  # this process compiled its half
+    assert facts["compiled"] == 0.0  # nothing left for the job: all from the cache
+    assert not facts["cold_after"]
+    # each kernel of both halves has its cache index, the helper's included
+    cached = {p.name.split(".")[1].rsplit("-", 1)[0] for p in (tmp_path / "numba").rglob("*.nbi")}
+    assert {name for _, name in first_run.OURS + first_run.THEIRS} <= cached
+
+
+def test_an_unreadable_signature_file_leaves_the_kernels_to_compile_lazily(tmp_path,
+                                                                            monkeypatch):
+    bad = tmp_path / "kernel_signatures.pkl"
+    bad.write_bytes(b"not a pickle")
+    monkeypatch.setattr(first_run, "SIGNATURES", bad)
+    assert first_run.compile_kernels(first_run.OURS) == 0
+    assert first_run.compile_ahead(cores=1) is False
