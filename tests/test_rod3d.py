@@ -22,7 +22,8 @@ from pliant.models import rod3d
 from pliant.models.banded import dense
 from pliant.models.rod3d import kernels
 from pliant.models.rod3d.lowering import lower, slerp_vectors
-from pliant.models.rod3d.solver import Run, Stalled, stability_dense, stability_of
+from pliant.models.rod3d.solver import Run, Stalled
+from pliant.models.rod3d.stability import stability_dense, stability_of
 
 from .helpers import EXAMPLES, precurved_3d, zoo
 

@@ -65,7 +65,7 @@ def test_a_round_clamped_strip_is_neutral_about_its_chord_and_an_oval_one_stable
     chord at no cost (its frames counter-twist uniformly), so the verdict is neutral, not
     unstable; a section stiffer about one axis picks its plane (stable)."""
     ends = (pl.clamp(0.0, (0.0, 0.0, 0.0)), pl.clamp(1.0, (0.8, 0.0, 0.0), name="end"))
-    from pliant.models.rod3d.solver import describe_mode
+    from pliant.models.rod3d.results import describe_mode
 
     round_ = pl.solve(pl.Problem(pl.Part(1.0, 1.0), ends))
     assert round_.verdict == "neutral" and round_.stable is True

@@ -113,7 +113,7 @@ def _stability_line(eq: Result) -> str:
                        "can drift along a family of equilibria)"}[verdict]
     what = "Hessian" if eq.problem.dimension == 3 else "second variation"
     if verdict == "neutral" and isinstance(eq, Equilibrium3D):
-        from pliant.models.rod3d.solver import describe_mode  # noqa: PLC0415
+        from pliant.models.rod3d.results import describe_mode  # noqa: PLC0415
 
         word += f"; its free mode: {describe_mode(eq)}"
     return f"stability: {word}; smallest eigenvalue of the constrained {what} {eigen:.4g} N m"
@@ -201,7 +201,7 @@ def _print_others(eq: Result, console: Console) -> None:
 def print_json(eq: Result, seconds: float, interference: Any = None) -> None:
     data = eq.to_dict()
     if isinstance(eq, Equilibrium3D) and eq.verdict == "neutral":
-        from pliant.models.rod3d.solver import describe_mode  # noqa: PLC0415
+        from pliant.models.rod3d.results import describe_mode  # noqa: PLC0415
 
         data["neutral_mode"] = describe_mode(eq)
     data["solve_seconds"] = seconds

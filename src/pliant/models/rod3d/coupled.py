@@ -46,16 +46,9 @@ from pliant.models import clock
 from pliant.models.banded import band_lu, band_lu_solve, band_reduce
 from pliant.models.rod3d import kernels, spline
 from pliant.models.rod3d.kernels import qexp as _qexp
-from pliant.models.rod3d.lowering import Loads, Rod, quat_matrix
-from pliant.models.rod3d.solver import (
-    CONTACT_SCALE,
-    RodSolver,
-    Run,
-    State,
-    _build,
-    _qconj,
-    _qmul,
-)
+from pliant.models.rod3d.lowering import Loads, Rod, State, qconj, qmul, quat_matrix
+from pliant.models.rod3d.results import build
+from pliant.models.rod3d.solver import CONTACT_SCALE, RodSolver, Run
 
 # Contact between parts is compliant (core.problem.WALL_COMPLIANCE: a hose wall's give;
 # a stiff pipe's is smaller, but the answer barely depends on it: 0.25 mm at 25 N), not
@@ -653,7 +646,7 @@ class Coupling:
 
         j = self.joints[k]
         q = _slerp_quats(j.turn[None], j.q_rel[None], weight)[0]
-        r = _qmul(_qconj(_qmul(qa, q)), qb)
+        r = qmul(qconj(qmul(qa, q)), qb)
         sign = 1.0 if r[0] >= 0.0 else -1.0
         skew = np.array([[0.0, -r[3], r[2]], [r[3], 0.0, -r[1]], [-r[2], r[1], 0.0]])
         J = np.empty((3, 6))
@@ -1122,8 +1115,8 @@ def _frame_hessian(jacobian, frames: tuple[np.ndarray, ...], mult: np.ndarray,
         d[c % 3] = step
         e = _qexp(d)
         plus, minus = list(frames), list(frames)
-        plus[c // 3] = _qmul(frames[c // 3], e)
-        minus[c // 3] = _qmul(frames[c // 3], _qconj(e))
+        plus[c // 3] = qmul(frames[c // 3], e)
+        minus[c // 3] = qmul(frames[c // 3], qconj(e))
         H[c] = mult @ (jacobian(*plus) - jacobian(*minus)) / (2 * step)
     return 0.5 * (H + H.T)
 
@@ -1263,7 +1256,7 @@ def equilibria(coupling: Coupling, states: Sequence[State], mus: Sequence[np.nda
         pins[pv.clip.name] = quat_matrix(states[0][1][pv.frame]) @ (-torque) * rod.moment_scale
     out = []
     for i, (run, state, extra, mine) in enumerate(zip(coupling.runs, states, contacts, held)):
-        eq = _build(run, state)
+        eq = build(run, state)
         coupled = len(extra) > 0 or bool(mine) or (i == 0 and bool(pins))
         out.append(replace(eq, residual=residual,
                            sampler=_WithContacts(eq.sampler, extra, mine,

@@ -594,3 +594,25 @@ def lower(problem: Problem, elements: int = 100) -> Rod:
                node_frame=node_frame, requested=elements, probe_elem=probe_elem,
                probe_a=probe_a, iprobe=iprobe, slot=slot, obstacles=obstacles,
                radius=radius)
+
+
+# The rod's unknowns: node positions, frame quaternions, element forces, station
+# multipliers and contact (probe) forces, in the units of the lowering.
+State = tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]
+
+
+def qmul(a, b):
+    return np.array([a[0] * b[0] - a[1] * b[1] - a[2] * b[2] - a[3] * b[3],
+                     a[0] * b[1] + a[1] * b[0] + a[2] * b[3] - a[3] * b[2],
+                     a[0] * b[2] - a[1] * b[3] + a[2] * b[0] + a[3] * b[1],
+                     a[0] * b[3] + a[1] * b[2] - a[2] * b[1] + a[3] * b[0]])
+
+
+
+def qconj(a):
+    return np.array([a[0], -a[1], -a[2], -a[3]])
+
+
+
+def skew(v):
+    return np.array([[0.0, -v[2], v[1]], [v[2], 0.0, -v[0]], [-v[1], v[0], 0.0]])

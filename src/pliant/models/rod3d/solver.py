@@ -22,9 +22,9 @@ With a warm start, the previous equilibrium's mesh is reused when only targets a
 loads moved, one Newton from it is tried, then a homotopy from it; ``trace`` never leaves
 its branch: a fold ends it with a ConvergenceError carrying the last good equilibrium.
 
-Stability (for conservative loads): the smallest eigenvalue of the Hessian of the
-Lagrangian on the tangent space of the constraints, in the metric of the part's length
-(so it converges under refinement), by shift-invert Lanczos on the band KKT matrix.
+The answer is built in ``results`` (its arrays, loads, contacts, the warm start's
+state) and its stability tested in ``stability``; the rod's unknowns and the lowering of
+a problem onto them are ``lowering``'s, the compiled terms ``kernels``'.
 """
 
 from __future__ import annotations
@@ -36,12 +36,8 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from pliant.core.equilibrium import (
-    NEUTRAL,
-    NO_CONTACTS,
     WARM_START_LOST,
-    Contacts,
     Equilibrium3D,
-    Samples3D,
     StationLoad,
     potential_energy,
 )
@@ -55,10 +51,19 @@ from pliant.core.events import (
 from pliant.core.problem import Problem
 from pliant.errors import ConvergenceError, IllPosedProblemError, InputError
 from pliant.models import clock
-from pliant.models.banded import dense
 from pliant.models.rod3d import kernels
-from pliant.models.rod3d.kernels import AXIS, FULL
-from pliant.models.rod3d.lowering import Loads, Rod, axis_basis, lower, quat_matrix
+from pliant.models.rod3d.kernels import AXIS
+from pliant.models.rod3d.lowering import (
+    Loads,
+    Rod,
+    State,
+    axis_basis,
+    lower,
+    qmul,
+    quat_matrix,
+)
+from pliant.models.rod3d.results import WarmState, build, probe, station_loads
+from pliant.models.rod3d.stability import conservative, metric, stability_of
 from pliant.models.settings import check
 
 _SWITCHES = 6  # active-set changes a Newton may take without contracting
@@ -109,7 +114,6 @@ class RodSolver:
 
 # X, Q, lam, nu and gam: positions, frames, element and station multipliers, and the
 # contact probes' normal forces (empty without obstacles).
-State = tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]
 
 _BRANCH_NOTE = "the unloaded part was a singular start"
 
@@ -126,17 +130,6 @@ class Stalled(Exception):
     loads: Loads | None = None  # its loads and targets
     ahead: tuple[Loads, ...] = ()  # what was left of the route: the leg's end and after
     status: Status = Status.FOLD  # why, for the ConvergenceError
-
-
-@dataclass(frozen=True, eq=False)
-class _WarmState:
-    rod: Rod
-    state: State
-    gauge_quat: np.ndarray
-    friction: tuple = ()  # the friction reference it was found with (see Run.hold)
-    # The softest mode, once the stability test has found it: the next warm step's
-    # Lanczos starts from it (a list, filled on first access of the stability).
-    mode: list = field(default_factory=list, compare=False)
 
 
 @dataclass
@@ -367,7 +360,7 @@ class Run:
                 self.reached.append((found, self.gauge_quat.copy(), "the straight branch"))
             # An extensible part's start is not singular: its chord shortens by
             # compression, and the route stays on the straight branch past buckling.
-            if rod.K[3] == 0.0 or not _conservative(self, found) or stability_of(
+            if rod.K[3] == 0.0 or not conservative(self, found) or stability_of(
                     self, found)[0]:
                 return found
             straight = (found, self.gauge_quat)
@@ -419,7 +412,7 @@ class Run:
                                      f"bowed toward {np.round(bow_side, 3).tolist()}"))
             # An unstable branch is not where a real part settles: try the other sides
             # for a stable one (for conservative loads, where stability is defined).
-            if not _conservative(self):
+            if not conservative(self):
                 self._bow_note(bow_side, "where its targets and loads push it" if bow_side
                                is side else "as the side its targets and loads push it to "
                                "gives no branch")
@@ -429,7 +422,7 @@ class Run:
                     unstable = (found, bow_side, self.gauge_quat)
                 continue
             stable.append((found, bow_side, self.gauge_quat,
-                           potential_energy(_probe(self, found))))
+                           potential_energy(probe(self, found))))
             if len(stable) == 2 and self.reached is None:
                 break
         if stable:
@@ -588,7 +581,7 @@ class Run:
             stable, _ = stability_of(self, current, found=mode, loads=loads)
             if stable or not mode:
                 return current
-            primal, _ = _metric(self.rod)
+            primal, _ = metric(self.rod)
             du = np.zeros(self.rod.n)
             du[np.flatnonzero(primal)] = mode[0]
             du *= push / max(float(np.abs(du).max()), 1e-300)
@@ -609,7 +602,7 @@ class Run:
         and it ends as Newton. Implicit Euler leaves a saddle (an equilibrium just past a
         fold) along its unstable direction, where a Newton would stay or wander."""
         rod = self.rod
-        primal, weight = _metric(rod)
+        primal, weight = metric(rod)
         shift_of = np.where(primal, weight, 0.0)
         kl, ku = rod.kl, rod.ku
         R, ab, _ = self.residual(state, loads, want_jac=True)
@@ -645,7 +638,7 @@ class Run:
 
     def warm(self, warm: Equilibrium3D) -> State | None:
         old = warm.state
-        if not isinstance(old, _WarmState):
+        if not isinstance(old, WarmState):
             return None
         if old.rod.key != self.rod.key:
             return self.transfer(warm, old)
@@ -667,7 +660,7 @@ class Run:
             self.stall = stall
             return None
 
-    def transfer(self, warm: Equilibrium3D, old: _WarmState) -> State | None:
+    def transfer(self, warm: Equilibrium3D, old: WarmState) -> State | None:
         """Start from an equilibrium of a problem with other conditions on the same mesh
         (a grip switched to force control, a second hand added at a node): positions,
         frames and internal forces carry over, a station's position multipliers come from
@@ -820,7 +813,7 @@ def equilibria(problem: Problem, *, solver: RodSolver | None = None,
             try:
                 if rod.gauge_frame >= 0 and rod.K[0] != rod.K[1]:
                     state = _release_roll(run, state)
-                eq = _build(run, state)
+                eq = build(run, state)
             except (Stalled, IllPosedProblemError):
                 continue
             eq = replace(eq, notes=(f"reached by the {name.replace('_', ' ')} route, "
@@ -853,7 +846,7 @@ def _solve(problem: Problem, warm_start: Equilibrium3D | None, solver: RodSolver
 
         return together.solve_fitted(problem, warm_start, solver, follow_only)
     rod = None
-    if warm_start is not None and isinstance(warm_start.state, _WarmState):
+    if warm_start is not None and isinstance(warm_start.state, WarmState):
         rod = warm_start.state.rod.retarget(problem, solver.elements)  # skips re-meshing
     run = Run(rod or lower(problem, elements=solver.elements), solver)
     state = None
@@ -879,9 +872,9 @@ def _solve(problem: Problem, warm_start: Equilibrium3D | None, solver: RodSolver
             "the targets can be reached", residual=stall.residual, progress=stall.t,
             last_good=warm_start, status=stall.status) from None
     seed = None
-    if warm_start is not None and isinstance(warm_start.state, _WarmState):
+    if warm_start is not None and isinstance(warm_start.state, WarmState):
         seed = warm_start.state.mode[0] if warm_start.state.mode else None
-    eq = _build(run, state, seed)
+    eq = build(run, state, seed)
     if warm_start is None and not problem.solved_together:  # (here: the rigid first pass)
         eq, run = _lowest(run, eq)
         eq = _with_reaction_error(run, eq.state.state, eq)
@@ -896,7 +889,7 @@ def _lowest(run: Run, eq: Equilibrium3D) -> tuple[Equilibrium3D, Run]:
     rod = run.rod
     problem = rod.problem
     if (not run.solver.lowest or rod.iprobe.shape[0] or problem.held_stations < 2
-            or not _conservative(run, eq.state.state)):
+            or not conservative(run, eq.state.state)):
         return eq, run
     left = run.deadline - clock.now()
     if left <= 0.0:
@@ -944,7 +937,7 @@ def _twin(run: Run, state: State) -> tuple[int, dict[str, StationLoad]] | None:
     found, _, status, _ = twin.newton(start, fine.target, strict=False)
     if status != kernels.CONVERGED:
         return None
-    return fine.elements, _station_loads(twin, found)
+    return fine.elements, station_loads(twin, found)
 
 
 def _with_reaction_error(run: Run, state: State, eq: Equilibrium3D) -> Equilibrium3D:
@@ -994,7 +987,7 @@ def _release_roll(run: Run, state: State) -> State:
     loads = rod.target
 
     def at(phi: float, start: State):
-        run.gauge_quat = _qmul(base, np.array([math.cos(0.5 * phi), 0.0, 0.0,
+        run.gauge_quat = qmul(base, np.array([math.cos(0.5 * phi), 0.0, 0.0,
                                                math.sin(0.5 * phi)]))
         new, _, status, energy = run.newton(start, loads, strict=False)
         return (new, float(new[3][-1]), energy) if status == kernels.CONVERGED else None
@@ -1060,299 +1053,6 @@ def _held_inside(problem: Problem) -> None:
                              f"the part's tube there would be {-gap * 1e3:.3g} mm inside "
                              f"the obstacle {problem.obstacles[k].name!r}; move the target "
                              "out of it")
-
-
-def _build(run: Run, state: State, seed: np.ndarray | None = None) -> Equilibrium3D:
-    rod = run.rod
-    nu = state[3]
-    R, _, _ = run.residual(state, rod.target)
-    if rod.gauge_frame >= 0 and abs(nu[-1]) > 1e-6:
-        raise IllPosedProblemError(
-            "nothing holds the part's twist, yet a twisting moment acts on it; prescribe an "
-            "orientation (tangent and normal) somewhere")
-    warm = _WarmState(rod, state, run.gauge_quat, run.friction)
-    return Equilibrium3D(
-        problem=rod.problem, residual=float(np.abs(R).max()), iterations=run.iterations,
-        steps=run.steps, sampler=_Sampler(run, state), notes=tuple(run.notes),
-        state=warm,
-        stability_check=(lambda: stability_of(run, state, seed, warm.mode))
-        if _conservative(run, state) else None)
-
-
-def _probe(run: Run, state: State) -> Equilibrium3D:
-    """A state reached as an equilibrium to measure (not the answer: no notes, no
-    stability)."""
-    return Equilibrium3D(problem=run.rod.problem, residual=0.0, iterations=0, steps=0,
-                         sampler=_Sampler(run, state))
-
-
-@dataclass(frozen=True, eq=False)
-class _Sampler:
-    """The arrays of an equilibrium, in SI units, made on first access."""
-
-    run: Run
-    state: State
-
-    def __call__(self) -> Samples3D:
-        rod = self.run.rod
-        X, Q, lam = self.state[:3]
-        L, fs, ms = rod.length, rod.force_scale, rod.moment_scale
-        _, _, energy = self.run.residual(self.state, rod.target)
-        frames, moments = kernels.node_outputs(Q, rod.elem_frame, rod.joint_hh,
-                                               rod.target.joint_k0, rod.K, rod.node_frame)
-        return Samples3D(s=rod.s_node * L, position=X * L, frames=frames,
-                         element_s=0.5 * (rod.s_node[1:] + rod.s_node[:-1]) * L,
-                         internal_force=lam * fs, internal_moment=moments * ms,
-                         energy=energy * rod.stiffness / L,
-                         loads=_station_loads(self.run, self.state),
-                         contacts=_contacts(self.run, self.state))
-
-
-def _contacts(run: Run, state: State) -> Contacts:
-    """The probes that push on the part: where, with what force, from which obstacle."""
-    rod = run.rod
-    gam = state[4]
-    if not gam.shape[0]:
-        return NO_CONTACTS
-    _, normals, which, _ = run.contacts(state, rod.target)
-    normal = gam[::rod.slot]
-    # Forces at rounding level (a probe just touching) are not contacts.
-    on = np.nonzero(normal > 1e-10 * max(1.0, float(normal.max())))[0]
-    e, a = rod.probe_elem[on], rod.probe_a[on]
-    points = rod.probe_points(state[0])[on] * rod.length
-    names = tuple(rod.distance_field.obstacles[o].name for o in which[on])
-    friction = np.zeros((on.shape[0], 3))
-    if rod.friction:
-        t = gam.reshape(-1, 3)[on, 1:]
-        friction = np.einsum("ki,kic->kc", t, run.friction[2][on]) * rod.force_scale
-    return Contacts(s=(rod.s_node[e] + a * rod.h[e]) * rod.length, point=points,
-                    force=normal[on, None] * normals[on] * rod.force_scale + friction,
-                    obstacle=names, friction=friction)
-
-
-def _station_loads(run: Run, state: State) -> dict[str, StationLoad]:
-    """Each condition's load on the part [N, N m]: its reactions from the multipliers,
-    its applied loads from the problem (followers resolved in their deformed frames)."""
-    rod = run.rod
-    Q, nu = state[1], state[3]
-    fs, ms = rod.force_scale, rod.moment_scale
-    e3 = np.array([0.0, 0.0, 1.0])
-    out: dict[str, StationLoad] = {}
-    for k, st in enumerate(rod.stations):
-        Rm = quat_matrix(Q[rod.st_frame[k]])
-        v = int(rod.nu_off[k])
-        reaction_force = np.zeros(3)
-        for c in range(3):
-            if rod.st_pos_mask[k, c]:
-                reaction_force[c] = -nu[v] * fs
-                v += 1
-        reaction_moment = np.zeros(3)
-        if rod.st_kind[k] == AXIS:
-            general = np.zeros(3)  # generalised force (material) of the axis constraint
-            for bvec in axis_basis(rod.target.st_tangent[k]):
-                general -= nu[v] * np.cross(e3, Rm.T @ bvec)
-                v += 1
-            reaction_moment = Rm @ general * ms
-        elif rod.st_kind[k] == FULL:
-            r = _qmul(_qconj(rod.target.st_quat[k]), Q[rod.st_frame[k]])
-            grad = 0.5 * (r[0] * np.eye(3) + _skew(r[1:]))
-            reaction_moment = Rm @ (-(grad.T @ nu[v:v + 3])) * ms
-        for cond in st.conditions:
-            flags = [st.owner[c] == cond.name for c in range(5)]
-            force = np.where(flags[:3], reaction_force, 0.0)
-            moment = reaction_moment.copy() if flags[3] else np.zeros(3)
-            applied_f = np.array([f or 0.0 for f in cond.force])
-            applied_m = np.zeros(3) if cond.moment is None else np.array(cond.moment, float)
-            if cond.follower:
-                applied_f, applied_m = Rm @ applied_f, Rm @ applied_m
-            out[cond.name] = StationLoad(cond.name, cond.s, force + applied_f,
-                                         moment + applied_m, tuple(flags))
-    return out
-
-
-def _conservative(run: Run, state: State | None = None) -> bool:
-    """Loads with a potential (no follower, no applied moment) and, at ``state``, no
-    friction force: only then is stability the energy's minimum."""
-    t = run.rod.target
-    if state is not None and run.rod.friction and np.any(state[4].reshape(-1, 3)[:, 1:]):
-        return False
-    return not (np.any(t.st_moment) or np.any(t.st_ffollow) or np.any(t.st_mfollow)
-                or (t.elem_follow is not None and np.any(t.elem_follow)))
-
-
-def _metric(rod: Rod) -> tuple[np.ndarray, np.ndarray]:
-    """Which unknowns are primal (positions and frame rotations, not multipliers), and
-    the length each stands for (lumped: half the elements at a node, a frame's element
-    or joint span): the metric that makes the discrete Hessian's eigenvalues those of
-    the continuous operator, and pseudo-time a physical relaxation."""
-    n = rod.n
-    ix = rod.ix[:, None] + np.arange(3)
-    ith = rod.ith[:, None] + np.arange(3)
-    primal = np.zeros(n, dtype=bool)
-    weight = np.zeros(n)
-    node_len = np.zeros(rod.elements + 1)
-    node_len[:-1] += 0.5 * rod.h
-    node_len[1:] += 0.5 * rod.h
-    frame_len = np.zeros(rod.ith.shape[0])
-    frame_len[rod.elem_frame] = rod.h
-    end_len = np.concatenate([[rod.joint_hh[0]], rod.joint_hh[:-1] + rod.joint_hh[1:],
-                              [rod.joint_hh[-1]]]) * 0.5
-    frame_len = np.where(frame_len > 0.0, frame_len, end_len)
-    primal[ix] = True
-    weight[ix] = node_len[:, None]
-    primal[ith] = True
-    weight[ith] = frame_len[:, None]
-    return primal, weight
-
-
-def stability_of(run: Run, state: State, seed: np.ndarray | None = None,
-               found: list | None = None, loads: Loads | None = None) -> tuple[bool, float]:
-    """(stable, smallest eigenvalue [N m]) of the Hessian of the Lagrangian on the
-    constraints' tangent space (positions and frame rotations, weighed by the metric of
-    ``_metric``): positive definite means stable.
-
-    Shift-invert Lanczos (``pliant.models.lanczos``, one numba kernel; ARPACK where it
-    does not converge) at a shift -c below any negative eigenvalue, each step
-    one solve with the band LU of the shifted KKT matrix (its solutions lie in the
-    tangent space), so the eigenvalue nearest -c is the smallest: milliseconds where a
-    dense null space takes a tenth of a second. The geometric terms that can make the
-    Hessian indefinite are bounded by the internal force n and moment m (by Young's
-    inequality, by |n| + |m|^2 / 2 min(EI, GJ) in these units); c is twice that bound.
-
-    ``seed``: the softest mode of a nearby equilibrium on the same unknowns (the step
-    before on a path), where Lanczos starts: along a path the mode changes little, so it
-    needs fewer iterations. ``found`` (a list) receives this one's mode. ``loads``: those
-    the state balances, when not the problem's (a state on the way).
-    """
-    from pliant.models.banded import band_reduce  # noqa: PLC0415
-    from pliant.models.lanczos import softest_mode  # noqa: PLC0415 (its own kernel)
-
-    rod = run.rod
-    _X, Q, lam = state[:3]
-    _, moments = kernels.node_outputs(Q, rod.elem_frame, rod.joint_hh, rod.target.joint_k0,
-                                      rod.K, rod.node_frame)
-    force = float(np.abs(lam).max(initial=0.0))
-    moment = float(np.abs(moments).max(initial=0.0))
-    c = 2.0 * (1.0 + force + moment**2 / (2.0 * float(rod.K[:3].min())))
-    primal, weight = _metric(rod)
-    _, ab, _ = run.residual(state, rod.target if loads is None else loads, want_jac=True)
-    kl, ku = rod.kl, rod.ku
-    ab[:, kl + ku] += c * np.where(primal, weight, 0.0)
-    # A free probe's row and column are the identity's and its part of every solve is 0:
-    # they leave the factorisation (a narrower band, as in the Newton steps).
-    drop = kernels.identity_rows(ab, kl, ku, rod.iprobe, rod.slot)
-    reduced, lo, up, new = band_reduce(ab, kl, ku, drop)
-    piv, ok = kernels.band_lu(reduced, lo, up)
-    if not ok:
-        return stability_dense(run, state, loads)
-    size = int(primal.sum())
-
-    primal_index = new[np.flatnonzero(primal)]
-    w = np.ascontiguousarray(weight[primal])
-    # A fixed pseudo-random start (never orthogonal to the mode by a symmetry of the
-    # problem), mixed with the nearby equilibrium's mode where there is one.
-    start = np.random.default_rng(12345).standard_normal(size)
-    start /= np.linalg.norm(start)
-    if seed is not None and seed.shape == (size,):
-        start = seed / np.linalg.norm(seed) + 0.3 * start
-    theta, vector, converged, _ = softest_mode(reduced, piv, lo, up, primal_index, w, start,
-                                               1e-10, 80)
-    if converged and theta > 0.0:
-        value = -c + 1.0 / theta
-    else:
-        keep = new >= 0
-        value, vector = _stability_arpack(reduced, piv, int(keep.sum()), lo, up,
-                                          primal[keep], weight[keep], c, size)
-        if value is None:
-            return stability_dense(run, state, loads)
-    if found is not None:
-        found[:] = [vector]
-    # Neutral (zero to the solver's accuracy: a free family) is not unstable.
-    return value > -NEUTRAL, value * rod.moment_scale  # EI / L
-
-
-def describe_mode(eq: Equilibrium3D) -> str:
-    """The softest mode of an equilibrium in words (for a neutral one: what it can do at
-    no cost): a turn of the whole part about the line through its held ends, a twist of
-    its sections with no change of shape, or a change of shape."""
-    eq.stability  # noqa: B018 (the test fills the mode)
-    warm = eq.state
-    if not isinstance(warm, _WarmState) or not warm.mode:
-        return "a mode of the discrete rod"
-    rod = warm.rod
-    primal, _ = _metric(rod)
-    order = np.flatnonzero(primal)
-    vector = np.asarray(warm.mode[0])
-    if vector.shape != order.shape:
-        return "a mode of the discrete rod"
-    at = np.searchsorted(order, rod.ix[:, None] + np.arange(3))
-    moved = vector[at]  # node displacements (units of L)
-    turned = np.delete(vector, at.ravel())
-    if np.linalg.norm(moved) < 1e-3 * np.linalg.norm(turned):
-        return "a twist of its sections with no change of shape"
-    X = warm.state[0]
-    held = [i for i in range(len(X)) if np.linalg.norm(moved[i]) < 1e-6 * np.abs(
-        moved).max()]
-    if len(held) >= 2:
-        a, b = X[held[0]], X[held[-1]]
-        chord = (b - a) / max(float(np.linalg.norm(b - a)), 1e-300)
-        arm = X - a
-        # moved = omega x arm, with omega along the chord: a turn about it
-        rotation = np.cross(chord[None, :], arm)
-        scale = float(np.sum(rotation * moved) / max(float(np.sum(rotation * rotation)),
-                                                     1e-300))
-        if np.linalg.norm(moved - scale * rotation) < 1e-2 * np.linalg.norm(moved):
-            return "a turn of the whole part about the line through its held ends"
-    return "a change of shape"
-
-
-def _stability_arpack(ab, piv, n, kl, ku, primal, weight, c, size):
-    """The same eigenvalue by ARPACK (the fallback where the kernel's Lanczos did not
-    converge): (value, vector), or (None, None)."""
-    from pliant.models.lanczos import smallest_by_arpack  # noqa: PLC0415
-
-    def solve(r: np.ndarray) -> np.ndarray:
-        rhs = np.zeros(n)
-        rhs[primal] = r.ravel()
-        return kernels.band_lu_solve(ab, piv, kl, ku, rhs)[primal]
-
-    return smallest_by_arpack(solve, weight[primal], -c)
-
-
-def stability_dense(run: Run, state: State,
-                     loads: Loads | None = None) -> tuple[bool, float]:
-    """The same test with a dense null space and eigensolver (the fallback)."""
-    from scipy.linalg import eigh, null_space  # noqa: PLC0415 (heavy; on demand)
-
-    rod = run.rod
-    _, ab, _ = run.residual(state, rod.target if loads is None else loads, want_jac=True)
-    n, kl, ku = rod.n, rod.kl, rod.ku
-    K = dense(ab, kl, ku, n)
-    primal, weight = _metric(rod)
-    H = K[np.ix_(primal, primal)]
-    A = K[np.ix_(~primal, primal)]
-    Z = null_space(A)
-    reduced = Z.T @ H @ Z
-    metric = Z.T @ (weight[primal][:, None] * Z)
-    smallest = float(eigh(0.5 * (reduced + reduced.T), 0.5 * (metric + metric.T),
-                          eigvals_only=True, subset_by_index=(0, 0))[0])
-    scale = rod.moment_scale  # EI / L
-    return smallest > -NEUTRAL, smallest * scale
-
-
-def _qmul(a, b):
-    return np.array([a[0] * b[0] - a[1] * b[1] - a[2] * b[2] - a[3] * b[3],
-                     a[0] * b[1] + a[1] * b[0] + a[2] * b[3] - a[3] * b[2],
-                     a[0] * b[2] - a[1] * b[3] + a[2] * b[0] + a[3] * b[1],
-                     a[0] * b[3] + a[1] * b[2] - a[2] * b[1] + a[3] * b[0]])
-
-
-def _qconj(a):
-    return np.array([a[0], -a[1], -a[2], -a[3]])
-
-
-def _skew(v):
-    return np.array([[0.0, -v[2], v[1]], [v[2], 0.0, -v[0]], [-v[1], v[0], 0.0]])
 
 
 def trace(problems: Iterable[Problem], *, start: Equilibrium3D | None = None,

@@ -29,8 +29,9 @@ from pliant.models.rod3d.coupled import (
     equilibria,
     no_contact_forces,
 )
-from pliant.models.rod3d.lowering import Rod, quat_matrix
-from pliant.models.rod3d.solver import RodSolver, Run, State, _qconj, _qmul
+from pliant.models.rod3d.lowering import Rod, State, qconj, qmul, quat_matrix
+from pliant.models.rod3d.results import WarmState
+from pliant.models.rod3d.solver import RodSolver, Run
 
 
 @dataclass(frozen=True, eq=False)
@@ -144,11 +145,10 @@ def _start_together(problem, own, rigid: Equilibrium3D, parts: list, solver: Rod
     """From the rigid answer: the fitted parts held still under the contact and the
     clips where they start, then let go."""
     from pliant.models.rod3d.lowering import axis_basis, lower  # noqa: PLC0415
-    from pliant.models.rod3d.solver import _WarmState  # noqa: PLC0415
 
     first = Run(lower(own, elements=solver.elements), solver)
     old = rigid.state
-    assert isinstance(old, _WarmState)
+    assert isinstance(old, WarmState)
     X, Q, lam, _, gam = old.state
     first.gauge_quat = old.gauge_quat
     rod = first.rod
@@ -234,13 +234,13 @@ def _joints(problem, runs: list[Run], states: list[State]) -> list[Joint]:
             end_b = 0 if branch.end == 0 else rb.elements
             leaving = np.asarray(branch.axis, float)
             d3 = leaving if end_b == 0 else -leaving  # the branch's tangent there
-            q_rel = _qmul(flip, quat_from_matrix(rotation_between(np.array([0.0, 0.0, 1.0]),
+            q_rel = qmul(flip, quat_from_matrix(rotation_between(np.array([0.0, 0.0, 1.0]),
                                                                   d3)))
             qa = states[0][1][rod.node_frame[end_a]]
             qb = states[k][1][rb.node_frame[end_b]]
             gap = states[k][0][end_b] * rb.length - states[0][0][end_a] * rod.length
             out.append(Joint(f"{jn.name}: {branch.name}", 0, end_a, k, end_b, q_rel, gap,
-                             _qmul(_qconj(qa), qb)))
+                             qmul(qconj(qa), qb)))
             k += 1
     return out
 
