@@ -12,7 +12,8 @@ from hypothesis import strategies as st
 from numba import njit
 
 from pliant.scene import distance
-from pliant.scene.distance import GRID_ERROR, DistanceField, Obstacle, closest_on_triangle
+from pliant.scene.distance import GRID_ERROR, DistanceField, Obstacle
+from pliant.scene.triangles import closest_on_triangle
 
 
 @njit(cache=True)

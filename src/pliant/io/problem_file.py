@@ -514,7 +514,7 @@ def _solver_source() -> bytes:
     """The hash of the modules an equilibrium of a 3D part depends on."""
     root = Path(__file__).resolve().parents[1]
     files = sorted([*(root / "core").glob("*.py"), *(root / "models").glob("*.py"),
-                    *(root / "models" / "rod3d").glob("*.py"), root / "scene" / "distance.py"])
+                    *(root / "models" / "rod3d").glob("*.py"), *(root / "scene").glob("*.py")])
     return cache.digest(*(f.read_bytes() for f in files)).encode()
 
 

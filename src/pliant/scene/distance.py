@@ -1,20 +1,21 @@
 """Signed distances from points to the obstacles of a scene, with their gradients.
 
-Primitives (sphere, box, capped cylinder, half-space) have exact closed-form distances.
-A triangle mesh has two levels:
+Primitives (sphere, box, capped cylinder, half-space) have exact closed-form distances
+(``primitives``). A triangle mesh has two levels:
 
-- a signed distance grid (trilinear interpolation and its gradient), computed once per
-  mesh (exact in a band round the surface, a Euclidean distance transform beyond it)
-  and cached on disk under the hash of its vertices and faces: cheap, and within 2.6
+- a signed distance grid (``grid``: trilinear interpolation and its gradient), computed
+  once per mesh (exact in a band round the surface, a Euclidean distance transform beyond
+  it) and cached on disk under the hash of its vertices and faces: cheap, and within 2.6
   cells of the truth;
-- an exact query (the closest triangle found through a uniform hash of the triangles;
-  the sign from the angle-weighted pseudonormal of the closest feature, Baerentzen and
-  Aanaes, IEEE TVCG 11(3), 2005), used wherever the grid says the surface may be closer
-  than the caller's band (where contact is decided).
+- an exact query (``triangles``: the closest triangle found through a bounding-volume
+  tree; the sign from the angle-weighted pseudonormal of the closest feature, Baerentzen
+  and Aanaes, IEEE TVCG 11(3), 2005), used wherever the grid says the surface may be
+  closer than the caller's band (where contact is decided).
 
 A mesh that is not closed has no inside: its distance is unsigned (a shell the part must
-keep clear of). Every obstacle is packed into flat arrays (``Packed``) so that the
-accurate and real-time kernels can query the whole scene inside numba.
+keep clear of). Every obstacle is packed into flat arrays (``Field``) so that the
+accurate and real-time kernels can query the whole scene inside numba; this module packs
+them and answers the queries over the whole scene (``query_points``, ``hessian_point``).
 """
 
 from __future__ import annotations
@@ -31,8 +32,18 @@ from numba import njit
 
 from pliant.io import cache as disk
 from pliant.io import progress
-
-SPHERE, BOX, CYLINDER, HALFSPACE, MESH = 0, 1, 2, 3, 4
+from pliant.scene.grid import GRID_ERROR, fill_grid, grid_sample
+from pliant.scene.primitives import (
+    BOX,
+    CYLINDER,
+    HALFSPACE,
+    MESH,
+    SPHERE,
+    primitive,
+    primitive_hessian,
+    to_local,
+)
+from pliant.scene.triangles import build_bvh, feature_hessian, mesh_feature, pseudonormals
 
 
 class Field(NamedTuple):
@@ -66,340 +77,12 @@ class Field(NamedTuple):
     g_size: np.ndarray
     g_dims: np.ndarray
 GRID_VERSION = 2
-# How far a grid value may be from the truth, in cells: sqrt(3) beyond the exact band
-# (the nearest-band-node bound), plus sqrt(3)/2 of trilinear interpolation.
-GRID_ERROR = 2.6
 
 
 # -- triangles -----------------------------------------------------------------------------
-@njit(cache=True)
-def closest_on_triangle(p, a, b, c):
-    """The point of triangle abc closest to p, as (x, y, z, feature): feature 0 the face,
-    1, 2, 3 the edges ab, bc, ca, 4, 5, 6 the vertices a, b, c (Ericson, Real-Time
-    Collision Detection, 5.1.5). Scalars only: it runs in the innermost loop."""
-    abx, aby, abz = b[0] - a[0], b[1] - a[1], b[2] - a[2]
-    acx, acy, acz = c[0] - a[0], c[1] - a[1], c[2] - a[2]
-    apx, apy, apz = p[0] - a[0], p[1] - a[1], p[2] - a[2]
-    d1 = abx * apx + aby * apy + abz * apz
-    d2 = acx * apx + acy * apy + acz * apz
-    if d1 <= 0.0 and d2 <= 0.0:
-        return a[0], a[1], a[2], 4
-    bpx, bpy, bpz = p[0] - b[0], p[1] - b[1], p[2] - b[2]
-    d3 = abx * bpx + aby * bpy + abz * bpz
-    d4 = acx * bpx + acy * bpy + acz * bpz
-    if d3 >= 0.0 and d4 <= d3:
-        return b[0], b[1], b[2], 5
-    vc = d1 * d4 - d3 * d2
-    if vc <= 0.0 and d1 >= 0.0 and d3 <= 0.0:
-        v = d1 / (d1 - d3)
-        return a[0] + v * abx, a[1] + v * aby, a[2] + v * abz, 1
-    cpx, cpy, cpz = p[0] - c[0], p[1] - c[1], p[2] - c[2]
-    d5 = abx * cpx + aby * cpy + abz * cpz
-    d6 = acx * cpx + acy * cpy + acz * cpz
-    if d6 >= 0.0 and d5 <= d6:
-        return c[0], c[1], c[2], 6
-    vb = d5 * d2 - d1 * d6
-    if vb <= 0.0 and d2 >= 0.0 and d6 <= 0.0:
-        w = d2 / (d2 - d6)
-        return a[0] + w * acx, a[1] + w * acy, a[2] + w * acz, 3
-    va = d3 * d6 - d5 * d4
-    if va <= 0.0 and (d4 - d3) >= 0.0 and (d5 - d6) >= 0.0:
-        w = (d4 - d3) / ((d4 - d3) + (d5 - d6))
-        return (b[0] + w * (c[0] - b[0]), b[1] + w * (c[1] - b[1]), b[2] + w * (c[2] - b[2]),
-                2)
-    denom = 1.0 / (va + vb + vc)
-    v = vb * denom
-    w = vc * denom
-    return (a[0] + abx * v + acx * w, a[1] + aby * v + acy * w, a[2] + abz * v + acz * w, 0)
-
-
-@njit(cache=True)
-def _select(order, key, lo, hi, target):
-    """Reorder order[lo:hi + 1] so that the entry at ``target`` is the one a sort by key
-    would put there, with no larger key before it and no smaller after (Hoare's
-    selection: linear time, where a sort at every node of a tree costs a log more)."""
-    while hi > lo:
-        mid = (lo + hi) // 2
-        a, b, c = key[order[lo]], key[order[mid]], key[order[hi]]
-        pivot = max(min(a, b), min(max(a, b), c))  # the median of the three
-        i, j = lo, hi
-        while i <= j:
-            while key[order[i]] < pivot:
-                i += 1
-            while key[order[j]] > pivot:
-                j -= 1
-            if i <= j:
-                order[i], order[j] = order[j], order[i]
-                i += 1
-                j -= 1
-        if target <= j:
-            hi = j
-        elif target >= i:
-            lo = i
-        else:
-            return
-
-
-@njit(cache=True)
-def build_bvh(tri, leaf_size=4):
-    """An axis-aligned bounding box tree over the triangles (median splits on the
-    longest axis of the centroids, by selection). Returns (order, lo, hi, left, right, start,
-    count):
-    triangles order[start:start + count] in each leaf; left = -1 marks a leaf."""
-    T = tri.shape[0]
-    centroid = np.empty((T, 3))
-    tlo = np.empty((T, 3))
-    thi = np.empty((T, 3))
-    for t in range(T):
-        for a in range(3):
-            x0, x1, x2 = tri[t, 0, a], tri[t, 1, a], tri[t, 2, a]
-            centroid[t, a] = (x0 + x1 + x2) / 3.0
-            tlo[t, a] = min(x0, min(x1, x2))
-            thi[t, a] = max(x0, max(x1, x2))
-    order = np.arange(T)
-    cap = 2 * T + 1
-    lo = np.empty((cap, 3))
-    hi = np.empty((cap, 3))
-    left = np.full(cap, -1, dtype=np.int64)
-    right = np.full(cap, -1, dtype=np.int64)
-    start = np.zeros(cap, dtype=np.int64)
-    count = np.zeros(cap, dtype=np.int64)
-    stack = np.empty((cap, 2), dtype=np.int64)  # (node, unused)
-    nodes = 1
-    start[0] = 0
-    count[0] = T
-    top = 1
-    stack[0, 0] = 0
-    while top > 0:
-        top -= 1
-        node = stack[top, 0]
-        s0, n0 = start[node], count[node]
-        for a in range(3):
-            lo[node, a] = np.inf
-            hi[node, a] = -np.inf
-        for e in range(s0, s0 + n0):
-            t = order[e]
-            for a in range(3):
-                lo[node, a] = min(lo[node, a], tlo[t, a])
-                hi[node, a] = max(hi[node, a], thi[t, a])
-        if n0 <= leaf_size:
-            continue
-        cmin = np.full(3, np.inf)
-        cmax = np.full(3, -np.inf)
-        for e in range(s0, s0 + n0):
-            for a in range(3):
-                c = centroid[order[e], a]
-                cmin[a] = min(cmin[a], c)
-                cmax[a] = max(cmax[a], c)
-        axis = int(np.argmax(cmax - cmin))
-        half = n0 // 2
-        _select(order, centroid[:, axis], s0, s0 + n0 - 1, s0 + half)
-        a_, b_ = nodes, nodes + 1
-        nodes += 2
-        left[node], right[node] = a_, b_
-        start[a_], count[a_] = s0, half
-        start[b_], count[b_] = s0 + half, n0 - half
-        stack[top, 0] = a_
-        stack[top + 1, 0] = b_
-        top += 2
-    return (order, lo[:nodes].copy(), hi[:nodes].copy(), left[:nodes].copy(),
-            right[:nodes].copy(), start[:nodes].copy(), count[:nodes].copy())
-
-
-@njit(cache=True, inline="always")
-def _box_distance2(p, lo, hi):
-    d2 = 0.0
-    for a in range(3):
-        if p[a] < lo[a]:
-            d2 += (lo[a] - p[a]) ** 2
-        elif p[a] > hi[a]:
-            d2 += (p[a] - hi[a]) ** 2
-    return d2
-
-
-@njit(cache=True)
-def _mesh_exact(p, tri, pseudo, solid, order, lo, hi, left, right, start, count):
-    """(signed distance, unit gradient) from p to a mesh, exact: a branch-and-bound walk
-    of its box tree. pseudo (T, 7, 3): the pseudonormals of each triangle's face, edges
-    and vertices (the sign)."""
-    dist, grad, _, _ = _mesh_feature(p, tri, pseudo, solid, order, lo, hi, left, right,
-                                     start, count)
-    return dist, grad
-
-
-@njit(cache=True)
-def _mesh_feature(p, tri, pseudo, solid, order, lo, hi, left, right, start, count):
-    """(signed distance, unit gradient, triangle, feature) of the mesh point nearest p:
-    the feature as ``closest_on_triangle`` numbers it."""
-    best = np.inf
-    best_t = -1
-    best_r = 0
-    bq0 = bq1 = bq2 = 0.0
-    stack = np.empty(64, dtype=np.int64)
-    stack[0] = 0
-    top = 1
-    while top > 0:
-        top -= 1
-        node = stack[top]
-        if _box_distance2(p, lo[node], hi[node]) >= best:
-            continue
-        if left[node] < 0:
-            for e in range(start[node], start[node] + count[node]):
-                t = order[e]
-                qx, qy, qz, region = closest_on_triangle(p, tri[t, 0], tri[t, 1], tri[t, 2])
-                d2 = (p[0] - qx) ** 2 + (p[1] - qy) ** 2 + (p[2] - qz) ** 2
-                if d2 < best:
-                    best = d2
-                    best_t = t
-                    best_r = region
-                    bq0, bq1, bq2 = qx, qy, qz
-            continue
-        a_, b_ = left[node], right[node]
-        dl = _box_distance2(p, lo[a_], hi[a_])
-        dr = _box_distance2(p, lo[b_], hi[b_])
-        if top + 2 > stack.shape[0]:
-            grown = np.empty(2 * stack.shape[0], dtype=np.int64)
-            grown[:top] = stack[:top]
-            stack = grown
-        if dl < dr:  # the nearer child is walked first
-            stack[top] = b_
-            stack[top + 1] = a_
-        else:
-            stack[top] = a_
-            stack[top + 1] = b_
-        top += 2
-    dist = math.sqrt(best)
-    gx, gy, gz = p[0] - bq0, p[1] - bq1, p[2] - bq2
-    if dist > 1e-300:
-        grad = np.array([gx / dist, gy / dist, gz / dist])
-    else:
-        grad = pseudo[best_t, 0].copy()
-    if solid:
-        n = pseudo[best_t, best_r]
-        if gx * n[0] + gy * n[1] + gz * n[2] < 0.0:
-            return -dist, -grad, best_t, best_r
-    return dist, grad, best_t, best_r
 
 
 # -- primitives (local frame; scalars in and out: they run per point) ---------------------
-@njit(cache=True)
-def _box(x, y, z, hx, hy, hz):
-    qx, qy, qz = abs(x) - hx, abs(y) - hy, abs(z) - hz
-    ox, oy, oz = max(qx, 0.0), max(qy, 0.0), max(qz, 0.0)
-    out_len = math.sqrt(ox * ox + oy * oy + oz * oz)
-    sx = 1.0 if x >= 0.0 else -1.0
-    sy = 1.0 if y >= 0.0 else -1.0
-    sz = 1.0 if z >= 0.0 else -1.0
-    if out_len > 0.0:
-        return out_len, sx * ox / out_len, sy * oy / out_len, sz * oz / out_len
-    if qx >= qy and qx >= qz:
-        return qx, sx, 0.0, 0.0
-    if qy >= qz:
-        return qy, 0.0, sy, 0.0
-    return qz, 0.0, 0.0, sz
-
-
-@njit(cache=True)
-def _cylinder(x, y, z, radius, half):
-    """Capped cylinder along local z."""
-    rho = math.sqrt(x * x + y * y)
-    qx = rho - radius
-    qz = abs(z) - half
-    rx, ry = (x / rho, y / rho) if rho > 1e-300 else (1.0, 0.0)
-    sz = 1.0 if z >= 0.0 else -1.0
-    if qx > 0.0 and qz > 0.0:  # beyond the rim
-        d = math.sqrt(qx * qx + qz * qz)
-        return d, qx * rx / d, qx * ry / d, qz * sz / d
-    if qx >= qz:  # the side is nearer (or the only face outside)
-        return qx, rx, ry, 0.0
-    return qz, 0.0, 0.0, sz
-
-
-@njit(cache=True)
-def _primitive(kind, x, y, z, param):
-    """(distance, gradient x, y, z) of a primitive in its frame."""
-    if kind == SPHERE:
-        r = math.sqrt(x * x + y * y + z * z)
-        if r > 1e-300:
-            return r - param[0], x / r, y / r, z / r
-        return -param[0], 0.0, 0.0, 1.0
-    if kind == BOX:
-        return _box(x, y, z, param[0], param[1], param[2])
-    if kind == CYLINDER:
-        return _cylinder(x, y, z, param[0], param[1])
-    return z, 0.0, 0.0, 1.0  # HALFSPACE: solid below the local plane z = 0
-
-
-@njit(cache=True, inline="always")
-def _local(p, R, t):
-    """p (world) in the frame of an obstacle placed by R (local to world) and t."""
-    ux, uy, uz = p[0] - t[0], p[1] - t[1], p[2] - t[2]
-    return (R[0, 0] * ux + R[1, 0] * uy + R[2, 0] * uz,
-            R[0, 1] * ux + R[1, 1] * uy + R[2, 1] * uz,
-            R[0, 2] * ux + R[1, 2] * uy + R[2, 2] * uz)
-
-
-@njit(cache=True)
-def _feature_hessian(dist, n, tangent, kind):
-    """The signed distance's Hessian beyond a feature of the closest point: H = (I - n n^T
-    - dc/dp) / d with dc/dp the closest point's motion (I - n n^T on a face: H = 0; the
-    edge direction e e^T on an edge; 0 at a vertex). kind 0 face, 1 edge, 2 vertex."""
-    H = np.zeros((3, 3))
-    if kind == 0 or abs(dist) < 1e-12:
-        return H
-    for i in range(3):
-        for j in range(3):
-            H[i, j] = (1.0 if i == j else 0.0) - n[i] * n[j]
-            if kind == 1:
-                H[i, j] -= tangent[i] * tangent[j]
-    return H / dist
-
-
-@njit(cache=True)
-def _primitive_hessian(kind, x, y, z, param):
-    """The Hessian of a primitive's signed distance in its frame, exact piece by piece
-    (the pieces meet where the gradient is continuous and its derivative jumps: a
-    semismooth Newton needs the piece's own, not a difference straddling the seam)."""
-    H = np.zeros((3, 3))
-    if kind == SPHERE:
-        r = math.sqrt(x * x + y * y + z * z)
-        if r > 1e-12:
-            u = np.array([x, y, z]) / r
-            for i in range(3):
-                for j in range(3):
-                    H[i, j] = ((1.0 if i == j else 0.0) - u[i] * u[j]) / r
-        return H
-    if kind == BOX:
-        q = np.array([abs(x) - param[0], abs(y) - param[1], abs(z) - param[2]])
-        if q.max() <= 0.0:
-            return H  # inside: a face's distance
-        d, gx, gy, gz = _box(x, y, z, param[0], param[1], param[2])
-        g = np.array([gx, gy, gz])
-        for i in range(3):
-            for j in range(3):
-                H[i, j] = ((1.0 if (i == j and q[i] > 0.0) else 0.0) - g[i] * g[j]) / d
-        return H
-    if kind == CYLINDER:
-        rho = math.sqrt(x * x + y * y)
-        if rho < 1e-12:
-            return H
-        radius, half = param[0], param[1]
-        qx, qz = rho - radius, abs(z) - half
-        t = np.array([-y / rho, x / rho, 0.0])
-        if qx > 0.0 and qz > 0.0:  # the rim: a circle
-            d, gx, gy, gz = _cylinder(x, y, z, radius, half)
-            g = np.array([gx, gy, gz])
-            for i in range(3):
-                for j in range(3):
-                    H[i, j] = ((1.0 if i == j else 0.0) - g[i] * g[j]
-                               - radius / rho * t[i] * t[j]) / d
-            return H
-        if qx >= qz:  # the side: curved round the axis only
-            for i in range(3):
-                for j in range(3):
-                    H[i, j] = t[i] * t[j] / rho
-        return H
-    return H  # HALFSPACE, caps
 
 
 @njit(cache=True)
@@ -410,7 +93,7 @@ def hessian_point(p, o, field):
     kind, rot, trans, param, mesh_id, tri = (field.kind, field.rot, field.trans,
                                              field.param, field.mesh_id, field.tri)
     R = rot[o]
-    x, y, z = _local(p, R, trans[o])
+    x, y, z = to_local(p, R, trans[o])
     if kind[o] == MESH:
         d, g, t, region = _packed_mesh_feature(x, y, z, mesh_id[o], field)
         e = np.zeros(3)
@@ -422,74 +105,24 @@ def hessian_point(p, o, field):
             feature = 1
         elif region >= 4:
             feature = 2
-        Hl = _feature_hessian(d, g, e, feature)
+        Hl = feature_hessian(d, g, e, feature)
     else:
-        Hl = _primitive_hessian(kind[o], x, y, z, param[o])
+        Hl = primitive_hessian(kind[o], x, y, z, param[o])
     return R @ Hl @ R.T
 
 
 # -- grids ---------------------------------------------------------------------------------
-@njit(cache=True, inline="always")
-def _onto_grid(f, top):
-    """A grid coordinate clamped to [0, top], and how far (in cells) it lay beyond."""
-    if f < 0.0:
-        return 0.0, -f
-    if f > top:
-        return float(top), f - top
-    return f, 0.0
-
-
-@njit(cache=True)
-def grid_sample(x, y, z, origin, size, dims, values, base):
-    """Trilinear interpolation of a grid of node values (stored from ``base``) at the
-    local point (x, y, z): (value, gradient x, y, z, how far the point lies outside the
-    grid); outside, the values are those at the nearest grid point."""
-    tx, ty, tz = dims[0] - 1, dims[1] - 1, dims[2] - 1
-    fx, ox = _onto_grid((x - origin[0]) / size, tx)
-    fy, oy = _onto_grid((y - origin[1]) / size, ty)
-    fz, oz = _onto_grid((z - origin[2]) / size, tz)
-    outside2 = (ox * ox + oy * oy + oz * oz) * size * size
-    i0 = min(int(fx), tx - 1)
-    j0 = min(int(fy), ty - 1)
-    k0 = min(int(fz), tz - 1)
-    fx -= i0
-    fy -= j0
-    fz -= k0
-    sy = dims[2]
-    sx = dims[1] * sy
-    b = base + i0 * sx + j0 * sy + k0
-    v0 = values[b]
-    v1 = values[b + 1]
-    v2 = values[b + sy]
-    v3 = values[b + sy + 1]
-    v4 = values[b + sx]
-    v5 = values[b + sx + 1]
-    v6 = values[b + sx + sy]
-    v7 = values[b + sx + sy + 1]
-    c00 = v0 * (1 - fx) + v4 * fx
-    c01 = v1 * (1 - fx) + v5 * fx
-    c10 = v2 * (1 - fx) + v6 * fx
-    c11 = v3 * (1 - fx) + v7 * fx
-    c0 = c00 * (1 - fy) + c10 * fy
-    c1 = c01 * (1 - fy) + c11 * fy
-    d = c0 * (1 - fz) + c1 * fz
-    gx = ((v4 - v0) * (1 - fy) * (1 - fz) + (v5 - v1) * (1 - fy) * fz
-          + (v6 - v2) * fy * (1 - fz) + (v7 - v3) * fy * fz) / size
-    gy = ((v2 - v0) * (1 - fx) * (1 - fz) + (v3 - v1) * (1 - fx) * fz
-          + (v6 - v4) * fx * (1 - fz) + (v7 - v5) * fx * fz) / size
-    gz = (c1 - c0) / size
-    return d, gx, gy, gz, math.sqrt(outside2)
 
 
 # -- the whole scene -----------------------------------------------------------------------
 @njit(cache=True)
 def _packed_mesh_feature(x, y, z, m, f):
-    """``_mesh_feature`` of packed mesh m of the ``Field`` f at the local point (x, y, z):
+    """``mesh_feature`` of packed mesh m of the ``Field`` f at the local point (x, y, z):
     (signed distance, unit gradient, the nearest triangle's index in ``f.tri``, its
     feature)."""
     t0, t1 = f.tri_off[m], f.tri_off[m + 1]
     n0, n1 = f.node_off[m], f.node_off[m + 1]
-    d, g, t, region = _mesh_feature(np.array([x, y, z]), f.tri[t0:t1], f.pseudo[t0:t1],
+    d, g, t, region = mesh_feature(np.array([x, y, z]), f.tri[t0:t1], f.pseudo[t0:t1],
                                     f.solid[m], f.order[t0:t1], f.node_lo[n0:n1],
                                     f.node_hi[n0:n1], f.left[n0:n1], f.right[n0:n1],
                                     f.start[n0:n1], f.count[n0:n1])
@@ -526,7 +159,7 @@ def query_points(points, band, field):
         prm = param[ob]
         k = kind[ob]
         for i in range(n):
-            x, y, z = _local(points[i], R, t)
+            x, y, z = to_local(points[i], R, t)
             if k == MESH:
                 m = mesh_id[ob]
                 di, gx, gy, gz, outside = grid_sample(x, y, z, g_origin[m], g_size[m],
@@ -545,7 +178,7 @@ def query_points(points, band, field):
                     di, gm, _, _ = _packed_mesh_feature(x, y, z, m, field)
                     gx, gy, gz = gm[0], gm[1], gm[2]
             else:
-                di, gx, gy, gz = _primitive(k, x, y, z, prm)
+                di, gx, gy, gz = primitive(k, x, y, z, prm)
             if di < d[i]:
                 d[i] = di
                 g[i, 0] = R[0, 0] * gx + R[0, 1] * gy + R[0, 2] * gz
@@ -553,51 +186,6 @@ def query_points(points, band, field):
                 g[i, 2] = R[2, 0] * gx + R[2, 1] * gy + R[2, 2] * gz
                 o[i] = ob
     return d, g, o
-
-
-@njit(cache=True)
-def _band_values(origin, size, dims, reach, tri, pseudo, solid, bvh):
-    """Exact signed distances at the grid nodes within ``reach`` of a triangle's bounding
-    box (the band round the surface); NaN elsewhere."""
-    order, lo_, hi_, left, right, start, count = bvh
-    nx, ny, nz = dims[0], dims[1], dims[2]
-    values = np.full(nx * ny * nz, np.nan)
-    p = np.empty(3)
-    lo = np.empty(3, dtype=np.int64)
-    hi = np.empty(3, dtype=np.int64)
-    for t in range(tri.shape[0]):
-        for a in range(3):
-            mn = min(tri[t, 0, a], min(tri[t, 1, a], tri[t, 2, a])) - reach
-            mx = max(tri[t, 0, a], max(tri[t, 1, a], tri[t, 2, a])) + reach
-            lo[a] = max(int(math.ceil((mn - origin[a]) / size)), 0)
-            hi[a] = min(int(math.floor((mx - origin[a]) / size)), dims[a] - 1)
-        for i in range(lo[0], hi[0] + 1):
-            for j in range(lo[1], hi[1] + 1):
-                for k in range(lo[2], hi[2] + 1):
-                    node = (i * ny + j) * nz + k
-                    if not math.isnan(values[node]):
-                        continue
-                    p[0] = origin[0] + i * size
-                    p[1] = origin[1] + j * size
-                    p[2] = origin[2] + k * size
-                    values[node] = _mesh_exact(p, tri, pseudo, solid, order, lo_, hi_, left,
-                                               right, start, count)[0]
-    return values
-
-
-def _fill_grid(origin, size, dims, tri, pseudo, solid, bvh):
-    """The signed distance grid: exact in a band round the surface, and beyond it the
-    distance to the nearest band node plus that node's distance (an upper bound within
-    sqrt(3) cells of the truth), with that node's sign."""
-    from scipy.ndimage import distance_transform_edt  # noqa: PLC0415 (set-up only)
-
-    values = _band_values(origin, size, dims, 1.5 * size, tri, pseudo, solid, bvh)
-    grid = values.reshape(tuple(dims))
-    band = ~np.isnan(grid)
-    gap, nearest = distance_transform_edt(~band, sampling=size, return_indices=True)
-    near = grid[tuple(nearest)]
-    filled = np.where(band, grid, np.sign(near) * (gap + np.abs(near)))
-    return np.ascontiguousarray(filled.ravel())
 
 
 # -- Python side ---------------------------------------------------------------------------
@@ -665,7 +253,7 @@ def prepare_mesh(vertices: np.ndarray, faces: np.ndarray, resolution: int = 64,
         pseudo, solid, bvh = _load_structure(structure, faces.shape[0]) if large else (
             None, False, ())
         if pseudo is None:
-            pseudo, solid = _pseudonormals(vertices, faces)
+            pseudo, solid = pseudonormals(vertices, faces)
             done(_SHARE["pseudonormals"])
             bvh = build_bvh(tri)
             done(_SHARE["tree"])
@@ -690,7 +278,7 @@ def prepare_mesh(vertices: np.ndarray, faces: np.ndarray, resolution: int = 64,
             except (OSError, ValueError):
                 values = None
         if values is None:
-            values = _fill_grid(g_origin, g_size, g_dims, tri, pseudo, solid, bvh)
+            values = fill_grid(g_origin, g_size, g_dims, tri, pseudo, solid, bvh)
             if cache:
                 _save_grid(path, values)
         done(_SHARE["grid"])
@@ -734,90 +322,6 @@ def _save_grid(path: Path, values: np.ndarray) -> None:
         os.replace(tmp, path)
     except OSError:
         pass
-
-
-def _pseudonormals(vertices: np.ndarray, faces: np.ndarray) -> tuple[np.ndarray, bool]:
-    """(T, 7, 3) pseudonormals: face normal, the three edges' (sum of the adjacent face
-    normals), the three vertices' (angle-weighted); and whether every edge has exactly
-    two faces (a closed mesh, with an inside). Edges are found by sorting one integer
-    key per edge (numpy's radix sort), the sums run in one compiled pass: a CAD part of
-    millions of triangles takes about a second."""
-    a = np.minimum(faces, np.roll(faces, -1, axis=1))  # edges (ab, bc, ca) of each face
-    b = np.maximum(faces, np.roll(faces, -1, axis=1))
-    keys = (a * np.int64(vertices.shape[0]) + b).ravel()
-    order = np.argsort(keys, kind="stable")
-    pseudo = np.zeros((faces.shape[0], 7, 3))
-    closed = _pseudonormal_sums(vertices, faces, keys, order, pseudo)
-    return pseudo, bool(closed)
-
-
-@njit(cache=True)
-def _pseudonormal_sums(vertices, faces, keys, order, pseudo):
-    """Fill ``pseudo`` (see ``_pseudonormals``) from the edges' keys sorted by ``order``;
-    True when every edge has two faces."""
-    T = faces.shape[0]
-    vert = np.zeros((vertices.shape[0], 3))
-    for f in range(T):
-        i0, i1, i2 = faces[f, 0], faces[f, 1], faces[f, 2]
-        ux = vertices[i1, 0] - vertices[i0, 0]
-        uy = vertices[i1, 1] - vertices[i0, 1]
-        uz = vertices[i1, 2] - vertices[i0, 2]
-        wx = vertices[i2, 0] - vertices[i0, 0]
-        wy = vertices[i2, 1] - vertices[i0, 1]
-        wz = vertices[i2, 2] - vertices[i0, 2]
-        nx, ny, nz = uy * wz - uz * wy, uz * wx - ux * wz, ux * wy - uy * wx
-        length = math.sqrt(nx * nx + ny * ny + nz * nz)
-        if length > 0.0:
-            nx, ny, nz = nx / length, ny / length, nz / length
-        pseudo[f, 0, 0], pseudo[f, 0, 1], pseudo[f, 0, 2] = nx, ny, nz
-        for corner in range(3):
-            ia = faces[f, corner]
-            ib = faces[f, (corner + 1) % 3]
-            ic = faces[f, (corner + 2) % 3]
-            dot = 0.0
-            uu = 0.0
-            ww = 0.0
-            for k in range(3):
-                u = vertices[ib, k] - vertices[ia, k]
-                w = vertices[ic, k] - vertices[ia, k]
-                dot += u * w
-                uu += u * u
-                ww += w * w
-            cos = dot / max(math.sqrt(uu * ww), 1e-300)
-            angle = math.acos(min(1.0, max(-1.0, cos)))
-            vert[ia, 0] += angle * nx
-            vert[ia, 1] += angle * ny
-            vert[ia, 2] += angle * nz
-    for v in range(vert.shape[0]):
-        length = max(math.sqrt(vert[v, 0] ** 2 + vert[v, 1] ** 2 + vert[v, 2] ** 2), 1e-300)
-        for k in range(3):
-            vert[v, k] /= length
-    for f in range(T):
-        for corner in range(3):
-            for k in range(3):
-                pseudo[f, 4 + corner, k] = vert[faces[f, corner], k]
-    closed = True
-    m = keys.shape[0]
-    i = 0
-    while i < m:
-        j = i
-        sx = sy = sz = 0.0
-        while j < m and keys[order[j]] == keys[order[i]]:
-            f = order[j] // 3
-            sx += pseudo[f, 0, 0]
-            sy += pseudo[f, 0, 1]
-            sz += pseudo[f, 0, 2]
-            j += 1
-        if j - i != 2:
-            closed = False
-        length = max(math.sqrt(sx * sx + sy * sy + sz * sz), 1e-300)
-        for e in range(i, j):
-            f, edge = order[e] // 3, 1 + order[e] % 3
-            pseudo[f, edge, 0] = sx / length
-            pseudo[f, edge, 1] = sy / length
-            pseudo[f, edge, 2] = sz / length
-        i = j
-    return closed
 
 
 @dataclass(frozen=True, eq=False)
