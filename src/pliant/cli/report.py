@@ -99,8 +99,8 @@ def _summary_2d(eq: Equilibrium, seconds: float, console: Console) -> None:
 def _stability_line(eq: Result) -> str:
     """The stability verdict in words, with the smallest eigenvalue."""
     verdict = eq.verdict
-    if verdict == "undecided" and (getattr(eq, "fitted", None) or getattr(eq, "branches", None)
-                                   or has(eq.notes, SolvedTogether)):
+    if verdict == "undecided" and (has(eq.notes, SolvedTogether) or (
+            isinstance(eq, Equilibrium3D) and (eq.fitted or eq.branches))):
         return ("stability: not assessed (solved together with other parts or sliding "
                 "clips; see the note)")
     if verdict == "undecided":

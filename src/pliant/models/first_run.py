@@ -84,11 +84,12 @@ def _signatures() -> dict[tuple[str, str], list[Any]]:
 
 
 def compile_kernels(kernels: Iterable[tuple[str, str]],
-                    on_kernel: Callable[[str], None] | None = None) -> int:
-    """Compile (or load from the cache) each kernel for its recorded signatures; the
-    number compiled or loaded. A signature numba refuses is skipped: the kernel then
-    compiles lazily for the one it is called with."""
-    signatures = _signatures()
+                    on_kernel: Callable[[str], None] | None = None,
+                    signatures: dict[tuple[str, str], list[Any]] | None = None) -> int:
+    """Compile (or load from the cache) each kernel for its recorded signatures (read
+    from ``SIGNATURES`` unless given); the number compiled or loaded. A signature numba
+    refuses is skipped: the kernel then compiles lazily for the one it is called with."""
+    signatures = _signatures() if signatures is None else signatures
     done = 0
     for module, name in kernels:
         if on_kernel is not None:
@@ -107,7 +108,7 @@ def compile_ahead(on_kernel: Callable[[str], None] | None = None,
     """Compile the 3D kernels a scene needs, half here and half in a helper process
     where the machine has a second core (see the module); True when a helper ran.
     ``on_kernel(name)`` is told each kernel this process starts."""
-    cores = os.cpu_count() or 1 if cores is None else cores
+    cores = (os.cpu_count() or 1) if cores is None else cores
     helper = None
     if cores >= 2:
         try:
@@ -153,10 +154,11 @@ def record(path: Path = SIGNATURES) -> dict[tuple[str, str], list[Any]]:
 def _helper(parent: int) -> None:
     """The helper's work: its half, stopping early if the process that started it is
     gone (nothing would wait for it)."""
+    signatures = _signatures()  # read once, not once a kernel
     for kernel in THEIRS:
         if os.getppid() != parent:
             return
-        compile_kernels((kernel,))
+        compile_kernels((kernel,), signatures=signatures)
 
 
 if __name__ == "__main__":
