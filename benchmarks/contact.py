@@ -16,6 +16,8 @@ accurate solve with contact, its interference and stability checks).
 same frame without the drum.
 (e) `benchmarks/contact.py resolution`: (b)'s lowering at 100, 400 and 1,600 elements,
 the Newton iterations per warm step (issue 20: they should not grow with N).
+(f) Friction while sliding: a hose lying along a bench (mu = 0.3), its end dragged
+sideways in 5 mm steps, against the same drag on a frictionless bench.
 Timings are machine-dependent; the ratios, measured in the same run, are the figures.
 """
 
@@ -196,14 +198,58 @@ def resolution(counts: tuple[int, ...] = (100, 400, 1600)) -> None:
               + (f"; {failed}" if failed else ""))
 
 
+def sliding(steps: int = 40) -> None:
+    """(f) A warm step with Coulomb friction while the part slides along a face."""
+    print("(f) warm steps with friction, 100 elements: a hose lying along a bench, its end "
+          "dragged sideways in 5 mm steps")
+    hose = pl.Part(length=1.0, bending_stiffness=0.05, mass_per_length=0.3,
+                   outer_diameter=0.02)
+
+    def held(y: float, mu: float) -> pl.Problem:
+        bench = Obstacle.box("bench", (0.6, 0.6, 0.1), (0.5, 0.0, -0.11)).with_friction(mu)
+        return pl.Problem(hose, (pl.clamp(0.0, position=(0.0, 0.0, 0.0), tangent=(1, 0, 0),
+                                          normal=(0, 0, 1)),
+                                 pl.pin(1.0, position=(0.95 - 0.3 * y, y, 0.0), name="hand")),
+                          gravity=(0.0, 0.0, -9.81), obstacles=(bench,))
+
+    figures = {}
+    for label, mu in (("mu = 0.3", 0.3), ("frictionless", 0.0)):
+        eq = rod3d.solve(held(0.0, mu))
+        eq = rod3d.solve(held(0.005, mu), warm_start=eq)  # friction builds up: not timed
+        times, iterations, slide = [], [], []
+        for y in 0.005 * np.arange(2, steps + 2):
+            start = time.perf_counter()
+            eq = rod3d.solve(held(y, mu), warm_start=eq)
+            times.append(time.perf_counter() - start)
+            iterations.append(eq.iterations)
+            if mu:
+                c = eq.contacts
+                normal = np.linalg.norm(c.force - c.friction, axis=1)
+                slide.append(np.mean(np.linalg.norm(c.friction, axis=1) > mu * normal
+                                     * (1.0 - 1e-6)))
+        figures[label] = statistics.median(times)
+        extra = (f"; {100 * statistics.median(slide):.0f} % of the contacts sliding"
+                 if slide else "")
+        print(f"    {label}: {statistics.median(times) * 1e3:.2f} ms per step (median; 90th "
+              f"percentile {np.percentile(times, 90) * 1e3:.2f} ms, slowest "
+              f"{max(times) * 1e3:.1f} ms; {statistics.median(iterations):.0f} Newton "
+              f"iterations{extra})")
+    print(f"    friction costs {figures['mu = 0.3'] / figures['frictionless']:.1f}x a "
+          "frictionless step")
+
+
 if __name__ == "__main__":
     import sys
 
     if sys.argv[1:] == ["resolution"]:  # (e) alone: it takes a minute
         resolution()
         raise SystemExit
+    if sys.argv[1:] == ["sliding"]:  # (f) alone
+        sliding()
+        raise SystemExit
     distances()
     warm_steps()
     scene()
     print("(d) real-time frames, 50 control points, a hose's end lowered past a drum")
     realtime()
+    sliding()

@@ -51,6 +51,7 @@ THEIRS: tuple[tuple[str, str], ...] = (
     ("pliant.models.rod3d.kernels", "apply_step"),
     ("pliant.models.rod3d.kernels", "difference"),
     ("pliant.models.rod3d.kernels", "unknown_sizes"),
+    ("pliant.models.rod3d.kernels", "contact_max"),
     ("pliant.models.rod3d.kernels", "node_outputs"),
     ("pliant.models.lanczos", "softest_mode"),
     ("pliant.scene.interference", "_polyline_distance"),

@@ -819,12 +819,19 @@ def contact_terms(X, gam, con, num, R, ab, want_jac):
     surface (d n / d p) enters the force's Jacobian, from the obstacle's exact Hessian.
 
     With friction (slot 3) each probe also has a tangential force t = (t1, t2) in the
-    basis (tau1, tau2) of its tangent plane at the step's start, fric = (mu per obstacle,
-    the probes' points at the step's start (K, 3, by L), the bases (K, 2, 3)). Its slip
-    is s_i = tau_i . (p / L - p0), and Coulomb's law is Alart and Curnier's
-    t = proj onto the disc of radius mu gam of (t - scale s): it sticks (s = 0) inside
-    the disc and slides (t = mu gam opposite the slip) on its rim.
-    Returns (gaps (K,), normals (K, 3), obstacles (K,), active (K,) bool).
+    basis (tau1, tau2) of its tangent plane at the step's start, friction = (mu per
+    obstacle, the probes' points at the step's start (K, 3, by L), the bases (K, 2, 3),
+    each probe's elastic slip (K,, by L)). Its slip is s_i = tau_i . (p / L - p0), and
+    Coulomb's law is the penalty return map of the commercial codes (Abaqus's "elastic
+    slip"): t = rho proj onto the unit disc of (-s / slip), rho = mu gam. It sticks
+    inside the disc, slipping at most ``ELASTIC_SLIP`` of its element by the time the
+    friction reaches its limit, and slides (t = rho against the slip) on the rim. A
+    rigid stick (s = 0) makes the KKT matrix singular where the sticking probes are
+    dependent (a part lying along a face: its inextensible axis already ties their slips
+    along it), and a stiff one leaves Newton a disc too narrow to land in: its iterates
+    jump from rim to rim.
+    Returns (gaps (K,), normals (K, 3), obstacles (K,), state (K,) int8: 0 free,
+    1 touching (sticking, with friction), 2 touching and sliding).
     """
     probe_elem, probe_a, iprobe, slot = con.probe_elem, con.probe_a, con.iprobe, con.slot
     L, radius, offset, scale, field = con.length, con.radius, con.offset, con.scale, con.field
@@ -832,7 +839,7 @@ def contact_terms(X, gam, con, num, R, ab, want_jac):
     K = probe_elem.shape[0]
     gaps = np.empty(K)
     which = np.empty(K, dtype=np.int64)
-    active = np.zeros(K, dtype=np.bool_)
+    active = np.zeros(K, dtype=np.int8)
     points = np.empty((K, 3))
     for k in range(K):
         e = probe_elem[k]
@@ -861,10 +868,11 @@ def contact_terms(X, gam, con, num, R, ab, want_jac):
         # touching ones adds no new constraint) and changes no gap beyond 1e-9 L a unit.
         soft = g + COMPLIANCE * lam
         touching = lam > scale * soft
-        active[k] = touching
         R[ip] = scale * soft if touching else lam
+        kind = 0
         if slot == 3:
-            _friction_terms(gam, k, o, points[k] / L, con, num, R, ab, want_jac)
+            kind = _friction_terms(gam, k, o, points[k] / L, con, num, R, ab, want_jac)
+        active[k] = (2 if kind == 2 else 1) if touching else 0
         if not want_jac:
             continue
         if touching or lam != 0.0:
@@ -895,21 +903,29 @@ def contact_terms(X, gam, con, num, R, ab, want_jac):
     return gaps, normals, which, active
 
 
+ELASTIC_SLIP = 0.005  # a sticking probe's slip at the friction limit, by its element
+# On the disc's rim both laws give one residual; the sliding one's Jacobian is taken
+# there, so that a step that starts where the last one slid predicts further sliding.
+RIM = 1.0 - 1e-9
+
+
 @njit(cache=True)
 def _friction_terms(gam, k, o, p, con, num, R, ab, want_jac):
     """Probe k's Coulomb friction (see ``contact_terms``), at p (by L) and nearest
-    obstacle o: its tangential force on the nodes and its two rows of Alart and
-    Curnier's law, with their semismooth Jacobian."""
+    obstacle o: its tangential force on the nodes and its two rows, the return map
+    t = rho proj onto the unit disc of (-s / slip), times slip (rows in L, as a gap's),
+    with their semismooth Jacobian. Returns 0 (no friction force), 1 (sticks) or
+    2 (slides)."""
     e = con.probe_elem[k]
     w1 = con.probe_a[k]
     w0 = 1.0 - w1
     ip = con.iprobe[k]
     lam = gam[3 * k]
-    mu_of, ref, basis = con.friction
+    mu_of, ref, basis, give = con.friction
     mu = mu_of[o] if o >= 0 else 0.0
     p0 = ref[k]
     tau = basis[k]
-    scale = con.scale
+    gk = give[k]
     ix, kl, ku = num.ix, num.kl, num.ku
     t1 = gam[3 * k + 1]
     t2 = gam[3 * k + 2]
@@ -923,27 +939,27 @@ def _friction_terms(gam, k, o, p, con, num, R, ab, want_jac):
         s1 += tau[0, c] * (p[c] - p0[c])
         s2 += tau[1, c] * (p[c] - p0[c])
     rho = mu * lam if lam > 0.0 else 0.0
-    z1 = t1 - scale * s1
-    z2 = t2 - scale * s2
-    zn = math.sqrt(z1 * z1 + z2 * z2)
+    v1 = -s1 / gk  # the trial force by rho: the slip held by the spring
+    v2 = -s2 / gk
+    vn = math.sqrt(v1 * v1 + v2 * v2)
     i1 = ip + 1
     i2 = ip + 2
     if rho <= 0.0:  # free, or no friction: t = 0
         R[i1] = t1
         R[i2] = t2
         kind = 0
-    elif zn <= rho:  # sticks: no slip
-        R[i1] = scale * s1
-        R[i2] = scale * s2
+    elif vn < RIM:  # sticks: t = -rho s / slip
+        R[i1] = gk * t1 + rho * s1
+        R[i2] = gk * t2 + rho * s2
         kind = 1
-    else:  # slides: t on the disc's rim, against the trial force
-        u1 = z1 / zn
-        u2 = z2 / zn
-        R[i1] = t1 - rho * u1
-        R[i2] = t2 - rho * u2
+    else:  # slides: t on the disc's rim, against the slip
+        u1 = v1 / vn
+        u2 = v2 / vn
+        R[i1] = gk * (t1 - rho * u1)
+        R[i2] = gk * (t2 - rho * u2)
         kind = 2
     if not want_jac:
-        return
+        return kind
     for c in range(3):
         for i in range(2):
             _add(ab, kl, ku, ix[e] + c, ip + 1 + i, -w0 * tau[i, c])
@@ -951,35 +967,28 @@ def _friction_terms(gam, k, o, p, con, num, R, ab, want_jac):
     if kind == 0:
         _add(ab, kl, ku, i1, i1, 1.0)
         _add(ab, kl, ku, i2, i2, 1.0)
-        return
-    # dF/ds (2 x 2), dF/dt (2 x 2) and dF/dgam (2,): stick F = scale s; slide
-    # F = t - rho z / |z| with z = t - scale s, D = rho (I - u u^T) / |z|.
+        return kind
+    # dF/dt = slip I; dF/ds (2 x 2, on tau w) and dF/dgam (2,): stick F = slip t + rho s;
+    # slide F = slip (t - rho u), u = v / |v|, v = -s / slip: dF/ds = rho (I - u u^T) / |v|.
+    _add(ab, kl, ku, i1, i1, gk)
+    _add(ab, kl, ku, i2, i2, gk)
     if kind == 1:
-        ds00, ds01, ds10, ds11 = scale, 0.0, 0.0, scale
-        dt00, dt01, dt10, dt11 = 0.0, 0.0, 0.0, 0.0
-        dg0, dg1 = 0.0, 0.0
+        ds00, ds01, ds11 = rho, 0.0, rho
+        _add(ab, kl, ku, i1, ip, mu * s1)
+        _add(ab, kl, ku, i2, ip, mu * s2)
     else:
-        q = rho / zn
-        d00 = q * (1.0 - u1 * u1)
-        d01 = -q * u1 * u2
-        d11 = q * (1.0 - u2 * u2)
-        ds00, ds01, ds10, ds11 = scale * d00, scale * d01, scale * d01, scale * d11
-        dt00, dt01, dt10, dt11 = 1.0 - d00, -d01, -d01, 1.0 - d11
-        dg0, dg1 = -mu * u1, -mu * u2
+        q = rho / vn
+        ds00, ds01, ds11 = q * (1.0 - u1 * u1), -q * u1 * u2, q * (1.0 - u2 * u2)
+        _add(ab, kl, ku, i1, ip, -gk * mu * u1)
+        _add(ab, kl, ku, i2, ip, -gk * mu * u2)
     for c in range(3):  # ds_i / dx = tau_i w
-        v1 = ds00 * tau[0, c] + ds01 * tau[1, c]
-        v2 = ds10 * tau[0, c] + ds11 * tau[1, c]
-        _add(ab, kl, ku, i1, ix[e] + c, w0 * v1)
-        _add(ab, kl, ku, i1, ix[e + 1] + c, w1 * v1)
-        _add(ab, kl, ku, i2, ix[e] + c, w0 * v2)
-        _add(ab, kl, ku, i2, ix[e + 1] + c, w1 * v2)
-    if kind == 2:
-        _add(ab, kl, ku, i1, i1, dt00)
-        _add(ab, kl, ku, i1, i2, dt01)
-        _add(ab, kl, ku, i2, i1, dt10)
-        _add(ab, kl, ku, i2, i2, dt11)
-        _add(ab, kl, ku, i1, ip, dg0)
-        _add(ab, kl, ku, i2, ip, dg1)
+        a1 = ds00 * tau[0, c] + ds01 * tau[1, c]
+        a2 = ds01 * tau[0, c] + ds11 * tau[1, c]
+        _add(ab, kl, ku, i1, ix[e] + c, w0 * a1)
+        _add(ab, kl, ku, i1, ix[e + 1] + c, w1 * a1)
+        _add(ab, kl, ku, i2, ix[e] + c, w0 * a2)
+        _add(ab, kl, ku, i2, ix[e + 1] + c, w1 * a2)
+    return kind
 
 
 @njit(cache=True)
@@ -989,6 +998,23 @@ def _contact_residual(X, Q, lam, nu, gam, mesh, tg, num, gauge_quat, con):
     R, ab, energy = assemble(X, Q, lam, nu, mesh, tg, num, gauge_quat, yes)
     active = contact_terms(X, gam, con, num, R, ab, yes)[3]
     return R, ab, energy, active
+
+
+@njit(cache=True)
+def contact_max(R, con):
+    """The residual's size with obstacles: its largest entry, a friction row read in
+    force (its row is the force's error times the probe's elastic slip, kept small for
+    the pivots' scale), so that a converged friction force is as exact as a balance."""
+    r = max_abs(R)
+    if con.slot != 3:
+        return r
+    give = con.friction[3]
+    for k in range(con.iprobe.shape[0]):
+        for j in (1, 2):
+            v = abs(R[con.iprobe[k] + j]) / give[k]
+            if not v <= r:  # (and a NaN)
+                r = v
+    return r
 
 
 @njit(cache=True)
@@ -1009,7 +1035,7 @@ def newton_contact(X, Q, lam, nu, gam, mesh, tg, num, gauge_quat, con, opts):
     iprobe, slot = con.iprobe, con.slot
     R, ab, energy, active = _contact_residual(X, Q, lam, nu, gam, mesh, tg, num, gauge_quat,
                                               con)
-    r = max_abs(R)
+    r = contact_max(R, con)
     if not math.isfinite(r):
         return X, Q, lam, nu, gam, r, 0, NOT_FINITE, energy
     it = 0
@@ -1037,7 +1063,7 @@ def newton_contact(X, Q, lam, nu, gam, mesh, tg, num, gauge_quat, con, opts):
                     gn[k * slot + j] += step * du[iprobe[k] + j]
             Rn, abn, en, an = _contact_residual(Xn, Qn, ln, nn, gn, mesh, tg, num,
                                                 gauge_quat, con)
-            rn = max_abs(Rn)
+            rn = contact_max(Rn, con)
             finite = math.isfinite(rn)
             if damped:
                 accepted = finite and rn <= (1.0 - 1e-4 * step) * r

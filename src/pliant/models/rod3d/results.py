@@ -42,8 +42,10 @@ def build(run: Run, state: State, seed: np.ndarray | None = None) -> Equilibrium
             "nothing holds the part's twist, yet a twisting moment acts on it; prescribe an "
             "orientation (tangent and normal) somewhere")
     warm = WarmState(rod, state, run.gauge_quat, run.friction)
+    residual = (kernels.contact_max(R, run.contact(rod.target)) if rod.iprobe.shape[0]
+                else float(np.abs(R).max()))
     return Equilibrium3D(
-        problem=rod.problem, residual=float(np.abs(R).max()), iterations=run.iterations,
+        problem=rod.problem, residual=float(residual), iterations=run.iterations,
         steps=run.steps, sampler=Sampler(run, state), notes=tuple(run.notes),
         state=warm,
         stability_check=(lambda: stability_of(run, state, seed, warm.mode))

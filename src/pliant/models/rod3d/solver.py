@@ -153,7 +153,7 @@ class Run:
         self.deadline = clock.now() + self.solver.time_budget
         K = self.rod.probe_elem.shape[0]
         self.friction = (np.zeros(max(len(self.rod.problem.obstacles), 1)), np.zeros((K, 3)),
-                         np.zeros((K, 2, 3)))
+                         np.zeros((K, 2, 3)), np.ones(K))
 
     def hold(self, state: State, previous: tuple = ()) -> State:
         """Friction from here on is measured from ``state`` (the step's start): each probe's
@@ -164,15 +164,24 @@ class Run:
         if not rod.friction:
             return state
         points = rod.probe_points(state[0])
-        _, normals, _ = rod.distance_field.query(points * rod.length, band=math.inf)
+        _, normals, which = rod.distance_field.query(points * rod.length, band=math.inf)
         basis = axis_basis(normals)
-        self.friction = (rod.distance_field.friction, points, basis)
+        give = kernels.ELASTIC_SLIP * rod.h[rod.probe_elem]
         gam = state[4].reshape(-1, 3).copy()
         if previous:
             force = np.einsum("ki,kic->kc", gam[:, 1:], previous[2])
             gam[:, 1:] = np.einsum("kic,kc->ki", basis, force)
+            # A sticking probe's spring holds its force: its slip is measured from where
+            # the spring is slack, so that the start stays in equilibrium.
+            mu = rod.distance_field.friction
+            rho = np.where(which >= 0, mu[np.maximum(which, 0)], 0.0) * np.maximum(gam[:, 0],
+                                                                                     0.0)
+            held = rho > 0.0
+            points = points.copy()
+            points[held] += (give[held] / rho[held])[:, None] * force[held]
         else:
             gam[:, 1:] = 0.0
+        self.friction = (rod.distance_field.friction, points, basis, give)
         return (*state[:4], gam.ravel())
 
     def newton(self, state: State, loads: Loads, *, strict: bool, tol: float | None = None):
