@@ -112,8 +112,8 @@ class Contact(NamedTuple):
     it and first unknown; unknowns per probe (1, or 3 with friction); L [m], the tube's
     radius [m], the offset added to every gap, the exact-distance band [m], the
     complementarity's scale; the scene's packed distance field; and friction's
-    reference (mu per obstacle, the probes' points at the step's start (K, 3, by L),
-    their tangent bases (K, 2, 3))."""
+    reference (mu per obstacle, where each probe's spring is slack (K, 3, by L), their
+    tangent bases (K, 2, 3), their elastic slips (K,, by L))."""
 
     probe_elem: np.ndarray
     probe_a: np.ndarray
