@@ -820,8 +820,9 @@ def contact_terms(X, gam, con, num, R, ab, want_jac):
 
     With friction (slot 3) each probe also has a tangential force t = (t1, t2) in the
     basis (tau1, tau2) of its tangent plane at the step's start, friction = (mu per
-    obstacle, the probes' points at the step's start (K, 3, by L), the bases (K, 2, 3),
-    each probe's elastic slip (K,, by L)). Its slip is s_i = tau_i . (p / L - p0), and
+    obstacle, where each probe's spring was slack at the step's start (K, 3, by L), the
+    bases (K, 2, 3), each probe's elastic slip (K,, by L)). Its slip is
+    s_i = tau_i . (p / L - p0), and
     Coulomb's law is the penalty return map of the commercial codes (Abaqus's "elastic
     slip"): t = rho proj onto the unit disc of (-s / slip), rho = mu gam. It sticks
     inside the disc, slipping at most ``ELASTIC_SLIP`` of its element by the time the
@@ -1004,7 +1005,9 @@ def _contact_residual(X, Q, lam, nu, gam, mesh, tg, num, gauge_quat, con):
 def contact_max(R, con):
     """The residual's size with obstacles: its largest entry, a friction row read in
     force (its row is the force's error times the probe's elastic slip, kept small for
-    the pivots' scale), so that a converged friction force is as exact as a balance."""
+    the pivots' scale), so that a converged friction force is as exact as a balance. A
+    free probe's rows (t = 0, unscaled) are read the same way, stricter by 1 / slip:
+    they are linear, and one Newton step meets them exactly."""
     r = max_abs(R)
     if con.slot != 3:
         return r
