@@ -58,7 +58,7 @@ def _first_run_note(three_d: bool = True) -> None:
         return
     cores = min(os.cpu_count() or 1, 2)
     typer.echo(f"compiling the solvers (first run only, on {cores} "
-               f"core{'s' if cores > 1 else ''}, about {15 if cores > 1 else 25} s)…",
+               f"core{'s' if cores > 1 else ''}, about {20 if cores > 1 else 30} s)…",
                err=True)
     from rich.console import Console  # noqa: PLC0415
 

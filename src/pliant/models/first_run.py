@@ -48,11 +48,14 @@ THEIRS: tuple[tuple[str, str], ...] = (
     ("pliant.models.rod3d.kernels", "rest_shape"),
     ("pliant.scene.triangles", "pseudonormal_sums"),
     ("pliant.scene.triangles", "build_bvh"),
+    ("pliant.scene.grid", "band_values"),  # a mesh's distance grid, on a fresh disk cache
     ("pliant.models.rod3d.kernels", "apply_step"),
     ("pliant.models.rod3d.kernels", "difference"),
     ("pliant.models.rod3d.kernels", "unknown_sizes"),
     ("pliant.models.rod3d.kernels", "contact_max"),
     ("pliant.models.rod3d.kernels", "node_outputs"),
+    ("pliant.models.rod3d.kernels", "newton"),  # a scene's fitted parts, on a fresh disk
+    ("pliant.models.banded", "band_solve"),     # cache (``pliant.io.cache``)
     ("pliant.models.lanczos", "softest_mode"),
     ("pliant.scene.interference", "_polyline_distance"),
 )
@@ -133,8 +136,9 @@ def compile_ahead(on_kernel: Callable[[str], None] | None = None,
 
 
 def record(path: Path = SIGNATURES) -> dict[tuple[str, str], list[Any]]:
-    """Run the main job (``pliant demo``, in a temporary folder) and record the
-    signatures its kernels were called with (after changing a kernel's arguments)."""
+    """Run the main job (``pliant demo``, in a temporary folder, with an empty disk cache
+    as on a fresh machine, so that the scene's fitted parts are solved too) and record
+    the signatures its kernels were called with (after changing a kernel's arguments)."""
     import tempfile  # noqa: PLC0415 (a developer's command)
 
     from typer.testing import CliRunner  # noqa: PLC0415
@@ -142,6 +146,7 @@ def record(path: Path = SIGNATURES) -> dict[tuple[str, str], list[Any]]:
     from pliant.cli.app import app  # noqa: PLC0415
 
     with tempfile.TemporaryDirectory() as folder:
+        os.environ["PLIANT_CACHE"] = str(Path(folder) / "cache")
         result = CliRunner().invoke(app, ["demo", "--out", folder])
     if result.exit_code != 0:
         raise RuntimeError(f"pliant demo failed: {result.output[-2000:]}")
