@@ -388,3 +388,34 @@ def test_the_page_draws_a_fitted_part_as_the_accurate_answer_has_it(browser):
     assert drawn["fitted"]
     # The tube's top is its neutral line's highest point plus its radius (12.5 mm).
     assert drawn["top"] == pytest.approx(max(drawn["line"]) + 0.0125, abs=1e-3)
+
+
+def test_the_page_lists_the_other_shapes_and_takes_the_one_chosen(browser):
+    """The paper's case 3 holds its tip where the part can bow either way (two stable
+    shapes of equal energy): Other shapes lists both with their stability and energy;
+    pointing at a row draws that shape as a dashed line through the same held tip; Use
+    on the one not shown makes it the accurate answer the page draws."""
+    case3 = Path(__file__).resolve().parents[1] / "examples" / "paper" / "case3.toml"
+    with scene_page(browser, case3) as page:
+        page.click("#find")
+        page.wait_for_function("document.querySelectorAll('#equilibria tr[data-k]').length >= 2",
+                               timeout=60_000)
+        listed = page.evaluate("window.pliant.state.equilibria")
+        assert listed["ok"] and listed["current"]
+        assert [o["verdict"] for o in listed["options"][:2]] == ["stable", "stable"]
+        assert {o["bows"] for o in listed["options"][:2]} == {"left", "right"}
+        shown = page.evaluate("window.pliant.state.accurate.position")
+        other = next(k for k, o in enumerate(listed["options"])
+                     if np.abs(np.array(o["position"]) - shown).max() > 1e-3)
+        page.hover(f"#equilibria tr[data-k='{other}']")
+        drawn = page.evaluate("""() => {
+            const line = window.pliant.world.getObjectByName('candidate');
+            const a = line.geometry.attributes.position;
+            return [a.getX(a.count - 1), a.getY(a.count - 1), a.getZ(a.count - 1)];
+        }""")
+        assert np.abs(np.array(drawn) - shown[-1]).max() < 1e-6  # the same held tip
+        page.click(f"#equilibria tr[data-k='{other}'] button")
+        page.wait_for_function(f"document.querySelector(\"#equilibria tr[data-k='{other}']\")"
+                               ".classList.contains('shown')", timeout=60_000)
+        now = page.evaluate("window.pliant.state.accurate.position")
+    assert np.abs(np.array(now) - listed["options"][other]["position"]).max() < 1e-9

@@ -235,3 +235,67 @@ def test_a_recording_of_a_scene_keeps_its_obstacles(tmp_path):
     before = DistanceField(list(problem.obstacles)).query(points, band=0.05)[0]
     after = DistanceField(list(again.obstacles)).query(points, band=0.05)[0]
     assert np.abs(before - after).max() < 1e-12
+
+
+# A tip held at (0.333, -0.002) with its tangent at -1.106 rad: two stable equilibria, the
+# part bowing to the left of the chord (20.9 J) or to the right (45.1 J).
+TWO_SHAPES = pl.Problem(pl.Part(1.0, 1.0), (pl.clamp(0.0), pl.grip(
+    1.0, (0.333, -0.002), angle=-1.106, name="hand")))
+
+
+def test_a_session_lists_the_poses_equilibria_and_follows_the_one_chosen():
+    """Asked, a session lists its pose's equilibria as ``pliant.models.dispatch.
+    equilibria`` finds them (best first, energies and verdicts alike), each holding the
+    grip's target; the one chosen becomes the accurate answer and the next warm start,
+    so a small move of the grip stays on that branch (the higher one, bowing right),
+    where a fresh session's answer bows left. Once the grip has moved, the list is
+    stale and choosing from it is a typed error naming the option."""
+    from pliant.core.equilibrium import bow_side, potential_energy
+    from pliant.models import dispatch
+
+    expected = dispatch.equilibria(TWO_SHAPES)
+    with Session(TWO_SHAPES) as session:
+        session.find_equilibria(budget=5.0)
+        session.poll()
+        found = session.found
+        assert found is not None and found.ok
+        assert [o.potential_energy for o in found.options] == pytest.approx(
+            [potential_energy(eq) for eq in expected], rel=1e-9)
+        assert [o.verdict for o in found.options] == [eq.verdict for eq in expected]
+        assert [o.bows for o in found.options][:2] == ["left", "right"]
+        for option in found.options:
+            assert np.abs(option.position[-1] - (0.333, -0.002)).max() < 1e-8
+        assert found.options[0].potential_energy < found.options[1].potential_energy
+        session.choose(1)
+        session.poll()
+        chosen = found.options[1]
+        assert np.abs(session.accurate.position - chosen.position).max() < 1e-12
+        session.apply(GripEvent("hand", position=(0.34, 0.0)))
+        session.request_accurate()
+        session.poll()
+        assert session.accurate.ok and session.accurate.index == session.index
+        assert bow_side(session.accurate) == "right"
+        assert session.found is None
+        with pytest.raises(InputError, match="option"):
+            session.choose(0)
+        with pytest.raises(InputError, match="budget"):
+            session.find_equilibria(budget=0.0)
+    moved = TWO_SHAPES.with_conditions(
+        [TWO_SHAPES.conditions[0], pl.grip(1.0, (0.34, 0.0), angle=-1.106, name="hand")])
+    with Session(moved) as fresh:
+        assert bow_side(fresh.accurate) == "left"
+
+
+def test_a_live_session_finds_and_chooses_through_its_worker():
+    """The same search and choice through the worker process (its request protocol)."""
+    with Session(TWO_SHAPES, live=True) as session:
+        session.find_equilibria(budget=5.0)
+        session.poll()
+        found = session.wait(timeout=60.0)
+        assert found is not None and found.ok and len(found.options) >= 2
+        assert session.found is found
+        session.choose(1)
+        session.poll()
+        chosen = session.wait(timeout=60.0)
+        assert chosen is not None and chosen.ok
+        assert np.abs(chosen.position - found.options[1].position).max() < 1e-12

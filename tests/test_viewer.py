@@ -132,9 +132,10 @@ JSONS = st.recursive(st.none() | st.booleans() | st.floats() | st.integers()
                      lambda inner: st.lists(inner, max_size=5)
                      | st.dictionaries(st.text(max_size=10), inner, max_size=5), max_leaves=20)
 KEYS = st.sampled_from(["v", "type", "grip", "position", "tangent", "seq", "mode", "force",
-                        "moment", "name"])
+                        "moment", "name", "budget", "option"])
 FIELDS = st.dictionaries(KEYS, JSONS | st.sampled_from(
-    [1, "hello", "move", "mode", "solve", "save", "load", "hand", "force", "position"])
+    [1, "hello", "move", "mode", "solve", "save", "load", "equilibria", "choose", "hand",
+     "force", "position"])
     | st.lists(st.floats(-2, 2), min_size=3, max_size=3), max_size=7)
 
 
@@ -217,6 +218,35 @@ def test_a_grip_switched_to_force_keeps_its_shape_and_back(state):
     grip = next(g for g in by_type(replies, "scene")[-1].grips if g.name == "hand")
     assert grip.mode == "position"
     np.testing.assert_allclose(grip.position, lifted.position[-1], atol=1e-9)
+
+
+def test_the_page_lists_the_poses_equilibria_and_takes_the_one_chosen(state):
+    """``equilibria`` answers with the pose's equilibria as the session found them (best
+    first, each ending at the hand's target); ``choose`` makes one the accurate answer
+    the page shows; a choice out of range, or after the hand moved, is a typed error
+    naming the option."""
+    replies = state.handle(msg(type="equilibria", budget=10.0))
+    (found,) = by_type(replies, "equilibria")
+    assert found.ok and found.current and found.options
+    options = state.session.found.options
+    assert len(found.options) == len(options)
+    for sent, option in zip(found.options, options):
+        assert sent.potential_energy == option.potential_energy
+        assert np.abs(np.array(sent.position) - option.position).max() == 0.0
+        assert np.abs(np.array(sent.position[-1]) - (0.55, 0.35, 0.15)).max() < 1e-8
+    stable = [o.potential_energy for o in found.options if o.verdict != "unstable"]
+    assert stable == sorted(stable)
+    last = len(found.options) - 1
+    (accurate,) = by_type(state.handle(msg(type="choose", option=last)), "accurate")
+    assert accurate.ok
+    assert np.abs(np.array(accurate.position) - options[last].position).max() < 1e-12
+    with pytest.raises(InputError, match="option"):
+        state.handle(msg(type="choose", option=last + 1))
+    state.handle(msg(type="move", grip="hand", position=[0.5, 0.35, 0.15]))
+    with pytest.raises(InputError, match="option"):
+        state.handle(msg(type="choose", option=0))
+    with pytest.raises(ProtocolError, match="budget"):
+        msg(type="equilibria", budget=1e9)
 
 
 def test_sessions_are_saved_atomically_and_loaded_back(state, folder):

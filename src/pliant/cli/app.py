@@ -200,18 +200,11 @@ def all_equilibria(problem, as_json: bool, elements: int | None = None) -> None:
     """``pliant solve --all``: the equilibria the routes reach (2D or 3D), best first."""
     import time  # noqa: PLC0415
 
-    from pliant.core.equilibrium import potential_energy  # noqa: PLC0415
+    from pliant.core.equilibrium import bow_side, potential_energy  # noqa: PLC0415
+    from pliant.models import dispatch  # noqa: PLC0415
 
     start = time.perf_counter()
-    if problem.dimension == 2:
-        from pliant.models.elastica2d import equilibria  # noqa: PLC0415
-
-        found = equilibria(problem)
-    else:
-        from pliant.models import rod3d  # noqa: PLC0415
-
-        found = rod3d.equilibria(  # type: ignore[assignment]  # an Equilibrium3D list
-            problem, solver=rod3d.RodSolver(elements=elements or 100))
+    found = dispatch.equilibria(problem, elements=elements)
     seconds = time.perf_counter() - start
     if as_json:
         import json as _json  # noqa: PLC0415
@@ -237,31 +230,8 @@ def all_equilibria(problem, as_json: bool, elements: int | None = None) -> None:
     for i, eq in enumerate(found, 1):
         table.add_row(str(i), f"{potential_energy(eq):.6g}", f"{eq.energy:.6g}", eq.verdict,
                       f"{eq.stability[1]:.4g}" if eq.stability[1] is not None else "-",
-                      _side(eq), f"{eq.max_moment()[0]:.4g}")
+                      bow_side(eq), f"{eq.max_moment()[0]:.4g}")
     Console().print(table)
-
-
-def _side(eq) -> str:
-    """Which side of the chord between its ends the part's middle lies on (looking from
-    the first end to the last); in 3D, the direction it bows in from the chord."""
-    import numpy as np  # noqa: PLC0415
-
-    if eq.position.shape[1] == 3:
-        a, b = eq.position[0], eq.position[-1]
-        mid = eq.position[len(eq.position) // 2] - a
-        chord = b - a
-        across = mid - (mid @ chord) / max(float(chord @ chord), 1e-300) * chord
-        size = float(np.linalg.norm(across))
-        if size <= 1e-9 * max(float(np.linalg.norm(chord)), 1e-300):
-            return "straight"
-        return "toward (" + ", ".join(f"{x:+.2f}" for x in across / size) + ")"
-    a, b = eq.position[0], eq.position[-1]
-    mid = eq.position[len(eq.position) // 2]
-    chord = b - a
-    cross = chord[0] * (mid[1] - a[1]) - chord[1] * (mid[0] - a[0])
-    if abs(cross) <= 1e-9 * max(float(np.dot(chord, chord)), 1e-300):
-        return "neither side"
-    return "left" if cross > 0 else "right"
 
 
 @app.command()

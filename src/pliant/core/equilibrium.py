@@ -149,6 +149,28 @@ def potential_energy(eq) -> float:
     return total
 
 
+def bow_side(eq) -> str:
+    """A shape's summary in a few words, to tell equilibria of one problem apart: which
+    side of the chord between its ends the part's middle lies on (2D, looking from the
+    first end to the last: left, right or neither side); in 3D the direction it bows in
+    from the chord, or straight."""
+    r = np.asarray(eq.position, dtype=float)
+    a, b = r[0], r[-1]
+    chord = b - a
+    if r.shape[1] == 3:
+        mid = r[len(r) // 2] - a
+        across = mid - (mid @ chord) / max(float(chord @ chord), 1e-300) * chord
+        size = float(np.linalg.norm(across))
+        if size <= 1e-9 * max(float(np.linalg.norm(chord)), 1e-300):
+            return "straight"
+        return "toward (" + ", ".join(f"{x:+.2f}" for x in across / size) + ")"
+    mid = r[len(r) // 2]
+    cross = chord[0] * (mid[1] - a[1]) - chord[1] * (mid[0] - a[0])
+    if abs(cross) <= 1e-9 * max(float(np.dot(chord, chord)), 1e-300):
+        return "neither side"
+    return "left" if cross > 0 else "right"
+
+
 @dataclass(frozen=True)
 class StationLoad:
     """The load a condition applies to the part at its station.

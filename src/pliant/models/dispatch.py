@@ -63,6 +63,24 @@ def solve(problem: Problem, *, warm_start: Any = None, solver: Any = None) -> Re
         return replace(eq, notes=(*eq.notes, PlanarRoute(PLANAR_NOTE)))
 
 
+def equilibria(problem: Problem, *, elements: int | None = None,
+               budget: float | None = None) -> list[Result]:
+    """The distinct equilibria of a problem that pliant's routes reach, within ``budget``
+    seconds (the model's default where None: 5 s in 2D, 20 s in 3D): stable and neutral
+    ones first, then unstable, each group by potential energy, each with a note saying
+    how it was reached (``elastica2d.equilibria``, ``rod3d.equilibria``). ``elements``:
+    the 3D model's resolution (100 where None). Empty when no route reaches one."""
+    options: dict[str, Any] = {} if budget is None else {"budget": float(budget)}
+    if problem.dimension == 2:
+        from pliant.models import elastica2d  # noqa: PLC0415
+
+        return list(elastica2d.equilibria(problem, **options))
+    from pliant.models import rod3d  # noqa: PLC0415
+
+    return list(rod3d.equilibria(problem, solver=rod3d.RodSolver(elements=elements or 100),
+                                 **options))
+
+
 def planar_start(problem: Problem) -> Any:
     """The 3D rod's equilibrium of a 2D problem lifted into z = 0, as the arrays a 2D
     warm start reads (s, position, angle, internal force, bending moment, loads)."""

@@ -13,7 +13,7 @@ from __future__ import annotations
 import math
 import time
 from dataclasses import dataclass, field, replace
-from typing import Any
+from typing import Any, Final
 
 import numpy as np
 
@@ -74,14 +74,105 @@ class AccurateResult:
         return {k: v for k, v in self.loads.items() if any(v.prescribed)}
 
 
+@dataclass(frozen=True)
+class Option:
+    """One equilibrium of a pose that pliant's routes reached (``EquilibriaFound``):
+    its shape (s (N,) [m], position (N, 2 or 3) [m]), its potential energy and elastic
+    energy [J] (``pliant.core.equilibrium.potential_energy``), its stability verdict
+    (stable, neutral, unstable or unknown) and smallest eigenvalue [N m], which way it
+    bows (``bow_side``), its largest bending moment [N m] and how it was reached."""
+
+    s: np.ndarray
+    position: np.ndarray
+    potential_energy: float
+    energy: float
+    verdict: str
+    smallest_eigenvalue: float | None
+    bows: str
+    max_moment: float
+    notes: tuple[str, ...] = ()
+
+
+@dataclass(frozen=True)
+class EquilibriaFound:
+    """The equilibria of the pose of event ``index`` (``pliant.models.dispatch.
+    equilibria``), best first: stable and neutral ones by potential energy, then the
+    unstable ones. ``error`` where the search itself failed; an empty list with no
+    error means no route reached one."""
+
+    index: int
+    options: tuple[Option, ...]
+    seconds: float = 0.0
+    error: str | None = None
+
+    @property
+    def ok(self) -> bool:
+        return self.error is None
+
+
+SOLVE: Final = "solve"  # what a request asks of the accurate side (``AccurateSolver.run``)
+FIND: Final = "find"  # (FIND, budget [s]): the pose's equilibria
+CHOOSE: Final = "choose"  # (CHOOSE, k): the k-th equilibrium found becomes the answer
+Request = str | tuple[str, float] | tuple[str, int]
+
+
 @dataclass
 class AccurateSolver:
     """Solves each pose warm-started from the last equilibrium (falling back to a cold
-    solve when the warm start cannot be followed), keeping that equilibrium."""
+    solve when the warm start cannot be followed), keeping that equilibrium; lists a
+    pose's equilibria and makes the one the user picks the answer (and the next warm
+    start)."""
 
     elements: int | None = None
     last: Any = None
+    found: list = field(default_factory=list)  # the equilibria of the last search
     _solver: Any = field(default=None, init=False, repr=False)
+
+    def run(self, index: int, problem: Problem,
+            what: Request = SOLVE) -> AccurateResult | EquilibriaFound:
+        """Do what the request asks (``SOLVE``, ``(FIND, budget)``, ``(CHOOSE, k)``)."""
+        if isinstance(what, str):
+            if what == SOLVE:
+                return self.solve(index, problem)
+            raise ValueError(f"unknown request {what!r}")
+        kind, value = what
+        if kind == FIND:
+            return self.find(index, problem, float(value))
+        if kind == CHOOSE:
+            return self.choose(index, problem, int(value))
+        raise ValueError(f"unknown request {what!r}")
+
+    def find(self, index: int, problem: Problem, budget: float) -> EquilibriaFound:
+        """The pose's equilibria within ``budget`` seconds, kept for ``choose``."""
+        from pliant.core.equilibrium import bow_side, potential_energy  # noqa: PLC0415
+        from pliant.models import dispatch  # noqa: PLC0415
+
+        start = time.perf_counter()
+        self.found = []
+        try:
+            found = dispatch.equilibria(problem, elements=self.elements, budget=budget)
+        except PliantError as err:
+            return EquilibriaFound(index, (), time.perf_counter() - start, error=str(err))
+        self.found = found
+        options = tuple(Option(
+            s=np.array(eq.s), position=np.array(eq.position),
+            potential_energy=float(potential_energy(eq)), energy=float(eq.energy),
+            verdict=str(eq.verdict), smallest_eigenvalue=eq.stability[1],
+            bows=bow_side(eq), max_moment=float(eq.max_moment()[0]),
+            notes=tuple(str(n) for n in eq.notes)) for eq in found)
+        return EquilibriaFound(index, options, time.perf_counter() - start)
+
+    def choose(self, index: int, problem: Problem, k: int) -> AccurateResult:
+        """The k-th equilibrium of the last search as the answer, and the next solve's
+        warm start (so the session follows that branch as the grips move)."""
+        start = time.perf_counter()
+        if not 0 <= k < len(self.found):
+            return AccurateResult(index, problem, np.zeros(0),
+                                  np.zeros((0, problem.dimension)), {},
+                                  error=f"option: no equilibrium number {k + 1} was found "
+                                  f"({len(self.found)} were); look for them again")
+        self.last = self.found[k]
+        return self._result(index, problem, self.found[k], start)
 
     def solve(self, index: int, problem: Problem) -> AccurateResult:
         from pliant.models import dispatch  # noqa: PLC0415 (the heavy models, on demand)
@@ -104,6 +195,9 @@ class AccurateSolver:
                                   {}, error=str(err),
                                   solve_seconds=time.perf_counter() - start)
         self.last = eq
+        return self._result(index, problem, eq, start)
+
+    def _result(self, index: int, problem: Problem, eq: Any, start: float) -> AccurateResult:
         stable, smallest = eq.stability
         three: dict[str, Any] = {  # what only the 3D model has
             "tangent": np.array(eq.tangent), "torque": np.array(eq.torque),
@@ -128,7 +222,7 @@ class InlineExecutor:
 
     def __init__(self, elements: int | None = None) -> None:
         self.solver = AccurateSolver(elements=elements)
-        self._done: AccurateResult | None = None
+        self._done: AccurateResult | EquilibriaFound | None = None
 
     @property
     def busy(self) -> bool:
@@ -139,14 +233,14 @@ class InlineExecutor:
         """An answer waits to be taken in (by ``poll``)."""
         return self._done is not None
 
-    def submit(self, index: int, problem: Problem) -> None:
-        self._done = self.solver.solve(index, problem)
+    def submit(self, index: int, problem: Problem, what: Request = SOLVE) -> None:
+        self._done = self.solver.run(index, problem, what)
 
-    def poll(self) -> AccurateResult | None:
+    def poll(self) -> AccurateResult | EquilibriaFound | None:
         done, self._done = self._done, None
         return done
 
-    def wait(self, timeout: float | None = None) -> AccurateResult | None:
+    def wait(self, timeout: float | None = None) -> AccurateResult | EquilibriaFound | None:
         return self.poll()
 
     def close(self) -> None:
@@ -166,7 +260,7 @@ class ProcessExecutor:
         self.elements = elements
         self._answers: queue.Queue = queue.Queue()
         self._busy = False
-        self._submitted: tuple[int, Problem] | None = None
+        self._submitted: tuple[int, Problem, Request] | None = None
         self._sent: tuple = ()  # the obstacles the worker holds
         self.restarts = 0  # workers started again after one died
         self._retried = False  # the request in flight was sent again to a new worker
@@ -209,32 +303,32 @@ class ProcessExecutor:
         """The worker process's id (tests, and a user looking at ``top``)."""
         return self._process.pid
 
-    def submit(self, index: int, problem: Problem) -> None:
-        self._submitted = (index, problem)
+    def submit(self, index: int, problem: Problem, what: Request = SOLVE) -> None:
+        self._submitted = (index, problem, what)
         self._retried = False
-        self._send(index, problem)
+        self._send(index, problem, what)
         self._busy = True
 
-    def _send(self, index: int, problem: Problem) -> None:
+    def _send(self, index: int, problem: Problem, what: Request = SOLVE) -> None:
         # The obstacles go to the worker once (a CAD scene's are hundreds of megabytes):
         # while they are the same objects, a request carries the problem without them.
         same = bool(problem.obstacles) and len(problem.obstacles) == len(self._sent) and all(
             a is b for a, b in zip(problem.obstacles, self._sent))
         try:
             write_message(self._process.stdin, (index, replace(problem, obstacles=())
-                                                if same else problem, same))
+                                                if same else problem, same, what))
             self._sent = problem.obstacles
         except (OSError, ValueError):
             self._sent = ()  # the worker is gone: its reader says so, and _take restarts it
 
-    def _take(self, item) -> AccurateResult | None:
+    def _take(self, item) -> AccurateResult | EquilibriaFound | None:
         """The answer the reader queued, or None when the worker died under this request
         and a new one is solving it (once: a request that kills two workers is answered
         with the error)."""
         process, message = item
         if process is not self._process:
             return None  # a dead worker's last word, after it was replaced
-        index, problem = self._submitted or (0, None)
+        index, problem, what = self._submitted or (0, None, SOLVE)
         if message is None:
             process.wait()
             _close_pipes(process)
@@ -242,21 +336,24 @@ class ProcessExecutor:
             self._start()
             if problem is not None and not self._retried:
                 self._retried = True
-                self._send(index, problem)
+                self._send(index, problem, what)
                 return None
             self._busy = False
+            error = ("the accurate worker process stopped twice on this pose (it was "
+                     "started again): move the grip elsewhere")
+            if not isinstance(what, str) and what[0] == FIND:
+                return EquilibriaFound(index, (), error=error)
             return AccurateResult(index, problem, np.zeros(0), np.zeros((0, 0)), {},
-                                  error="the accurate worker process stopped twice on this "
-                                  "pose (it was started again): move the grip elsewhere")
+                                  error=error)
         self._busy = False
-        if message.problem is None:  # sent back without it (see the worker)
+        if isinstance(message, AccurateResult) and message.problem is None:  # (the worker)
             message = replace(message, problem=problem)
         return message
 
-    def poll(self) -> AccurateResult | None:
+    def poll(self) -> AccurateResult | EquilibriaFound | None:
         return self.wait(timeout=0.0)  # a queue's get with no time left never blocks
 
-    def wait(self, timeout: float | None = None) -> AccurateResult | None:
+    def wait(self, timeout: float | None = None) -> AccurateResult | EquilibriaFound | None:
         import queue  # noqa: PLC0415
         import time  # noqa: PLC0415
 

@@ -24,7 +24,15 @@ from pliant.core.conditions import Condition
 from pliant.core.problem import Problem
 from pliant.errors import ConvergenceError, InputError
 from pliant.models.realtime import RealtimeFrame, RealtimeModel
-from pliant.session.accurate import AccurateResult, InlineExecutor, ProcessExecutor
+from pliant.session.accurate import (
+    CHOOSE,
+    FIND,
+    AccurateResult,
+    EquilibriaFound,
+    InlineExecutor,
+    ProcessExecutor,
+    Request,
+)
 
 
 @dataclass(frozen=True)
@@ -98,6 +106,8 @@ class Session:
     solves: list[AccurateResult] = field(default_factory=list, init=False)
     start_error: str | None = field(default=None, init=False)  # why the start pose has no
     # equilibrium (the session opens all the same)
+    searches: list[EquilibriaFound] = field(default_factory=list, init=False)  # each
+    # search for the pose's equilibria, as published (``find_equilibria``)
 
     def __post_init__(self) -> None:
         self.model = RealtimeModel(self.problem, control_points=self.control_points,
@@ -105,6 +115,7 @@ class Session:
         self._executor = (ProcessExecutor(self.elements) if self.live
                           else InlineExecutor(self.elements))
         self._requested = False
+        self._asked: Request | None = None  # a search or a choice, sent when the worker is free
         self._reference: np.ndarray | None = None  # the accurate shape at the curve's s
         self._start = time.perf_counter()
         # The first accurate solve, waited for: the network starts from it. When the
@@ -171,11 +182,41 @@ class Session:
         """Ask for an accurate solve at the next event (or ``poll``), drift or not."""
         self._requested = True
 
+    def find_equilibria(self, budget: float = 10.0) -> None:
+        """Ask for the current pose's equilibria (``pliant.models.dispatch.equilibria``,
+        within ``budget`` seconds), sent at the next event or ``poll`` once the accurate
+        model is free; the answer is appended to ``searches`` (best first)."""
+        if not 0.0 < budget <= 600.0:
+            raise InputError("budget", f"a search's time budget is from 0 to 600 s, got "
+                             f"{budget!r}")
+        self._asked = (FIND, float(budget))
+
+    @property
+    def found(self) -> EquilibriaFound | None:
+        """The last search's answer while the pose is still the one it was made for."""
+        last = self.searches[-1] if self.searches else None
+        return last if last is not None and last.index == self.index else None
+
+    def choose(self, k: int) -> None:
+        """Make the k-th equilibrium (0-based) of the last search the accurate answer
+        and the next solve's warm start, so the session follows that branch as the grips
+        move on (published at the next event or ``poll``)."""
+        found = self.found
+        if found is None:
+            raise InputError("option", "no search for this pose's equilibria has answered "
+                             "(the grips moved since, or none was asked): look for them "
+                             "first")
+        if not 0 <= k < len(found.options):
+            raise InputError("option", f"equilibrium {k + 1} does not exist: the search "
+                             f"found {len(found.options)}")
+        self._asked = (CHOOSE, int(k))
+        self._requested = False
+
     def poll(self) -> Frame:
         """A frame at the current pose, taking any accurate result that has arrived."""
         return self._frame(time.perf_counter())
 
-    def wait(self, timeout: float = 60.0) -> AccurateResult | None:
+    def wait(self, timeout: float = 60.0) -> AccurateResult | EquilibriaFound | None:
         """Block until the running accurate solve ends (for scripts and tests; a frame
         loop polls instead); publish its result."""
         done = self._executor.wait(timeout)
@@ -200,6 +241,14 @@ class Session:
         realtime = self.model.frame(self.problem)
         drift = self._drift(realtime)
         solved = False
+        if not self._executor.busy and self._asked is not None:
+            asked, self._asked = self._asked, None
+            self._executor.submit(self.index, self.problem, asked)
+            done = self._executor.poll()  # inline: already there
+            if done is not None:
+                self._publish(done)
+                realtime = self.model.frame(self.problem)
+                drift = self._drift(realtime)
         if not self._executor.busy and (
                 self._requested or not realtime.converged
                 or drift.distance_to_accurate > self.distance_tolerance
@@ -216,7 +265,10 @@ class Session:
                      pending=self._executor.busy, solved=solved,
                      seconds=time.perf_counter() - start)
 
-    def _publish(self, result: AccurateResult) -> None:
+    def _publish(self, result: AccurateResult | EquilibriaFound) -> None:
+        if isinstance(result, EquilibriaFound):
+            self.searches.append(result)
+            return
         self.solves.append(result)
         if not result.ok:
             return  # keep the last good shape; the drift stays and says so

@@ -1,7 +1,7 @@
 """The accurate-model worker of a live session: ``python -m pliant.session.worker N``
-(N: the 3D resolution, 0 for the default). It reads (index, problem, same obstacles) messages on
-stdin
-and writes ``AccurateResult``s on stdout, warm-starting each solve from the last."""
+(N: the 3D resolution, 0 for the default). It reads (index, problem, same obstacles,
+request) messages on stdin and writes ``AccurateResult``s (and ``EquilibriaFound``s) on stdout,
+warm-starting each solve from the last (``AccurateSolver.run``)."""
 
 from __future__ import annotations
 
@@ -9,7 +9,7 @@ import os
 import sys
 from dataclasses import replace
 
-from pliant.session.accurate import AccurateSolver, read_message, write_message
+from pliant.session.accurate import AccurateResult, AccurateSolver, read_message, write_message
 
 
 def main() -> None:
@@ -24,13 +24,16 @@ def main() -> None:
         message = read_message(requests)
         if message is None:
             return
-        index, problem, same = message
+        index, problem, same, what = message
         if same:
             problem = replace(problem, obstacles=kept)
         kept = problem.obstacles
-        # The answer goes back without its problem: the session has it (it sent it), and
+        answer = solver.run(index, problem, what)
+        # An answer goes back without its problem: the session has it (it sent it), and
         # with a scene's obstacle grids it is a megabyte a solve.
-        write_message(channel, replace(solver.solve(index, problem), problem=None))
+        if isinstance(answer, AccurateResult):
+            answer = replace(answer, problem=None)
+        write_message(channel, answer)
 
 
 if __name__ == "__main__":

@@ -85,10 +85,28 @@ class ClientLoad(_Message):
     name: str = Field(pattern=NAME)
 
 
+class ClientEquilibria(_Message):
+    """List the current pose's equilibria (``pliant.models.dispatch.equilibria``) within
+    ``budget`` seconds; answered by an ``equilibria`` message when the accurate model is
+    done."""
+
+    type: Literal["equilibria"]
+    budget: float = Field(default=10.0, gt=0.0, le=60.0)
+
+
+class ClientChoose(_Message):
+    """Make equilibrium ``option`` (0-based, of the last ``equilibria`` answer for this
+    pose) the accurate answer and the branch the session follows from now on."""
+
+    type: Literal["choose"]
+    option: int = Field(ge=0, le=1000)
+
+
 ClientMessage = Annotated[ClientHello | ClientMove | ClientMode | ClientSolve | ClientSave
-                          | ClientLoad, Field(discriminator="type")]
+                          | ClientLoad | ClientEquilibria | ClientChoose,
+                          Field(discriminator="type")]
 _CLIENT = TypeAdapter(ClientMessage)
-TYPES = ("hello", "move", "mode", "solve", "save", "load")
+TYPES = ("hello", "move", "mode", "solve", "save", "load", "equilibria", "choose")
 
 
 # -- server -> browser -----------------------------------------------------------------------
@@ -234,6 +252,35 @@ class ServerAccurate(_Message):
     verdict: Verdict | None = None
 
 
+class EquilibriumOption(BaseModel):
+    """One equilibrium of the pose: its neutral line [m], potential and elastic energy
+    [J], stability verdict (stable, neutral, unstable, unknown) and smallest eigenvalue
+    [N m], which way it bows, its largest bending moment [N m] and how it was reached."""
+
+    position: list[list[float]]
+    potential_energy: float
+    energy: float
+    verdict: str
+    smallest_eigenvalue: float | None = None
+    bows: str
+    max_moment: float
+    notes: list[str] = []
+
+
+class ServerEquilibria(_Message):
+    """The equilibria of the pose of event ``index``, best first (stable and neutral
+    by potential energy, then unstable); ``current`` says whether the grips are still
+    where they were (only then can one be chosen). ``error`` when the search failed."""
+
+    type: Literal["equilibria"] = "equilibria"
+    index: int
+    current: bool
+    ok: bool
+    error: str | None = None
+    seconds: float = 0.0
+    options: list[EquilibriumOption] = []
+
+
 class PathPlay(BaseModel):
     """A scene's [path] for the page to play: the grip's pose at each step (at most
     ``PATH_STEPS`` of them, evenly taken, the last always)."""
@@ -298,7 +345,7 @@ class ProtocolError(Exception):
 
 
 def parse(raw: str | bytes) -> ClientHello | ClientMove | ClientMode | ClientSolve \
-        | ClientSave | ClientLoad:
+        | ClientSave | ClientLoad | ClientEquilibria | ClientChoose:
     """A client message from its wire text, or ``ProtocolError`` saying what is wrong."""
     size = len(raw.encode() if isinstance(raw, str) else raw)
     if size > MAX_MESSAGE:

@@ -100,6 +100,7 @@ class ViewerState:
         self.radius = (0.5 * problem.part.outer_diameter if problem.part.outer_diameter
                        else 0.01 * problem.part.length)
         self._published = len(session.solves)
+        self._searched = len(session.searches)
         self._meshes: list[P.ObstacleMesh] | None = None
 
     def close(self) -> None:
@@ -122,6 +123,12 @@ class ViewerState:
             replies = [self.switch(message), self.scene_message()]
         elif isinstance(message, P.ClientSolve):
             self.session.request_accurate()
+            replies = [self.poll_frame(0)]
+        elif isinstance(message, P.ClientEquilibria):
+            self.session.find_equilibria(message.budget)
+            replies = [self.poll_frame(0)]
+        elif isinstance(message, P.ClientChoose):
+            self.session.choose(message.option)
             replies = [self.poll_frame(0)]
         elif isinstance(message, P.ClientSave):
             replies = [self.save(message.name)]
@@ -218,7 +225,19 @@ class ViewerState:
         while self._published < len(self.session.solves):
             out.append(self._accurate(self.session.solves[self._published]))
             self._published += 1
+        while self._searched < len(self.session.searches):
+            out.append(self._equilibria(self.session.searches[self._searched]))
+            self._searched += 1
         return out
+
+    def _equilibria(self, found) -> P.ServerEquilibria:
+        return P.ServerEquilibria(
+            index=found.index, current=found.index == self.session.index, ok=found.ok,
+            error=found.error, seconds=found.seconds, options=[P.EquilibriumOption(
+                position=_pad3(o.position).tolist(), potential_energy=o.potential_energy,
+                energy=o.energy, verdict=o.verdict, smallest_eigenvalue=o.smallest_eigenvalue,
+                bows=o.bows, max_moment=o.max_moment, notes=list(o.notes))
+                for o in found.options])
 
     # -- sessions on disk ------------------------------------------------------------------
     def save(self, name: str) -> P.ServerSaved:

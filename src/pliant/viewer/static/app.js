@@ -69,7 +69,7 @@ window.addEventListener('resize', resize);
 const state = {
   scene: null, frame: null, accurate: null, grips: new Map(), frames: 0, accurates: 0,
   errors: [], seq: 0, inFlight: false, queued: null, saved: null, sentAt: new Map(),
-  latency: [], haptics: [],
+  latency: [], haptics: [], equilibria: null,
 };
 const obstacleGroup = new THREE.Group(); world.add(obstacleGroup);
 const envelopeGroup = new THREE.Group(); envelopeGroup.name = 'envelopes'; world.add(envelopeGroup);
@@ -105,9 +105,11 @@ ws.onmessage = (event) => {
   if (msg.type === 'scene') { onScene(msg); loading('solving the start pose…'); }
   else if (msg.type === 'frame') onFrame(msg);
   else if (msg.type === 'accurate') onAccurate(msg);
+  else if (msg.type === 'equilibria') onEquilibria(msg);
   else if (msg.type === 'saved') { state.saved = msg.name; note(`saved ${msg.name} in ${msg.folder}`); }
   else if (msg.type === 'error') {
     state.errors.push(msg);
+    $('find').disabled = false;
     note(`error${msg.field ? ` (${msg.field})` : ''}: ${msg.message}`, true);
     if (!state.scene) loading(msg.message);
     state.inFlight = false;
@@ -121,6 +123,7 @@ function note(text, bad = false) {
 
 // -- the scene ----------------------------------------------------------------------------------
 function onScene(msg) {
+  staleEquilibria();  // a grip switched mode or a session loaded: another pose
   const first = state.scene === null || state.scene.file !== msg.file;
   state.scene = msg;
   $('scene-name').textContent = msg.name;
@@ -400,6 +403,7 @@ function gripPanel(g) {
 // -- dragging -----------------------------------------------------------------------------------
 gizmo.addEventListener('objectChange', () => moved(gizmo.object));
 function moved(handle) {
+  staleEquilibria();
   const g = handle.userData.grip;
   const tangent = handle.userData.holdsTangent ? Z.clone().applyQuaternion(handle.quaternion).toArray() : null;
   const pose = { grip: g.name, position: handle.position.toArray(), tangent };
@@ -614,6 +618,7 @@ function onAccurate(msg) {
   showVerdict(msg.verdict);
   showWarnings();
   showFreshness();
+  if (state.equilibria) onEquilibria(state.equilibria);  // which one is shown now
 }
 
 $('envelope').addEventListener('change', (e) => { envelopeGroup.visible = e.target.checked; });
@@ -668,6 +673,68 @@ function drawBranches(branches) {
     mesh.name = part.name;
     branchGroup.add(mesh);
   }
+}
+
+// The pose's other equilibria (the server's search, best first): a table of their
+// stability, energy and bow side; pointing at a row draws that shape as a dashed line
+// beside the tube, and Use makes it the accurate answer the session follows on. A move
+// of a grip makes the list stale (it answered the earlier pose).
+const CANDIDATE = 0x00838f;
+let candidate = null;
+$('find').onclick = () => {
+  send({ type: 'equilibria', budget: 10 });
+  $('find').disabled = true;
+  $('find-status').textContent = 'searching (up to 10 s)…';
+};
+function onEquilibria(msg) {
+  state.equilibria = msg;
+  $('find').disabled = false;
+  const box = $('equilibria');
+  box.classList.toggle('stale', !msg.current);
+  if (!msg.ok) {
+    $('find-status').textContent = `search failed: ${msg.error}`;
+    box.innerHTML = '';
+    return;
+  }
+  $('find-status').textContent = `${msg.options.length} found in ${msg.seconds.toFixed(1)} s` +
+    (msg.current ? '' : ' for an earlier pose');
+  const shown = state.accurate ? state.accurate.position : null;
+  const rows = msg.options.map((o, k) => {
+    const same = shown && shown.length === o.position.length &&
+      o.position.every((p, i) => Math.hypot(p[0] - shown[i][0], p[1] - shown[i][1], p[2] - shown[i][2]) < 1e-6);
+    return `<tr data-k="${k}" class="${same ? 'shown' : ''}" title="${esc(o.notes.join('; '))}">` +
+      `<td>${k + 1}</td><td>${esc(o.verdict)}</td><td class="num">${fmtEnergy(o.potential_energy)}</td>` +
+      `<td>${esc(o.bows)}</td><td class="num">${fmt(Math.abs(o.max_moment))}</td>` +
+      `<td>${same ? 'shown' : msg.current ? '<button>Use</button>' : ''}</td></tr>`;
+  }).join('');
+  box.innerHTML = msg.options.length ? `<table><tr class="muted"><td>#</td><td>stability</td>` +
+    `<td class="num" title="potential energy (elastic, weight and applied loads)">E [J]</td><td>bows</td>` +
+    `<td class="num" title="largest bending moment">M [N m]</td><td></td></tr>${rows}</table>` : '';
+  for (const tr of box.querySelectorAll('tr[data-k]')) {
+    const k = Number(tr.dataset.k);
+    tr.onmouseenter = () => showCandidate(k);
+    tr.onmouseleave = () => showCandidate(null);
+    tr.onclick = () => showCandidate(k);
+    const use = tr.querySelector('button');
+    if (use) use.onclick = (e) => { e.stopPropagation(); send({ type: 'choose', option: k }); };
+  }
+}
+function fmtEnergy(x) { return Math.abs(x) >= 1e4 || (Math.abs(x) < 1e-3 && x !== 0) ? x.toExponential(3) : x.toFixed(4); }
+function showCandidate(k) {
+  if (candidate) { candidate.geometry.dispose(); world.remove(candidate); candidate = null; }
+  for (const tr of $('equilibria').querySelectorAll('tr[data-k]')) tr.classList.toggle('on', Number(tr.dataset.k) === k);
+  if (k === null || !state.equilibria) return;
+  const option = state.equilibria.options[k];
+  const geometry = new THREE.BufferGeometry().setFromPoints(option.position.map((p) => new THREE.Vector3(...p)));
+  candidate = new THREE.Line(geometry, new THREE.LineDashedMaterial({ color: CANDIDATE, dashSize: 0.02, gapSize: 0.012 }));
+  candidate.computeLineDistances();
+  candidate.name = 'candidate';
+  world.add(candidate);
+}
+function staleEquilibria() {
+  const msg = state.equilibria;
+  if (!msg || !msg.current) return;
+  onEquilibria({ ...msg, current: false });
 }
 
 function drawGhost(msg) {
