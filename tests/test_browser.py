@@ -419,3 +419,24 @@ def test_the_page_lists_the_other_shapes_and_takes_the_one_chosen(browser):
                                ".classList.contains('shown')", timeout=60_000)
         now = page.evaluate("window.pliant.state.accurate.position")
     assert np.abs(np.array(now) - listed["options"][other]["position"]).max() < 1e-9
+
+
+def test_the_page_sends_only_what_the_protocol_takes(page):
+    """The page's protocol module (made from the pydantic models) builds each message and
+    throws on a type or a field the server does not take, before anything is sent."""
+    page, server, _ = page
+    page.goto(server.url)
+    page.wait_for_function(LOADED, timeout=120_000)
+    checked = page.evaluate("""async () => {
+        const p = await import('/static/protocol.js');
+        const tried = (f) => { try { f(); return 'sent'; } catch (e) { return e.message; } };
+        return {
+            move: JSON.parse(p.message('move', {grip: 'hand', position: [0, 0, 0], seq: 1})),
+            type: tried(() => p.message('teleport', {})),
+            field: tried(() => p.message('move', {grip: 'hand', speed: 3})),
+        };
+    }""")
+    assert checked["move"] == {"v": 1, "type": "move", "grip": "hand",
+                               "position": [0, 0, 0], "seq": 1}
+    assert "no client message 'teleport'" in checked["type"]
+    assert "move has no field 'speed'" in checked["field"]

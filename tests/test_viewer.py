@@ -152,6 +152,19 @@ def test_parse_takes_or_refuses_anything(raw):
         assert message.v == P.VERSION
 
 
+def test_the_pages_protocol_module_is_made_from_the_python_protocol():
+    """``static/protocol.js`` is what ``protocol.javascript()`` makes from the pydantic
+    models (run ``python -m pliant.viewer.protocol`` after changing one), and it names
+    every client and server message type with its fields."""
+    assert P.JAVASCRIPT.read_text(encoding="utf-8") == P.javascript()
+    text = P.javascript()
+    for kind in P.TYPES:
+        assert f'"{kind}": [' in text
+    for model in P.SERVER_MESSAGES:
+        assert f'"{model.model_fields["type"].default}": [' in text
+    assert '"move": [\n    "grip",\n    "position",\n    "tangent",\n    "seq"\n  ]' in text
+
+
 # -- one tab's session -----------------------------------------------------------------------
 def test_hello_gives_the_scene_and_the_api_forces(state, folder):
     replies = state.handle(msg(type="hello"))

@@ -12,6 +12,7 @@ message passes ``MAX_FRAME``, and the server goes on serving the others).
 from __future__ import annotations
 
 import json
+from pathlib import Path
 from typing import Annotated, Any, Final, Literal
 
 from pydantic import BaseModel, ConfigDict, Field, TypeAdapter, ValidationError
@@ -372,6 +373,50 @@ def parse(raw: str | bytes) -> ClientHello | ClientMove | ClientMode | ClientSol
         raise ProtocolError(f"{data['type']}.{where}: {first['msg']}", where) from None
 
 
+SERVER_MESSAGES = (ServerScene, ServerFrame, ServerAccurate, ServerEquilibria, ServerSaved,
+                   ServerError)
+JAVASCRIPT = Path(__file__).with_name("static") / "protocol.js"
+
+
+def javascript() -> str:
+    """The page's side of this protocol (``static/protocol.js``), made from these models so
+    the two cannot drift apart: the version, each message type with its fields, and
+    ``message(type, fields)``, which the page sends through and which throws on a type or
+    field the server does not take. ``python -m pliant.viewer.protocol`` writes it;
+    ``tests/test_viewer.py`` checks the file is what this makes."""
+    def fields(model: type[BaseModel]) -> list[str]:
+        return [name for name in model.model_fields if name not in ("v", "type")]
+
+    client = {m.model_fields["type"].annotation.__args__[0]: fields(m)  # type: ignore[union-attr]
+              for m in (ClientHello, ClientMove, ClientMode, ClientSolve, ClientSave, ClientLoad,
+                        ClientEquilibria, ClientChoose)}
+    server = {m.model_fields["type"].default: fields(m) for m in SERVER_MESSAGES}
+    return (
+        "// Made by `python -m pliant.viewer.protocol` from pliant/viewer/protocol.py (the\n"
+        "// pydantic models): do not edit. The wire protocol's version, the messages the\n"
+        "// page may send (type: fields) and those the server answers with.\n"
+        f"export const VERSION = {VERSION};\n"
+        f"export const CLIENT = Object.freeze({json.dumps(client, indent=2)});\n"
+        f"export const SERVER = Object.freeze({json.dumps(server, indent=2)});\n"
+        "// A client message, checked against CLIENT: a type or field the server does not\n"
+        "// take is the page's bug, thrown here and not sent.\n"
+        "export function message(type, fields = {}) {\n"
+        "  const known = CLIENT[type];\n"
+        "  if (!known) throw new Error(`protocol: no client message '${type}'`);\n"
+        "  for (const name of Object.keys(fields)) {\n"
+        "    if (!known.includes(name)) {\n"
+        "      throw new Error(`protocol: ${type} has no field '${name}'`);\n"
+        "    }\n"
+        "  }\n"
+        "  return JSON.stringify({ v: VERSION, type, ...fields });\n"
+        "}\n")
+
+
 def dump(message: _Message) -> str:
     """The wire text of a server message (non-finite numbers as null: JSON has none)."""
     return json.dumps(finite(message.model_dump()), separators=(",", ":"))
+
+
+if __name__ == "__main__":
+    JAVASCRIPT.write_text(javascript(), encoding="utf-8")
+    print(f"wrote {JAVASCRIPT}")

@@ -1,16 +1,21 @@
 // pliant's browser environment: the scene, the part as a tube, grips dragged with the mouse
 // (TransformControls) or VR controllers (WebXR), the real-time frame at display rate and
-// accurate results as they arrive. Scene units are metres, z up; the protocol is
-// pliant/viewer/protocol.py (version 1).
+// accurate results as they arrive. Scene units are metres, z up. The page is ES modules:
+// this one (the session: state, messages, scene, grips, frames, accurate answers), view.js
+// (three.js, views, floor, triad), equilibria.js (other shapes), xr.js (VR), util.js, and
+// protocol.js, made from pliant/viewer/protocol.py, through which every message is sent.
 import * as THREE from 'three';
-import { OrbitControls } from 'three/addons/controls/OrbitControls.js';
-import { TransformControls } from 'three/addons/controls/TransformControls.js';
-import { CSS2DRenderer, CSS2DObject } from 'three/addons/renderers/CSS2DRenderer.js';
-import { VRButton } from 'three/addons/webxr/VRButton.js';
+import { message } from './protocol.js';
+import { $, esc, fmt, interp, slug } from './util.js';
+import {
+  FORCE, INSIDE, MOMENT, OBSTACLE, PORT, TOO_CLOSE, arrowGroup, branchGroup, camera,
+  contactGroup, drawTriad, envelopeGroup, frameOn, gizmo, gripGroup, label, labels,
+  obstacleGroup, renderer, resize, scene, setView, taskGroup, tubeMaterial, world,
+} from './view.js';
+import { setupEquilibria } from './equilibria.js';
+import { setupXR } from './xr.js';
 
-const V = 1;
 const params = new URLSearchParams(location.search);
-const $ = (id) => document.getElementById(id);
 
 // A WebXR emulator (iwer) where the page is asked to (?xr=emulate): tests, and desktops
 // without a headset.
@@ -21,74 +26,18 @@ if (params.get('xr') === 'emulate') {
   xrDevice.installRuntime({ forceInstall: true });  // over the browser's own (headless) one
 }
 
-// -- three.js set-up --------------------------------------------------------------------------
-const container = $('view');
-const renderer = new THREE.WebGLRenderer({ antialias: true, preserveDrawingBuffer: true });
-renderer.setPixelRatio(window.devicePixelRatio);
-renderer.xr.enabled = true;
-container.appendChild(renderer.domElement);
-const labels = new CSS2DRenderer();
-labels.domElement.style.position = 'absolute';
-labels.domElement.style.top = '0';
-labels.domElement.style.pointerEvents = 'none';
-container.appendChild(labels.domElement);
-
-const scene = new THREE.Scene();
-scene.background = new THREE.Color(0xe9edf1);
-// The scene's frame is z up, and so is the view: the camera's up is +z, so that the
-// orbit, the move gizmo's axes (red x, green y, blue z) and the triad are the scene's.
-// Only in VR, whose frame is y up, does the world group turn (see sessionstart).
-const hemisphere = new THREE.HemisphereLight(0xffffff, 0x667788, 2.0);
-hemisphere.position.set(0, 0, 1);
-scene.add(hemisphere);
-const sun = new THREE.DirectionalLight(0xffffff, 1.5);
-sun.position.set(2, -3, 4);
-scene.add(sun);
-const world = new THREE.Group();
-scene.add(world);
-
-const camera = new THREE.PerspectiveCamera(45, 1, 0.01, 100);
-camera.up.set(0, 0, 1);
-const orbit = new OrbitControls(camera, renderer.domElement);
-orbit.enableDamping = false;
-const gizmo = new TransformControls(camera, renderer.domElement);
-gizmo.setSize(0.8);
-scene.add(gizmo.getHelper());
-gizmo.addEventListener('dragging-changed', (e) => { orbit.enabled = !e.value; });
-
-function resize() {
-  const w = container.clientWidth, h = container.clientHeight;
-  renderer.setSize(w, h);
-  labels.setSize(w, h);
-  camera.aspect = w / h;
-  camera.updateProjectionMatrix();
-}
-window.addEventListener('resize', resize);
-
 // -- state --------------------------------------------------------------------------------------
 const state = {
   scene: null, frame: null, accurate: null, grips: new Map(), frames: 0, accurates: 0,
   errors: [], seq: 0, inFlight: false, queued: null, saved: null, sentAt: new Map(),
   latency: [], haptics: [], equilibria: null,
 };
-const obstacleGroup = new THREE.Group(); world.add(obstacleGroup);
-const envelopeGroup = new THREE.Group(); envelopeGroup.name = 'envelopes'; world.add(envelopeGroup);
-const gripGroup = new THREE.Group(); world.add(gripGroup);
-const arrowGroup = new THREE.Group(); world.add(arrowGroup);
-const contactGroup = new THREE.Group(); world.add(contactGroup);
-// The task: the ports with their axes, the [path] the hand follows, the obstacles' names.
-const taskGroup = new THREE.Group(); taskGroup.name = 'task'; world.add(taskGroup);
-const PORT = 0x00838f;
 let tube = null, ghost = null;
-const OBSTACLE = 0x9aa3ad, TOO_CLOSE = 0xf9a825, INSIDE = 0xd32f2f;  // obstacle tints
-// The hand's force and moment: magenta and purple, apart from the gizmo's red, green
-// and blue axes and from the tube's colour map.
-const FORCE = 0xc2185b, MOMENT = 0x5e35b1;
-const tubeMaterial = new THREE.MeshStandardMaterial({ vertexColors: true, roughness: 0.5 });
 
 // -- the websocket ------------------------------------------------------------------------------
 const ws = new WebSocket(`ws://${location.host}/ws`);
-const send = (msg) => ws.send(JSON.stringify({ v: V, ...msg }));
+const send = ({ type, ...fields }) => ws.send(message(type, fields));
+const { onEquilibria, staleEquilibria } = setupEquilibria(state, send);
 ws.onopen = () => {
   loading('opening the scene: reading its meshes and starting the solver…');
   send({ type: 'hello' });
@@ -244,14 +193,6 @@ function drawTask(msg) {
     taskGroup.add(label(top, mesh.name, 'obstacle'));
   }
 }
-function label(at, text, kind) {
-  const div = document.createElement('div');
-  div.className = `label ${kind}`;
-  div.innerHTML = `<span>${esc(text)}</span>`;
-  const object = new CSS2DObject(div);
-  object.position.copy(at);
-  return object;
-}
 function highlight(name) {
   for (const mesh of obstacleGroup.children) mesh.material.emissive.set(mesh.name === name ? 0x335577 : 0x000000);
   state.highlighted = name;
@@ -263,82 +204,7 @@ function frameCamera() {
   obstacleGroup.updateMatrixWorld(true);
   box.expandByObject(obstacleGroup);
   if (box.isEmpty()) box.expandByPoint(new THREE.Vector3(state.scene.part.length, 0, 0));
-  const centre = box.getCenter(new THREE.Vector3());
-  const size = box.getSize(new THREE.Vector3()).length() || 1;
-  state.view = { centre, size, box };
-  drawFloor(box);
-  setView('iso');
-}
-
-// Standard views, as CAD viewers have them: from a corner (iso), from above (top), from
-// the front (looking along +y) and from the right (looking along -x); the scene's z up.
-const VIEWS = {
-  iso: [0.9, -1.1, 0.6], top: [0, -1e-3, 1.4], front: [0, -1.4, 0], right: [1.4, 0, 0],
-};
-function setView(name) {
-  if (!state.view) return;
-  const { centre, size } = state.view;
-  orbit.target.copy(world.localToWorld(centre.clone()));
-  camera.position.copy(orbit.target).add(new THREE.Vector3(...VIEWS[name]).multiplyScalar(size));
-  camera.near = size / 200; camera.far = size * 50;
-  camera.updateProjectionMatrix();
-  orbit.update();
-  state.viewName = name;
-}
-for (const name of Object.keys(VIEWS)) $(`view-${name}`).onclick = () => setView(name);
-
-// A floor grid under the scene (its cell a round length, said in the panel) and a
-// triad of the scene's axes in the corner: distances can be judged by eye.
-let floor = null;
-function drawFloor(box) {
-  if (floor) { world.remove(floor); floor.geometry.dispose(); floor.material.dispose(); }
-  const size = box.getSize(new THREE.Vector3());
-  const span = 1.4 * Math.max(size.x, size.y, 0.1);
-  const raw = span / 16, decade = 10 ** Math.floor(Math.log10(raw));
-  const cell = [1, 2, 5, 10].map((k) => k * decade).find((c) => c >= raw);
-  const cells = 2 * Math.ceil(span / cell / 2);
-  floor = new THREE.GridHelper(cells * cell, cells, 0x8a949e, 0xc3cad1);
-  floor.name = 'floor';
-  floor.rotation.x = Math.PI / 2;  // three's grid lies in x-z; the floor in x-y
-  const c = box.getCenter(new THREE.Vector3());
-  floor.position.set(Math.round(c.x / cell) * cell, Math.round(c.y / cell) * cell, box.min.z);
-  world.add(floor);
-  state.gridCell = cell;
-  $('grid-cell').textContent = `grid ${cell >= 1 ? `${cell} m` : `${+(cell * 1e3).toPrecision(3)} mm`}`;
-}
-const triad = new THREE.Scene();
-const triadCamera = new THREE.PerspectiveCamera(40, 1, 0.1, 10);
-triadCamera.up.set(0, 0, 1);
-for (const [axis, colour, text] of [[[1, 0, 0], 0xd32f2f, 'x'], [[0, 1, 0], 0x388e3c, 'y'], [[0, 0, 1], 0x1565c0, 'z']]) {
-  const dir = new THREE.Vector3(...axis);
-  triad.add(new THREE.ArrowHelper(dir, new THREE.Vector3(), 1, colour, 0.3, 0.15));
-  const canvas = document.createElement('canvas');
-  canvas.width = canvas.height = 64;
-  const g = canvas.getContext('2d');
-  g.fillStyle = `#${colour.toString(16).padStart(6, '0')}`;
-  g.font = 'bold 48px system-ui, sans-serif';
-  g.textAlign = 'center'; g.textBaseline = 'middle';
-  g.fillText(text, 32, 34);
-  const sprite = new THREE.Sprite(new THREE.SpriteMaterial({ map: new THREE.CanvasTexture(canvas) }));
-  sprite.position.copy(dir.multiplyScalar(1.35));
-  sprite.scale.setScalar(0.5);
-  triad.add(sprite);
-}
-const TRIAD = 96;  // px, in the view's lower left corner
-function drawTriad() {
-  if (renderer.xr.isPresenting) return;
-  triadCamera.position.copy(camera.position).sub(orbit.target).setLength(4.2);
-  triadCamera.lookAt(0, 0, 0);
-  const h = container.clientHeight;
-  renderer.autoClear = false;
-  renderer.clearDepth();
-  renderer.setScissorTest(true);
-  renderer.setScissor(8, 8, TRIAD, TRIAD);
-  renderer.setViewport(8, 8, TRIAD, TRIAD);
-  renderer.render(triad, triadCamera);
-  renderer.setScissorTest(false);
-  renderer.setViewport(0, 0, container.clientWidth, h);
-  renderer.autoClear = true;
+  frameOn(box);
 }
 
 const Z = new THREE.Vector3(0, 0, 1);
@@ -537,7 +403,7 @@ function showColourBar(values) {
   bar.dataset.max = values.max;
   bar.dataset.kind = values.kind;
 }
-function fmt(x) { return x >= 100 ? x.toFixed(0) : x >= 1 ? x.toFixed(2) : x.toPrecision(2); }
+
 
 function colourValues(frame, segments) {
   const kind = $('colour').value;
@@ -660,9 +526,6 @@ function drawFitted(fitted) {
 
 // A harness's branches, solved with the part: tubes of their own, redrawn with each
 // accurate answer (the real-time frames do not carry them), all of one material.
-const branchGroup = new THREE.Group();
-branchGroup.name = 'branches';
-world.add(branchGroup);
 const branchMaterial = new THREE.MeshStandardMaterial({ color: 0x3b6ea5, roughness: 0.6 });
 function drawBranches(branches) {
   for (const child of [...branchGroup.children]) child.geometry.dispose();
@@ -673,68 +536,6 @@ function drawBranches(branches) {
     mesh.name = part.name;
     branchGroup.add(mesh);
   }
-}
-
-// The pose's other equilibria (the server's search, best first): a table of their
-// stability, energy and bow side; pointing at a row draws that shape as a dashed line
-// beside the tube, and Use makes it the accurate answer the session follows on. A move
-// of a grip makes the list stale (it answered the earlier pose).
-const CANDIDATE = 0x00838f;
-let candidate = null;
-$('find').onclick = () => {
-  send({ type: 'equilibria', budget: 10 });
-  $('find').disabled = true;
-  $('find-status').textContent = 'searching (up to 10 s)…';
-};
-function onEquilibria(msg) {
-  state.equilibria = msg;
-  $('find').disabled = false;
-  const box = $('equilibria');
-  box.classList.toggle('stale', !msg.current);
-  if (!msg.ok) {
-    $('find-status').textContent = `search failed: ${msg.error}`;
-    box.innerHTML = '';
-    return;
-  }
-  $('find-status').textContent = `${msg.options.length} found in ${msg.seconds.toFixed(1)} s` +
-    (msg.current ? '' : ' for an earlier pose');
-  const shown = state.accurate ? state.accurate.position : null;
-  const rows = msg.options.map((o, k) => {
-    const same = shown && shown.length === o.position.length &&
-      o.position.every((p, i) => Math.hypot(p[0] - shown[i][0], p[1] - shown[i][1], p[2] - shown[i][2]) < 1e-6);
-    return `<tr data-k="${k}" class="${same ? 'shown' : ''}" title="${esc(o.notes.join('; '))}">` +
-      `<td>${k + 1}</td><td>${esc(o.verdict)}</td><td class="num">${fmtEnergy(o.potential_energy)}</td>` +
-      `<td>${esc(o.bows)}</td><td class="num">${fmt(Math.abs(o.max_moment))}</td>` +
-      `<td>${same ? 'shown' : msg.current ? '<button>Use</button>' : ''}</td></tr>`;
-  }).join('');
-  box.innerHTML = msg.options.length ? `<table><tr class="muted"><td>#</td><td>stability</td>` +
-    `<td class="num" title="potential energy (elastic, weight and applied loads)">E [J]</td><td>bows</td>` +
-    `<td class="num" title="largest bending moment">M [N m]</td><td></td></tr>${rows}</table>` : '';
-  for (const tr of box.querySelectorAll('tr[data-k]')) {
-    const k = Number(tr.dataset.k);
-    tr.onmouseenter = () => showCandidate(k);
-    tr.onmouseleave = () => showCandidate(null);
-    tr.onclick = () => showCandidate(k);
-    const use = tr.querySelector('button');
-    if (use) use.onclick = (e) => { e.stopPropagation(); send({ type: 'choose', option: k }); };
-  }
-}
-function fmtEnergy(x) { return Math.abs(x) >= 1e4 || (Math.abs(x) < 1e-3 && x !== 0) ? x.toExponential(3) : x.toFixed(4); }
-function showCandidate(k) {
-  if (candidate) { candidate.geometry.dispose(); world.remove(candidate); candidate = null; }
-  for (const tr of $('equilibria').querySelectorAll('tr[data-k]')) tr.classList.toggle('on', Number(tr.dataset.k) === k);
-  if (k === null || !state.equilibria) return;
-  const option = state.equilibria.options[k];
-  const geometry = new THREE.BufferGeometry().setFromPoints(option.position.map((p) => new THREE.Vector3(...p)));
-  candidate = new THREE.Line(geometry, new THREE.LineDashedMaterial({ color: CANDIDATE, dashSize: 0.02, gapSize: 0.012 }));
-  candidate.computeLineDistances();
-  candidate.name = 'candidate';
-  world.add(candidate);
-}
-function staleEquilibria() {
-  const msg = state.equilibria;
-  if (!msg || !msg.current) return;
-  onEquilibria({ ...msg, current: false });
 }
 
 function drawGhost(msg) {
@@ -821,87 +622,7 @@ function showWarnings() {
   $('warnings').innerHTML = out.length ? out.map((w) => `<li>${esc(w)}</li>`).join('') : '<li class="muted">none</li>';
 }
 
-// -- VR: controllers grab a grip (trigger), move it, let go ------------------------------------
-// The VR button only where the browser can enter VR (or the emulator is asked for): no
-// "VR NOT SUPPORTED" across the view of a desktop.
-if (navigator.xr) {
-  navigator.xr.isSessionSupported('immersive-vr').then((ok) => {
-    if (ok) document.body.appendChild(VRButton.createButton(renderer));
-  }).catch(() => {});
-}
-const hands = [0, 1].map((i) => {
-  const controller = renderer.xr.getController(i);
-  controller.userData.index = i;
-  controller.addEventListener('connected', (e) => { controller.userData.source = e.data; });
-  controller.addEventListener('disconnected', () => { controller.userData.source = null; });
-  controller.add(new THREE.Line(new THREE.BufferGeometry().setFromPoints([new THREE.Vector3(), new THREE.Vector3(0, 0, -0.1)])));
-  scene.add(controller);
-  controller.addEventListener('selectstart', () => grab(controller));
-  controller.addEventListener('selectend', () => { controller.userData.held = null; });
-  return controller;
-});
-// A controller holding a grip pulses with the force the hand must give there: full
-// strength at HAPTIC_FULL newtons (about the push a fitter gives with one hand, EN
-// 1005-3's range), in proportion below; each pulse is recorded (state.haptics).
-const HAPTIC_FULL = 50;  // N
-function pulseHands(msg) {
-  for (const controller of hands) {
-    const handle = controller.userData.held;
-    const actuator = controller.userData.source?.gamepad?.hapticActuators?.[0];
-    if (!handle || !actuator) continue;
-    const load = msg.loads.find((l) => l.name === handle.name);
-    if (!load) continue;
-    const force = Math.hypot(...load.force);
-    const value = Math.min(force / HAPTIC_FULL, 1);
-    actuator.pulse(value, 60);
-    state.haptics.push({ hand: controller.userData.source.handedness, grip: handle.name, force, value });
-  }
-}
-function grab(controller) {
-  const here = controller.getWorldPosition(new THREE.Vector3());
-  let best = null, bestD = 0.15;  // m: how near a hand must be to take a grip
-  const taken = new Set(hands.map((h) => h.userData.held).filter(Boolean));
-  for (const handle of state.grips.values()) {
-    if (!handle.userData.movable || taken.has(handle)) continue;  // one hand a grip
-    const d = handle.getWorldPosition(new THREE.Vector3()).distanceTo(here);
-    if (d < bestD) { best = handle; bestD = d; }
-  }
-  if (!best) return;
-  // Keep the grip's pose relative to the controller while held.
-  controller.updateMatrixWorld(true);
-  best.updateMatrixWorld(true);
-  controller.userData.held = best;
-  controller.userData.offset = controller.matrixWorld.clone().invert().multiply(best.matrixWorld);
-}
-function followHands() {
-  for (const controller of hands) {
-    const handle = controller.userData.held;
-    if (!handle) continue;
-    controller.updateMatrixWorld(true);
-    const target = controller.matrixWorld.clone().multiply(controller.userData.offset);
-    const local = world.matrixWorld.clone().invert().multiply(target);
-    const p = new THREE.Vector3(), q = new THREE.Quaternion(), s = new THREE.Vector3();
-    local.decompose(p, q, s);
-    if (p.distanceTo(handle.position) < 1e-5 && q.angleTo(handle.quaternion) < 1e-5) continue;
-    handle.position.copy(p);
-    handle.quaternion.copy(q);
-    moved(handle);
-  }
-}
-renderer.xr.addEventListener('sessionstart', () => {
-  // VR is y up: turn the z-up world, and bring it in front of the user at table height.
-  world.rotation.x = -Math.PI / 2;
-  world.updateMatrixWorld(true);
-  const box = new THREE.Box3().expandByObject(world);
-  const c = box.getCenter(new THREE.Vector3());
-  world.position.add(new THREE.Vector3(-c.x, 1.0 - c.y, -0.6 - c.z));
-  state.xr = true;
-});
-renderer.xr.addEventListener('sessionend', () => {
-  world.position.set(0, 0, 0);
-  world.rotation.x = 0;
-  state.xr = false;
-});
+const { hands, pulseHands, followHands } = setupXR(state, moved);
 
 // -- the loop -----------------------------------------------------------------------------------
 renderer.setAnimationLoop(() => {
@@ -912,19 +633,6 @@ renderer.setAnimationLoop(() => {
   state.rendered = (state.rendered || 0) + 1;
 });
 resize();
-
-// -- helpers ------------------------------------------------------------------------------------
-function interp(x, xs, ys) {
-  if (!xs.length) return 0;
-  if (x <= xs[0]) return ys[0];
-  let lo = 0, hi = xs.length - 1;
-  if (x >= xs[hi]) return ys[hi];
-  while (hi - lo > 1) { const mid = (lo + hi) >> 1; if (xs[mid] <= x) lo = mid; else hi = mid; }
-  const t = (x - xs[lo]) / (xs[hi] - xs[lo] || 1);
-  return ys[lo] + t * (ys[hi] - ys[lo]);
-}
-function slug(name) { return name.replace(/[^A-Za-z0-9_-]/g, '_'); }
-function esc(text) { return String(text).replace(/[&<>"]/g, (c) => ({ '&': '&amp;', '<': '&lt;', '>': '&gt;', '"': '&quot;' }[c])); }
 
 // For tests and scripts: the page's state and where a grip is on the screen.
 window.pliant = {
