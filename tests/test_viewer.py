@@ -501,6 +501,34 @@ def test_a_live_result_taken_in_by_a_move_still_reaches_the_page(folder):
         state.close()
 
 
+def test_live_answers_are_pushed_as_they_arrive(folder):
+    """Live, the worker's answer calls the watcher (the server's wake-up) from the reader
+    thread, with no poll of the session in between; what the server then takes is that
+    answer, for the pose asked. A session loaded later is watched too."""
+    import threading
+
+    state = ViewerState(Path("hose.toml"), folder, live=True)
+    try:
+        arrived = threading.Event()
+        state.watch(arrived.set)
+        state.handle(msg(type="hello"))
+        far = state.handle(msg(type="move", grip="hand", position=[0.6, 0.3, 0.25],
+                               tangent=[0, 1, 0]))[0]
+        assert far.pending
+        assert arrived.wait(timeout=120)
+        accurate = by_type(state.take_accurate(), "accurate")
+        assert [a.index for a in accurate] == [far.index]
+        np.testing.assert_allclose(accurate[0].position[-1], [0.6, 0.3, 0.25], atol=1e-9)
+        state.handle(msg(type="save", name="pushed"))
+        state.handle(msg(type="load", name="pushed"))  # a new session, watched as well
+        arrived.clear()
+        state.handle(msg(type="solve"))
+        assert arrived.wait(timeout=120)
+        assert by_type(state.take_accurate(), "accurate")
+    finally:
+        state.close()
+
+
 def test_the_page_gets_the_poses_verdict_by_the_same_rules_as_pliant_evaluate(state, folder):
     from pliant.assembly.evaluate import evaluate_pose
 

@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import math
 import time
+from collections.abc import Callable
 from dataclasses import dataclass, field, replace
 from typing import Any, Final
 
@@ -264,6 +265,9 @@ class ProcessExecutor:
         self._sent: tuple = ()  # the obstacles the worker holds
         self.restarts = 0  # workers started again after one died
         self._retried = False  # the request in flight was sent again to a new worker
+        # Called (from the reader thread) as each answer arrives, so that a server can
+        # push it to its page at once instead of polling; it must not block.
+        self.on_answer: Callable[[], None] | None = None
         self._start()
 
     def _start(self) -> None:
@@ -276,18 +280,31 @@ class ProcessExecutor:
             [sys.executable, "-m", "pliant.session.worker", str(self.elements or 0)],
             stdin=subprocess.PIPE, stdout=subprocess.PIPE)
         self._sent = ()
-        self._reader = threading.Thread(target=self._read, args=(self._process, self._answers),
+        self._reader = threading.Thread(target=self._read,
+                                        args=(self._process, self._answers, self._notify),
                                         daemon=True, name="pliant-accurate-reader")
         self._reader.start()
 
     @staticmethod
-    def _read(process, answers) -> None:
+    def _read(process, answers, notify) -> None:
         stream = process.stdout
         while True:
             message = read_message(stream)
             answers.put((process, message))
+            notify()
             if message is None:
                 return
+
+    def _notify(self) -> None:
+        """Tell the listener an answer is queued; a listener that fails (its event loop
+        closed, say) must not stop the reader."""
+        listener = self.on_answer
+        if listener is None:
+            return
+        try:
+            listener()
+        except Exception:  # whatever the listener's trouble, keep reading
+            pass
 
     @property
     def busy(self) -> bool:

@@ -178,6 +178,14 @@ class Session:
         """The accurate answer has arrived; the next event or ``poll`` takes it in."""
         return self._executor.answered
 
+    def notify(self, listener: Callable[[], None] | None) -> None:
+        """Have ``listener()`` called as each live answer arrives (from the worker's
+        reader thread: it must only hand over, say ``loop.call_soon_threadsafe``), so
+        that a server pushes it instead of polling. Inline answers come with the call
+        that asked for them."""
+        if isinstance(self._executor, ProcessExecutor):
+            self._executor.on_answer = listener
+
     def request_accurate(self) -> None:
         """Ask for an accurate solve at the next event (or ``poll``), drift or not."""
         self._requested = True

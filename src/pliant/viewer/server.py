@@ -210,11 +210,15 @@ class Server:
             await ws.close()
             return
         lock = asyncio.Lock()
+        arrived = asyncio.Event()
+        loop = asyncio.get_running_loop()
+        state.watch(lambda: loop.call_soon_threadsafe(arrived.set))
 
-        async def pump() -> None:  # accurate results, as they arrive
+        async def pump() -> None:  # accurate results, pushed as they arrive
             try:
                 while True:
-                    await asyncio.sleep(0.03)
+                    await arrived.wait()
+                    arrived.clear()
                     # Sent under the lock, as the replies are: a frame made before a
                     # move's must not reach the page after it (it would show the old pose).
                     async with lock:

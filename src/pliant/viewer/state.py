@@ -11,6 +11,7 @@ from __future__ import annotations
 import json
 import math
 import os
+from collections.abc import Callable
 from pathlib import Path
 from typing import TYPE_CHECKING, Literal
 
@@ -79,6 +80,7 @@ class ViewerState:
         self.live = live
         self.elements = elements
         self.envelopes = list(envelopes or [])
+        self._listener: Callable[[], None] | None = None
         self._open(inside(self.root, str(scene_path), "scene"))
 
     # -- opening a scene -------------------------------------------------------------------
@@ -94,6 +96,7 @@ class ViewerState:
         if old is not None:
             old.close()
         self.session: Session = session
+        session.notify(self._listener)
         self.scene, self.path = scene, path
         self.original = {c.name: c for c in problem.conditions}
         self.modes = {c.name: _mode(c, scene.fixed) for c in problem.conditions}
@@ -209,6 +212,13 @@ class ViewerState:
 
     def poll_frame(self, seq: int) -> P.ServerFrame:
         return self._frame_message(self.session.poll(), seq)
+
+    def watch(self, listener: Callable[[], None] | None) -> None:
+        """Have ``listener()`` called (from another thread) as each live answer of the
+        accurate model arrives, this session's and those of a session loaded later: the
+        server then calls ``take_accurate`` and pushes what it returns."""
+        self._listener = listener
+        self.session.notify(listener)
 
     def take_accurate(self) -> list[P._Message]:
         """What arrived from the accurate model since the last call: its results, then a
