@@ -212,7 +212,11 @@ class Server:
         lock = asyncio.Lock()
         arrived = asyncio.Event()
         loop = asyncio.get_running_loop()
-        state.watch(lambda: loop.call_soon_threadsafe(arrived.set))
+
+        def wake() -> None:  # from the worker's reader thread
+            loop.call_soon_threadsafe(arrived.set)
+
+        state.watch(wake)
 
         async def pump() -> None:  # accurate results, pushed as they arrive
             try:
