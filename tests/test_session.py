@@ -9,7 +9,7 @@ import pytest
 
 import pliant as pl
 from pliant.core.equilibrium import Result
-from pliant.errors import FileFormatError, InputError, UnreachableTargetError
+from pliant.errors import FileFormatError, InputError, PliantError, UnreachableTargetError
 from pliant.io.recording import load_recording, save_recording
 from pliant.session import GripEvent, Session, replay
 
@@ -299,3 +299,30 @@ def test_a_live_session_finds_and_chooses_through_its_worker():
         chosen = session.wait(timeout=60.0)
         assert chosen is not None and chosen.ok
         assert np.abs(chosen.position - found.options[1].position).max() < 1e-12
+
+
+def test_grip_rules_below_the_interfaces():
+    """``pliant.session.grips``: how each condition is driven, the event a held grip's
+    pose makes (a 2D angle from the tangent), the pose a grip switched back to holding
+    takes (the answer's point and direction at its station, a repeated station counted
+    once), and the typed errors for a zero tangent or no answer yet."""
+    from pliant.session import grips
+
+    clamp = pl.clamp(0.0, position=(0, 0, 0), tangent=(1, 0, 0), normal=(0, 0, 1))
+    hand = pl.pin(1.0, position=(0.9, 0.0, 0.0), name="hand")
+    push = pl.push(1.0, force=(0.0, 0.0, -1.0), name="tip")
+    assert [grips.grip_mode(c) for c in (clamp, hand, push)] == ["fixed", "position", "force"]
+    assert grips.grip_mode(hand, fixed=("hand",)) == "fixed"
+    turned = pl.grip(1.0, (0.5, 0.2), angle=0.0, name="hand")
+    event = grips.pose_event(turned, (0.4, 0.3, 0.0), (0.0, 2.0, 0.0), 2)
+    assert event.position == (0.4, 0.3) and event.angle == pytest.approx(np.pi / 2)
+    with pytest.raises(InputError, match="tangent"):
+        grips.pose_event(pl.grip(1.0, (0.9, 0, 0), tangent=(1, 0, 0), name="h"),
+                         (0.9, 0.0, 0.0), (0.0, 0.0, 0.0), 3)
+    with pytest.raises(PliantError, match="hand: no accurate shape"):
+        grips.held(hand, hand, None, 3)
+    s = np.array([0.0, 0.5, 0.5, 1.0])
+    line = np.array([[0.0, 0.0, 0.0], [0.3, 0.4, 0.0], [0.3, 0.4, 0.0], [0.6, 0.8, 0.0]])
+    point, tangent = grips.point_at(s, line, 0.75)
+    np.testing.assert_allclose(point, [0.45, 0.6, 0.0], atol=1e-12)
+    np.testing.assert_allclose(tangent, [0.6, 0.8, 0.0], atol=1e-12)

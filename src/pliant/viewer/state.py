@@ -13,7 +13,7 @@ import math
 import os
 from collections.abc import Callable
 from pathlib import Path
-from typing import TYPE_CHECKING, Literal
+from typing import TYPE_CHECKING
 
 import numpy as np
 from pydantic import BaseModel, ConfigDict, ValidationError
@@ -22,13 +22,13 @@ from pliant.assembly.checks import shape_warnings
 from pliant.core.conditions import Condition
 from pliant.errors import PliantError
 from pliant.io.jsontext import finite
+from pliant.session import grips
 from pliant.viewer import protocol as P
 from pliant.viewer.protocol import ProtocolError
 
 if TYPE_CHECKING:
     from pliant.session import Session
 
-GripMode = Literal["position", "force", "fixed"]
 
 
 class SessionFile(BaseModel):
@@ -99,7 +99,7 @@ class ViewerState:
         session.notify(self._listener)
         self.scene, self.path = scene, path
         self.original = {c.name: c for c in problem.conditions}
-        self.modes = {c.name: _mode(c, scene.fixed) for c in problem.conditions}
+        self.modes = {c.name: grips.grip_mode(c, scene.fixed) for c in problem.conditions}
         self.radius = (0.5 * problem.part.outer_diameter if problem.part.outer_diameter
                        else 0.01 * problem.part.length)
         self._published = len(session.solves)
@@ -143,8 +143,6 @@ class ViewerState:
         return replies + self._published_since()
 
     def move(self, message: P.ClientMove) -> P.ServerFrame:
-        from pliant.session import GripEvent  # noqa: PLC0415
-
         mode = self.modes.get(message.grip)
         if mode is None:
             raise ProtocolError(f"no grip is named {message.grip!r}; the grips are "
@@ -155,55 +153,24 @@ class ViewerState:
             raise ProtocolError(f"{message.grip!r} is {how}; only a grip held by position "
                                 "is moved", "grip")
         cond = self._condition(message.grip)
-        if self.dimension == 2:
-            angle = None
-            if cond.angle is not None and message.tangent is not None:
-                angle = math.atan2(message.tangent[1], message.tangent[0])
-            event = GripEvent(message.grip, position=tuple(message.position[:2]), angle=angle)
-        else:
-            tangent = message.tangent if cond.tangent is not None else None
-            if tangent is not None and not np.linalg.norm(tangent) > 1e-9:
-                raise ProtocolError("the tangent must be a non-zero direction", "tangent")
-            event = GripEvent(message.grip, position=tuple(message.position),
-                              tangent=tangent)
+        if (self.dimension == 3 and cond.tangent is not None and message.tangent is not None
+                and not np.linalg.norm(message.tangent) > 1e-9):
+            raise ProtocolError("the tangent must be a non-zero direction", "tangent")
+        event = grips.pose_event(cond, message.position, message.tangent, self.dimension)
         return self._frame_message(self.session.apply(event), message.seq)
 
     def switch(self, message: P.ClientMode) -> P.ServerFrame:
-        """Hold a grip by position or push with a force (see ``ClientMode``)."""
+        """Hold a grip by position or push with a force (see ``ClientMode``; the rules
+        are ``pliant.session.grips``'s)."""
         name = message.grip
         if self.modes.get(name) in (None, "fixed"):
             raise ProtocolError(f"{name!r} is not a grip the user drives", "grip")
         cond = self._condition(name)
-        d = self.dimension
         last = self.session.accurate
         if message.mode == "force":
-            load = last.loads.get(name) if last is not None else None
-            force = (message.force if message.force is not None
-                     else (tuple(load.force[:d]) if load is not None else (0.0,) * d))
-            moment: float | tuple[float, ...] | None = None
-            if d == 3:
-                if message.moment is not None:
-                    moment = tuple(message.moment)
-                elif load is not None:
-                    moment = tuple(float(m) for m in np.atleast_1d(load.moment)[:3])
-            else:
-                if message.moment is not None:
-                    moment = float(message.moment[2])
-                elif load is not None and cond.angle is not None:
-                    moment = float(np.atleast_1d(load.moment)[0])
-            new = Condition(s=cond.s, name=name, force=tuple(force[:d]), moment=moment)
+            new = grips.pushed(cond, last, self.dimension, message.force, message.moment)
         else:
-            if last is None or not last.ok:
-                raise PliantError("no accurate shape to take the grip's pose from; solve first")
-            point, tangent = _at(last.s, last.position, cond.s)
-            orig = self.original[name]
-            if d == 2:
-                held = orig.angle is not None
-                new = Condition(s=cond.s, name=name, position=tuple(point[:2]),
-                                angle=math.atan2(tangent[1], tangent[0]) if held else None)
-            else:
-                new = Condition(s=cond.s, name=name, position=tuple(point),
-                                tangent=tuple(tangent) if orig.tangent is not None else None)
+            new = grips.held(cond, self.original[name], last, self.dimension)
         problem = self.session.problem.with_conditions(
             new if c.name == name else c for c in self.session.problem.conditions)
         frame = self.session.replace(problem)
@@ -282,8 +249,9 @@ class ViewerState:
             if grip.name not in conditions or self.modes.get(grip.name) == "fixed":
                 raise ProtocolError(f"{path.name}: {grip.name!r} is not a grip of this scene",
                                     "grips")
-            conditions[grip.name] = _condition_from(grip, conditions[grip.name],
-                                                    self.original[grip.name], self.dimension)
+            conditions[grip.name] = grips.restored(
+                conditions[grip.name], self.original[grip.name], grip.mode, grip.position,
+                grip.tangent, grip.force, grip.moment, self.dimension)
             self.modes[grip.name] = grip.mode
         problem = self.session.problem.with_conditions(
             conditions[c.name] for c in self.session.problem.conditions)
@@ -299,7 +267,7 @@ class ViewerState:
             if all(v is not None for v in cond.position):
                 position = _pad(cond.position)
             elif last is not None and last.ok:
-                position = _pad(_at(last.s, last.position, cond.s)[0])
+                position = _pad(grips.point_at(last.s, last.position, cond.s)[0])
             else:
                 position = [0.0, 0.0, 0.0]
             tangent: list[float] | None = None
@@ -378,7 +346,7 @@ class ViewerState:
         loads = []
         for name, load in result.loads.items():
             # Where the load acts now (a sliding clip's s is where it slid to).
-            point = _at(result.s, result.position, load.s)[0]
+            point = grips.point_at(result.s, result.position, load.s)[0]
             moment = np.atleast_1d(np.asarray(load.moment, float))
             loads.append(P.Load(name=name, position=_pad(point),
                                 force=_pad(load.force),
@@ -501,33 +469,6 @@ def load_envelope(path: Path) -> list[P.ObstacleMesh]:
             for name, mesh in loaded.geometry.items()]
 
 
-def _mode(cond: Condition, fixed: tuple[str, ...]) -> GripMode:
-    if cond.name in fixed or cond.normal is not None:
-        return "fixed"
-    if all(v is not None for v in cond.position):
-        return "position"
-    if any(v is not None for v in cond.force) or cond.moment is not None:
-        return "force"
-    return "fixed"
-
-
-def _condition_from(grip: P.Grip, current: Condition, original: Condition,
-                    d: int) -> Condition:
-    if grip.mode == "force":
-        force = tuple((grip.force or [0.0, 0.0, 0.0])[:d])
-        m = grip.moment or [0.0, 0.0, 0.0]
-        return Condition(s=current.s, name=current.name, force=force,
-                         moment=float(m[2]) if d == 2 else tuple(m))
-    if d == 2:
-        angle = (math.atan2(grip.tangent[1], grip.tangent[0])
-                 if grip.tangent is not None and original.angle is not None else None)
-        return Condition(s=current.s, name=current.name, position=tuple(grip.position[:2]),
-                         angle=angle)
-    return Condition(s=current.s, name=current.name, position=tuple(grip.position),
-                     tangent=tuple(grip.tangent) if grip.tangent is not None
-                     and original.tangent is not None else None)
-
-
 def _pad(v) -> list[float]:
     v = [float(x) for x in v]
     return (v + [0.0, 0.0, 0.0])[:3]
@@ -537,17 +478,6 @@ def _pad3(a: np.ndarray) -> np.ndarray:
     """Points (n, 2 or 3) as (n, 3): a 2D scene lies in z = 0."""
     a = np.asarray(a, float)
     return a if a.shape[1] == 3 else np.column_stack([a, np.zeros((a.shape[0], 3 - a.shape[1]))])
-
-
-def _at(s: np.ndarray, position: np.ndarray, at: float) -> tuple[np.ndarray, np.ndarray]:
-    """The point and unit tangent of a sampled shape at arc length ``at``."""
-    from pliant.session.session import _distinct  # noqa: PLC0415 (one sample per s)
-
-    s, x = _distinct(np.asarray(s, float), np.asarray(position, float))
-    point = np.array([np.interp(at, s, x[:, c]) for c in range(x.shape[1])])
-    k = int(np.clip(np.searchsorted(s, at) - 1, 0, len(s) - 2))
-    tangent = x[k + 1] - x[k]
-    return point, tangent / max(np.linalg.norm(tangent), 1e-300)
 
 
 def _curvature(s: np.ndarray, curve: np.ndarray) -> np.ndarray:
