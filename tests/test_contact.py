@@ -16,8 +16,8 @@ import pliant as pl
 from pliant.errors import PliantError
 from pliant.models import rod3d
 from pliant.models.banded import dense
-from pliant.models.rod3d import kernels
-from pliant.models.rod3d.kernels import COMPLIANCE
+from pliant.models.rod3d import contact_kernels
+from pliant.models.rod3d.contact_kernels import COMPLIANCE
 from pliant.models.rod3d.lowering import lower
 from pliant.scene import Obstacle
 from pliant.scene.interference import of_equilibrium
@@ -279,7 +279,7 @@ def test_friction_slides_on_the_cone_and_sticks_inside_it():
     # It gives way as the contact's spring does: by its elastic slip (ELASTIC_SLIP of the
     # element, L = 1) per its share of the friction limit, from where it was slack; and
     # rises by the gap's compliance as the floor's force falls.
-    give = kernels.ELASTIC_SLIP / rod3d.RodSolver().elements
+    give = contact_kernels.ELASTIC_SLIP / rod3d.RodSolver().elements
     moved = give * (held - friction / (mu * normal))
     assert eq.position[-1] - stuck == pytest.approx(
         [moved, 0.0, COMPLIANCE * (pressed - normal)], rel=1e-4, abs=1e-13)
@@ -359,10 +359,10 @@ def test_contact_jacobian_with_friction_matches_finite_differences():
     start = (X, rest[1], rest[2], rest[3], np.zeros(rod.islot.shape[0]))
     run.hold(start)
     X = X.copy()
-    # Some slip: a sticking probe gives way up to its elastic slip (kernels.ELASTIC_SLIP
+    # Some slip: a sticking probe gives way up to its elastic slip (contact_kernels.ELASTIC_SLIP
     # of its element), so slips of up to three of those put some probes inside the
     # friction disc and some on its rim.
-    give = kernels.ELASTIC_SLIP / 12
+    give = contact_kernels.ELASTIC_SLIP / 12
     X[:, 0] += 3.0 * give * np.cos(5.0 * np.linspace(0.0, 1.0, X.shape[0]))
     gaps = run.contacts(start, rod.target)[0]
     near = gaps < 0.05

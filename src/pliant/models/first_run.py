@@ -38,8 +38,8 @@ SIGNATURES = Path(__file__).with_name("kernel_signatures.pkl")
 # solves call and then find in the cache.
 OURS: tuple[tuple[str, str], ...] = (
     ("pliant.scene.distance", "query_points"),
-    ("pliant.models.rod3d.kernels", "contact_terms"),
-    ("pliant.models.rod3d.kernels", "newton_contact"),
+    ("pliant.models.rod3d.contact_kernels", "contact_terms"),
+    ("pliant.models.rod3d.contact_kernels", "newton_contact"),
     # a scene's fitted parts, solved without contact on a fresh disk cache
     # (``pliant.io.cache``): last, when the helper has cached what they call
     ("pliant.models.rod3d.kernels", "newton"),
@@ -57,7 +57,7 @@ THEIRS: tuple[tuple[str, str], ...] = (
     ("pliant.models.rod3d.kernels", "apply_step"),
     ("pliant.models.rod3d.kernels", "difference"),
     ("pliant.models.rod3d.kernels", "unknown_sizes"),
-    ("pliant.models.rod3d.kernels", "contact_max"),
+    ("pliant.models.rod3d.contact_kernels", "contact_max"),
     ("pliant.models.rod3d.kernels", "node_outputs"),
     ("pliant.models.lanczos", "softest_mode"),
     ("pliant.scene.interference", "_polyline_distance"),

@@ -11,7 +11,7 @@ import numpy as np
 
 from pliant.core.equilibrium import NO_CONTACTS, Contacts, Equilibrium3D, Samples3D, StationLoad
 from pliant.errors import IllPosedProblemError
-from pliant.models.rod3d import kernels
+from pliant.models.rod3d import contact_kernels, kernels
 from pliant.models.rod3d.kernels import AXIS, FULL
 from pliant.models.rod3d.lowering import Rod, State, axis_basis, qconj, qmul, quat_matrix, skew
 from pliant.models.rod3d.stability import conservative, metric, stability_of
@@ -42,7 +42,7 @@ def build(run: Run, state: State, seed: np.ndarray | None = None) -> Equilibrium
             "nothing holds the part's twist, yet a twisting moment acts on it; prescribe an "
             "orientation (tangent and normal) somewhere")
     warm = WarmState(rod, state, run.gauge_quat, run.friction)
-    residual = (kernels.contact_max(R, run.contact(rod.target)) if rod.iprobe.shape[0]
+    residual = (contact_kernels.contact_max(R, run.contact(rod.target)) if rod.iprobe.shape[0]
                 else float(np.abs(R).max()))
     return Equilibrium3D(
         problem=rod.problem, residual=float(residual), iterations=run.iterations,

@@ -52,7 +52,7 @@ from pliant.core.events import (
 from pliant.core.problem import Problem
 from pliant.errors import ConvergenceError, IllPosedProblemError, InputError
 from pliant.models import clock
-from pliant.models.rod3d import kernels
+from pliant.models.rod3d import contact_kernels, kernels
 from pliant.models.rod3d.kernels import AXIS
 from pliant.models.rod3d.lowering import (
     Loads,
@@ -143,7 +143,7 @@ class Run:
     notes: list[str] = field(default_factory=list)
     deadline: float = 0.0
     stall: Stalled | None = None  # why the last follow from a warm start stopped
-    # Friction's reference (see kernels.contact_terms): none yet, so no friction.
+    # Friction's reference (see contact_kernels.contact_terms): none yet, so no friction.
     friction: tuple = ()
     branch_note: str = _BRANCH_NOTE  # how a note on the buckling side begins
     # ``equilibria``: every branch a route reaches is kept here (state, gauge, note), not
@@ -167,7 +167,7 @@ class Run:
         points = rod.probe_points(state[0])
         _, normals, which = rod.distance_field.query(points * rod.length, band=math.inf)
         basis = axis_basis(normals)
-        give = kernels.ELASTIC_SLIP * rod.h[rod.probe_elem]
+        give = contact_kernels.ELASTIC_SLIP * rod.h[rod.probe_elem]
         gam = state[4].reshape(-1, 3).copy()
         if previous:
             force = np.einsum("ki,kic->kc", gam[:, 1:], previous[2])
@@ -193,7 +193,7 @@ class Run:
                                     float(opts.contraction if strict else 0.0), bool(strict),
                                     _SWITCHES)
         if rod.iprobe.shape[0]:
-            X, Q, lam, nu, gam, r, it, status, energy = kernels.newton_contact(
+            X, Q, lam, nu, gam, r, it, status, energy = contact_kernels.newton_contact(
                 *state[:5], rod.mesh, rod.targets(loads), rod.numbering, self.gauge_quat,
                 self.contact(loads), settings._replace(contraction=float(opts.contraction)))
             new = (X, Q, lam, nu, gam)
@@ -227,13 +227,13 @@ class Run:
     def contacts(self, state: State, loads: Loads, R: np.ndarray | None = None,
                  ab: np.ndarray | None = None, want_jac: bool = False):
         """Add the contact terms to (R, ab) and return (gaps, normals, obstacles, active)
-        of the probes (see ``kernels.contact_terms``)."""
+        of the probes (see ``contact_kernels.contact_terms``)."""
         rod = self.rod
         if R is None:
             R = np.zeros(rod.n)
         if ab is None:
             ab = np.zeros((0, 2 * rod.kl + rod.ku + 1))
-        return kernels.contact_terms(state[0], state[4], self.contact(loads), rod.numbering,
+        return contact_kernels.contact_terms(state[0], state[4], self.contact(loads), rod.numbering,
                                      R, ab, want_jac)
 
     def solve_linear(self, ab: np.ndarray, rhs: np.ndarray) -> tuple[np.ndarray, bool]:
