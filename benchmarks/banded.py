@@ -23,7 +23,7 @@ import numpy as np
 from scipy.linalg import solve_banded
 
 from pliant.assembly.path import follow_path
-from pliant.io.problem_file import load_scene
+from pliant.assembly.scenes import load_scene
 from pliant.models.banded import (
     band_lu,
     band_lu_solve,

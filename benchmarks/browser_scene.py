@@ -109,7 +109,7 @@ def live_round_trip(scene: Path, moves: int = 4) -> tuple[float, float]:
     import statistics
     from dataclasses import replace
 
-    from pliant.io.problem_file import load_scene
+    from pliant.assembly.scenes import load_scene
     from pliant.session.accurate import ProcessExecutor
 
     problem = load_scene(scene).problem

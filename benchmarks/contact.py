@@ -32,7 +32,7 @@ import trimesh
 
 import pliant as pl
 from pliant.assembly import follow_path
-from pliant.io.problem_file import load_scene
+from pliant.assembly.scenes import load_scene
 from pliant.models import rod3d
 from pliant.scene import DistanceField, Obstacle
 

@@ -19,7 +19,7 @@ from pathlib import Path
 
 import numpy as np
 
-from pliant.io.problem_file import parse_scene
+from pliant.assembly.scenes import parse_scene
 from pliant.models import rod3d
 
 ROOT = Path(__file__).resolve().parents[1]

@@ -21,8 +21,8 @@ import numpy as np
 
 from pliant.assembly.evaluate import evaluate
 from pliant.assembly.path import follow_path
+from pliant.assembly.scenes import load_scene, parse_scene
 from pliant.cli.evaluation_report import write_html
-from pliant.io.problem_file import load_scene, parse_scene
 
 SCENE = Path(__file__).resolve().parents[1] / "examples" / "scenes" / "engine_bay.toml"
 HEAVY = """

@@ -26,8 +26,9 @@ import numpy as np
 
 from pliant.assembly.path import follow_path
 from pliant.assembly.plan import NoPathError, Planner, _Blocked
+from pliant.assembly.scenes import load_scene, scene_from_data
 from pliant.errors import InputError
-from pliant.io.problem_file import load_scene, read_text, scene_from_data
+from pliant.io.problem_file import read_text
 from pliant.io.tomlfile import read_toml
 
 EXAMPLES = Path(__file__).resolve().parents[1] / "examples" / "scenes"

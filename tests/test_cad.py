@@ -8,9 +8,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from pliant.assembly.scenes import load_scene, parse_scene
 from pliant.errors import FileFormatError, InputError
 from pliant.io.cad import read_assembly
-from pliant.io.problem_file import load_scene, parse_scene
 
 CAD = Path(__file__).resolve().parents[1] / "examples" / "cad"
 STEP = CAD / "bracket_assembly.step"

@@ -132,7 +132,7 @@ def test_plan_writes_the_planned_scene_and_its_evaluation(tmp_path):
     text = planned.read_text()
     assert "# planned by `pliant plan` into 'port'" in text
     assert "# A planning example" in text  # the scene's own comments are kept
-    from pliant.io.problem_file import load_scene
+    from pliant.assembly.scenes import load_scene
 
     assert len(load_scene(planned).path) > 1  # test_plan.py follows such a file again
     record = json.loads((tmp_path / "hose_past_post-plan.json").read_text())

@@ -12,6 +12,7 @@ import numpy as np
 import pytest
 
 import pliant as pl
+from pliant.assembly.scenes import load_scene
 from pliant.core.problem import (
     PROBE_SAG,
     WALL_COMPLIANCE,
@@ -21,7 +22,6 @@ from pliant.core.problem import (
     SlidingClip,
 )
 from pliant.errors import ConvergenceError, FileFormatError
-from pliant.io.problem_file import load_scene
 from pliant.models import rod3d
 from pliant.models.rod3d import coupled
 from pliant.models.rod3d.lowering import lower
@@ -164,6 +164,22 @@ def test_a_fitted_parts_shape_is_read_from_the_cache_the_second_time(tmp_path,
     longer = load_scene(folder / "line_over_hose.toml").problem.obstacles[0]
     assert longer.fitted.solved is not None  # another problem: solved afresh
     assert longer.fitted.problem.part.length == 0.51
+
+
+def test_the_file_reader_leaves_fitted_parts_to_assembly_to_solve(tmp_path, monkeypatch):
+    """pliant.io only reads: given a scene with a flexible part already fitted and
+    nothing to settle it with, it refuses and names the loader that solves it (even
+    when the part's shape is in the disk cache, so the answer never depends on the
+    cache); pliant.assembly's loader settles it into an obstacle with its fitted part."""
+    from pliant.errors import FileFormatError
+    from pliant.io import problem_file
+
+    monkeypatch.setenv("PLIANT_CACHE", str(tmp_path / "cache"))
+    scene = EXAMPLES / "scenes" / "line_over_hose.toml"
+    settled = load_scene(scene).problem.obstacles[0]
+    assert settled.fitted is not None and settled.fitted.name == "coolant hose"
+    with pytest.raises(FileFormatError, match=r"assembled\[0\].*pliant\.assembly\.load_scene"):
+        problem_file.load_scene(scene)  # the shape is cached by now: still refused
 
 
 def test_a_fitted_part_not_touched_stays_a_plain_solve():
@@ -371,7 +387,7 @@ def test_a_y_harness_balances():
 
 
 def test_harness_scene_file_with_junction_and_branches():
-    from pliant.io.problem_file import load_scene
+    from pliant.assembly.scenes import load_scene
 
     scene = load_scene(EXAMPLES / "harness" / "harness_y.toml")
     (jn,) = scene.problem.junctions
@@ -472,7 +488,7 @@ def test_friction_between_parts_obeys_coulomb_and_balances():
     contact the force along the surfaces is at most 0.5 times the force across (at the
     limit where it slides), the hose balances with its clamps, its weight and the line's
     push friction included, and the line feels the opposite."""
-    from pliant.io.problem_file import parse_scene
+    from pliant.assembly.scenes import parse_scene
 
     path = EXAMPLES / "scenes" / "line_over_hose.toml"
     text = path.read_text(encoding="utf-8").replace(

@@ -26,11 +26,11 @@ from pliant.assembly.checks import (
     zone_of,
 )
 from pliant.assembly.evaluate import evaluate, hand_rows
+from pliant.assembly.scenes import parse_scene
 from pliant.core.numbers import clean
 from pliant.core.rules import EvaluationSettings
 from pliant.errors import FileFormatError, InputError
 from pliant.io.evaluation_file import EvaluationReport, evaluation_json, write_csv
-from pliant.io.problem_file import parse_scene
 from pliant.io.rules_file import bundled_rules, parse_rules
 
 from .helpers import cli
@@ -319,7 +319,7 @@ SCENE = Path(__file__).resolve().parents[1] / "examples" / "scenes" / "engine_ba
 
 @pytest.fixture(scope="module")
 def engine_bay():
-    from pliant.io.problem_file import load_scene
+    from pliant.assembly.scenes import load_scene
 
     return evaluate(load_scene(SCENE))
 

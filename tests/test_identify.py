@@ -449,7 +449,7 @@ kind = "reinforced hose"
 
 
 def test_a_reinforced_hose_stiffened_only_by_its_rubber_is_warned_about():
-    from pliant.io.problem_file import parse_scene
+    from pliant.assembly.scenes import parse_scene
 
     warned = parse_scene(REINFORCED.format(extra=""), "h.toml").warnings
     assert len(warned) == 1 and "plies make it many times stiffer" in warned[0]

@@ -14,15 +14,10 @@ import pytest
 from pliant.assembly import follow_path
 from pliant.assembly.evaluate import bend_limit
 from pliant.assembly.plan import NoPathError, Planner, path_problems, plan
+from pliant.assembly.scenes import load_scene, parse_scene, scene_from_data
 from pliant.core.planning import PlanSettings
 from pliant.errors import FileFormatError, InputError
-from pliant.io.problem_file import (
-    load_scene,
-    parse_scene,
-    read_text,
-    scene_from_data,
-    with_path_table,
-)
+from pliant.io.problem_file import read_text, with_path_table
 from pliant.io.rules_file import load_rules
 from pliant.io.tomlfile import read_toml
 
@@ -204,7 +199,7 @@ def test_ctrl_c_ends_a_plan_at_once_and_gives_the_handler_back(tmp_path):
 import os, signal, threading, time
 from pliant.assembly.plan import Planner
 from pliant.core.planning import PlanSettings
-from pliant.io.problem_file import scene_from_data
+from pliant.assembly.scenes import scene_from_data
 from tests.test_plan import _walled, EXAMPLE
 scene = scene_from_data(_walled(), "walled", EXAMPLE.parent)
 def press():

@@ -186,8 +186,8 @@ def test_parser_gives_a_problem_or_a_file_error(doc):
 
 
 def test_a_misspelt_key_is_named_with_the_nearest_the_table_takes():
+    from pliant.assembly.scenes import parse_scene
     from pliant.errors import FileFormatError
-    from pliant.io.problem_file import parse_scene
 
     with pytest.raises(FileFormatError) as err:
         parse_scene("[part]\nlenght = 1.0\nbending_stiffness = 1.0\n", "x.toml")
@@ -209,7 +209,7 @@ def test_a_misspelt_key_is_named_with_the_nearest_the_table_takes():
 
 
 def test_a_diameter_given_in_millimetres_is_refused_with_the_units():
-    from pliant.io.problem_file import parse_scene
+    from pliant.assembly.scenes import parse_scene
 
     with pytest.raises(FileFormatError, match=r"part: outer_diameter 20 m is more than half "
                                               "the part's length \\(1 m\\).*20 mm is 0.02"):
@@ -226,7 +226,7 @@ def test_dump_keeps_the_obstacles_and_their_meshes(tmp_path):
     everywhere; a mesh goes to a file of its own, every digit kept."""
     import trimesh
 
-    from pliant.io.problem_file import parse_scene
+    from pliant.assembly.scenes import parse_scene
     from pliant.scene.distance import DistanceField, Obstacle
 
     turn = trimesh.transformations.rotation_matrix(0.4, [1, 2, 3])[:3, :3]

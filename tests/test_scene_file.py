@@ -17,9 +17,9 @@ from hypothesis import strategies as st
 
 import pliant as pl
 from pliant.assembly import follow_path
+from pliant.assembly.scenes import load_scene, parse_scene
 from pliant.errors import FileFormatError, InputError
 from pliant.io.materials import library, material
-from pliant.io.problem_file import load_scene, parse_scene
 from pliant.scene.distance import BOX, CYLINDER, HALFSPACE, MESH, SPHERE
 
 from .helpers import EXAMPLES, cli

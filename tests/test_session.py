@@ -10,8 +10,8 @@ import pytest
 import pliant as pl
 from pliant.core.equilibrium import Result
 from pliant.errors import FileFormatError, InputError, PliantError, UnreachableTargetError
-from pliant.io.recording import load_recording, save_recording
 from pliant.session import GripEvent, Session, replay
+from pliant.session.recording import load_recording, save_recording
 
 from .helpers import EXAMPLES
 
@@ -133,7 +133,7 @@ def test_the_worker_sends_results_back_without_the_scene():
     import pickle
     from dataclasses import replace
 
-    from pliant.io.problem_file import load_scene
+    from pliant.assembly.scenes import load_scene
     from pliant.session.accurate import ProcessExecutor
 
     problem = load_scene(EXAMPLES / "scenes" / "engine_bay.toml").problem
@@ -156,7 +156,7 @@ def test_the_worker_is_sent_the_scenes_obstacles_once(monkeypatch):
     import pickle
     from dataclasses import replace
 
-    from pliant.io.problem_file import load_scene
+    from pliant.assembly.scenes import load_scene
     from pliant.session import accurate
     from pliant.session.accurate import AccurateSolver, ProcessExecutor
 
@@ -223,7 +223,7 @@ def test_a_recording_of_a_scene_keeps_its_obstacles(tmp_path):
     """The engine bay (boxes, cylinders, a manifold mesh) recorded and read back: the
     same obstacles, the mesh beside the recording, the same clearances (they used to be
     dropped, so a replay ran through the engine)."""
-    from pliant.io.problem_file import load_scene
+    from pliant.assembly.scenes import load_scene
     from pliant.scene.distance import DistanceField
 
     problem = load_scene(EXAMPLES / "scenes" / "engine_bay.toml").problem

@@ -16,11 +16,11 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from pliant.assembly.scenes import parse_scene
 from pliant.assembly.study import Store, final_voxels, study, summarize
 from pliant.assembly.variation import apply, nominal_values, parse_variation, plan
 from pliant.errors import InputError
 from pliant.io.mesh_export import voxel_surface
-from pliant.io.problem_file import parse_scene
 from pliant.io.tomlfile import read_toml
 
 SCENE = """
@@ -272,8 +272,8 @@ def test_a_sample_starts_from_the_nominal_start_and_gets_the_cold_answer(scene_f
     """Each sample's path starts from the nominal start pose (solved once per process):
     the same equilibrium as a cold start, to the solver's tolerance, the same verdict."""
     from pliant.assembly.evaluate import evaluate
+    from pliant.assembly.scenes import scene_from_data
     from pliant.assembly.study import StudySpec, evaluate_samples, nominal_start
-    from pliant.io.problem_file import scene_from_data
 
     doc = data()
     parsed = [parse_variation("bending_stiffness=20%", doc, 0),

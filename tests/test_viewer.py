@@ -15,9 +15,9 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
+from pliant.assembly.scenes import load_scene
 from pliant.core.conditions import Condition
 from pliant.errors import InputError, PliantError
-from pliant.io.problem_file import load_scene
 from pliant.session.accurate import AccurateSolver
 from pliant.viewer import protocol as P
 from pliant.viewer.protocol import ProtocolError

@@ -78,7 +78,7 @@ def nominal_start(spec: StudySpec) -> Equilibrium3D:
     """The nominal scene's start pose, solved once per process: every sample starts from
     it (the same branch, in a few Newton iterations where a cold start takes about a
     second). None where it has no equilibrium (the samples then start cold)."""
-    from pliant.io.problem_file import scene_from_data  # noqa: PLC0415
+    from pliant.assembly.scenes import scene_from_data  # noqa: PLC0415
     from pliant.models import rod3d  # noqa: PLC0415
 
     key = (spec.source, spec.elements, json.dumps(spec.data, sort_keys=True, default=str))
@@ -97,7 +97,7 @@ def evaluate_samples(spec: StudySpec, rows: list[tuple[int, list[float]]]
     """Evaluate each (index, deviations) sample: (its record, its swept voxels (k, 3)
     int32 or None). A sample that fails is recorded with its error; it never raises."""
     from pliant.assembly.evaluate import evaluate  # noqa: PLC0415 (loads the kernels)
-    from pliant.io.problem_file import scene_from_data  # noqa: PLC0415
+    from pliant.assembly.scenes import scene_from_data  # noqa: PLC0415
 
     _heap_kept()
     start_from = nominal_start(spec)
@@ -271,7 +271,8 @@ def study(scene_file: str | Path, variations: list[str], samples: int, *, out: s
           elements: int | None = None, restart: bool = False, search: bool = True,
           on_done: Callable[[int, int], None] | None = None) -> StudyResult:
     """Run (or resume) a variation study of a scene file; see the module."""
-    from pliant.io.problem_file import read_text, scene_from_data  # noqa: PLC0415
+    from pliant.assembly.scenes import scene_from_data  # noqa: PLC0415
+    from pliant.io.problem_file import read_text  # noqa: PLC0415
     from pliant.io.tomlfile import read_toml  # noqa: PLC0415
 
     scene_file = Path(scene_file)

@@ -118,7 +118,7 @@ def _load_scene(file: Path):
     """The scene file, its warnings said on stderr (a valid file may still mislead)."""
     from rich.console import Console  # noqa: PLC0415
 
-    from pliant.io.problem_file import load_scene  # noqa: PLC0415
+    from pliant.assembly.scenes import load_scene  # noqa: PLC0415
 
     # A CAD assembly of millions of triangles takes seconds to tessellate and to build
     # its distance structures: a bar with the time left (on a terminal only).

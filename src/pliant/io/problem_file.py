@@ -50,6 +50,7 @@ from pliant.io.scene_sections import (
     PlanModel,
     PortModel,
     RatingModel,
+    SettleFitted,
     _end_face_centre,
     _given,
     _solid_vertices,
@@ -373,12 +374,14 @@ class ProblemFile(_Strict):
                                                      or self.cad)
         return 3 if three else 2
 
-    def build(self, base: Path | None = None, nested: bool = False) -> Problem:
+    def build(self, base: Path | None = None, nested: bool = False,
+              settle: SettleFitted | None = None) -> Problem:
         """The problem; ``nested`` (an assembled part's own file) skips its
-        [[assembled]] parts: one level only."""
+        [[assembled]] parts: one level only; ``settle`` solves them (see
+        ``AssembledModel``)."""
         part = self.part.build()
         dimension = self.dimension
-        obstacles = self._obstacles(base, nested)
+        obstacles = self._obstacles(base, nested, settle)
         obstacles = self._place_on_solids(obstacles)
         ports = {p.name: p for p in self.port}
         conditions = []
@@ -426,7 +429,8 @@ class ProblemFile(_Strict):
                        obstacles=tuple(obstacles), sliders=tuple(sliders),
                        junctions=tuple(junctions), pivots=tuple(pivots), loads=loads)
 
-    def _obstacles(self, base: Path | None, nested: bool) -> list[Any]:
+    def _obstacles(self, base: Path | None, nested: bool,
+                   settle: SettleFitted | None) -> list[Any]:
         obstacles = []
         for i, o in enumerate(self.obstacle):
             try:
@@ -445,7 +449,7 @@ class ProblemFile(_Strict):
                 raise InputError(f"cad[{i}]", str(err)) from None
         for i, a in enumerate([] if nested else self.assembled):
             try:
-                obstacles.append(a.build(base))
+                obstacles.append(a.build(base, settle))
             except ValueError as err:
                 raise InputError(f"assembled[{i}]", str(err)) from None
         names = [o.name for o in obstacles]
@@ -625,15 +629,16 @@ def parse_problem_file(text: str, source: str = "<string>") -> tuple[Problem, So
 
 
 def parse_scene(text: str, source: str = "<string>", base: Path | None = None,
-                nested: bool = False) -> Scene:
+                nested: bool = False, settle: SettleFitted | None = None) -> Scene:
     """Parse TOML text into a ``Scene``; mesh files are looked up relative to ``base``
     (the file's folder); ``nested`` (an assembled part's own file) skips its
-    [[assembled]] parts."""
-    return scene_from_data(read_toml(text, source), source, base, nested)
+    [[assembled]] parts, which ``settle`` solves (without it, a file that has one is
+    refused: ``pliant.assembly.parse_scene`` passes it)."""
+    return scene_from_data(read_toml(text, source), source, base, nested, settle)
 
 
 def scene_from_data(data: dict[str, Any], source: str = "<data>", base: Path | None = None,
-                    nested: bool = False) -> Scene:
+                    nested: bool = False, settle: SettleFitted | None = None) -> Scene:
     """A ``Scene`` from a scene file's document already read (a TOML table as dicts and
     lists: what a variation study changes sample by sample)."""
     try:
@@ -649,7 +654,7 @@ def scene_from_data(data: dict[str, Any], source: str = "<data>", base: Path | N
         more = f" (and {len(err.errors()) - 1} more)" if len(err.errors()) > 1 else ""
         raise FileFormatError(f"{source}: {where}: {message}{more}") from None
     try:
-        problem = model.build(base, nested)
+        problem = model.build(base, nested, settle)
         return Scene(problem, model.solver, model.manipulation(problem), model.margin,
                      {p.name: p for p in model.port},
                      model.path.grip if model.path is not None else None,
@@ -686,7 +691,8 @@ def read_text(path: str | Path) -> str:
         raise FileFormatError(f"{path}: cannot be read: {err.strerror}") from None
 
 
-def load_scene(path: str | Path) -> Scene:
-    """Read a problem or scene file (TOML, SI units): obstacles, ports, clips, path."""
+def load_scene(path: str | Path, settle: SettleFitted | None = None) -> Scene:
+    """Read a problem or scene file (TOML, SI units): obstacles, ports, clips, path; its
+    flexible parts already fitted by ``settle`` (``pliant.assembly.load_scene``)."""
     path = Path(path)
-    return parse_scene(read_text(path), str(path), path.parent)
+    return parse_scene(read_text(path), str(path), path.parent, settle=settle)

@@ -5,8 +5,7 @@ table (pydantic) and builds its core object."""
 
 from __future__ import annotations
 
-from dataclasses import replace
-from functools import lru_cache
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any, Literal
 
@@ -18,9 +17,8 @@ from pliant.core.numbers import triple
 from pliant.core.planning import PlanSettings
 from pliant.core.problem import Problem
 from pliant.core.rules import EvaluationSettings
-from pliant.errors import InputError, OutputError, PliantError
-from pliant.io import cache, progress
-from pliant.io.problem_dump import dump_problem
+from pliant.errors import InputError, PliantError
+from pliant.io import progress
 from pliant.io.sections import Vec3, _referenced, _Strict
 
 
@@ -106,13 +104,16 @@ def _nested_problem(name: str, base: Path | None, what: str) -> tuple[Path, Prob
     return path, problem
 
 
+# What settles a flexible part already fitted: (name, its problem, elements, flexible,
+# friction) -> its obstacle (``pliant.assembly.scenes.settle_fitted``).
+SettleFitted = Callable[[str, Problem, int, bool, float], Any]
+
+
 class AssembledModel(_Strict):
     """[[assembled]]: a flexible part already fitted, in its clamps: its own problem file
-    (3D, relative to this one) is solved once and its tube becomes an obstacle. Its
-    shape is kept in pliant's disk cache (``pliant.io.cache``) under the hash of its
-    problem, its element count and the model's source: a scene read again does not
-    solve it again (its equilibrium is then found on first use, by a part that touches
-    it)."""
+    (3D, relative to this one), solved as the scene is loaded (``pliant.assembly.
+    scenes``, which keeps its shape in the disk cache), and its tube becomes an
+    obstacle."""
 
     name: str
     file: str = Field(description="its problem file, relative to this file")
@@ -123,55 +124,18 @@ class AssembledModel(_Strict):
                             "the part that touches it")
     note: str = ""
 
-    def build(self, base: Path | None) -> Any:
-        from pliant.core.problem import FittedPart  # noqa: PLC0415
-        from pliant.core.tube import tube_mesh  # noqa: PLC0415
-        from pliant.models import rod3d  # noqa: PLC0415
-        from pliant.scene.distance import Obstacle  # noqa: PLC0415
-
+    def build(self, base: Path | None, settle: SettleFitted | None) -> Any:
+        """Its obstacle, by ``settle`` (which solves the part's own problem: io only reads
+        files, ``pliant.assembly.scenes`` settles); ValueError without one."""
         path, problem = _nested_problem(self.file, base, "an assembled part")
-        key = _fitted_key(problem, self.elements)
-        kept = cache.load_arrays("fitted", key) if key else None
-        eq = None
-        if kept is not None and kept.keys() >= {"position", "frames"}:
-            position, frames = kept["position"], kept["frames"]
-        else:
-            try:
-                eq = rod3d.solve(problem, solver=rod3d.RodSolver(elements=self.elements))
-            except PliantError as err:
-                raise ValueError(f"file: {str(path)!r} could not be solved: {err}") from None
-            position, frames = eq.position, eq.frames
-            if key:
-                cache.save_arrays("fitted", key, position=position, frames=frames)
-        part = problem.part
-        radius = 0.5 * part.outer_diameter if part.outer_diameter else 0.01 * part.length
-        vertices, faces = tube_mesh(position, radius, frames, sides=16, caps=True)
-        obstacle = Obstacle.from_mesh(self.name, vertices, faces).with_friction(self.friction)
-        if self.flexible:
-            obstacle = replace(obstacle, fitted=FittedPart(self.name, problem, self.elements,
-                                                           solved=eq, friction=self.friction,
-                                                           line=position))
-        return obstacle
-
-
-def _fitted_key(problem: Problem, elements: int) -> str | None:
-    """The cache key of a fitted part's shape: its problem as this module writes it,
-    its element count and the source of the code that solves it (a changed solver is
-    a new key); None where the problem cannot be written (a mesh obstacle of its own)."""
-    try:
-        text = dump_problem(problem)
-    except OutputError:
-        return None
-    return cache.digest(text.encode(), str(elements).encode(), _solver_source())
-
-
-@lru_cache(maxsize=1)
-def _solver_source() -> bytes:
-    """The hash of the modules an equilibrium of a 3D part depends on."""
-    root = Path(__file__).resolve().parents[1]
-    files = sorted([*(root / "core").glob("*.py"), *(root / "models").glob("*.py"),
-                    *(root / "models" / "rod3d").glob("*.py"), *(root / "scene").glob("*.py")])
-    return cache.digest(*(f.read_bytes() for f in files)).encode()
+        if settle is None:
+            raise ValueError(f"{self.name!r} is a flexible part already fitted, whose shape "
+                             "is solved as the scene is loaded: read this file with "
+                             "pliant.assembly.load_scene (pliant.io only reads files)")
+        try:
+            return settle(self.name, problem, self.elements, self.flexible, self.friction)
+        except PliantError as err:
+            raise ValueError(f"file: {str(path)!r} could not be solved: {err}") from None
 
 
 class PortModel(_Strict):

@@ -85,7 +85,7 @@ class ViewerState:
 
     # -- opening a scene -------------------------------------------------------------------
     def _open(self, path: Path) -> None:
-        from pliant.io.problem_file import load_scene  # noqa: PLC0415
+        from pliant.assembly.scenes import load_scene  # noqa: PLC0415
         from pliant.session import Session  # noqa: PLC0415
 
         scene = load_scene(path)

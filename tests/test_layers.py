@@ -1,0 +1,57 @@
+"""The layers import downward only (``DESIGN.md``): core, io, scene, models, session,
+assembly, then the interfaces (cli, viewer). Every import of a pliant module, those
+inside functions included, is checked; the few that still reach up are listed here with
+why, so that the list can only shrink."""
+
+from __future__ import annotations
+
+import ast
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1] / "src" / "pliant"
+RANK = {"core": 0, "errors": 0, "data": 0, "io": 1, "scene": 2, "models": 3, "session": 4,
+        "assembly": 5, "cli": 6, "viewer": 6}
+KNOWN = {
+    # A file's obstacle tables become scene Obstacles as they are read.
+    ("io/sections.py", "pliant.scene.distance"),
+    ("io/scene_sections.py", "pliant.scene.distance"),
+    ("io/problem_file.py", "pliant.scene.distance"),
+    ("io/problem_dump.py", "pliant.scene.distance"),
+    ("io/mesh_export.py", "pliant.scene.distance"),
+    # A fitted part or branch solves itself alone on first use (lazily, once).
+    ("core/problem.py", "pliant.models"),
+    # The developer's command that records the kernels' signatures runs the demo.
+    ("models/first_run.py", "pliant.cli.app"),
+}
+
+
+def upward_imports() -> set[tuple[str, str]]:
+    found = set()
+    for path in ROOT.rglob("*.py"):
+        rel = path.relative_to(ROOT)
+        layer = rel.parts[0].removesuffix(".py")
+        if layer not in RANK:
+            continue
+        for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
+            names = []
+            if isinstance(node, ast.ImportFrom) and node.module:
+                names = [node.module]
+            elif isinstance(node, ast.Import):
+                names = [a.name for a in node.names]
+            for name in names:
+                parts = name.split(".")
+                if parts[0] == "pliant" and len(parts) > 1 and RANK.get(parts[1], -1) > RANK[layer]:
+                    found.add((rel.as_posix(), name))
+    return found
+
+
+def test_layers_import_downward_only():
+    found = upward_imports()
+    assert found - KNOWN == set(), "imports that reach up a layer"
+    assert KNOWN - found == set(), "gone: take them off the list"
+
+
+def test_io_only_reads_files():
+    """io never solves: none of its modules imports a model, the session or assembly."""
+    assert not {(f, m) for f, m in upward_imports() if f.startswith("io/")
+                and m.split(".")[1] in ("models", "session", "assembly")}
