@@ -23,7 +23,7 @@ from pliant.core.problem import (
 )
 from pliant.errors import ConvergenceError, FileFormatError
 from pliant.models import rod3d
-from pliant.models.rod3d import coupled
+from pliant.models.rod3d import coupled, coupled_results
 from pliant.models.rod3d.lowering import lower
 from pliant.models.rod3d.solver import Run
 from pliant.scene.interference import of_equilibrium
@@ -54,7 +54,7 @@ def pressed():
     states = [r.cold() for r in starts]
     coupling, states, mus = coupled.solve_coupled(
         runs, states, solver=SOLVER, start=[r.rod.target for r in starts], held_first=False)
-    return coupled.equilibria(coupling, states, mus, ["A", "B"])
+    return coupled_results.equilibria(coupling, states, mus, ["A", "B"])
 
 
 def test_equal_and_opposite_and_each_part_balances(pressed):

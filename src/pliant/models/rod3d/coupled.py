@@ -1,5 +1,6 @@
 """Several flexible parts solved together: contact between parts, sliding and pivoting
-clips, harness junctions. (The routes that use it: ``together``.)
+clips, harness junctions. (The routes that use it: ``together``; the links' terms:
+``links``; what the answer holds: ``coupled_results``.)
 
 Each part keeps its own discrete rod (its banded KKT system, its obstacles); what joins
 them, or holds one in a way its own stations cannot, enters as blocks of border unknowns
@@ -33,21 +34,18 @@ EI / L^2); gaps are by the first part's length and contact forces by its force s
 from __future__ import annotations
 
 import math
-from collections.abc import Callable, Sequence
-from dataclasses import dataclass, field, replace
+from collections.abc import Sequence
+from dataclasses import dataclass, field
 
 import numpy as np
 
-from pliant.core.equilibrium import Contacts, Equilibrium3D, Samples3D, StationLoad
-from pliant.core.events import SolvedTogether
-from pliant.core.problem import PROBE_SAG, WALL_COMPLIANCE, PivotClip, SlidingClip
+from pliant.core.problem import PROBE_SAG, WALL_COMPLIANCE
 from pliant.errors import ConvergenceError
 from pliant.models import clock
 from pliant.models.banded import band_lu, band_lu_solve, band_reduce
 from pliant.models.rod3d import kernels, spline
-from pliant.models.rod3d.kernels import qexp as _qexp
-from pliant.models.rod3d.lowering import Loads, Rod, State, qconj, qmul, quat_matrix
-from pliant.models.rod3d.results import build
+from pliant.models.rod3d.links import Joint, LinkTerms, Pivot, Slider, _Block
+from pliant.models.rod3d.lowering import Loads, Rod, State
 from pliant.models.rod3d.solver import CONTACT_SCALE, RodSolver, Run
 
 # Contact between parts is compliant (core.problem.WALL_COMPLIANCE: a hose wall's give;
@@ -126,80 +124,7 @@ class _Eval:
 
 
 @dataclass
-class _Block:
-    """Border unknowns of the condensed Newton system (a contact's force; a sliding
-    clip's slide and multipliers; a junction's multipliers) and the coupling coordinates
-    they touch: ``coords`` (part, the first of three unknowns of that part: a node's
-    position or a frame's rotation); E (3n, nb) the residual's change on those
-    coordinates per unknown; F (nb, 3n) and D (nb, nb) the block's rows' change per
-    coordinate and per unknown; K (3n, 3n) the residual's change per coordinate;
-    target (index in mus, slice): its unknowns, whose rows in ``_Eval.Rmu`` are the
-    system's right-hand side there (the residual's, or dR/dt for the tangent)."""
-
-    coords: list
-    E: np.ndarray
-    F: np.ndarray
-    D: np.ndarray
-    K: np.ndarray
-    target: tuple
-
-
-@dataclass(frozen=True, eq=False)
-class Slider:
-    """A sliding clip (``core.problem.SlidingClip``) on part ``part``, in that part's
-    units: point (3,) its position by L, basis (2, 3) two directions across its axis,
-    s0 where along the part it starts (by L). Its unknowns (6): the slide sigma (s / L
-    at the clip) and the multipliers of position (3) and direction (2)."""
-
-    part: int
-    clip: SlidingClip
-    point: np.ndarray
-    basis: np.ndarray
-    s0: float
-
-    @property
-    def axis(self) -> np.ndarray:
-        return np.asarray(self.clip.axis, dtype=float)
-
-    @property
-    def rows(self) -> int:
-        """Its constraints: position, and direction when it holds the axis."""
-        return 5 if self.clip.holds_axis else 3
-
-
-@dataclass(frozen=True, eq=False)
-class Joint:
-    """A junction: part b's end node ``end_b`` held rigidly to part a's end node
-    ``end_a`` (a harness's Y-piece, of no size): at the same point, b's end frame turned
-    from a's by ``q_rel``. Its unknowns (6): the force (by F_ref) and moment (by F_ref
-    L_ref) it passes. ``gap`` [m] and ``turn`` are b's end's offset and relative
-    rotation where the parts start apart (each alone): the homotopy closes them."""
-
-    name: str
-    a: int
-    end_a: int
-    b: int
-    end_b: int
-    q_rel: np.ndarray
-    gap: np.ndarray
-    turn: np.ndarray
-
-
-@dataclass(frozen=True, eq=False)
-class Pivot:
-    """A pivoting clip (``core.problem.PivotClip``) on part 0: its station's frame keeps
-    its first axis d1 along the pin ``pin`` (turning from ``start``, d1 where the part
-    starts, as the weight goes 0 to 1). Its unknowns (2): the multipliers, moments
-    across the pin (by the part's moment scale)."""
-
-    clip: PivotClip
-    frame: int  # the station's frame in the part's rod
-    start: np.ndarray
-    pin: np.ndarray
-
-
-@dataclass
-class Coupling:
+class Coupling(LinkTerms):
     """Parts solved together: their runs (each a rod with its own obstacles), the pairs
     of parts that may touch, and the solver's settings. ``weight`` scales the contact
     forces on the second part of every pair (the homotopy from it held still, 0, to the
@@ -511,224 +436,6 @@ class Coupling:
             at += r.shape[0]
         return du, dmus
 
-    # -- sliding clips ------------------------------------------------------------------
-    def _slider_at(self, k: int, states: Sequence[State], sigma: float):
-        """The segment of the clip's part at the slide sigma, its four nodes and their
-        positions (12,), by L."""
-        sl = self.sliders[k]
-        rod = self.runs[sl.part].rod
-        N = rod.elements
-        f = int(np.clip(np.searchsorted(rod.s_node, sigma, side="right") - 1, 0, N - 1))
-        jb = np.clip(np.arange(f - 1, f + 3), 0, N)
-        return f, jb, states[sl.part][0][jb].ravel()
-
-    def _slider_E(self, k: int, y: np.ndarray, sigma: float, f: int):
-        """The clip's constraints (position, direction) at the nodes y and slide sigma on
-        segment f, and their Jacobian (rows, 13): by the 12 coordinates, then sigma."""
-        sl = self.sliders[k]
-        rod = self.runs[sl.part].rod
-        h = rod.h[f]
-        w, w1, w2 = spline.bspline_weights((sigma - rod.s_node[f]) / h, f == 0,
-                                           f == rod.elements - 1)
-        Y = y.reshape(4, 3)
-        q, qb, qbb = w @ Y, w1 @ Y, w2 @ Y
-        norm = math.sqrt(float(qb @ qb))
-        t = qb / norm
-        P = (np.eye(3) - np.outer(t, t)) / norm
-        rows = sl.rows
-        E = np.empty(rows)
-        J = np.zeros((rows, 13))
-        E[:3] = q - sl.point
-        for j in range(4):
-            J[:3, 3 * j:3 * j + 3] = w[j] * np.eye(3)
-        J[:3, 12] = qb / h
-        if rows == 5:
-            E[3:] = sl.basis @ t
-            bP = sl.basis @ P
-            for j in range(4):
-                J[3:, 3 * j:3 * j + 3] = w1[j] * bP
-            J[3:, 12] = bP @ qbb / h
-        return E, J
-
-    def _slider_terms(self, k: int, states: Sequence[State], mus: Sequence[np.ndarray],
-                      weight: float, want_jac: bool = False):
-        """(rows (6,), forces on the four nodes (12,), nodes, block or None). The clip
-        holds the part where it is (sigma = s0) at weight 0 and lets it slide freely at
-        1: the slide row is (1 - weight) (sigma - s0) + weight nu . dE/dsigma (no axial
-        force)."""
-        sl = self.sliders[k]
-        w = mus[self.slot("slider", k)]
-        sigma = float(w[0])
-        if not 0.0 <= sigma <= 1.0:
-            return None, None, None, None
-        f, jb, y = self._slider_at(k, states, sigma)
-        E, J = self._slider_E(k, y, sigma, f)
-        n = sl.rows
-        nu = w[1:1 + n]
-        forces = J[:, :12].T @ nu
-        rows = np.zeros(6)
-        # The slide's row at weight 1: frictionless, G = nu . dE/dsigma = 0 (no work along
-        # the slide); with Coulomb's friction mu, sticking (sigma where the step started)
-        # or sliding s = +-1 with G = -s mu N (N the clip's force across its axis).
-        # (While the clip is let go from where it starts, weight < 1, it slides freely:
-        # a cold start finds its frictionless place, one of the equilibria friction
-        # allows; friction acts from there on, along the path.)
-        mode = (self.slide_mode.get(k, 0) if sl.clip.friction > 0.0 and weight >= 1.0
-                else None)
-        G = float(nu @ J[:, 12])
-        across = nu[:3] - (nu[:3] @ sl.axis) * sl.axis
-        N = float(np.linalg.norm(across))
-        if mode is None:
-            slide = G
-        elif mode == 0:
-            slide = sigma - self.slide_ref.get(k, sl.s0)
-        else:
-            slide = G + mode * sl.clip.friction * N
-        rows[0] = (1.0 - weight) * (sigma - sl.s0) + weight * slide
-        rows[1:1 + n] = E
-        rows[1 + n:] = w[1 + n:]  # a ring's unused direction multipliers stay 0
-        nodes = [(sl.part, int(j)) for j in jb]
-        if not want_jac:
-            return rows, forces, nodes, None
-        # nu . d2E, by central differences of the exact Jacobian (13 variables).
-        step = 1e-6
-        H = np.empty((13, 13))
-        for v in range(13):
-            yp, ym = y.copy(), y.copy()
-            sp = sm = sigma
-            if v < 12:
-                yp[v] += step
-                ym[v] -= step
-            else:
-                sp, sm = sigma + step, sigma - step
-            Jp = self._slider_E(k, yp, sp, f)[1]
-            Jm = self._slider_E(k, ym, sm, f)[1]
-            H[v] = nu @ (Jp - Jm) / (2.0 * step)
-        H = 0.5 * (H + H.T)
-        Eb = np.zeros((12, 6))
-        Eb[:, 0] = H[:12, 12]
-        Eb[:, 1:1 + n] = J[:, :12].T
-        F = np.zeros((6, 12))
-        F[1:1 + n] = J[:, :12]
-        D = np.zeros((6, 6))
-        D[1:1 + n, 0] = J[:, 12]
-        if mode == 0:  # sticking: sigma held
-            D[0, 0] = 1.0
-        else:
-            F[0] = weight * H[12, :12]
-            D[0, 0] = (1.0 - weight) + weight * H[12, 12]
-            D[0, 1:1 + n] = weight * J[:, 12]
-            if mode and N > 0.0:  # sliding: + s mu dN/dnu
-                D[0, 1:4] += weight * mode * sl.clip.friction * (across / N)
-        for r in range(1 + n, 6):
-            D[r, r] = 1.0
-        ix = self.runs[sl.part].rod.ix
-        block = _Block([(part, int(ix[node])) for part, node in nodes], Eb, F, D, H[:12, :12],
-                       (self.slot("slider", k), slice(0, 6)))
-        return rows, forces, nodes, block
-
-    # -- junctions -------------------------------------------------------------------------
-    def _joint_coords(self, k: int) -> list[tuple[int, int]]:
-        """The junction's coordinates: a's end node and frame, b's end node and frame."""
-        j = self.joints[k]
-        out = []
-        for part, node in ((j.a, j.end_a), (j.b, j.end_b)):
-            rod = self.runs[part].rod
-            out += [(part, int(rod.ix[node])), (part, int(rod.ith[rod.node_frame[node]]))]
-        return out
-
-    def _joint_rotation(self, k: int, qa: np.ndarray, qb: np.ndarray, weight: float):
-        """The relative rotation's error c = Im(conj(qa q) qb) (3,), q turned from where
-        the parts start (weight 0) to the junction's (1), and its Jacobian (3, 6) in the
-        frames' material increments (q <- q exp(theta)): for qb 0.5 (r0 I + [r]x), for
-        qa -0.5 (r0 I - [r]x) R(q)^T."""
-        from pliant.models.rod3d.lowering import _slerp_quats  # noqa: PLC0415
-
-        j = self.joints[k]
-        q = _slerp_quats(j.turn[None], j.q_rel[None], weight)[0]
-        r = qmul(qconj(qmul(qa, q)), qb)
-        sign = 1.0 if r[0] >= 0.0 else -1.0
-        skew = np.array([[0.0, -r[3], r[2]], [r[3], 0.0, -r[1]], [-r[2], r[1], 0.0]])
-        J = np.empty((3, 6))
-        J[:, :3] = -0.5 * sign * (r[0] * np.eye(3) - skew) @ quat_matrix(q).T
-        J[:, 3:] = 0.5 * sign * (r[0] * np.eye(3) + skew)
-        return sign * r[1:], J
-
-    def _joint_terms(self, k: int, states: Sequence[State], mus: Sequence[np.ndarray],
-                     weight: float, want_jac: bool = False):
-        """(rows (6,), forces on the four coordinates (4, 3), block or None)."""
-        j = self.joints[k]
-        ra, rb = self.runs[j.a].rod, self.runs[j.b].rod
-        Lr, Fr = self.L_ref, self.F_ref
-        w = mus[self.slot("joint", k)]
-        lam, mom = w[:3], w[3:]
-        xa = states[j.a][0][j.end_a] * ra.length
-        xb = states[j.b][0][j.end_b] * rb.length
-        qa = states[j.a][1][ra.node_frame[j.end_a]]
-        qb = states[j.b][1][rb.node_frame[j.end_b]]
-        rows = np.empty(6)
-        rows[:3] = (xb - xa - (1.0 - weight) * j.gap) / Lr
-        rows[3:], Jr = self._joint_rotation(k, qa, qb, weight)
-        fa = Fr * Lr / ra.moment_scale  # the junction's energy in each part's units
-        fb = Fr * Lr / rb.moment_scale
-        forces = np.array([fa * (-ra.length / Lr) * lam, fa * (Jr[:, :3].T @ mom),
-                           fb * (rb.length / Lr) * lam, fb * (Jr[:, 3:].T @ mom)])
-        if not want_jac:
-            return rows, forces, None
-        # mom . d2(rotation error), by central differences of its exact Jacobian.
-        H = _frame_hessian(lambda a, b: self._joint_rotation(k, a, b, weight)[1],
-                           (qa, qb), mom)
-        eye = np.eye(3)
-        E = np.zeros((12, 6))
-        E[0:3, :3] = fa * (-ra.length / Lr) * eye
-        E[3:6, 3:] = fa * Jr[:, :3].T
-        E[6:9, :3] = fb * (rb.length / Lr) * eye
-        E[9:12, 3:] = fb * Jr[:, 3:].T
-        F = np.zeros((6, 12))
-        F[:3, 0:3] = -ra.length / Lr * eye
-        F[:3, 6:9] = rb.length / Lr * eye
-        F[3:, 3:6] = Jr[:, :3]
-        F[3:, 9:12] = Jr[:, 3:]
-        K = np.zeros((12, 12))
-        rot = [3, 4, 5, 9, 10, 11]
-        scale = np.array([fa] * 3 + [fb] * 3)
-        K[np.ix_(rot, rot)] = scale[:, None] * H
-        block = _Block(self._joint_coords(k), E, F, np.zeros((6, 6)), K,
-                       (self.slot("joint", k), slice(0, 6)))
-        return rows, forces, block
-
-    # -- pivoting clips -------------------------------------------------------------------
-    def _pivot_coord(self, k: int) -> int:
-        return int(self.runs[0].rod.ith[self.pivots[k].frame])
-
-    def _pivot_rows(self, k: int, q: np.ndarray, weight: float):
-        """(c (2,), J (2, 3)): d1 across the pin's direction (turned from where the part
-        starts), and its change per material increment of the frame (d1 <- R (e1 +
-        theta x e1))."""
-        from pliant.models.rod3d.lowering import axis_basis, slerp_vectors  # noqa: PLC0415
-
-        pv = self.pivots[k]
-        target = slerp_vectors(pv.start[None], pv.pin[None], weight)[0]
-        basis = axis_basis(target / np.linalg.norm(target))
-        R = quat_matrix(q)
-        d1 = R[:, 0]
-        e1x = np.array([[0.0, 0.0, 0.0], [0.0, 0.0, -1.0], [0.0, 1.0, 0.0]])  # [e1]x
-        return basis @ d1, -basis @ R @ e1x
-
-    def _pivot_terms(self, k: int, states: Sequence[State], mus: Sequence[np.ndarray],
-                     weight: float, want_jac: bool = False):
-        """(rows (2,), the torque on the frame's three rows, block or None)."""
-        pv = self.pivots[k]
-        nu = mus[self.slot("pivot", k)]
-        q = states[0][1][pv.frame]
-        c, J = self._pivot_rows(k, q, weight)
-        torque = J.T @ nu
-        if not want_jac:
-            return c, torque, None
-        H = _frame_hessian(lambda a: self._pivot_rows(k, a, weight)[1], (q,), nu)
-        block = _Block([(0, self._pivot_coord(k))], J.T, J, np.zeros((2, 2)), H,
-                       (self.slot("pivot", k), slice(0, 2)))
-        return c, torque, block
 
     # -- friction between parts -----------------------------------------------------------
     def _friction_modes(self, p: int, active: np.ndarray | None, only: np.ndarray):
@@ -1102,25 +809,6 @@ class _CoupledStall(Exception):
     residual: float = math.inf
 
 
-# -- banded solves with the free probes left out ---------------------------------------
-def _frame_hessian(jacobian, frames: tuple[np.ndarray, ...], mult: np.ndarray,
-                   step: float = 1e-6) -> np.ndarray:
-    """mult . d(jacobian)/d(theta) over material increments theta of each frame in turn
-    (3 per frame), by central differences of the exact Jacobian, symmetrised: the
-    geometric stiffness of a constraint on frame rotations (junctions, pivots)."""
-    size = 3 * len(frames)
-    H = np.empty((size, size))
-    for c in range(size):
-        d = np.zeros(3)
-        d[c % 3] = step
-        e = _qexp(d)
-        plus, minus = list(frames), list(frames)
-        plus[c // 3] = qmul(frames[c // 3], e)
-        minus[c // 3] = qmul(frames[c // 3], qconj(e))
-        H[c] = mult @ (jacobian(*plus) - jacobian(*minus)) / (2 * step)
-    return 0.5 * (H + H.T)
-
-
 def _factor(run: Run, ab: np.ndarray):
     rod = run.rod
     drop = np.zeros(rod.n, dtype=bool)
@@ -1141,147 +829,6 @@ def _solve(fac, rhs: np.ndarray) -> np.ndarray:
     x = rhs.copy()  # a left-out row is the identity's: its unknown is its right side
     x[keep] = band_lu_solve(c, piv, lo, up, np.ascontiguousarray(rhs[keep]))
     return x
-
-
-# -- results ------------------------------------------------------------------------------
-def part_contacts(coupling: Coupling, states: Sequence[State], mus: Sequence[np.ndarray],
-                  names: Sequence[str]) -> list[Contacts]:
-    """Each part's contacts with the others: rows as an obstacle's, named by the part
-    that pushes (force on this part [N])."""
-    rows: list[list] = [[] for _ in coupling.runs]
-    for p, (pair, mu) in enumerate(zip(coupling.pairs, mus)):
-        on = np.nonzero(mu > 1e-10 * max(1.0, float(mu.max(initial=0.0))))[0]
-        if not on.shape[0]:
-            continue
-        geo = coupling.geometry(pair, states, on)
-        ra, rb = coupling.runs[pair.a].rod, coupling.runs[pair.b].rod
-        force = mu[on, None] * geo.n * coupling.F_ref
-        rub = np.zeros_like(force)
-        if pair.friction > 0.0 and p in coupling.fric_ref:
-            t = mus[coupling.t_slot(p)].reshape(-1, 2)[on]
-            rub = np.einsum("ki,kic->kc", t, coupling.fric_ref[p][-1][on]) * coupling.F_ref
-            force = force + rub
-        e, al = pair.elem[on], pair.alpha[on]
-        s_a = (ra.s_node[e] + al * ra.h[e]) * ra.length
-        s_b = (rb.s_node[geo.f] + geo.beta * rb.h[geo.f]) * rb.length
-        p_a = (1.0 - al[:, None]) * geo.y[:, 0:3] + al[:, None] * geo.y[:, 3:6]
-        p_b = geo.q
-        for k in range(on.shape[0]):
-            rows[pair.a].append((s_a[k], p_a[k], force[k], names[pair.b], rub[k]))
-            rows[pair.b].append((s_b[k], p_b[k], -force[k], names[pair.a], -rub[k]))
-    out = []
-    for r in rows:
-        r.sort(key=lambda row: row[0])
-        out.append(Contacts(s=np.array([x[0] for x in r]),
-                            point=np.array([x[1] for x in r]).reshape(-1, 3),
-                            force=np.array([x[2] for x in r]).reshape(-1, 3),
-                            obstacle=tuple(x[3] for x in r),
-                            friction=np.array([x[4] for x in r]).reshape(-1, 3)))
-    return out
-
-
-@dataclass(frozen=True, eq=False)
-class _WithContacts:
-    """A part's sampler with its contacts with the other parts added, and the loads of
-    its sliding clips (which the part's own stations do not hold)."""
-
-    inner: Callable[[], Samples3D]
-    extra: Contacts
-    loads: dict = field(default_factory=dict)
-    moments: dict = field(default_factory=dict)  # added to conditions' (pivoting clips)
-
-    def __call__(self) -> Samples3D:
-        samples = self.inner()
-        if self.loads or self.moments:
-            loads = {**samples.loads, **self.loads}
-            for name, m in self.moments.items():
-                load = loads[name]
-                loads[name] = replace(load, moment=np.asarray(load.moment) + m,
-                                      prescribed=load.prescribed[:3] + (True, True))
-            samples = replace(samples, loads=loads)
-        c = samples.contacts
-        if not len(self.extra):
-            return samples
-        merged = Contacts(s=np.concatenate([c.s, self.extra.s]),
-                          point=np.concatenate([c.point.reshape(-1, 3), self.extra.point]),
-                          force=np.concatenate([c.force.reshape(-1, 3), self.extra.force]),
-                          obstacle=tuple(c.obstacle) + tuple(self.extra.obstacle),
-                          friction=np.concatenate([np.asarray(c.friction).reshape(-1, 3),
-                                                   self.extra.friction]))
-        return replace(samples, contacts=merged)
-
-
-def slider_loads(coupling: Coupling, states: Sequence[State], mus: Sequence[np.ndarray]
-                 ) -> list[dict[str, StationLoad]]:
-    """Per part, each sliding clip's load on it [N, N m] (the moment about the clip's
-    point), at the arc length where the clip now sits (s: the slide's result)."""
-    out: list[dict[str, StationLoad]] = [{} for _ in coupling.runs]
-    for k, sl in enumerate(coupling.sliders):
-        rod = coupling.runs[sl.part].rod
-        _, forces, nodes, _ = coupling._slider_terms(k, states, mus, 1.0)
-        X = states[sl.part][0]
-        on_nodes = -forces.reshape(4, 3) * rod.force_scale  # what the clip applies
-        arms = (X[[node for _, node in nodes]] - sl.point) * rod.length
-        force = on_nodes.sum(axis=0)
-        moment = np.cross(arms, on_nodes).sum(axis=0)
-        sigma = float(mus[coupling.slot("slider", k)][0])
-        out[sl.part][sl.clip.name] = StationLoad(
-            sl.clip.name, sigma * rod.length, force, moment,
-            (True, True, True, bool(sl.clip.holds_axis), False))
-    return out
-
-
-STABILITY_NOTE = SolvedTogether(
-    "solved together (parts in contact or a sliding clip): stability is not assessed; that "
-    "of each part with the others' forces held as loads would not be the coupled system's")
-
-
-def equilibria(coupling: Coupling, states: Sequence[State], mus: Sequence[np.ndarray],
-               names: Sequence[str]) -> list[Equilibrium3D]:
-    """Each part's equilibrium: its own arrays, the coupled system's residual (its
-    largest entry over all parts and couplings), its contacts with the other parts
-    listed with its obstacles' under the other part's name, and the loads of its sliding
-    clips and junctions with its conditions'."""
-    near = [coupling.near(p, states, mu) for p, mu in zip(coupling.pairs, mus)]
-    loads = [run.rod.target for run in coupling.runs]
-    residual = coupling.evaluate(states, mus, loads, 1.0, near, False).residual
-    contacts = part_contacts(coupling, states, mus, names)
-    held = slider_loads(coupling, states, mus)
-    for part, joint in enumerate(joint_loads(coupling, states, mus)):
-        held[part].update(joint)
-    pins = {}
-    rod = coupling.runs[0].rod
-    for k, pv in enumerate(coupling.pivots):
-        _, torque, _ = coupling._pivot_terms(k, states, mus, 1.0)
-        pins[pv.clip.name] = quat_matrix(states[0][1][pv.frame]) @ (-torque) * rod.moment_scale
-    out = []
-    for i, (run, state, extra, mine) in enumerate(zip(coupling.runs, states, contacts, held)):
-        eq = build(run, state)
-        coupled = len(extra) > 0 or bool(mine) or (i == 0 and bool(pins))
-        out.append(replace(eq, residual=residual,
-                           sampler=_WithContacts(eq.sampler, extra, mine,
-                                                 pins if i == 0 else {}),
-                           notes=eq.notes + ((STABILITY_NOTE,) if coupled else ()),
-                           stability_check=None if coupled else eq.stability_check))
-    return out
-
-
-def joint_loads(coupling: Coupling, states: Sequence[State], mus: Sequence[np.ndarray]
-                ) -> list[dict[str, StationLoad]]:
-    """Per part, what each junction applies to it at its end [N, N m] (equal and
-    opposite on the two parts it joins), named by the junction."""
-    out: list[dict[str, StationLoad]] = [{} for _ in coupling.runs]
-    for k, j in enumerate(coupling.joints):
-        _, forces, _ = coupling._joint_terms(k, states, mus, 1.0)
-        for (part, node), f_x, f_th in (((j.a, j.end_a), forces[0], forces[1]),
-                                        ((j.b, j.end_b), forces[2], forces[3])):
-            rod = coupling.runs[part].rod
-            Rm = quat_matrix(states[part][1][rod.node_frame[node]])
-            force = -f_x * rod.force_scale  # the residual gained -f
-            moment = Rm @ (-f_th) * rod.moment_scale
-            out[part][j.name] = StationLoad(j.name, float(rod.s_node[node] * rod.length),
-                                            force, moment, (True,) * 5)
-    return out
 
 
 def close_pairs(rods: Sequence[Rod]) -> list[Pair]:

@@ -20,15 +20,9 @@ import numpy as np
 from pliant.core.equilibrium import Equilibrium3D
 from pliant.errors import ConvergenceError
 from pliant.models.rod3d import coupled
-from pliant.models.rod3d.coupled import (
-    Coupling,
-    Joint,
-    Pivot,
-    Slider,
-    close_pairs,
-    equilibria,
-    no_contact_forces,
-)
+from pliant.models.rod3d.coupled import Coupling, close_pairs, no_contact_forces
+from pliant.models.rod3d.coupled_results import equilibria
+from pliant.models.rod3d.links import Joint, Pivot, Slider
 from pliant.models.rod3d.lowering import Rod, State, qconj, qmul, quat_matrix
 from pliant.models.rod3d.results import WarmState
 from pliant.models.rod3d.solver import RodSolver, Run
