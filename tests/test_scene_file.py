@@ -356,3 +356,24 @@ def test_a_boolean_is_not_a_length_and_a_huge_tangent_keeps_its_direction():
 
     c = Condition(s=0.0, position=(0.0, 0.0, 0.0), tangent=(1e200, 1e200, 0.0))
     assert c.tangent == pytest.approx((2**-0.5, 2**-0.5, 0.0))
+
+
+def test_a_paths_steps_are_made_by_assembly_not_by_the_reader():
+    """io reads the [path] as given (``path_spec``) and makes no steps; assembly's
+    loader carries the grip through them: ``steps`` problems, the last at the last
+    waypoint, each equal to the one before but for the grip."""
+    from pliant.assembly.path import carry
+    from pliant.io import problem_file
+
+    file = EXAMPLES / "scenes" / "cable_through_clip.toml"
+    read = problem_file.load_scene(file)
+    assert read.path == [] and read.path_spec is not None
+    scene = load_scene(file)
+    spec = scene.path_spec
+    assert len(scene.path) == spec.steps
+    assert scene.path == carry(read.problem, spec)
+    end = scene.path[-1].condition(spec.grip).position
+    np.testing.assert_allclose(end, spec.waypoints[-1], atol=1e-12)
+    for before, after in zip([scene.problem, *scene.path], scene.path):
+        assert [c for c in before.conditions if c.name != spec.grip] == \
+               [c for c in after.conditions if c.name != spec.grip]

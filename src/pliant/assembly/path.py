@@ -10,6 +10,7 @@ would snap, or the grip asks for something it cannot reach).
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable
 from dataclasses import dataclass, field, replace
 from typing import Any
@@ -19,8 +20,9 @@ import numpy as np
 from pliant.core.equilibrium import Equilibrium3D
 from pliant.core.events import WarmStartLost, has
 from pliant.core.numbers import triple
+from pliant.core.planning import PathSpec
 from pliant.core.problem import Problem
-from pliant.errors import PliantError
+from pliant.errors import InputError, PliantError
 from pliant.scene.interference import Interference, of_equilibrium
 
 # The units of a run's records, as its JSON states them.
@@ -115,6 +117,74 @@ class PathRun:
                 "steps": [r.to_dict() for r in self.steps],
                 "interference": None if self.interference is None
                 else self.interference.to_dict()}
+
+
+def carry(problem: Problem, path: PathSpec | None) -> list[Problem]:
+    """The problems along a scene's [path]: its grip carried through the waypoints in
+    its steps (empty without a path); InputError naming the [path]'s field."""
+    if path is None:
+        return []
+    index = next((k for k, c in enumerate(problem.conditions) if c.name == path.grip),
+                 None)
+    if index is None:
+        raise InputError("path.grip", f"no condition named {path.grip!r}; name the "
+                         "[[condition]] the hand holds")
+    grip = problem.conditions[index]
+    if any(v is None for v in grip.position):
+        raise InputError("path.grip", f"{path.grip!r} must hold x, y and z to be "
+                         "carried along a path")
+    points = np.array([grip.position, *path.waypoints], dtype=float)
+    turn = path.tangents is not None and grip.tangent is not None
+    tangents = (np.array([grip.tangent, *(path.tangents or [])], dtype=np.float64) if turn
+                else None)
+    if float(np.linalg.norm(np.diff(points, axis=0), axis=1).sum()) == 0.0:
+        raise InputError("path.waypoints", "the path has no length: move the grip")
+    problems = []
+    for where, direction in along_legs(points, tangents, path.steps):
+        changes: dict[str, Any] = {"position": tuple(float(x) for x in where)}
+        if direction is not None:
+            changes["tangent"] = tuple(float(x) for x in direction)
+            if grip.normal is not None:
+                changes["normal"] = None  # the hand's roll follows the turn
+        conditions = list(problem.conditions)
+        conditions[index] = replace(grip, **changes)
+        problems.append(replace(problem, conditions=tuple(conditions)))
+    return problems
+
+
+def along_legs(points: np.ndarray, tangents: np.ndarray | None,
+               steps: int) -> list[tuple[np.ndarray, np.ndarray | None]]:
+    """The poses a [path] gives: ``steps`` equal steps of arc length along straight legs
+    through ``points`` (n, 3) [m], each with the axis turned at a constant rate from one
+    of ``tangents`` (n, 3) to the next (None: no axis). A leg of no length gets no step."""
+    legs = np.linalg.norm(np.diff(points, axis=0), axis=1)
+    at = np.concatenate([[0.0], np.cumsum(legs)])
+    total = float(at[-1])
+    out = []
+    for k in range(1, steps + 1):
+        u = total * k / steps
+        leg = min(int(np.searchsorted(at, u, side="right")) - 1, len(legs) - 1)
+        t = (u - at[leg]) / legs[leg] if legs[leg] > 0 else 1.0
+        where = points[leg] + t * (points[leg + 1] - points[leg])
+        direction = None
+        if tangents is not None:
+            a = tangents[leg] / np.linalg.norm(tangents[leg])
+            b = tangents[leg + 1] / np.linalg.norm(tangents[leg + 1])
+            direction = slerp(a, b, t)
+        out.append((where, direction))
+    return out
+
+
+def slerp(a: np.ndarray, b: np.ndarray, t: float) -> np.ndarray:
+    """The unit vector a fraction t of the way from unit a to unit b along their great
+    circle (a half turn has none: an error naming [path] tangents)."""
+    angle = math.acos(max(-1.0, min(1.0, float(a @ b))))
+    if angle < 1e-9:
+        return a
+    if math.pi - angle < 1e-9:
+        raise InputError("path.tangents", "a tangent turns right round between two "
+                         "waypoints; add a waypoint between them")
+    return (math.sin((1 - t) * angle) * a + math.sin(t * angle) * b) / math.sin(angle)
 
 
 def follow_path(start: Problem, path: list[Problem], grip: str, *, margin: float = 0.0,

@@ -80,13 +80,12 @@ from pliant.assembly.evaluate import (
     prepare,
     twist_rate,
 )
-from pliant.assembly.path import follow_path
+from pliant.assembly.path import along_legs, follow_path, slerp
 from pliant.core.equilibrium import Equilibrium3D
 from pliant.core.numbers import triple
 from pliant.core.planning import PlanSettings
 from pliant.core.problem import Problem
 from pliant.errors import ConvergenceError, InputError, PliantError, UnreachableTargetError
-from pliant.io.problem_file import along_legs, slerp
 from pliant.models import rod3d
 from pliant.scene.distance import DistanceField
 from pliant.scene.interference import of_equilibrium

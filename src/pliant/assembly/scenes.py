@@ -13,8 +13,9 @@ from functools import lru_cache
 from pathlib import Path
 from typing import Any
 
+from pliant.assembly.path import carry
 from pliant.core.problem import FittedPart, Problem
-from pliant.errors import OutputError
+from pliant.errors import FileFormatError, OutputError, PliantError
 from pliant.io import cache
 from pliant.io import problem_file as files
 from pliant.io.problem_file import Scene
@@ -50,21 +51,33 @@ def settle_fitted(name: str, problem: Problem, elements: int, flexible: bool,
 
 
 def load_scene(path: str | Path) -> Scene:
-    """Read a problem or scene file (TOML, SI units): obstacles, ports, clips, path, and
-    its flexible parts already fitted, settled."""
-    return files.load_scene(path, settle=settle_fitted)
+    """Read a problem or scene file (TOML, SI units): obstacles, ports, clips, and its
+    flexible parts already fitted, settled, and its [path]'s steps."""
+    return _with_path(files.load_scene(path, settle=settle_fitted), str(path))
 
 
 def parse_scene(text: str, source: str = "<string>", base: Path | None = None) -> Scene:
     """A ``Scene`` from TOML text (mesh files relative to ``base``), settled."""
-    return files.parse_scene(text, source, base, settle=settle_fitted)
+    return _with_path(files.parse_scene(text, source, base, settle=settle_fitted), source)
 
 
 def scene_from_data(data: dict[str, Any], source: str = "<data>",
                     base: Path | None = None) -> Scene:
     """A ``Scene`` from a scene file's document already read (what a variation study
     changes sample by sample), settled."""
-    return files.scene_from_data(data, source, base, settle=settle_fitted)
+    return _with_path(files.scene_from_data(data, source, base, settle=settle_fitted),
+                      source)
+
+
+def _with_path(scene: Scene, source: str) -> Scene:
+    """The scene with its [path]'s steps (``pliant.assembly.path.carry``); a path that
+    cannot be carried is the file's error, named as io names its own."""
+    if scene.path_spec is None:
+        return scene
+    try:
+        return replace(scene, path=carry(scene.problem, scene.path_spec))
+    except PliantError as err:
+        raise FileFormatError(f"{source}: {err}") from None
 
 
 def _fitted_key(problem: Problem, elements: int) -> str | None:

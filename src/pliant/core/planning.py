@@ -1,4 +1,6 @@
-"""How a path is to be planned (a scene's [plan]; ``pliant.assembly.plan`` plans it)."""
+"""A scene's [path] as given (``PathSpec``; ``pliant.assembly.path.carry`` makes its
+steps) and how a path is to be planned (a scene's [plan]; ``pliant.assembly.plan`` plans
+it)."""
 
 from __future__ import annotations
 
@@ -6,6 +8,18 @@ import math
 from dataclasses import dataclass
 
 from pliant.errors import InputError
+
+
+@dataclass(frozen=True)
+class PathSpec:
+    """A manipulation as a scene file gives it: the condition ``grip`` carried from where
+    the file puts it through ``waypoints`` (m, straight legs), its axis turned toward
+    ``tangents`` when given, in ``steps`` equal steps of arc length."""
+
+    grip: str
+    waypoints: tuple[tuple[float, float, float], ...]
+    tangents: tuple[tuple[float, float, float], ...] | None
+    steps: int
 
 
 @dataclass(frozen=True)

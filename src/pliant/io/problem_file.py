@@ -20,7 +20,6 @@ reading ``sections``'s, and writing a problem back ``problem_dump``'s.
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any, Literal
@@ -32,7 +31,7 @@ from pliant.core.conditions import Condition
 from pliant.core.loads import DistributedLoad
 from pliant.core.numbers import triple
 from pliant.core.part import Material, Part
-from pliant.core.planning import PlanSettings
+from pliant.core.planning import PathSpec, PlanSettings
 from pliant.core.problem import Problem
 from pliant.core.rules import EvaluationSettings
 from pliant.errors import FileFormatError, InputError, PliantError
@@ -481,85 +480,19 @@ class ProblemFile(_Strict):
                 used.add(row.solid)
         return [o for o in obstacles if o.name not in used]
 
-    def manipulation(self, problem: Problem) -> list[Problem]:
-        """The problems along the [path]: its grip carried through the waypoints."""
-        if self.path is None:
-            return []
-        path = self.path
-        index = next((k for k, c in enumerate(problem.conditions) if c.name == path.grip),
-                     None)
-        if index is None:
-            raise InputError("path.grip", f"no condition named {path.grip!r}; name the "
-                             "[[condition]] the hand holds")
-        grip = problem.conditions[index]
-        if any(v is None for v in grip.position):
-            raise InputError("path.grip", f"{path.grip!r} must hold x, y and z to be "
-                             "carried along a path")
-        points = np.array([grip.position, *path.waypoints], dtype=float)
-        turn = path.tangents is not None and grip.tangent is not None
-        tangents = (np.array([grip.tangent, *(path.tangents or [])], dtype=np.float64) if turn
-                    else None)
-        if float(np.linalg.norm(np.diff(points, axis=0), axis=1).sum()) == 0.0:
-            raise InputError("path.waypoints", "the path has no length: move the grip")
-        problems = []
-        for where, direction in along_legs(points, tangents, path.steps):
-            changes: dict[str, Any] = {"position": tuple(float(x) for x in where)}
-            if direction is not None:
-                changes["tangent"] = tuple(float(x) for x in direction)
-                if grip.normal is not None:
-                    changes["normal"] = None  # the hand's roll follows the turn
-            conditions = list(problem.conditions)
-            conditions[index] = replace(grip, **changes)
-            problems.append(replace(problem, conditions=tuple(conditions)))
-        return problems
-
-
-def along_legs(points: np.ndarray, tangents: np.ndarray | None,
-               steps: int) -> list[tuple[np.ndarray, np.ndarray | None]]:
-    """The poses a [path] gives: ``steps`` equal steps of arc length along straight legs
-    through ``points`` (n, 3) [m], each with the axis turned at a constant rate from one
-    of ``tangents`` (n, 3) to the next (None: no axis). A leg of no length gets no step."""
-    legs = np.linalg.norm(np.diff(points, axis=0), axis=1)
-    at = np.concatenate([[0.0], np.cumsum(legs)])
-    total = float(at[-1])
-    out = []
-    for k in range(1, steps + 1):
-        u = total * k / steps
-        leg = min(int(np.searchsorted(at, u, side="right")) - 1, len(legs) - 1)
-        t = (u - at[leg]) / legs[leg] if legs[leg] > 0 else 1.0
-        where = points[leg] + t * (points[leg + 1] - points[leg])
-        direction = None
-        if tangents is not None:
-            a = tangents[leg] / np.linalg.norm(tangents[leg])
-            b = tangents[leg + 1] / np.linalg.norm(tangents[leg + 1])
-            direction = slerp(a, b, t)
-        out.append((where, direction))
-    return out
-
-
-def slerp(a: np.ndarray, b: np.ndarray, t: float) -> np.ndarray:
-    """The unit vector a fraction t of the way from unit a to unit b along their great
-    circle (a half turn has none: an error naming [path] tangents)."""
-    angle = math.acos(max(-1.0, min(1.0, float(a @ b))))
-    if angle < 1e-9:
-        return a
-    if math.pi - angle < 1e-9:
-        raise InputError("path.tangents", "a tangent turns right round between two "
-                         "waypoints; add a waypoint between them")
-    return (math.sin((1 - t) * angle) * a + math.sin(t * angle) * b) / math.sin(angle)
-
 
 @dataclass(frozen=True)
 class Scene:
     """A whole file as built: the problem (with its obstacles), the solver settings,
-    the manipulation along its [path] (empty without one) and the condition it carries
-    (``grip``, None without a path), the clearance margin, ``fixed``: the conditions
+    the manipulation along its [path] (its steps, made by ``pliant.assembly`` from
+    ``path_spec`` as the scene is loaded; empty without one) and the condition it
+    carries (``grip``, None without a path), the clearance margin, ``fixed``: the conditions
     a user does not move (at ports, and clips), how it is judged (``evaluation``) and
     how a path for it is planned (``plan``)."""
 
     problem: Problem
     solver: SolverModel
-    path: list[Problem] = field(default_factory=list)
+    path: list[Problem] = field(default_factory=list)  # its steps (``pliant.assembly``)
     margin: float = 0.0
     ports: dict[str, PortModel] = field(default_factory=dict)
     grip: str | None = None
@@ -567,6 +500,7 @@ class Scene:
     evaluation: EvaluationSettings = field(default_factory=EvaluationSettings)
     plan: PlanSettings = field(default_factory=PlanSettings)
     warnings: tuple[str, ...] = ()
+    path_spec: PathSpec | None = None  # the [path] as given
 
 
 # Part kinds whose bending stiffness a solid section of their material does not give.
@@ -655,13 +589,14 @@ def scene_from_data(data: dict[str, Any], source: str = "<data>", base: Path | N
         raise FileFormatError(f"{source}: {where}: {message}{more}") from None
     try:
         problem = model.build(base, nested, settle)
-        return Scene(problem, model.solver, model.manipulation(problem), model.margin,
+        return Scene(problem, model.solver, [], model.margin,
                      {p.name: p for p in model.port},
                      model.path.grip if model.path is not None else None,
                      tuple(c.name or f"condition{i + 1}" for i, c in enumerate(model.condition)
                            if c.port is not None) + tuple(c.name for c in model.clip),
                      model.evaluation.build(base), model.plan.build(),
-                     _warnings(model, problem.part))
+                     _warnings(model, problem.part),
+                     model.path.build() if model.path is not None else None)
     except PliantError as err:
         raise FileFormatError(f"{source}: {err}") from None
 

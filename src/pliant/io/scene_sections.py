@@ -14,7 +14,7 @@ from pydantic import Field, model_validator
 
 from pliant.core.conditions import Condition
 from pliant.core.numbers import triple
-from pliant.core.planning import PlanSettings
+from pliant.core.planning import PathSpec, PlanSettings
 from pliant.core.problem import Problem
 from pliant.core.rules import EvaluationSettings
 from pliant.errors import InputError, PliantError
@@ -303,6 +303,12 @@ class PathModel(_Strict):
         if self.tangents is not None and len(self.tangents) != len(self.waypoints):
             raise ValueError("give one tangent per waypoint, or none")
         return self
+
+    def build(self) -> PathSpec:
+        return PathSpec(self.grip, tuple(tuple(w) for w in self.waypoints),  # type: ignore[misc]
+                        None if self.tangents is None
+                        else tuple(tuple(t) for t in self.tangents),  # type: ignore[misc]
+                        self.steps)
 
 
 class RatingModel(_Strict):
