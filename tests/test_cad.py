@@ -214,7 +214,7 @@ axis = [1.0, 0.0, 0.0]
 
 
 def test_reading_an_assembly_says_how_far_it_got():
-    from pliant.io.progress import listening
+    from pliant.util.progress import listening
 
     said: list[str] = []
     with listening(said.append):
@@ -250,8 +250,8 @@ class _Recorder:
 def test_the_progress_bar_runs_over_the_assemblys_triangles_once():
     """One task for the whole assembly (the solids' builds only advance it), counted in
     triangles, never backwards, ending at its total; a lone mesh gets a task of its own."""
-    from pliant.io.progress import listening
     from pliant.scene.distance import prepare_mesh
+    from pliant.util.progress import listening
 
     bar = _Recorder()
     with listening(bar):

@@ -1,6 +1,6 @@
 """Loading a scene: its file read by ``pliant.io`` (which only reads), and its flexible
 parts already fitted settled here: each one's own problem solved alone (the 3D model),
-its shape kept in pliant's disk cache (``pliant.io.cache``) under the hash of its
+its shape kept in pliant's disk cache (``pliant.util.cache``) under the hash of its
 problem, its element count and the solver's source, so that a scene read again does
 not solve it again (its equilibrium is then found on first use, by a part that touches
 it), and its tube made an obstacle. Load scenes through these functions.
@@ -16,9 +16,9 @@ from typing import Any
 from pliant.assembly.path import carry
 from pliant.core.problem import FittedPart, Problem
 from pliant.errors import FileFormatError, OutputError, PliantError
-from pliant.io import cache
 from pliant.io import problem_file as files
 from pliant.io.problem_file import Scene
+from pliant.util import cache
 
 
 def settle_fitted(name: str, problem: Problem, elements: int, flexible: bool,

@@ -71,7 +71,7 @@ def _first_run_note(three_d: bool = True) -> None:
 
 
 class _ReadingBar:
-    """``pliant.io.progress``'s listener on the terminal: what is being read, and for the
+    """``pliant.util.progress``'s listener on the terminal: what is being read, and for the
     distance structures a bar over the triangles with the time left (rich's estimate
     from the rate so far); a spinner while the amount is not known (tessellating)."""
 
@@ -122,7 +122,7 @@ def _load_scene(file: Path):
 
     # A CAD assembly of millions of triangles takes seconds to tessellate and to build
     # its distance structures: a bar with the time left (on a terminal only).
-    from pliant.io.progress import listening  # noqa: PLC0415
+    from pliant.util.progress import listening  # noqa: PLC0415
 
     with _ReadingBar(file.name, Console(stderr=True)) as bar, listening(bar):
         scene = load_scene(file)

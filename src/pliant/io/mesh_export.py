@@ -100,7 +100,7 @@ def display_obstacle(obstacle, max_faces: int = DISPLAY_FACES):
     that a CAD scene's next tab neither merges its vertices nor decimates it again."""
     import trimesh  # noqa: PLC0415
 
-    from pliant.io import cache  # noqa: PLC0415
+    from pliant.util import cache  # noqa: PLC0415
 
     if obstacle.mesh is None:
         return display_mesh(obstacle_mesh(obstacle), max_faces)

@@ -35,7 +35,6 @@ from pliant.core.planning import PathSpec, PlanSettings
 from pliant.core.problem import Problem
 from pliant.core.rules import EvaluationSettings
 from pliant.errors import FileFormatError, InputError, PliantError
-from pliant.io import progress
 from pliant.io.problem_dump import dump_problem as dump_problem
 from pliant.io.problem_dump import with_path_table as with_path_table
 from pliant.io.scene_sections import (
@@ -56,6 +55,7 @@ from pliant.io.scene_sections import (
 )
 from pliant.io.sections import Vec3, _Strict, read_mesh
 from pliant.io.tomlfile import field_path, read_toml
+from pliant.util import progress
 
 
 class MaterialModel(_Strict):

@@ -18,8 +18,8 @@ from pliant.core.planning import PathSpec, PlanSettings
 from pliant.core.problem import Problem
 from pliant.core.rules import EvaluationSettings
 from pliant.errors import InputError, PliantError
-from pliant.io import progress
 from pliant.io.sections import Vec3, _referenced, _Strict
+from pliant.util import progress
 
 
 class CadModel(_Strict):

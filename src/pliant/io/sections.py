@@ -10,7 +10,7 @@ from typing import Any
 import numpy as np
 from pydantic import BaseModel, ConfigDict, ValidationInfo, field_validator
 
-from pliant.io import cache, progress
+from pliant.util import cache, progress
 
 Vec3 = tuple[float, float, float]
 

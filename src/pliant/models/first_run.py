@@ -41,7 +41,7 @@ OURS: tuple[tuple[str, str], ...] = (
     ("pliant.models.rod3d.contact_kernels", "contact_terms"),
     ("pliant.models.rod3d.contact_kernels", "newton_contact"),
     # a scene's fitted parts, solved without contact on a fresh disk cache
-    # (``pliant.io.cache``): last, when the helper has cached what they call
+    # (``pliant.util.cache``): last, when the helper has cached what they call
     ("pliant.models.rod3d.kernels", "newton"),
     ("pliant.models.banded", "band_solve"),
 )

@@ -30,8 +30,6 @@ from typing import NamedTuple
 import numpy as np
 from numba import njit
 
-from pliant.io import cache as disk
-from pliant.io import progress
 from pliant.scene.grid import GRID_ERROR, fill_grid, grid_sample
 from pliant.scene.primitives import (
     BOX,
@@ -44,6 +42,8 @@ from pliant.scene.primitives import (
     to_local,
 )
 from pliant.scene.triangles import build_bvh, feature_hessian, mesh_feature, pseudonormals
+from pliant.util import cache as disk
+from pliant.util import progress
 
 
 class Field(NamedTuple):
@@ -236,7 +236,7 @@ def prepare_mesh(vertices: np.ndarray, faces: np.ndarray, resolution: int = 64,
     """Pseudonormals, box tree and signed distance grid of a mesh (the grid cached on
     disk under the hash of the mesh and the resolution; for a mesh of LARGE_MESH
     triangles or more, the pseudonormals and the tree too). Its progress is reported in
-    triangles (``pliant.io.progress``), each step by its share of the build."""
+    triangles (``pliant.util.progress``), each step by its share of the build."""
     triangles = int(np.shape(faces)[0]) if np.ndim(faces) == 2 else 0
     with progress.work(triangles):
         def done(share: float) -> None:
@@ -307,7 +307,7 @@ def _load_structure(key: str, triangles: int) -> tuple[np.ndarray | None, bool, 
 
 
 def _save_structure(key: str, pseudo: np.ndarray, solid: bool, bvh: tuple) -> None:
-    """Best effort, written whole or not at all (``pliant.io.cache``)."""
+    """Best effort, written whole or not at all (``pliant.util.cache``)."""
     disk.save_arrays("mesh", key, pseudo=pseudo, solid=np.array(solid),
                      **dict(zip(_TREE, bvh)))
 
