@@ -30,41 +30,23 @@ a problem onto them are ``lowering``'s, the compiled terms ``kernels``'.
 from __future__ import annotations
 
 import math
-from collections.abc import Callable, Iterable, Iterator
+from collections.abc import Iterable, Iterator
 from dataclasses import dataclass, field, replace
 from functools import cached_property
 
 import numpy as np
 
-from pliant.core.equilibrium import (
-    WARM_START_LOST,
-    Equilibrium3D,
-    StationLoad,
-    potential_energy,
-)
-from pliant.core.events import (
-    BranchTaken,
-    LowestEquilibrium,
-    Snapped,
-    Status,
-    WarmStartLost,
-)
+from pliant.core.equilibrium import WARM_START_LOST, Equilibrium3D, StationLoad, potential_energy
+from pliant.core.events import BranchTaken, LowestEquilibrium, Status, WarmStartLost
 from pliant.core.problem import Problem
 from pliant.errors import ConvergenceError, IllPosedProblemError, InputError
 from pliant.models import clock
 from pliant.models.rod3d import contact_kernels, kernels
 from pliant.models.rod3d.kernels import AXIS
-from pliant.models.rod3d.lowering import (
-    Loads,
-    Rod,
-    State,
-    axis_basis,
-    lower,
-    qmul,
-    quat_matrix,
-)
-from pliant.models.rod3d.results import WarmState, build, probe, station_loads
-from pliant.models.rod3d.stability import conservative, metric, stability_of
+from pliant.models.rod3d.lowering import Loads, Rod, State, axis_basis, lower, qmul, quat_matrix
+from pliant.models.rod3d.results import WarmState, build, station_loads
+from pliant.models.rod3d.routes import _BRANCH_NOTE, Routes, Stalled
+from pliant.models.rod3d.stability import conservative
 from pliant.models.settings import check
 
 _SWITCHES = 6  # active-set changes a Newton may take without contracting
@@ -116,25 +98,8 @@ class RodSolver:
 # X, Q, lam, nu and gam: positions, frames, element and station multipliers, and the
 # contact probes' normal forces (empty without obstacles).
 
-_BRANCH_NOTE = "the unloaded part was a singular start"
-
-
 @dataclass
-class Stalled(Exception):
-    t: float
-    residual: float
-    reason: str
-    singular_start: bool = False
-    budget: bool = False
-    state: State | None = None  # the last good state on the path
-    gauge: np.ndarray | None = None  # its twist gauge
-    loads: Loads | None = None  # its loads and targets
-    ahead: tuple[Loads, ...] = ()  # what was left of the route: the leg's end and after
-    status: Status = Status.FOLD  # why, for the ConvergenceError
-
-
-@dataclass
-class Run:
+class Run(Routes):
     rod: Rod
     solver: RodSolver
     gauge_quat: np.ndarray = field(default_factory=lambda: np.array([1.0, 0.0, 0.0, 0.0]))
@@ -350,316 +315,6 @@ class Run:
         sizes[rod.islot] = np.maximum(1.0, np.abs(state[4]))
         return sizes
 
-    # -- routes ---------------------------------------------------------------------------
-    def cold(self) -> State:
-        """Try the routes in turn; past a fold on all, look beyond it; else raise the
-        furthest stall."""
-        best: Stalled | None = None
-        for legs in (self.straight, self.two_stage, self.swing, self.loads_first):
-            said = len(self.notes)
-            try:
-                return self.route(legs)
-            except Stalled as stall:
-                del self.notes[said:]  # what a failed route found does not hold
-                if best is None or stall.t > best.t:
-                    best = stall
-                if stall.budget and clock.now() > self.deadline:
-                    break
-        assert best is not None
-        if best.budget:
-            raise best
-        return self.beyond_fold(best)
-
-    def route(self, legs: Callable[[Loads], list[Loads]]) -> State:
-        """Follow the legs from the rest state to the problem. A singular start (an end
-        pushed along the straight part: it may buckle to any side) runs the whole route
-        on a part bowed toward the side the targets and loads push it to, and a last leg
-        removes the bow."""
-        rod, opts = self.rod, self.solver
-        rest, state = rod.rest()
-        self.gauge_quat = state[1][max(rod.gauge_frame, 0)].copy()
-        straight: tuple[State, np.ndarray] | None = None
-        try:
-            found = self.through(rest, legs(rest), state)
-            if self.reached is not None:
-                self.reached.append((found, self.gauge_quat.copy(), "the straight branch"))
-            # An extensible part's start is not singular: its chord shortens by
-            # compression, and the route stays on the straight branch past buckling.
-            if rod.K[3] == 0.0 or not conservative(self, found) or stability_of(
-                    self, found)[0]:
-                return found
-            straight = (found, self.gauge_quat)
-        except Stalled as stall:
-            if not stall.singular_start:
-                raise
-        self.branch_note = _BRANCH_NOTE if straight is None else (
-            f"{_BRANCH_NOTE} for the inextensible part; this one shortens, and its straight "
-            "equilibrium is unstable")
-        side, chord, (a, b) = _bow_direction(rod, rest, state)
-        # A bow b cos(2 pi u) over a span w shortens its chord by w (b w)^2 / 16 pi^2; make
-        # that most of what the targets ask, as in 2D.
-        width = b - a
-        wanted = opts.bow * _shortening(rod, rest)
-        amplitude = min(40.0, max(0.01, 4.0 * math.pi / width * math.sqrt(wanted / width)))
-        mids = 0.5 * (rod.frame_s[:-1] + rod.frame_s[1:])
-        inside = (mids >= a) & (mids <= b)
-        shape = amplitude * np.cos(2 * math.pi * (mids[inside] - a) / width)[:, None]
-        across = np.cross(chord, side)
-        # The side the targets and loads push it to first; if that branch meets a fold,
-        # the opposite side, then the two across.
-        best: Stalled | None = None
-        unstable: tuple[State, np.ndarray, np.ndarray] | None = None
-        stable: list[tuple[State, np.ndarray, np.ndarray, float]] = []
-        sides = []
-        for bow_side in (side, -side, across, -across):
-            # Bending about chord x side turns the tangent toward the side; in the rest
-            # frames (the straight part has one frame throughout).
-            axis = quat_matrix(state[1][0]).T @ np.cross(chord, bow_side)
-            bowed_k0 = rod.rest_k0.copy()
-            bowed_k0[inside] += shape * axis[None, :]
-            sides.append((bow_side, bowed_k0, rod.rest(bowed_k0)))
-        # A bow into an obstacle starts inside it (the obstacle then grows back round the
-        # part, dragging it over its edges): the sides that keep clear come first.
-        sides.sort(key=lambda c: c[2][0].offset > 0.0)
-        for bow_side, bowed_k0, (rest_b, bowed) in sides:
-            self.gauge_quat = bowed[1][max(rod.gauge_frame, 0)].copy()
-            targets = [replace(leg, joint_k0=bowed_k0) for leg in legs(rest_b)] + [rod.target]
-            try:
-                found = self.through(rest_b, targets, bowed)
-            except Stalled as stall:
-                if best is None or stall.t > best.t:
-                    best = stall
-                if stall.budget:
-                    break
-                continue
-            if self.reached is not None:
-                self.reached.append((found, self.gauge_quat.copy(),
-                                     f"bowed toward {np.round(bow_side, 3).tolist()}"))
-            # An unstable branch is not where a real part settles: try the other sides
-            # for a stable one (for conservative loads, where stability is defined).
-            if not conservative(self):
-                self._bow_note(bow_side, "where its targets and loads push it" if bow_side
-                               is side else "as the side its targets and loads push it to "
-                               "gives no branch")
-                return found
-            if not stability_of(self, found)[0]:
-                if unstable is None:
-                    unstable = (found, bow_side, self.gauge_quat)
-                continue
-            stable.append((found, bow_side, self.gauge_quat,
-                           potential_energy(probe(self, found))))
-            if len(stable) == 2 and self.reached is None:
-                break
-        if stable:
-            # Of the first two stable branches, the lower potential energy; the side the
-            # targets push to keeps a tie (mirror twins).
-            first = stable[0]
-            chosen = first
-            if len(stable) == 2 and stable[1][3] < first[3] - 1e-9 * abs(first[3]) - 1e-300:
-                chosen = stable[1]
-            found, bow_side, self.gauge_quat, energy = chosen
-            if chosen is first and first[1] is side:
-                why = "where its targets and loads push it"
-            elif chosen is first:
-                why = "as the side its targets and loads push it to gives no stable branch"
-            else:
-                why = (f"whose potential energy {energy:.6g} J is below the "
-                       f"{first[3]:.6g} J of the side its targets and loads push it to")
-            self._bow_note(bow_side, why)
-            return found
-        if unstable is not None:
-            found, bow_side, self.gauge_quat = unstable
-            self._bow_note(bow_side, "the only branch found, and it is unstable")
-            return found
-        if straight is not None:
-            found, self.gauge_quat = straight
-            self.notes.append("the straight equilibrium of this compressed part is unstable, "
-                              "and no route to a buckled one converged")
-            return found
-        assert best is not None
-        raise best
-
-    def _bow_note(self, side: np.ndarray, why: str) -> None:
-        self.notes.append(BranchTaken(
-            f"{self.branch_note} (a bifurcation: it can buckle to any side); pliant took the "
-            f"branch that bows toward {np.round(side, 3).tolist()}, {why}; other equilibria "
-            "may exist", side=tuple(float(c) for c in side)))
-
-    def through(self, start: Loads, targets: list[Loads], state: State) -> State:
-        """Follow the homotopies start -> targets[0] -> targets[1] -> ...; a stall's
-        progress counts over the whole route."""
-        for i, end in enumerate(targets):
-            try:
-                state = self.follow(start, end, state)
-            except Stalled as stall:
-                stall.t = (i + stall.t) / len(targets)
-                stall.ahead = stall.ahead + tuple(targets[i + 1:])
-                raise
-            start = end
-        return state
-
-    def straight(self, rest: Loads) -> list[Loads]:
-        """Loads and targets together: positions along straight lines, orientations along
-        the shortest arcs."""
-        return [self.rod.target]
-
-    def two_stage(self, rest: Loads) -> list[Loads]:
-        """Targets first, with no load; then the loads."""
-        t = self.rod.target
-        zeros = np.zeros_like(t.st_moment)
-        placed = Loads(np.zeros_like(t.fnode), t.st_pos, t.st_tangent, t.st_quat, zeros,
-                       zeros, zeros, t.joint_k0, rest.turn)
-        return [placed, t]
-
-    def loads_first(self, rest: Loads) -> list[Loads]:
-        """Loads first, with the held points where the rest shape has them; then the
-        targets."""
-        t = self.rod.target
-        loaded = Loads(t.fnode, rest.st_pos, rest.st_tangent, rest.st_quat, t.st_moment,
-                       t.st_ffollow, t.st_mfollow, t.joint_k0, rest.turn,
-                       elem_follow=t.elem_follow)
-        return [loaded, t]
-
-    def swing(self, rest: Loads, legs: int = 8) -> list[Loads]:
-        """Carry the held points round the first one along arcs (their distance from it
-        and their bearing, turned about one axis, move linearly), as a hand would,
-        instead of along straight lines that may sweep through the first support."""
-        rod = self.rod
-        ends = _chord(rod)
-        if ends is None:
-            raise Stalled(0.0, math.inf, "nothing to swing around", status=Status.NO_ROUTE)
-        pivot = ends[0]
-        located = [k for k in range(rod.st_kind.shape[0])
-                   if rod.st_pos_mask[k].all() and k != pivot]
-        arcs: list[tuple[np.ndarray, float, float, np.ndarray, float] | None] = []
-        for k in located:
-            a = rest.st_pos[k] - rest.st_pos[pivot]
-            b = rod.target.st_pos[k] - rod.target.st_pos[pivot]
-            ra, rb = float(np.linalg.norm(a)), float(np.linalg.norm(b))
-            if ra < 1e-12 or rb < 1e-12:
-                arcs.append(None)
-                continue
-            normal = np.cross(a, b)
-            if np.linalg.norm(normal) < 1e-9 * ra * rb:  # collinear: any axis across a
-                normal = np.cross(a, np.eye(3)[int(np.argmin(np.abs(a)))])
-            normal /= np.linalg.norm(normal)
-            angle = math.atan2(float(np.dot(np.cross(a, b), normal)), float(np.dot(a, b)))
-            arcs.append((a / ra, ra, rb, normal, angle))
-
-        def at(t: float) -> Loads:
-            loads = rest.lerp(rod.target, t)
-            pos = loads.st_pos.copy()
-            for k, arc in zip(located, arcs):
-                if arc is None:
-                    continue
-                u, ra, rb, normal, angle = arc
-                turn = t * angle
-                direction = (u * math.cos(turn) + np.cross(normal, u) * math.sin(turn)
-                             + normal * np.dot(normal, u) * (1 - math.cos(turn)))
-                pos[k] = pos[pivot] + ((1 - t) * ra + t * rb) * direction
-            return replace(loads, st_pos=pos)
-
-        return [at(i / legs) for i in range(1, legs)] + [rod.target]
-
-    def beyond_fold(self, stall: Stalled, snaps: int = 4) -> State:
-        """Every route met a fold: a part loaded that way snaps through there. Follow
-        what it does: just past the fold, let it settle by a pseudo-transient relaxation
-        (an implicit gradient flow under the constraints) from the last state before the
-        fold, then go on along the route; up to ``snaps`` times. Say so."""
-        at: list[float] = []
-        while True:
-            if (stall.state is None or stall.loads is None or stall.gauge is None
-                    or not stall.ahead or len(at) >= snaps):
-                raise stall
-            at.append(stall.t)
-            self.gauge_quat = stall.gauge
-            end, *rest = stall.ahead
-            past = stall.loads.lerp(end, min(1.0, max(1e-3, 10.0 * self.solver.min_step)))
-            state = self.settle(stall.state, past)
-            if state is None:
-                raise stall
-            try:
-                state = self.through(past, [end, *rest], state)
-            except Stalled as again:
-                stall = again
-                continue
-            times = "once" if len(at) == 1 else f"{len(at)} times"
-            self.notes.append(Snapped(
-                f"every path from the unloaded part meets a fold: loaded along it, the part "
-                f"snaps through ({times}, first at {at[0]:.3g} of the way); this is the "
-                "equilibrium it reaches after the snap, found by letting it settle (a "
-                "pseudo-transient relaxation) and following on: other equilibria may exist",
-                at=float(at[0]), count=len(at)))
-            return state
-
-    def settle(self, state: State, loads: Loads, push: float = 0.05) -> State | None:
-        """Relax (``relax``); where that ends on a saddle (an unstable equilibrium: the
-        flow slowed next to it and the closing Newton landed on it), push the part along
-        the saddle's unstable mode by ``push`` L, one way then the other, and relax
-        again, so that the snap cannot stall at a saddle: the state it settles in is
-        stable (or neutral), or None."""
-        current = self.relax(state, loads)
-        for _ in range(3):
-            if current is None:
-                return None
-            mode: list = []
-            stable, _ = stability_of(self, current, found=mode, loads=loads)
-            if stable or not mode:
-                return current
-            primal, _ = metric(self.rod)
-            du = np.zeros(self.rod.n)
-            du[np.flatnonzero(primal)] = mode[0]
-            du *= push / max(float(np.abs(du).max()), 1e-300)
-            pushed = None
-            for sign in (1.0, -1.0):
-                pushed = self.relax(self.step(current, sign * du, 1.0), loads)
-                if pushed is not None:
-                    break
-            current = pushed
-        return None
-
-    def relax(self, state: State, loads: Loads, max_steps: int = 600,
-              stride: float = 0.02) -> State | None:
-        """Pseudo-transient continuation: implicit Euler steps of the gradient flow
-        W du/dtau = -grad E under the constraints, each one Newton iteration on
-        [K + W / dtau, A^T; A, 0] [du; dlam] = -R. The pseudo-time step adapts so that
-        each step moves the part about ``stride`` L; as the flow settles the steps grow
-        and it ends as Newton. Implicit Euler leaves a saddle (an equilibrium just past a
-        fold) along its unstable direction, where a Newton would stay or wander."""
-        rod = self.rod
-        primal, weight = metric(rod)
-        shift_of = np.where(primal, weight, 0.0)
-        kl, ku = rod.kl, rod.ku
-        R, ab, _ = self.residual(state, loads, want_jac=True)
-        if not np.isfinite(R).all():
-            return None
-        sigma = float((np.abs(ab[primal, kl + ku]) / shift_of[primal]).max())
-        ceiling = 1e8 * max(sigma, 1.0)
-        for _ in range(max_steps):
-            if clock.now() > self.deadline or sigma > ceiling:
-                return None  # out of time, or no step short enough: it cannot settle
-            ab[:, kl + ku] += sigma * shift_of
-            du, ok = self.solve_linear(ab, -R)
-            move = float(np.abs(du[primal]).max()) if ok else math.inf
-            if not math.isfinite(move) or move > 4.0 * stride:
-                sigma *= 4.0  # too long a step: a shorter one
-                R, ab, _ = self.residual(state, loads, want_jac=True)
-                continue
-            state = self.step(state, du, 1.0)
-            R, ab, _ = self.residual(state, loads, want_jac=True)
-            self.iterations += 1
-            if move < 0.25 * stride:
-                sigma *= 0.25
-                if sigma < 1e-12:  # a Newton step: settled
-                    break
-            elif move < stride:
-                sigma *= 0.5
-            else:
-                sigma *= 2.0
-        else:
-            return None
-        state, _r, status, _ = self.newton(state, loads, strict=False)
-        return state if status == kernels.CONVERGED else None
 
     def warm(self, warm: Equilibrium3D) -> State | None:
         old = warm.state
@@ -750,52 +405,6 @@ def _load_size(start: Loads, end: Loads, h: np.ndarray) -> tuple[float, float]:
     moment = float(np.abs(end.st_moment - start.st_moment).sum()
                    + np.abs(end.st_mfollow - start.st_mfollow).sum())
     return force, moment
-
-
-def _chord(rod: Rod) -> tuple[int, int] | None:
-    located = [k for k in range(rod.st_kind.shape[0]) if rod.st_pos_mask[k].all()]
-    return (located[0], located[-1]) if len(located) >= 2 else None
-
-
-def _shortening(rod: Rod, rest: Loads) -> float:
-    ends = _chord(rod)
-    if ends is None:
-        return 0.0
-    a, b = ends
-    have = float(np.linalg.norm(rest.st_pos[b] - rest.st_pos[a]))
-    want = float(np.linalg.norm(rod.target.st_pos[b] - rod.target.st_pos[a]))
-    return max(0.0, have - want)
-
-
-def _bow_direction(rod: Rod, rest: Loads, state: State):
-    """The side (a unit vector normal to the rest chord) the targets' motion and the
-    loads push the part to, the chord's direction and its span (s_a, s_b)."""
-    X, Q = state[0], state[1]
-    ends = _chord(rod)
-    if ends is not None:
-        a, b = ends
-        chord = rest.st_pos[b] - rest.st_pos[a]
-        span = (float(rod.s_node[rod.st_node[a]]), float(rod.s_node[rod.st_node[b]]))
-    else:
-        chord = X[-1] - X[0]
-        span = (0.0, 1.0)
-    chord = chord / max(float(np.linalg.norm(chord)), 1e-300)
-    push = np.zeros(3)
-    for k in range(rod.st_kind.shape[0]):
-        moved = np.where(rod.st_pos_mask[k] == 1, rod.target.st_pos[k] - rest.st_pos[k], 0.0)
-        push += moved
-    width = span[1] - span[0]
-    push += rod.target.fnode.sum(axis=0) * width**3 / 48.0
-    side = push - np.dot(push, chord) * chord
-    if np.linalg.norm(side) < 1e-12:
-        # Nothing says: bend about the weaker section axis (a strip bows flatwise; an
-        # isotropic part bows toward d2, in the plane normal to d1, as the 2D model does).
-        frame = quat_matrix(Q[0])
-        weak, other = (0, 1) if rod.K[0] <= rod.K[1] else (1, 0)
-        side = frame[:, other] - np.dot(frame[:, other], chord) * chord
-        if np.linalg.norm(side) < 1e-12:
-            side = frame[:, weak]
-    return side / np.linalg.norm(side), chord, span
 
 
 def solve(problem: Problem, *, warm_start: Equilibrium3D | None = None,
