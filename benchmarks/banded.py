@@ -1,8 +1,9 @@
 """The banded LU on the accurate model's own matrices, measured in one run (ratios).
 
-The KKT Jacobians of the bundled engine bay's path (100 steps at the scene's elements,
-contact on, the free probes left out as the Newton leaves them out), each factorised
-and solved by:
+Two sets of KKT Jacobians, the free probes left out as the Newton leaves them out: the
+bundled engine bay's path (100 steps at the scene's elements, contact on), and a hose's
+end lowered onto a block (``benchmarks/contact.py``'s case (b), 100 elements, the steps
+that touch). Each is factorised and solved by:
 
 - pliant's ``band_lu`` / ``band_lu_solve``: LAPACK's dgbtrf / dgbtrs called from numba;
 - the hand-written twin (dgbtf2's algorithm in numba), what the kernels used before;
@@ -22,8 +23,10 @@ from pathlib import Path
 import numpy as np
 from scipy.linalg import solve_banded
 
+import pliant as pl
 from pliant.assembly.path import follow_path
 from pliant.assembly.scenes import load_scene
+from pliant.models import rod3d
 from pliant.models.banded import (
     band_lu,
     band_lu_solve,
@@ -34,6 +37,7 @@ from pliant.models.banded import (
 )
 from pliant.models.rod3d import RodSolver, kernels
 from pliant.models.rod3d.solver import Run
+from pliant.scene import Obstacle
 
 SCENE = Path(__file__).resolve().parents[1] / "examples" / "scenes" / "engine_bay.toml"
 
@@ -43,16 +47,38 @@ def matrices() -> list[tuple[np.ndarray, int, int]]:
     scene = load_scene(SCENE)
     run = follow_path(scene.problem, scene.path, scene.grip, margin=scene.margin,
                       elements=scene.solver.elements)
+    return [_reduced(eq, scene.solver.elements) for eq in run.equilibria]
+
+
+def block_matrices() -> list[tuple[np.ndarray, int, int]]:
+    """The reduced KKT band at each touching step of the hose lowered onto a block."""
+    hose = pl.Part(length=1.0, bending_stiffness=0.05, mass_per_length=0.3,
+                   outer_diameter=0.02)
+    block = Obstacle.box("block", (0.2, 0.2, 0.1), (0.7, 0.0, -0.12))
+
+    def held(z: float) -> pl.Problem:
+        return pl.Problem(hose, (pl.clamp(0.0, position=(0.0, 0.0, 0.0)),
+                                 pl.pin(1.0, position=(0.95, 0.0, z), name="hand")),
+                          gravity=(0.0, 0.0, -9.81), obstacles=(block,))
+
+    heights = np.linspace(0.2, -0.15, 101)
+    eq = rod3d.solve(held(heights[0]))
     out = []
-    for eq in run.equilibria:
-        r = Run(eq.state.rod, RodSolver(elements=scene.solver.elements))
-        r.gauge_quat = eq.state.gauge_quat
-        rod = r.rod
-        _, ab, _ = r.residual(eq.state.state, rod.target, want_jac=True)
-        drop = kernels.identity_rows(ab, rod.kl, rod.ku, rod.iprobe, rod.slot)
-        reduced, lo, up, _ = band_reduce(ab, rod.kl, rod.ku, drop)
-        out.append((np.ascontiguousarray(reduced), lo, up))
+    for z in heights[1:]:
+        eq = rod3d.solve(held(z), warm_start=eq)
+        if len(eq.contacts):
+            out.append(_reduced(eq, 100))
     return out
+
+
+def _reduced(eq, elements: int) -> tuple[np.ndarray, int, int]:
+    r = Run(eq.state.rod, RodSolver(elements=elements))
+    r.gauge_quat = eq.state.gauge_quat
+    rod = r.rod
+    _, ab, _ = r.residual(eq.state.state, rod.target, want_jac=True)
+    drop = kernels.identity_rows(ab, rod.kl, rod.ku, rod.iprobe, rod.slot)
+    reduced, lo, up, _ = band_reduce(ab, rod.kl, rod.ku, drop)
+    return np.ascontiguousarray(reduced), lo, up
 
 
 def timed(fn, repeat: int = 5) -> tuple[float, np.ndarray]:
@@ -65,7 +91,11 @@ def timed(fn, repeat: int = 5) -> tuple[float, np.ndarray]:
 
 
 def main() -> None:
-    mats = matrices()
+    compare(matrices(), "the engine bay's path")
+    compare(block_matrices(), "a hose lowered onto a block (touching steps)")
+
+
+def compare(mats: list[tuple[np.ndarray, int, int]], what: str) -> None:
     rng = np.random.default_rng(1)
     t_lapack = t_twin = t_scipy = 0.0
     worst = 0.0
@@ -103,7 +133,7 @@ def main() -> None:
                     float(np.abs(xs - x).max() / np.abs(x).max()))
     n = len(mats)
     sizes = [m[0].shape[0] for m in mats]
-    print(f"{n} KKT matrices of the engine bay's path ({min(sizes)}-{max(sizes)} unknowns, "
+    print(f"{n} KKT matrices of {what} ({min(sizes)}-{max(sizes)} unknowns, "
           f"half bandwidths {mats[0][1]}, {mats[0][2]}), factorise and solve, median of 5:")
     print(f"  band_lu (LAPACK dgbtrf/dgbtrs from numba): {t_lapack / n * 1e3:.3f} ms")
     print(f"  hand-written twin (dgbtf2 in numba)      : {t_twin / n * 1e3:.3f} ms "

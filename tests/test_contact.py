@@ -289,6 +289,29 @@ def test_friction_slides_on_the_cone_and_sticks_inside_it():
     assert eq.stable is None  # with friction, stability is not the energy's minimum
 
 
+def test_a_planar_contact_answer_holds_no_round_off_below_the_flush():
+    """A hose lowered onto a block lies in the x-z plane: its out-of-plane components
+    are zero, and Newton's round-off round them shrinks every iteration. Each update
+    sets what falls below ``kernels.FLUSH`` to zero, so no component is left between
+    zero and it (there, in the subnormal range, each operation costs a hundred)."""
+    from pliant.models.rod3d.kernels import FLUSH
+
+    hose = pl.Part(length=1.0, bending_stiffness=0.05, mass_per_length=0.3,
+                   outer_diameter=0.02)
+    block = Obstacle.box("block", (0.2, 0.2, 0.1), (0.7, 0.0, -0.12))
+    eq = None
+    for z in np.linspace(0.2, -0.05, 26):
+        problem = pl.Problem(hose, (pl.clamp(0.0, position=(0.0, 0.0, 0.0)),
+                                    pl.pin(1.0, position=(0.95, 0.0, float(z)), name="hand")),
+                             gravity=(0.0, 0.0, -9.81), obstacles=(block,))
+        eq = rod3d.solve(problem, warm_start=eq)
+    assert len(eq.contacts)  # it lies over the block's edge
+    assert np.abs(eq.position[:, 1]).max() == 0.0  # in its plane exactly
+    for part in eq.state.state:
+        values = np.abs(np.asarray(part, dtype=float))
+        assert not np.any((values > 0.0) & (values < FLUSH))
+
+
 def _on_a_bench(mu: float, y: float) -> pl.Problem:
     """A hose lying along a bench (mu there), clamped at one end, its other end held and
     moved sideways by ``y`` (and drawn in by 0.3 y)."""
