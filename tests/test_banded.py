@@ -10,9 +10,9 @@ from hypothesis import strategies as st
 
 from pliant.models.banded import (
     band_lu,
+    band_lu_lapack,
     band_lu_solve,
-    band_lu_solve_twin,
-    band_lu_twin,
+    band_lu_solve_lapack,
     band_solve,
     band_solve_reduced,
     dense,
@@ -70,35 +70,35 @@ def test_identity_rows_leave_the_factorisation_and_the_answer_stays(n, kl, ku, s
 @given(n=st.integers(1, 40), kl=st.integers(0, 6), ku=st.integers(0, 6),
        seed=st.integers(0, 2**31 - 1))
 def test_lapack_and_the_hand_written_twin_agree(n, kl, ku, seed):
-    """dgbtrf/dgbtrs and the dgbtf2 written out: the same solution (to the matrix's
-    conditioning), and both say so where a column vanishes."""
+    """The dgbtf2 written out (over nonzero multipliers) and LAPACK's dgbtrf/dgbtrs:
+    the same solution (to the matrix's conditioning), and both say so where a column
+    vanishes or an entry is not a number."""
     rng = np.random.default_rng(seed)
     ab = random_band(rng, n, kl, ku)
     b = rng.normal(size=n)
     cond = np.linalg.cond(dense(ab, kl, ku, n))
     work, twin = ab.copy(), ab.copy()
     piv, ok = band_lu(work, kl, ku)
-    piv_t, ok_t = band_lu_twin(twin, kl, ku)
+    piv_t, ok_t = band_lu_lapack(twin, kl, ku)
     if not (ok and ok_t):  # singular to round-off (a random draw can be: cond 2.5e14)
         assert cond > 1e12
         return
     x = band_lu_solve(work, piv, kl, ku, b)
-    x_t = band_lu_solve_twin(twin, piv_t, kl, ku, b)
+    x_t = band_lu_solve_lapack(twin, piv_t, kl, ku, b)
     assert np.allclose(x, x_t, atol=1e-10 * cond * max(1.0, np.abs(x).max()))
     if n > 1:  # a zero column: singular, to both
         j = int(rng.integers(n))
         spoilt = ab.copy()
         spoilt[j, :] = 0.0
-        assert not band_lu(spoilt.copy(), kl, ku)[1] and not band_lu_twin(spoilt, kl, ku)[1]
-    # An entry that is not a number, wherever it sits in the band: refused (the twin
-    # refuses an infinite one, and let a NaN through).
+        assert not band_lu(spoilt.copy(), kl, ku)[1] and not band_lu_lapack(spoilt, kl, ku)[1]
+    # An entry that is not a number, wherever it sits in the band: refused by both.
     j = int(rng.integers(n))
     i = int(rng.integers(max(0, j - ku), min(n, j + kl + 1)))
     for bad in (np.nan, np.inf):
         spoilt = ab.copy()
         spoilt[j, kl + ku + i - j] = bad
         assert not band_lu(spoilt.copy(), kl, ku)[1]
-    assert not band_lu_twin(spoilt, kl, ku)[1]
+        assert not band_lu_lapack(spoilt.copy(), kl, ku)[1]
 
 
 def test_a_singular_remainder_is_reported():
