@@ -40,9 +40,8 @@ def settle_fitted(name: str, problem: Problem, elements: int, flexible: bool,
         position, frames = eq.position, eq.frames
         if key:
             cache.save_arrays("fitted", key, position=position, frames=frames)
-    part = problem.part
-    radius = 0.5 * part.outer_diameter if part.outer_diameter else 0.01 * part.length
-    vertices, faces = tube_mesh(position, radius, frames, sides=16, caps=True)
+    vertices, faces = tube_mesh(position, problem.part.drawn_radius, frames, sides=16,
+                                caps=True)
     obstacle = Obstacle.from_mesh(name, vertices, faces).with_friction(friction)
     if flexible:
         obstacle = replace(obstacle, fitted=FittedPart(name, problem, elements, solved=eq,

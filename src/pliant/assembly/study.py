@@ -287,7 +287,7 @@ def study(scene_file: str | Path, variations: list[str], samples: int, *, out: s
     deviations = plan(parsed, samples, method, seed)
     columns = [c for v in parsed for c in v.columns]
     part = nominal_scene.problem.part
-    radius = 0.5 * part.outer_diameter if part.outer_diameter else 0.01 * part.length
+    radius = part.drawn_radius
     voxel = max(2.0 * radius, 1e-3)
     spec = StudySpec(data, str(scene_file), str(scene_file.resolve().parent), tuple(parsed),
                      nominal, voxel, elements, search)

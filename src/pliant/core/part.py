@@ -220,6 +220,12 @@ class Part:
         return 0.5 * self.outer_diameter if self.outer_diameter else 0.0
 
     @property
+    def drawn_radius(self) -> float:
+        """The radius [m] a tube of the part is drawn and measured with: half the outer
+        diameter, or 1 % of the length for a part given none (a line has no surface)."""
+        return 0.5 * self.outer_diameter if self.outer_diameter else 0.01 * self.length
+
+    @property
     def stiffnesses(self) -> tuple[float, float, float]:
         """(EI1, EI2, GJ) [N m^2]: bending about d1 and d2, torsion about d3."""
         ei2 = self.bending_stiffness_2 or self.bending_stiffness

@@ -16,8 +16,7 @@ FORMATS = {".glb": "glb", ".gltf": "gltf", ".stl": "stl", ".obj": "obj", ".ply":
 def part_radius(eq) -> float:
     """The tube radius [m]: the part's outer radius, or 1% of its length when the part
     gives no diameter (a display radius)."""
-    part = eq.problem.part
-    return part.outer_diameter / 2.0 if part.outer_diameter else 0.01 * part.length
+    return eq.problem.part.drawn_radius
 
 
 def centreline_and_frames(eq) -> tuple[np.ndarray, np.ndarray]:

@@ -13,6 +13,7 @@ import numpy as np
 
 from pliant.core.conditions import Condition
 from pliant.errors import InputError, PliantError
+from pliant.session.session import GripEvent, _distinct
 
 GripMode = Literal["position", "force", "fixed"]
 
@@ -30,12 +31,10 @@ def grip_mode(cond: Condition, fixed: tuple[str, ...] = ()) -> GripMode:
     return "fixed"
 
 
-def pose_event(cond: Condition, position, tangent, dimension: int):
+def pose_event(cond: Condition, position, tangent, dimension: int) -> GripEvent:
     """The ``GripEvent`` that moves a held grip to ``position`` [m] (its first
     ``dimension`` components) and, where the grip holds the part's direction, to the unit
     ``tangent`` (in 2D its angle). InputError for a zero tangent."""
-    from pliant.session.session import GripEvent  # noqa: PLC0415 (session imports us)
-
     if dimension == 2:
         angle = None
         if cond.angle is not None and tangent is not None:
@@ -77,11 +76,7 @@ def held(cond: Condition, original: Condition, last, dimension: int) -> Conditio
         raise PliantError(f"{cond.name}: no accurate shape to take the grip's pose from; "
                           "solve first")
     point, tangent = point_at(last.s, last.position, cond.s)
-    if dimension == 2:
-        angle = math.atan2(tangent[1], tangent[0]) if original.angle is not None else None
-        return Condition(s=cond.s, name=cond.name, position=tuple(point[:2]), angle=angle)
-    return Condition(s=cond.s, name=cond.name, position=tuple(point),
-                     tangent=tuple(tangent) if original.tangent is not None else None)
+    return _holding(cond, original, point, tangent, dimension)
 
 
 def restored(cond: Condition, original: Condition, mode: GripMode, position, tangent,
@@ -93,22 +88,26 @@ def restored(cond: Condition, original: Condition, mode: GripMode, position, tan
         m = moment or [0.0, 0.0, 0.0]
         return Condition(s=cond.s, name=cond.name, force=tuple((force or [0.0] * 3)[:d]),
                          moment=float(m[2]) if d == 2 else tuple(m))
-    if d == 2:
-        angle = (math.atan2(tangent[1], tangent[0])
-                 if tangent is not None and original.angle is not None else None)
-        return Condition(s=cond.s, name=cond.name, position=tuple(position[:2]), angle=angle)
-    return Condition(s=cond.s, name=cond.name, position=tuple(position),
-                     tangent=tuple(tangent) if tangent is not None
-                     and original.tangent is not None else None)
+    return _holding(cond, original, position, tangent, d)
+
+
+def _holding(cond: Condition, original: Condition, point, tangent,
+             dimension: int) -> Condition:
+    """``cond`` held at ``point`` [m], along ``tangent`` (in 2D its angle) where
+    ``original`` held the part's direction and a tangent is given."""
+    along = tangent is not None and (original.angle if dimension == 2
+                                     else original.tangent) is not None
+    if dimension == 2:
+        angle = math.atan2(tangent[1], tangent[0]) if along else None
+        return Condition(s=cond.s, name=cond.name, position=tuple(point[:2]), angle=angle)
+    return Condition(s=cond.s, name=cond.name, position=tuple(point),
+                     tangent=tuple(tangent) if along else None)
 
 
 def point_at(s, position, at: float) -> tuple[np.ndarray, np.ndarray]:
     """The point and unit tangent of a sampled shape at arc length ``at`` (repeated
     stations, as at a joint, counted once)."""
-    s = np.asarray(s, float)
-    x = np.asarray(position, float)
-    keep = np.concatenate([[True], np.diff(s) > 0.0])
-    s, x = s[keep], x[keep]
+    s, x = _distinct(np.asarray(s, float), np.asarray(position, float))
     point = np.array([np.interp(at, s, x[:, c]) for c in range(x.shape[1])])
     k = int(np.clip(np.searchsorted(s, at) - 1, 0, len(s) - 2))
     tangent = x[k + 1] - x[k]

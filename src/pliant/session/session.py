@@ -27,6 +27,7 @@ from pliant.models.realtime import RealtimeFrame, RealtimeModel
 from pliant.session.accurate import (
     CHOOSE,
     FIND,
+    SOLVE,
     AccurateResult,
     EquilibriaFound,
     InlineExecutor,
@@ -251,10 +252,7 @@ class Session:
         solved = False
         if not self._executor.busy and self._asked is not None:
             asked, self._asked = self._asked, None
-            self._executor.submit(self.index, self.problem, asked)
-            done = self._executor.poll()  # inline: already there
-            if done is not None:
-                self._publish(done)
+            if self._submit(asked):
                 realtime = self.model.frame(self.problem)
                 drift = self._drift(realtime)
         if not self._executor.busy and (
@@ -262,16 +260,22 @@ class Session:
                 or drift.distance_to_accurate > self.distance_tolerance
                 or max(drift.length_error, drift.curve_length_error) > self.length_tolerance):
             self._requested = False
-            self._executor.submit(self.index, self.problem)
             solved = True
-            done = self._executor.poll()  # inline: already there
-            if done is not None:
-                self._publish(done)
+            if self._submit(SOLVE):
                 realtime = self.model.frame(self.problem)
                 drift = self._drift(realtime)
         return Frame(index=self.index, realtime=realtime, drift=drift, accurate=self.accurate,
                      pending=self._executor.busy, solved=solved,
                      seconds=time.perf_counter() - start)
+
+    def _submit(self, what: Request) -> bool:
+        """Hand the current pose to the accurate side; True when the answer is already
+        there and published (inline), so the frame must be made again."""
+        self._executor.submit(self.index, self.problem, what)
+        done = self._executor.poll()  # inline: already there
+        if done is not None:
+            self._publish(done)
+        return done is not None
 
     def _publish(self, result: AccurateResult | EquilibriaFound) -> None:
         if isinstance(result, EquilibriaFound):

@@ -107,7 +107,18 @@ ClientMessage = Annotated[ClientHello | ClientMove | ClientMode | ClientSolve | 
                           | ClientLoad | ClientEquilibria | ClientChoose,
                           Field(discriminator="type")]
 _CLIENT = TypeAdapter(ClientMessage)
-TYPES = ("hello", "move", "mode", "solve", "save", "load", "equilibria", "choose")
+CLIENT_MESSAGES: tuple[type[_Message], ...] = (
+    ClientHello, ClientMove, ClientMode, ClientSolve, ClientSave, ClientLoad,
+    ClientEquilibria, ClientChoose)
+
+
+def _type_of(model: type[BaseModel]) -> str:
+    """A message model's ``type``: a client's Literal, a server's default."""
+    kind = model.model_fields["type"]
+    return kind.default if isinstance(kind.default, str) else kind.annotation.__args__[0]  # type: ignore[union-attr]
+
+
+TYPES = tuple(_type_of(m) for m in CLIENT_MESSAGES)
 
 
 # -- server -> browser -----------------------------------------------------------------------
@@ -387,10 +398,8 @@ def javascript() -> str:
     def fields(model: type[BaseModel]) -> list[str]:
         return [name for name in model.model_fields if name not in ("v", "type")]
 
-    client = {m.model_fields["type"].annotation.__args__[0]: fields(m)  # type: ignore[union-attr]
-              for m in (ClientHello, ClientMove, ClientMode, ClientSolve, ClientSave, ClientLoad,
-                        ClientEquilibria, ClientChoose)}
-    server = {m.model_fields["type"].default: fields(m) for m in SERVER_MESSAGES}
+    client = {_type_of(m): fields(m) for m in CLIENT_MESSAGES}
+    server = {_type_of(m): fields(m) for m in SERVER_MESSAGES}
     return (
         "// Made by `python -m pliant.viewer.protocol` from pliant/viewer/protocol.py (the\n"
         "// pydantic models): do not edit. The wire protocol's version, the messages the\n"

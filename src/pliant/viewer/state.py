@@ -20,7 +20,7 @@ from pydantic import BaseModel, ConfigDict, ValidationError
 
 from pliant.assembly.checks import shape_warnings
 from pliant.core.conditions import Condition
-from pliant.errors import PliantError
+from pliant.errors import InputError, PliantError
 from pliant.io.jsontext import finite
 from pliant.session import grips
 from pliant.viewer import protocol as P
@@ -100,8 +100,7 @@ class ViewerState:
         self.scene, self.path = scene, path
         self.original = {c.name: c for c in problem.conditions}
         self.modes = {c.name: grips.grip_mode(c, scene.fixed) for c in problem.conditions}
-        self.radius = (0.5 * problem.part.outer_diameter if problem.part.outer_diameter
-                       else 0.01 * problem.part.length)
+        self.radius = problem.part.drawn_radius
         self._published = len(session.solves)
         self._searched = len(session.searches)
         self._meshes: list[P.ObstacleMesh] | None = None
@@ -153,10 +152,10 @@ class ViewerState:
             raise ProtocolError(f"{message.grip!r} is {how}; only a grip held by position "
                                 "is moved", "grip")
         cond = self._condition(message.grip)
-        if (self.dimension == 3 and cond.tangent is not None and message.tangent is not None
-                and not np.linalg.norm(message.tangent) > 1e-9):
-            raise ProtocolError("the tangent must be a non-zero direction", "tangent")
-        event = grips.pose_event(cond, message.position, message.tangent, self.dimension)
+        try:
+            event = grips.pose_event(cond, message.position, message.tangent, self.dimension)
+        except InputError as err:  # a value of the message: the protocol's error
+            raise ProtocolError(str(err), err.field) from None
         return self._frame_message(self.session.apply(event), message.seq)
 
     def switch(self, message: P.ClientMode) -> P.ServerFrame:

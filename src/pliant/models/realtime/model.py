@@ -377,8 +377,7 @@ class RealtimeModel:
 
     @property
     def radius(self) -> float:
-        part = self.problem.part
-        return part.outer_diameter / 2.0 if part.outer_diameter else 0.01 * part.length
+        return self.problem.part.drawn_radius
 
     def curve_at(self, s: np.ndarray) -> np.ndarray:
         """The neutral line [m] at arc lengths s (as the network holds it)."""
