@@ -114,7 +114,7 @@ def test_a_fitted_hose_gives_way_and_its_clamps_take_the_push(draped):
     push = eq.contacts.by_obstacle()["coolant hose"]
     assert push[2] > 5.0  # the hose holds the line up (about 10 N)
     (hose,) = eq.fitted
-    rest = eq.problem.obstacles[0].fitted.equilibrium
+    rest = rod3d.solved_alone(eq.problem.obstacles[0].fitted)
     # The hose's crest went down (it is no rigid tube) and it feels the line.
     assert rest.position[:, 2].max() - hose.position[:, 2].max() > 1e-3
     on_hose = hose.contacts.by_obstacle()
@@ -152,9 +152,9 @@ def test_a_fitted_parts_shape_is_read_from_the_cache_the_second_time(tmp_path,
     first = load_scene(folder / "line_over_hose.toml").problem.obstacles[0]
     again = load_scene(folder / "line_over_hose.toml").problem.obstacles[0]
     assert first.fitted.solved is not None and again.fitted.solved is None
-    assert np.array_equal(again.fitted.rest_line, first.fitted.equilibrium.position)
+    assert np.array_equal(again.fitted.rest_line, rod3d.solved_alone(first.fitted).position)
     assert np.array_equal(again.mesh.tri, first.mesh.tri)
-    assert np.allclose(again.fitted.equilibrium.position, first.fitted.rest_line,
+    assert np.allclose(rod3d.solved_alone(again.fitted).position, first.fitted.rest_line,
                        atol=1e-12)  # found on first use: the same equilibrium
     hose = folder / "coolant_hose.toml"
     hose.write_text(hose.read_text() + "\n# a comment: the same problem\n")

@@ -3,8 +3,7 @@ scene, io, models, session, assembly, then the interfaces (cli, viewer). io sits
 scene, not below as ``DESIGN.md`` draws it: reading a scene file makes scene obstacles,
 and what scene took from io (the disk cache, progress events) is infrastructure below
 both (``pliant.util``). Every import of a pliant module, those inside functions
-included, is checked; the few that still reach up are listed here with why, so that the
-list can only shrink."""
+included, is checked; none reaches up."""
 
 from __future__ import annotations
 
@@ -14,12 +13,6 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[1] / "src" / "pliant"
 RANK = {"core": 0, "errors": 0, "data": 0, "util": 0, "scene": 1, "io": 2, "models": 3,
         "session": 4, "assembly": 5, "cli": 6, "viewer": 6}
-KNOWN = {
-    # A fitted part or branch solves itself alone on first use (lazily, once).
-    ("core/problem.py", "pliant.models"),
-    # The developer's command that records the kernels' signatures runs the demo.
-    ("models/first_run.py", "pliant.cli.app"),
-}
 
 
 def upward_imports() -> set[tuple[str, str]]:
@@ -43,9 +36,7 @@ def upward_imports() -> set[tuple[str, str]]:
 
 
 def test_layers_import_downward_only():
-    found = upward_imports()
-    assert found - KNOWN == set(), "imports that reach up a layer"
-    assert KNOWN - found == set(), "gone: take them off the list"
+    assert upward_imports() == set(), "imports that reach up a layer"
 
 
 def test_io_only_reads_files():

@@ -136,18 +136,10 @@ def _point3(field_name: str, value) -> tuple[float, float, float]:
 
 class _SolvedAlone:
     """A part of a scene solved on its own first (a fitted part, a harness branch): its
-    ``problem`` solved with ``elements`` elements on first use, kept in ``solved``. It
-    pickles without that equilibrium (which holds the solver's closures)."""
-
-    @property
-    def equilibrium(self):
-        """Its equilibrium alone: where a solve together with it starts."""
-        if self.solved is None:
-            from pliant.models import rod3d  # noqa: PLC0415 (core knows no model but here)
-
-            object.__setattr__(self, "solved", rod3d.solve(
-                self.problem, solver=rod3d.RodSolver(elements=self.elements)))
-        return self.solved
+    ``problem`` with ``elements`` elements and, once a model has solved it alone
+    (``pliant.models.rod3d.solved_alone``, or the scene's loader), that equilibrium in
+    ``solved``. core keeps the answer and never solves. It pickles without that
+    equilibrium (which holds the solver's closures)."""
 
     def __getstate__(self) -> dict:
         return {**self.__dict__, "solved": None}
@@ -176,7 +168,13 @@ class FittedPart(_SolvedAlone):
     @property
     def rest_line(self):
         """(N+1, 3) [m]: its neutral line alone, untouched."""
-        return self.line if self.line is not None else self.equilibrium.position
+        if self.line is not None:
+            return self.line
+        if self.solved is None:
+            raise InputError(f"{self.name}.line", "its shape at rest is not known: load "
+                             "the scene with pliant.assembly.load_scene, or solve the part "
+                             "alone first (pliant.models.rod3d.solved_alone)")
+        return self.solved.position
 
 
 

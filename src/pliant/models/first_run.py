@@ -14,7 +14,7 @@ checks that after ``compile_ahead`` a scene's solve compiles nothing.
 
 Record the signatures again after changing a kernel's arguments::
 
-    python -m pliant.models.first_run --record
+    python -m pliant.cli.record_kernels
 """
 
 from __future__ import annotations
@@ -65,7 +65,7 @@ THEIRS: tuple[tuple[str, str], ...] = (
 HELPER_TIMEOUT = 300.0  # s: past this the helper is stopped and the rest compiles lazily
 
 
-def _dispatcher(module: str, name: str) -> Any:
+def dispatcher(module: str, name: str) -> Any:
     return getattr(importlib.import_module(module), name)
 
 
@@ -103,7 +103,7 @@ def compile_kernels(kernels: Iterable[tuple[str, str]],
             on_kernel(name)
         for signature in signatures.get((module, name), ()):
             try:
-                _dispatcher(module, name).compile(signature)
+                dispatcher(module, name).compile(signature)
                 done += 1
             except Exception:  # a stale signature: the kernel compiles lazily
                 continue
@@ -138,28 +138,6 @@ def compile_ahead(on_kernel: Callable[[str], None] | None = None,
     return True
 
 
-def record(path: Path = SIGNATURES) -> dict[tuple[str, str], list[Any]]:
-    """Run the main job (``pliant demo``, in a temporary folder, with an empty disk cache
-    as on a fresh machine, so that the scene's fitted parts are solved too) and record
-    the signatures its kernels were called with (after changing a kernel's arguments)."""
-    import tempfile  # noqa: PLC0415 (a developer's command)
-
-    from typer.testing import CliRunner  # noqa: PLC0415
-
-    from pliant.cli.app import app  # noqa: PLC0415
-
-    with tempfile.TemporaryDirectory() as folder:
-        os.environ["PLIANT_CACHE"] = str(Path(folder) / "cache")
-        result = CliRunner().invoke(app, ["demo", "--out", folder])
-    if result.exit_code != 0:
-        raise RuntimeError(f"pliant demo failed: {result.output[-2000:]}")
-    data = {(m, n): list(_dispatcher(m, n).signatures) for m, n in OURS + THEIRS}
-    tmp = path.with_suffix(".tmp")
-    tmp.write_bytes(pickle.dumps(data, protocol=4))
-    tmp.replace(path)
-    return data
-
-
 def _helper(parent: int) -> None:
     """The helper's work: its half, stopping early if the process that started it is
     gone (nothing would wait for it)."""
@@ -171,8 +149,4 @@ def _helper(parent: int) -> None:
 
 
 if __name__ == "__main__":
-    if sys.argv[1:] == ["--record"]:
-        for key, value in record().items():
-            print(*key, len(value))
-    else:
-        _helper(int(sys.argv[1]))
+    _helper(int(sys.argv[1]))

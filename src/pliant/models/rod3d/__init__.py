@@ -4,3 +4,4 @@ from pliant.models.rod3d.solver import RodSolver as RodSolver
 from pliant.models.rod3d.solver import equilibria as equilibria
 from pliant.models.rod3d.solver import solve as solve
 from pliant.models.rod3d.solver import trace as trace
+from pliant.models.rod3d.together import solved_alone as solved_alone

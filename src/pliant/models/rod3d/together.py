@@ -25,7 +25,7 @@ from pliant.models.rod3d.coupled_results import equilibria
 from pliant.models.rod3d.links import Joint, Pivot, Slider
 from pliant.models.rod3d.lowering import Rod, State, qconj, qmul, quat_matrix
 from pliant.models.rod3d.results import WarmState
-from pliant.models.rod3d.solver import RodSolver, Run
+from pliant.models.rod3d.solver import RodSolver, Run, solve
 
 
 @dataclass(frozen=True, eq=False)
@@ -163,7 +163,7 @@ def _start_together(problem, own, rigid: Equilibrium3D, parts: list, solver: Rod
     branches = [b for jn in problem.junctions for b in jn.branches]
     for member in branches + parts:
         runs.append(_fitted_run(member, solver))
-        states.append(member.equilibrium.state.state)
+        states.append(solved_alone(member).state.state)
     harness = 1 + len(branches)  # the part and its branches: one harness, no contact
     pairs = [replace(p, friction=parts[p.b - harness].friction)
              if p.a == 0 and p.b >= harness else p
@@ -253,8 +253,18 @@ def _station_multipliers(old: Rod, nu: np.ndarray, rod: Rod) -> np.ndarray:
     return out
 
 
+def solved_alone(part) -> Equilibrium3D:
+    """The equilibrium of a fitted part or harness branch (``FittedPart``, ``Branch``)
+    on its own, untouched: where a solve together with it starts. Solved on first use
+    and kept on the part (``part.solved``)."""
+    if part.solved is None:
+        object.__setattr__(part, "solved", solve(part.problem,
+                                                 solver=RodSolver(elements=part.elements)))
+    return part.solved
+
+
 def _fitted_run(part, solver: RodSolver) -> Run:
-    warm = part.equilibrium.state
+    warm = solved_alone(part).state
     run = Run(warm.rod, replace(solver, elements=part.elements))
     run.gauge_quat = warm.gauge_quat
     return run
