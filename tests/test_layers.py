@@ -43,3 +43,16 @@ def test_io_only_reads_files():
     """io never solves: none of its modules imports a model, the session or assembly."""
     assert not {(f, m) for f, m in upward_imports() if f.startswith("io/")
                 and m.split(".")[1] in ("models", "session", "assembly")}
+
+
+def test_no_kernel_takes_more_than_ten_parameters():
+    """Kernel arguments travel in named bundles (NamedTuples numba accepts): a kernel
+    whose parameter list grows past ten needs a bundle, not another positional array."""
+    long = []
+    for path in ROOT.rglob("*.py"):
+        for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
+            if isinstance(node, ast.FunctionDef) and any(
+                    "njit" in ast.unparse(d) for d in node.decorator_list):
+                if len(node.args.args) > 10:
+                    long.append(f"{path.relative_to(ROOT)}:{node.name}")
+    assert long == []

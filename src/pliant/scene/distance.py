@@ -122,10 +122,10 @@ def _packed_mesh_feature(x, y, z, m, f):
     feature)."""
     t0, t1 = f.tri_off[m], f.tri_off[m + 1]
     n0, n1 = f.node_off[m], f.node_off[m + 1]
+    bvh = (f.order[t0:t1], f.node_lo[n0:n1], f.node_hi[n0:n1], f.left[n0:n1],
+           f.right[n0:n1], f.start[n0:n1], f.count[n0:n1])
     d, g, t, region = mesh_feature(np.array([x, y, z]), f.tri[t0:t1], f.pseudo[t0:t1],
-                                    f.solid[m], f.order[t0:t1], f.node_lo[n0:n1],
-                                    f.node_hi[n0:n1], f.left[n0:n1], f.right[n0:n1],
-                                    f.start[n0:n1], f.count[n0:n1])
+                                    f.solid[m], bvh)
     return d, g, t0 + t, region
 
 

@@ -72,7 +72,6 @@ def grid_sample(x, y, z, origin, size, dims, values, base):
 def band_values(origin, size, dims, reach, tri, pseudo, solid, bvh):
     """Exact signed distances at the grid nodes within ``reach`` of a triangle's bounding
     box (the band round the surface); NaN elsewhere."""
-    order, lo_, hi_, left, right, start, count = bvh
     nx, ny, nz = dims[0], dims[1], dims[2]
     values = np.full(nx * ny * nz, np.nan)
     p = np.empty(3)
@@ -93,8 +92,7 @@ def band_values(origin, size, dims, reach, tri, pseudo, solid, bvh):
                     p[0] = origin[0] + i * size
                     p[1] = origin[1] + j * size
                     p[2] = origin[2] + k * size
-                    values[node] = mesh_exact(p, tri, pseudo, solid, order, lo_, hi_, left,
-                                               right, start, count)[0]
+                    values[node] = mesh_exact(p, tri, pseudo, solid, bvh)[0]
     return values
 
 

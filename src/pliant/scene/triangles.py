@@ -158,19 +158,19 @@ def box_distance2(p, lo, hi):
 
 
 @njit(cache=True)
-def mesh_exact(p, tri, pseudo, solid, order, lo, hi, left, right, start, count):
+def mesh_exact(p, tri, pseudo, solid, bvh):
     """(signed distance, unit gradient) from p to a mesh, exact: a branch-and-bound walk
-    of its box tree. pseudo (T, 7, 3): the pseudonormals of each triangle's face, edges
-    and vertices (the sign)."""
-    dist, grad, _, _ = mesh_feature(p, tri, pseudo, solid, order, lo, hi, left, right,
-                                     start, count)
+    of its box tree bvh (``build_bvh``'s tuple). pseudo (T, 7, 3): the pseudonormals of
+    each triangle's face, edges and vertices (the sign)."""
+    dist, grad, _, _ = mesh_feature(p, tri, pseudo, solid, bvh)
     return dist, grad
 
 
 @njit(cache=True)
-def mesh_feature(p, tri, pseudo, solid, order, lo, hi, left, right, start, count):
+def mesh_feature(p, tri, pseudo, solid, bvh):
     """(signed distance, unit gradient, triangle, feature) of the mesh point nearest p:
-    the feature as ``closest_on_triangle`` numbers it."""
+    the feature as ``closest_on_triangle`` numbers it; bvh: ``build_bvh``'s tuple."""
+    order, lo, hi, left, right, start, count = bvh
     best = np.inf
     best_t = -1
     best_r = 0

@@ -110,12 +110,15 @@ NOT_FINITE = 4
 
 
 @njit(cache=True, inline="always")
-def _apply_station(k, y, Y, lo, hi, z, stn, inp, res, jac, row, want_jac):
-    """Residuals of station k (k >= 1) and its jump, or its restart for a node.
+def _apply_station(k, y, Y, cols, z, stn, inp, out, row, want_jac):
+    """Residuals of station k (k >= 1) and its jump, or its restart for a node, into
+    out = (residual, Jacobian) from ``row``; returns the next residual row.
 
-    [lo, hi) are the sensitivity columns live from here on (those of the segment that
-    ends here plus the ones this station introduces). Returns the next residual row.
+    cols = (lo, hi): the sensitivity columns [lo, hi) live from here on (those of the
+    segment that ends here plus the ones this station introduces).
     """
+    lo, hi = cols
+    res, jac = out
     st_kind, st_col, st_val, st_fol = stn.st_kind, stn.st_col, inp.val, inp.fol
     if st_kind[k, 0] == NODE:
         c0 = st_col[k, 0]
@@ -397,7 +400,8 @@ def _shoot(z, stn, inp, seg_steps, want_jac, traj):
         _integrate(y, Y, lo, seg_hi[k], _segment(k, stn, inp), seg_steps[k], work,
                    want_jac)
         hi_next = seg_hi[k + 1] if k + 1 < nstations - 1 else nz
-        row = _apply_station(k + 1, y, Y, lo, hi_next, z, stn, inp, res, jac, row, want_jac)
+        row = _apply_station(k + 1, y, Y, (lo, hi_next), z, stn, inp, (res, jac), row,
+                             want_jac)
     # Beyond the last end nothing acts: n(1+) = 0 and m(1+) = 0.
     lo = seg_lo[nstations - 2]
     for i in range(3):

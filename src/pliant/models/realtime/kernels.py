@@ -91,6 +91,13 @@ class Touch(NamedTuple):
     field: tuple
 
 
+class Limits(NamedTuple):
+    """When a frame's Newton stops: the residual it must reach and its iterations."""
+
+    tol: float
+    max_iter: int
+
+
 @njit(cache=True)
 def assemble(X, mu, lam, alpha, gam, net, num, touch, keep, want_jac):
     """Residual (n_unknowns,) and, with want_jac, its banded Jacobian (net, num, touch: a
@@ -243,10 +250,12 @@ def apply_step(X, mu, lam, alpha, gam, du, num, step):
 
 
 @njit(cache=True)
-def newton(X, mu, lam, alpha, gam, net, num, touch, keep, tol, max_iter):
+def newton(X, mu, lam, alpha, gam, net, num, touch, keep, limits):
     """Newton with backtracking on the largest residual entry from (X, mu, lam, alpha,
     gam); a full step that changes which curve points touch is taken as the active-set
-    update. Returns (X, mu, lam, alpha, gam, residual, iterations, status)."""
+    update; limits: ``Limits``. Returns (X, mu, lam, alpha, gam, residual, iterations,
+    status)."""
+    tol, max_iter = limits.tol, limits.max_iter
     ix, kl, ku = num.ix, num.kl, num.ku
     yes = num.n_unknowns >= 0  # a runtime True: a literal would compile assemble once more
     R, ab = assemble(X, mu, lam, alpha, gam, net, num, touch, keep, yes)

@@ -335,7 +335,7 @@ class RealtimeModel:
         """Move the grips to the problem's targets and return the display frame."""
         X, mu, lam, alpha, gam, _residual, iterations, status = kernels.newton(
             self.X, self.mu, self.lam, self.alpha, self.gam, *self.bundles(self.targets(problem)),
-            self.keep_lengths, self.tolerance, self.max_iterations)
+            self.keep_lengths, kernels.Limits(float(self.tolerance), int(self.max_iterations)))
         converged = status == kernels.CONVERGED
         if np.isfinite(X).all():
             self.X, self.mu, self.lam, self.alpha, self.gam = X, mu, lam, alpha, gam

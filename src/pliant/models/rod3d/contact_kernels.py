@@ -217,10 +217,10 @@ def _friction_terms(gam, k, o, p, con, num, R, ab, want_jac):
 
 
 @njit(cache=True)
-def _contact_residual(X, Q, lam, nu, gam, mesh, tg, num, gauge_quat, con):
+def _contact_residual(X, Q, lam, nu, gam, mesh, tg, num, con):
     """The KKT residual and Jacobian with the contact terms; (R, ab, energy, active)."""
     yes = num.n >= 0  # a runtime True (see newton)
-    R, ab, energy = assemble(X, Q, lam, nu, mesh, tg, num, gauge_quat, yes)
+    R, ab, energy = assemble(X, Q, lam, nu, mesh, tg, num, yes)
     active = contact_terms(X, gam, con, num, R, ab, yes)[3]
     return R, ab, energy, active
 
@@ -245,7 +245,7 @@ def contact_max(R, con):
 
 
 @njit(cache=True)
-def newton_contact(X, Q, lam, nu, gam, mesh, tg, num, gauge_quat, con, opts):
+def newton_contact(X, Q, lam, nu, gam, mesh, tg, num, con, opts):
     """The semismooth Newton of a problem with obstacles, in one kernel, its Jacobian
     rebuilt every iteration (the active set may change). Acceptance (opts: ``Settings``):
 
@@ -260,8 +260,7 @@ def newton_contact(X, Q, lam, nu, gam, mesh, tg, num, gauge_quat, con, opts):
     Returns (X, Q, lam, nu, gam, residual, iterations, status, energy)."""
     tol, max_iter, contraction, strict, max_switches = opts
     iprobe, slot = con.iprobe, con.slot
-    R, ab, energy, active = _contact_residual(X, Q, lam, nu, gam, mesh, tg, num, gauge_quat,
-                                              con)
+    R, ab, energy, active = _contact_residual(X, Q, lam, nu, gam, mesh, tg, num, con)
     r = contact_max(R, con)
     if not math.isfinite(r):
         return X, Q, lam, nu, gam, r, 0, NOT_FINITE, energy
@@ -288,8 +287,7 @@ def newton_contact(X, Q, lam, nu, gam, mesh, tg, num, gauge_quat, con, opts):
             for k in range(iprobe.shape[0]):
                 for j in range(slot):
                     gn[k * slot + j] += step * du[iprobe[k] + j]
-            Rn, abn, en, an = _contact_residual(Xn, Qn, ln, nn, gn, mesh, tg, num,
-                                                gauge_quat, con)
+            Rn, abn, en, an = _contact_residual(Xn, Qn, ln, nn, gn, mesh, tg, num, con)
             rn = contact_max(Rn, con)
             finite = math.isfinite(rn)
             if damped:

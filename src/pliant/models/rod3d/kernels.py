@@ -85,6 +85,7 @@ class Targets(NamedTuple):
     st_ffollow: np.ndarray  # (S, 3) follower forces (material)
     st_mfollow: np.ndarray  # (S, 3) follower moments (material)
     elem_follow: np.ndarray  # (N, 3) follower force per length on each element (material)
+    gauge: np.ndarray  # (4,) the frame whose twist the twist gauge holds
 
 
 class Numbering(NamedTuple):
@@ -235,17 +236,17 @@ def _sym_e3(H, mu0, mu1, mu2, factor):
 
 
 @njit(cache=True)
-def assemble(X, Q, lam, nu, mesh, tg, num, gauge_quat, want_jac):
+def assemble(X, Q, lam, nu, mesh, tg, num, want_jac):
     """KKT residual R (n,) and Jacobian in band storage (n, 2 kl + ku + 1), and energy.
 
     X (N+1, 3) node positions; Q (F, 4) frame quaternions; lam (N, 3) element
     multipliers; nu (m,) station multipliers (in station order, each station's position
     components first, then its 2 (axis) or 3 (full) orientation ones; the twist gauge
-    last); mesh, tg, num: ``Mesh``, ``Targets``, ``Numbering``; gauge_quat (4,) where
+    last); mesh, tg, num: ``Mesh``, ``Targets`` (with the gauge's frame), ``Numbering``.
     the gauge holds its frame's twist.
     """
     h, elem_frame, joint_hh, K, st_node, st_frame, st_pos_mask, st_kind = mesh
-    joint_k0, fnode, st_pos, st_axis_b, st_quat, st_moment, st_ffollow, st_mfollow, _ = tg
+    joint_k0, fnode, st_pos, st_axis_b, st_quat, st_moment, st_ffollow, st_mfollow, _, _ = tg
     ix, ith, ilam, inu, nu_off, _, gauge_frame, igauge, n, kl, ku = num
     R = np.zeros(n)
     ab = np.zeros((n, 2 * kl + ku + 1)) if want_jac else np.zeros((0, 0))
@@ -518,7 +519,7 @@ def assemble(X, Q, lam, nu, mesh, tg, num, gauge_quat, want_jac):
         k = igauge
         f = gauge_frame
         t = ith[f]
-        gq = gauge_quat
+        gq = tg.gauge
         fq = Q[f]
         r0, r1, r2, r3 = _qm(gq[0], -gq[1], -gq[2], -gq[3], fq[0], fq[1], fq[2], fq[3])
         R[k] = r3
@@ -626,7 +627,7 @@ NOT_FINITE = 4
 
 
 @njit(cache=True)
-def newton(X, Q, lam, nu, mesh, tg, num, gauge_quat, opts):
+def newton(X, Q, lam, nu, mesh, tg, num, opts):
     """Newton on the KKT system from (X, Q, lam, nu), keeping the factorised Jacobian
     while an iteration contracts the residual tenfold (the band LU is most of the cost).
 
@@ -641,7 +642,7 @@ def newton(X, Q, lam, nu, mesh, tg, num, gauge_quat, opts):
     # Runtime flags, not the literals True and False: numba compiles a callee once more
     # for each literal it is called with.
     yes, no = num.n >= 0, num.n < 0
-    R, ab, energy = assemble(X, Q, lam, nu, mesh, tg, num, gauge_quat, yes)
+    R, ab, energy = assemble(X, Q, lam, nu, mesh, tg, num, yes)
     r = max_abs(R)
     if not math.isfinite(r):
         return X, Q, lam, nu, r, 0, NOT_FINITE, energy
@@ -659,7 +660,7 @@ def newton(X, Q, lam, nu, mesh, tg, num, gauge_quat, opts):
         accepted = False
         for _ in range(30):
             Xn, Qn, ln, nn = apply_step(X, Q, lam, nu, du, num, step)
-            Rn, _, en = assemble(Xn, Qn, ln, nn, mesh, tg, num, gauge_quat, no)
+            Rn, _, en = assemble(Xn, Qn, ln, nn, mesh, tg, num, no)
             rn = max_abs(Rn)
             if contraction > 0.0:
                 accepted = rn <= contraction * r or rn <= tol
@@ -677,7 +678,7 @@ def newton(X, Q, lam, nu, mesh, tg, num, gauge_quat, opts):
             if not accepted and fresh:
                 return X, Q, lam, nu, r, it, NOT_CONTRACTING, energy
             # Refactorise at the current point.
-            R, ab, energy = assemble(X, Q, lam, nu, mesh, tg, num, gauge_quat, yes)
+            R, ab, energy = assemble(X, Q, lam, nu, mesh, tg, num, yes)
             piv, ok = band_lu(ab, kl, ku)
             if not ok:
                 return X, Q, lam, nu, r, it, SINGULAR, energy

@@ -290,8 +290,9 @@ class Rod:
                                  self.nu_cnt, self.gauge_frame, self.igauge, self.n,
                                  self.kl, self.ku)
 
-    def targets(self, loads: Loads) -> kernels.Targets:
-        """The kernels' load- and target-dependent arrays at ``loads``."""
+    def targets(self, loads: Loads, gauge: np.ndarray) -> kernels.Targets:
+        """The kernels' load- and target-dependent arrays at ``loads``, the twist gauge
+        holding the twist of the frame ``gauge`` (4,)."""
         axis_b = np.zeros((loads.st_tangent.shape[0], 2, 3))
         for k in range(axis_b.shape[0]):
             if self.st_kind[k] == AXIS:
@@ -300,7 +301,7 @@ class Rod:
                   else loads.elem_follow)
         return kernels.Targets(loads.joint_k0, loads.fnode, loads.st_pos, axis_b,
                                loads.st_quat, loads.st_moment, loads.st_ffollow,
-                               loads.st_mfollow, follow)
+                               loads.st_mfollow, follow, gauge)
 
     # -- the rest state -------------------------------------------------------------------
     def rest_shape(self, joint_k0: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

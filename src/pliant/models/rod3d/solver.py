@@ -159,13 +159,12 @@ class Run(Routes):
                                     _SWITCHES)
         if rod.iprobe.shape[0]:
             X, Q, lam, nu, gam, r, it, status, energy = contact_kernels.newton_contact(
-                *state[:5], rod.mesh, rod.targets(loads), rod.numbering, self.gauge_quat,
+                *state[:5], rod.mesh, rod.targets(loads, self.gauge_quat), rod.numbering,
                 self.contact(loads), settings._replace(contraction=float(opts.contraction)))
             new = (X, Q, lam, nu, gam)
         else:
             X, Q, lam, nu, r, it, status, energy = kernels.newton(
-                *state[:4], rod.mesh, rod.targets(loads), rod.numbering, self.gauge_quat,
-                settings)
+                *state[:4], rod.mesh, rod.targets(loads, self.gauge_quat), rod.numbering, settings)
             new = (X, Q, lam, nu, state[4])
         self.iterations += it
         if status == kernels.CONVERGED and not self._axes_agree(new[1], loads):
@@ -183,8 +182,9 @@ class Run(Routes):
 
     def residual(self, state: State, loads: Loads, want_jac: bool = False):
         rod = self.rod
-        R, ab, energy = kernels.assemble(*state[:4], rod.mesh, rod.targets(loads),
-                                         rod.numbering, self.gauge_quat, want_jac)
+        R, ab, energy = kernels.assemble(*state[:4], rod.mesh,
+                                         rod.targets(loads, self.gauge_quat), rod.numbering,
+                                         want_jac)
         if rod.iprobe.shape[0]:
             self.contacts(state, loads, R, ab, want_jac)
         return R, ab, energy
