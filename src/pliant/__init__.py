@@ -1,6 +1,7 @@
 """pliant: flexible parts (hoses, pipes, cables) in assembly and disassembly.
 
-The vocabulary (``Part``, ``Problem``, conditions) imports at once; the solvers load
+The vocabulary (``Part``, ``Problem``, conditions, ``loads``: every load type, as
+``pl.loads.AddedMass``) imports at once; the solvers load
 numba kernels, so ``solve`` and ``trace`` are imported on first use.
 """
 
@@ -19,6 +20,7 @@ from pliant.core import StationLoad as StationLoad
 from pliant.core import clamp as clamp
 from pliant.core import grip as grip
 from pliant.core import interpolate as interpolate
+from pliant.core import loads as loads
 from pliant.core import pin as pin
 from pliant.core import push as push
 

@@ -1,4 +1,9 @@
-"""Distributed loads: a force per unit length over a stretch of the part, as a noun.
+"""Loads as nouns: what acts on a part besides its conditions and its own weight.
+
+Every load type lowers itself once to ``DistributedLoad`` (``Load.distributed``, given the
+problem's gravity), the one form both models read (``Problem.distributed``); a new type is
+a class here with ``check``, ``distributed`` and ``to_dict`` (its file table's keys), its
+[[load]] keys in ``pliant.io.problem_file``, and its tests.
 
 A ``DistributedLoad`` acts on the arc lengths [start, end] of the unloaded part with the
 force ``force`` [N/m] per metre of it. It is *dead* (``follower=False``: fixed in the
@@ -18,6 +23,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import Protocol, runtime_checkable
 
 from pliant.errors import InputError
 
@@ -88,6 +94,25 @@ class DistributedLoad:
         lo, hi = self.span(length)
         return max(0.0, min(b, hi) - max(a, lo))
 
+    def distributed(self, gravity: tuple[float, ...]) -> tuple[DistributedLoad, ...]:
+        return (self,)
+
     def to_dict(self) -> dict:
-        return {"name": self.name, "force": list(self.force), "follower": self.follower,
-                "start": self.start, "end": self.end}
+        """Its [[load]] table (``pliant.io.problem_file.LoadModel``'s keys)."""
+        key = "follower_force" if self.follower else "force"
+        return {"name": self.name, key: self.force, "start": self.start, "end": self.end}
+
+
+@runtime_checkable
+class Load(Protocol):
+    """What ``Problem.loads`` holds: a load that names itself, checks that it fits the
+    part, lowers itself to distributed forces and writes its file table."""
+
+    @property
+    def name(self) -> str: ...
+
+    def check(self, length: float, dimension: int) -> None: ...
+
+    def distributed(self, gravity: tuple[float, ...]) -> tuple[DistributedLoad, ...]: ...
+
+    def to_dict(self) -> dict: ...

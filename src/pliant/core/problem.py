@@ -7,7 +7,7 @@ from collections.abc import Iterable
 from dataclasses import dataclass, field, replace
 
 from pliant.core.conditions import Condition, _unit, _vector
-from pliant.core.loads import DistributedLoad
+from pliant.core.loads import DistributedLoad, Load
 from pliant.core.part import Part
 from pliant.errors import IllPosedProblemError, InputError, UnreachableTargetError
 
@@ -263,7 +263,8 @@ class Junction:
 @dataclass(frozen=True)
 class Problem:
     """A flexible part, conditions at stations along it, gravity [m/s^2] and
-    distributed loads (``loads``: ``pliant.core.loads.DistributedLoad``).
+    loads (``loads``: ``pliant.core.loads``' nouns, lowered once to the distributed forces
+    the models read, ``distributed``).
 
     Stations without a condition are free. The problem must fix the part's rigid motion:
     x and y prescribed somewhere, and the angle prescribed somewhere or positions
@@ -279,8 +280,9 @@ class Problem:
     sliders: tuple[SlidingClip, ...] = ()
     junctions: tuple[Junction, ...] = ()
     pivots: tuple[PivotClip, ...] = ()
-    loads: tuple[DistributedLoad, ...] = ()
+    loads: tuple[Load, ...] = ()
     stations: tuple = field(init=False, repr=False, compare=False)
+    distributed: tuple[DistributedLoad, ...] = field(init=False, repr=False, compare=False)
     dimension: int = field(init=False, repr=False, compare=False)
 
     def __post_init__(self) -> None:
@@ -298,16 +300,19 @@ class Problem:
                 raise InputError("gravity", f"must be 2 (2D) or 3 (3D) finite numbers in m/s^2,"
                                             f" got {self.gravity!r}")
         loads = tuple(self.loads)
-        if not all(isinstance(ld, DistributedLoad) for ld in loads):
-            raise InputError("loads", "must be DistributedLoad objects")
+        for k, ld in enumerate(loads):
+            if not isinstance(ld, Load):
+                raise InputError(f"loads[{k}]", f"must be a load of pliant.core.loads "
+                                 f"(DistributedLoad, AddedMass), not {type(ld).__name__}")
         dims = {c.dimension for c in conditions} - {0}
         if gravity is not None and any(gravity):
             dims.add(len(gravity))
         if len(dims) > 1:
             raise InputError("conditions", "mix 2D and 3D conditions (or gravity); give every "
                                            "vector with the same number of axes")
-        if not dims and loads:  # only the loads tell (each is checked below)
-            dims.add(loads[0].dimension)
+        told = [ld.dimension for ld in loads if isinstance(ld, DistributedLoad)]
+        if not dims and told:  # only the loads tell (each is checked below)
+            dims.add(told[0])
         dimension = dims.pop() if dims else (len(gravity) if gravity else 2)
         if gravity is None or not any(gravity):
             gravity = (0.0,) * dimension
@@ -374,6 +379,8 @@ class Problem:
         for ld in loads:
             ld.check(length, dimension)
         object.__setattr__(self, "loads", loads)
+        object.__setattr__(self, "distributed", tuple(
+            d for ld in loads for d in ld.distributed(gravity)))
         merge = _merge if dimension == 2 else _merge3
         object.__setattr__(self, "stations", merge(conditions, length))
         self._check_rigid_motion()
@@ -390,9 +397,9 @@ class Problem:
     @property
     def dead_load_per_length(self) -> tuple[float, ...]:
         """The dead load [N/m] on every metre of the part, global frame: its weight
-        (mass per length times gravity) plus the dead ``loads`` that cover it whole."""
+        (mass per length times gravity) plus the dead loads that cover it whole."""
         total = [self.part.mass_per_length * g for g in self.gravity or ()]
-        for ld in self.loads:
+        for ld in self.distributed:
             if not ld.follower and ld.overlap(0.0, self.part.length, self.part.length) \
                     >= self.part.length * (1.0 - 1e-12):
                 total = [a + b for a, b in zip(total, ld.force)]
@@ -400,10 +407,10 @@ class Problem:
 
     @property
     def partial_loads(self) -> tuple[DistributedLoad, ...]:
-        """The ``loads`` that ``dead_load_per_length`` leaves out: followers, and dead
-        loads on a stretch of the part only."""
+        """The ``distributed`` loads that ``dead_load_per_length`` leaves out: followers,
+        and dead loads on a stretch of the part only."""
         whole = self.part.length * (1.0 - 1e-12)
-        return tuple(ld for ld in self.loads if ld.follower
+        return tuple(ld for ld in self.distributed if ld.follower
                      or ld.overlap(0.0, self.part.length, self.part.length) < whole)
 
     @property
@@ -603,9 +610,12 @@ def interpolate(start: Problem, end: Problem, t: float) -> Problem:
             tangent=_lerp_vector(a.tangent, c.tangent, t) if c.tangent else None,
             normal=_lerp_vector(a.normal, c.normal, t) if c.normal else None))
     gravity = tuple(ga + t * (gb - ga) for ga, gb in zip(start.gravity or (), end.gravity or ()))
-    was = {ld.name: ld for ld in start.loads}
+    # A distributed force moves linearly from its start to its end value (by name);
+    # other loads are the end's.
+    was = {ld.name: ld for ld in start.loads if isinstance(ld, DistributedLoad)}
     loads = tuple(replace(ld, force=_lerp_vector(was[ld.name].force, ld.force, t))
-                  if ld.name in was else ld for ld in end.loads)
+                  if isinstance(ld, DistributedLoad) and ld.name in was else ld
+                  for ld in end.loads)
     return Problem(end.part, tuple(conditions), gravity, end.name, end.obstacles, loads=loads)
 
 

@@ -68,12 +68,11 @@ def dump_problem(problem: Problem, description: str = "", meshes: Path | None = 
         if c.moment is not None:
             moment = c.moment
             lines.append(f"moment = {_vec(moment) if isinstance(moment, tuple) else _num(moment)}")
-    for ld in problem.loads:
-        lines += ["", "[[load]]", f"name = {_toml(ld.name)}",
-                  f"{'follower_force' if ld.follower else 'force'} = {_vec(ld.force)}",
-                  f"start = {_num(ld.start)}"]
-        if ld.end is not None:
-            lines.append(f"end = {_num(ld.end)}")
+    for ld in problem.loads:  # each writes its own table's keys
+        lines += ["", "[[load]]"]
+        for key, value in ld.to_dict().items():
+            if value is not None:
+                lines.append(f"{key} = {_value(value)}")
     for obstacle in problem.obstacles:
         lines += ["", *_obstacle_lines(obstacle, meshes, base)]
     return "\n".join(lines) + "\n"
@@ -120,6 +119,13 @@ def _obstacle_lines(obstacle, meshes: Path | None, base: Path | None) -> list[st
     if obstacle.friction:
         lines.append(f"friction = {_num(obstacle.friction)}")
     return lines
+
+
+def _value(value) -> str:
+    """A number, a vector or a text as TOML."""
+    if isinstance(value, str):
+        return _toml(value)
+    return _vec(value) if isinstance(value, tuple | list) else _num(value)
 
 
 def _vec(values) -> str:

@@ -28,7 +28,7 @@ import numpy as np
 from pydantic import BaseModel, Field, ValidationError, model_validator
 
 from pliant.core.conditions import Condition
-from pliant.core.loads import DistributedLoad
+from pliant.core.loads import DistributedLoad, Load
 from pliant.core.numbers import triple
 from pliant.core.part import Material, Part
 from pliant.core.planning import PathSpec, PlanSettings
@@ -329,10 +329,11 @@ class LoadModel(_Strict):
     def components(self) -> tuple[float, ...]:
         return self.force if self.force is not None else (self.follower_force or ())
 
-    def build(self, index: int) -> DistributedLoad:
+    def build(self, index: int) -> Load:
         name = self.name or f"load{index + 1}"
-        if (self.force is None) == (self.follower_force is None):
-            raise InputError(f"load[{index}]", "give either force (dead, global frame) or "
+        given = [self.force, self.follower_force]
+        if sum(v is not None for v in given) != 1:
+            raise InputError(f"load[{index}]", "give one of force (dead, global frame) or "
                              "follower_force (material frame), in N/m")
         return DistributedLoad(self.components, follower=self.follower_force is not None,
                                start=self.start, end=self.end, name=name)

@@ -114,7 +114,7 @@ def planar_start(problem: Problem) -> Any:
                                 normal=normal))
     gravity = (*(problem.gravity or (0.0, 0.0)), 0.0)
     space = Problem(problem.part, tuple(lifted), gravity, problem.name,
-                    loads=tuple(replace(ld, force=(*ld.force, 0.0)) for ld in problem.loads))
+                    loads=tuple(replace(ld, force=(*ld.force, 0.0)) for ld in problem.distributed))
     # A route, not the answer: a coarse rod and a short budget (the 2D solve already
     # spent its own), so that a refusal still comes soon.
     eq = rod3d.solve(space, solver=rod3d.RodSolver(elements=80, time_budget=PLANAR_BUDGET))

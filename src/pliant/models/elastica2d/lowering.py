@@ -144,7 +144,7 @@ class Lowered:
                              else st.dead_load[i] / loads[i])
             fol[k] = (st.follower_load[0] / loads[0], st.follower_load[1] / loads[0])
         dist = self.target.dist  # zeros without loads on stretches (the warm path)
-        if problem.loads or self.problem.loads:
+        if problem.distributed or self.problem.distributed:
             if _load_spans(problem) != _load_spans(self.problem):
                 return None  # the kernel's stations are cut where each load starts and ends
             dist = segment_loads(problem, self.st_s)
@@ -303,7 +303,7 @@ def segment_loads(problem: Problem, st_s: np.ndarray) -> np.ndarray:
     load's ends) the dead (fx, fy) and follower (ft, fn) loads per unit length that
     ``distributed_load`` leaves out, dimensionless (by EI / L^3)."""
     dist = np.zeros((st_s.shape[0], 4))
-    if not problem.loads:
+    if not problem.distributed:
         return dist
     part = problem.part
     L = part.length

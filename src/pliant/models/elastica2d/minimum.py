@@ -46,7 +46,7 @@ def applicable(problem: Problem) -> bool:
     """Whether the problem is one this route can minimise (see the module)."""
     conds = problem.conditions
     if problem.part.axial_stiffness is not None or any(c.follower for c in conds) or any(
-            ld.follower for ld in problem.loads):
+            ld.follower for ld in problem.distributed):
         return False
     return any(all(v is not None for v in c.position) and len(c.position) == 2
                for c in conds)

@@ -60,7 +60,7 @@ def smallest_eigenvalue(eq, elements: int | None = None) -> float | None:
 
     problem = eq.problem
     if any(st.follower_load != (0.0, 0.0) for st in problem.stations) or any(
-            ld.follower for ld in problem.loads):
+            ld.follower for ld in problem.distributed):
         return None
     part = problem.part
     L, EI = part.length, part.bending_stiffness

@@ -237,8 +237,8 @@ class Rod:
         for k in range(quat.shape[0]):
             if np.dot(quat[k], self.target.st_quat[k]) < 0.0:
                 quat[k] = -quat[k]
-        if [(ld.span(self.length), ld.follower) for ld in problem.loads] != [
-                (ld.span(self.length), ld.follower) for ld in self.problem.loads]:
+        if [(ld.span(self.length), ld.follower) for ld in problem.distributed] != [
+                (ld.span(self.length), ld.follower) for ld in self.problem.distributed]:
             return None  # the mesh is cut where each load starts and ends
         return replace(self, problem=problem, stations=problem.stations,
                        target=_loads(targets, self.target.joint_k0))
@@ -447,7 +447,7 @@ def _targets(problem: Problem, st_node: np.ndarray, h: np.ndarray) -> _Targets:
                    (h.shape[0], 1))
     follow = np.zeros((h.shape[0], 3))
     s_node = np.concatenate([[0.0], np.cumsum(h)]) * L
-    for ld in problem.loads:
+    for ld in problem.distributed:
         cover = np.array([ld.overlap(a, b, L) for a, b in itertools.pairwise(s_node)])
         share = cover / (h * L)
         (follow if ld.follower else dead)[:] += share[:, None] * np.asarray(ld.force) \
@@ -468,7 +468,7 @@ def lower(problem: Problem, elements: int = 100) -> Rod:
     stations = problem.stations
     breaks = sorted({0.0, 1.0} | {st.s / L for st in stations}
                     | {k / L for k in part.knot_positions}
-                    | {min(max(x / L, 0.0), 1.0) for ld in problem.loads
+                    | {min(max(x / L, 0.0), 1.0) for ld in problem.distributed
                        for x in ld.span(L)})
     pieces = [np.linspace(a, b, max(2, round(elements * (b - a))) + 1)[1:]
               for a, b in itertools.pairwise(breaks)]
