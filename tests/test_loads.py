@@ -13,7 +13,7 @@ import pytest
 from scipy.integrate import quad
 
 import pliant as pl
-from pliant.errors import InputError
+from pliant.errors import FileFormatError, InputError
 from pliant.io.problem_file import dump_problem, parse_problem
 from pliant.models import elastica2d, rod3d
 from pliant.models.banded import dense
@@ -277,3 +277,72 @@ def test_a_path_carries_its_loads():
     end = pl.Problem(UNIT, (CLAMP,), loads=(pl.DistributedLoad((0.0, 0.0, -2.0), name="q"),))
     half = pl.interpolate(start, end, 0.5)
     assert half.loads[0].force == (0.0, 0.0, -1.0)
+
+
+# -- a load type added on top of the nouns: mass carried by a stretch ------------------------
+SLEEVE_TEXT = """
+name = "sleeved"
+gravity = [0.0, 0.0, -9.81]
+[part]
+length = 1.0
+bending_stiffness = 1.0
+torsional_stiffness = 1.0
+mass_per_length = 1e-5
+[[condition]]
+name = "clamp"
+s = 0.0
+x = 0.0
+y = 0.0
+z = 0.0
+tangent = [1.0, 0.0, 0.0]
+normal = [0.0, 0.0, 1.0]
+[[load]]
+name = "sleeve"
+mass_per_length = 2e-4
+start = 0.3
+"""
+
+
+def test_added_mass_on_a_stretch_weighs_as_beam_theory_says_in_both_models():
+    """A sleeve of 2e-4 kg/m on [0.3, 1] m of a unit cantilever whose own mass is 1e-5
+    kg/m, under g = 9.81: the tip falls by the beam theory of both weights (small
+    rotations: the nonlinear terms are O(w^3)), and the clamp carries both exactly."""
+    problem = parse_problem(SLEEVE_TEXT)
+    (sleeve,) = problem.loads
+    assert isinstance(sleeve, pl.loads.AddedMass) and (sleeve.start, sleeve.end) == (0.3, None)
+    g, own, carried, a = 9.81, 1e-5, 2e-4, 0.3
+    tip = _beam_tip(own * g, 0.0) + _beam_tip(carried * g, a)
+    eq = rod3d.solve(problem, solver=rod3d.RodSolver(elements=100))
+    assert -eq.tip[0][2] == pytest.approx(tip, rel=1e-4)
+    weight = g * (own * 1.0 + carried * (1.0 - a))
+    assert eq.loads["clamp"].force[2] == pytest.approx(weight, rel=1e-9)
+    flat = pl.Problem(pl.Part(length=1.0, bending_stiffness=1.0, mass_per_length=own),
+                      (pl.clamp(0.0),), gravity=(0.0, -g),
+                      loads=(pl.loads.AddedMass(carried, start=a, name="sleeve"),))
+    eq2 = elastica2d.solve(flat)
+    assert -eq2.tip[1] == pytest.approx(tip, rel=1e-4)
+    assert eq2.loads["clamp"].force[1] == pytest.approx(weight, rel=1e-9)
+
+
+def test_added_mass_reads_back_what_it_wrote_and_weighs_nothing_without_gravity():
+    problem = parse_problem(SLEEVE_TEXT)
+    again = parse_problem(dump_problem(problem))
+    assert again.loads == problem.loads and again.distributed == problem.distributed
+    weightless = pl.Problem(UNIT, (CLAMP,), loads=problem.loads)
+    assert weightless.distributed[0].force == (0.0, 0.0, 0.0)
+    with pytest.raises(FileFormatError, match=r"load\[0\]: give one of .* mass_per_length"):
+        parse_problem(SLEEVE_TEXT + "force = [0.0, 0.0, 1.0]\n")
+
+
+@pytest.mark.parametrize(("make", "field"), [
+    (lambda: pl.loads.AddedMass(-1.0, name="sleeve"), "sleeve.mass_per_length"),
+    (lambda: pl.loads.AddedMass(0.1, start=0.6, end=0.2, name="sleeve"), "sleeve.end"),
+    (lambda: pl.Problem(UNIT, (CLAMP,), loads=(pl.loads.AddedMass(0.1, end=3.0,
+                                                                  name="sleeve"),)),
+     "sleeve.start"),
+    (lambda: pl.Problem(UNIT, (CLAMP,), loads=("heavy",)), "loads[0]"),
+])
+def test_bad_added_masses_are_named(make, field):
+    with pytest.raises(InputError) as err:
+        make()
+    assert err.value.field == field

@@ -3,7 +3,7 @@
 Every load type lowers itself once to ``DistributedLoad`` (``Load.distributed``, given the
 problem's gravity), the one form both models read (``Problem.distributed``); a new type is
 a class here with ``check``, ``distributed`` and ``to_dict`` (its file table's keys), its
-[[load]] keys in ``pliant.io.problem_file``, and its tests.
+[[load]] keys in ``pliant.io.problem_file``, and its tests. ``AddedMass`` is one such.
 
 A ``DistributedLoad`` acts on the arc lengths [start, end] of the unloaded part with the
 force ``force`` [N/m] per metre of it. It is *dead* (``follower=False``: fixed in the
@@ -116,3 +116,39 @@ class Load(Protocol):
     def distributed(self, gravity: tuple[float, ...]) -> tuple[DistributedLoad, ...]: ...
 
     def to_dict(self) -> dict: ...
+
+
+@dataclass(frozen=True)
+class AddedMass:
+    """Mass carried by a stretch [start, end] [m] of the part besides its own,
+    ``mass_per_length`` [kg/m]: a sleeve, tape or a harness's wrapping, a hose's fluid.
+    It weighs under the problem's gravity (a dead load of mass_per_length * g)."""
+
+    mass_per_length: float
+    start: float = 0.0
+    end: float | None = None
+    name: str = "added mass"
+
+    def __post_init__(self) -> None:
+        label = self.name or "added mass"
+        m = self.mass_per_length
+        if not isinstance(m, int | float) or not math.isfinite(m) or m < 0:
+            raise InputError(f"{label}.mass_per_length", f"give a mass per length >= 0 in "
+                             f"kg/m, not {m!r}")
+        span = DistributedLoad((0.0, 0.0), start=self.start, end=self.end, name=label)
+        object.__setattr__(self, "mass_per_length", float(m))
+        object.__setattr__(self, "start", span.start)
+        object.__setattr__(self, "end", span.end)
+        object.__setattr__(self, "name", label)
+
+    def check(self, length: float, dimension: int) -> None:
+        DistributedLoad((0.0,) * dimension, start=self.start, end=self.end,
+                        name=self.name).check(length, dimension)
+
+    def distributed(self, gravity: tuple[float, ...]) -> tuple[DistributedLoad, ...]:
+        force = tuple(self.mass_per_length * g for g in gravity)
+        return (DistributedLoad(force, start=self.start, end=self.end, name=self.name),)
+
+    def to_dict(self) -> dict:
+        return {"name": self.name, "mass_per_length": self.mass_per_length,
+                "start": self.start, "end": self.end}

@@ -28,7 +28,7 @@ import numpy as np
 from pydantic import BaseModel, Field, ValidationError, model_validator
 
 from pliant.core.conditions import Condition
-from pliant.core.loads import DistributedLoad, Load
+from pliant.core.loads import AddedMass, DistributedLoad, Load
 from pliant.core.numbers import triple
 from pliant.core.part import Material, Part
 from pliant.core.planning import PathSpec, PlanSettings
@@ -317,11 +317,14 @@ class SolverModel(_Strict):
 class LoadModel(_Strict):
     """[[load]]: a force per unit length [N/m] on the stretch [start, end] [m] of the part
     (``pliant.core.loads``): ``force`` dead, in the global frame, or ``follower_force``
-    in the part's material frame (2D: tangential, normal; 3D: d1, d2, d3)."""
+    in the part's material frame (2D: tangential, normal; 3D: d1, d2, d3); or mass the
+    stretch carries besides the part's own, ``mass_per_length`` [kg/m] (a sleeve, tape, a
+    hose's fluid), weighing under the problem's gravity."""
 
     name: str = ""
     force: tuple[float, float] | Vec3 | None = None
     follower_force: tuple[float, float] | Vec3 | None = None
+    mass_per_length: float | None = None
     start: float = 0.0
     end: float | None = None
 
@@ -331,10 +334,13 @@ class LoadModel(_Strict):
 
     def build(self, index: int) -> Load:
         name = self.name or f"load{index + 1}"
-        given = [self.force, self.follower_force]
+        given = [self.force, self.follower_force, self.mass_per_length]
         if sum(v is not None for v in given) != 1:
             raise InputError(f"load[{index}]", "give one of force (dead, global frame) or "
-                             "follower_force (material frame), in N/m")
+                             "follower_force (material frame), in N/m, or mass_per_length "
+                             "(kg/m)")
+        if self.mass_per_length is not None:
+            return AddedMass(self.mass_per_length, start=self.start, end=self.end, name=name)
         return DistributedLoad(self.components, follower=self.follower_force is not None,
                                start=self.start, end=self.end, name=name)
 
