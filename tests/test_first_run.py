@@ -1,7 +1,8 @@
 """The first run's compile on two cores (``pliant.models.first_run``): after the
-ahead-of-time compile, half in a helper process, the main job compiles nothing (so the
-recorded signatures are those the kernels are called with, and the two halves cover
-them); an unreadable signature file leaves the kernels to compile lazily."""
+ahead-of-time compile, split by its schedule with a helper process, the main job compiles
+nothing (so the recorded signatures are those the kernels are called with, and the two
+lists cover them); the schedule keeps each kernel after its callees; an unreadable
+signature file leaves the kernels to compile lazily."""
 
 from __future__ import annotations
 
@@ -51,7 +52,40 @@ def test_after_the_compile_ahead_the_main_job_compiles_nothing(tmp_path):
     assert not facts["cold_after"]
     # each kernel of both halves has its cache index, the helper's included
     cached = {p.name.split(".")[1].rsplit("-", 1)[0] for p in (tmp_path / "numba").rglob("*.nbi")}
-    assert {name for _, name in first_run.OURS + first_run.THEIRS} <= cached
+    assert {name for _, name in first_run.recorded()["signatures"]} <= cached
+
+
+def test_the_schedule_compiles_each_kernel_after_its_callees_and_balances_the_work():
+    data = first_run.recorded()
+    cost, calls = data["cost"], data["calls"]
+    lists = first_run.plan(cost, calls)
+    assert sorted(lists[0] + lists[1]) == sorted(cost)  # each kernel once
+    # Replay it: a kernel starts once its callees are done, wherever they were done.
+    finish: dict = {}
+    clock = [0.0, 0.0]
+    at = [0, 0]
+    while at[0] < len(lists[0]) or at[1] < len(lists[1]):
+        moved = False
+        for w in (0, 1):
+            if at[w] < len(lists[w]):
+                k = lists[w][at[w]]
+                if all(c in finish for c in calls[k] if c in cost):
+                    clock[w] = max([clock[w], *(finish[c] for c in calls[k])]) + cost[k]
+                    finish[k] = clock[w]
+                    at[w] += 1
+                    moved = True
+        assert moved, "the two lists wait for each other"
+    # Within a tenth of the bound: an even split of the work, or the longest chain of
+    # callees (which no schedule can shorten).
+    chain: dict = {}
+
+    def longest(k):
+        if k not in chain:
+            chain[k] = cost[k] + max((longest(c) for c in calls[k] if c in cost), default=0.0)
+        return chain[k]
+
+    bound = max(sum(cost.values()) / 2, max(longest(k) for k in cost))
+    assert max(clock) <= 1.1 * bound
 
 
 def test_an_unreadable_signature_file_leaves_the_kernels_to_compile_lazily(tmp_path,
@@ -59,5 +93,6 @@ def test_an_unreadable_signature_file_leaves_the_kernels_to_compile_lazily(tmp_p
     bad = tmp_path / "kernel_signatures.pkl"
     bad.write_bytes(b"not a pickle")
     monkeypatch.setattr(first_run, "SIGNATURES", bad)
-    assert first_run.compile_kernels(first_run.OURS) == 0
+    assert first_run.recorded() == {}
+    assert first_run.compile_kernels([("pliant.models.banded", "band_lu")]) == 0
     assert first_run.compile_ahead(cores=1) is False

@@ -1,40 +1,103 @@
-"""Record the signatures the 3D kernels are called with (``pliant.models.first_run``),
-after changing a kernel's arguments: a developer's command, at the top layer because it
-runs the main job::
+"""Record what the first run compiles ahead (``pliant.models.first_run``), after changing
+a kernel's arguments: a developer's command, at the top layer because it runs the main
+job::
 
     python -m pliant.cli.record_kernels
+
+It runs ``pliant demo`` in a child process on a fresh machine's terms (empty numba and
+disk caches, nothing compiled ahead), so that every kernel compiles in that process as
+it is first called, and records for each of pliant's kernels the signatures it was
+called with, its own compile time (without its callees') and the kernels it calls.
 """
 
 from __future__ import annotations
 
+import collections
 import os
 import pickle
+import subprocess
+import sys
 import tempfile
+import time
 from pathlib import Path
 from typing import Any
 
-from typer.testing import CliRunner
-
-from pliant.cli.app import app
-from pliant.models.first_run import OURS, SIGNATURES, THEIRS, dispatcher
+from pliant.models.first_run import SIGNATURES, Key
 
 
-def record(path: Path = SIGNATURES) -> dict[tuple[str, str], list[Any]]:
-    """Run the main job (``pliant demo``, in a temporary folder, with an empty disk cache
-    as on a fresh machine, so that the scene's fitted parts are solved too) and write the
-    signatures its kernels were called with to ``path``."""
+def record(path: Path = SIGNATURES) -> dict[str, Any]:
+    """Run the child (see the module) and write what it found to ``path``."""
     with tempfile.TemporaryDirectory() as folder:
-        os.environ["PLIANT_CACHE"] = str(Path(folder) / "cache")
-        result = CliRunner().invoke(app, ["demo", "--out", folder])
-    if result.exit_code != 0:
-        raise RuntimeError(f"pliant demo failed: {result.output[-2000:]}")
-    data = {(m, n): list(dispatcher(m, n).signatures) for m, n in OURS + THEIRS}
+        env = dict(os.environ, NUMBA_CACHE_DIR=str(Path(folder) / "numba"),
+                   PLIANT_CACHE=str(Path(folder) / "cache"))
+        out = Path(folder) / "kernels.pkl"
+        done = subprocess.run([sys.executable, "-m", "pliant.cli.record_kernels", "--child",
+                               str(out), folder], env=env, capture_output=True, text=True)
+        if done.returncode != 0:
+            raise RuntimeError(f"the recording failed: {done.stderr[-2000:]}")
+        data = pickle.loads(out.read_bytes())  # our own child's file
     tmp = path.with_suffix(".tmp")
     tmp.write_bytes(pickle.dumps(data, protocol=4))
     tmp.replace(path)
     return data
 
 
+def _child(out: Path, folder: str) -> None:
+    from numba.core import event  # noqa: PLC0415 (the child only)
+    from numba.core.registry import CPUDispatcher  # noqa: PLC0415
+    from typer.testing import CliRunner  # noqa: PLC0415
+
+    from pliant.cli.app import app  # noqa: PLC0415
+    from pliant.models import first_run  # noqa: PLC0415
+
+    own: collections.Counter[Key] = collections.Counter()
+    stack: list[list] = []
+
+    class Timer(event.Listener):
+        """Each compile's time less the nested compiles of pliant's kernels (numba's
+        own overloads count as their caller's)."""
+
+        def on_start(self, ev) -> None:
+            stack.append([ev.data["dispatcher"].py_func, time.perf_counter(), 0.0])
+
+        def on_end(self, ev) -> None:
+            func, t0, nested = stack.pop()
+            spent = time.perf_counter() - t0
+            if func.__module__.startswith("pliant"):
+                own[(func.__module__, func.__name__)] += spent - nested
+                if stack:
+                    stack[-1][2] += spent
+            elif stack:  # give it back to the caller
+                stack[-1][2] += 0.0
+
+    event.register("numba:compile", Timer())
+    first_run.compile_ahead = lambda *a, **k: False  # everything lazily, in this process
+    result = CliRunner().invoke(app, ["demo", "--out", folder])
+    if result.exit_code != 0:
+        raise SystemExit(f"pliant demo failed: {result.output[-2000:]}")
+    kernels: dict[Key, Any] = {}
+    for name, module in list(sys.modules.items()):
+        if not name.startswith("pliant"):
+            continue
+        for attr, value in vars(module).items():
+            if (isinstance(value, CPUDispatcher) and value.py_func.__module__ == name
+                    and value.signatures):
+                kernels[(name, attr)] = value
+    library = {id(o.library): key for key, d in kernels.items() for o in d.overloads.values()}
+    calls = {key: sorted({library[id(lib)] for o in d.overloads.values()
+                          for lib in getattr(o.library, "_linking_libraries", ())
+                          if id(lib) in library and library[id(lib)] != key})
+             for key, d in kernels.items()}
+    data = {"signatures": {k: list(d.signatures) for k, d in kernels.items()},
+            "cost": {k: round(own[k], 3) for k in kernels}, "calls": calls}
+    out.write_bytes(pickle.dumps(data, protocol=4))
+
+
 if __name__ == "__main__":
-    for key, value in record().items():
-        print(*key, len(value))
+    if sys.argv[1:2] == ["--child"]:
+        _child(Path(sys.argv[2]), sys.argv[3])
+    else:
+        found = record()
+        for key in sorted(found["signatures"]):
+            print(*key, len(found["signatures"][key]), found["cost"][key],
+                  [c[1] for c in found["calls"][key]])

@@ -3,18 +3,20 @@
 numba compiles a kernel when it is first called and keeps it (``cache=True``), so only a
 fresh install pays. Compiled lazily, one kernel after the other in the one process, the
 bundled scene's first ``pliant demo`` spent 24 of its 27 s compiling on one core. Here
-the kernels a 3D scene needs are compiled ahead, by the signatures they are called with
-(``SIGNATURES``, recorded from a run), in two halves of about equal cost: this process
-compiles ``OURS`` while a helper process (``python -m pliant.models.first_run``)
-compiles ``THEIRS`` into the same cache, and this process waits for the helper before it
-solves, so that nothing is compiled twice. Where the machine has one core, the cache is
-warm, or the recorded signatures are not those the code now uses, the kernels compile
-lazily as before: never wrong, at worst as slow as before. ``tests/test_first_run.py``
-checks that after ``compile_ahead`` a scene's solve compiles nothing.
+every kernel a 3D scene needs, its callees included, is compiled ahead by the signatures
+it is called with, split between this process and a helper process
+(``python -m pliant.models.first_run``) that compile into the same cache.
 
-Record the signatures again after changing a kernel's arguments::
-
-    python -m pliant.cli.record_kernels
+The split is a schedule (``plan``): each kernel's own compile time and the kernels it
+calls are recorded with its signatures (``SIGNATURES``, by ``python -m
+pliant.cli.record_kernels``); the longest chain of callers goes first, and a kernel
+starts once its callees are compiled, in either process (each process tells the other,
+over a pipe, what it has finished), so that nothing is compiled twice: a callee the
+other process cached is loaded, not compiled. Where the machine has one core, the cache
+is warm, the recorded signatures are not those the code now uses, or the helper dies,
+the kernels compile lazily or here instead: never wrong, at worst as slow as before.
+``tests/test_first_run.py`` checks that after ``compile_ahead`` a scene's solve compiles
+nothing.
 """
 
 from __future__ import annotations
@@ -24,45 +26,15 @@ import os
 import pickle
 import subprocess
 import sys
+import threading
 from collections.abc import Callable, Iterable
 from pathlib import Path
 from typing import Any
 
 SIGNATURES = Path(__file__).with_name("kernel_signatures.pkl")
-
-# (module, kernel). A kernel compiles the kernels it calls with it unless they are
-# cached, and the contact's kernels nest: the Newton solve calls the contact terms,
-# which call the distance queries. That chain (about 12 s on one core of the machine
-# measured) is this process's half, with the contact-free Newton solve after it; the
-# helper takes everything else (about 15 s), the banded solvers first, which the Newton
-# solves call and then find in the cache.
-OURS: tuple[tuple[str, str], ...] = (
-    ("pliant.scene.distance", "query_points"),
-    ("pliant.models.rod3d.contact_kernels", "contact_terms"),
-    ("pliant.models.rod3d.contact_kernels", "newton_contact"),
-    # a scene's fitted parts, solved without contact on a fresh disk cache
-    # (``pliant.util.cache``): last, when the helper has cached what they call
-    ("pliant.models.rod3d.kernels", "newton"),
-    ("pliant.models.banded", "band_solve"),
-)
-THEIRS: tuple[tuple[str, str], ...] = (
-    ("pliant.models.banded", "band_lu"),
-    ("pliant.models.banded", "identity_rows"),
-    ("pliant.models.banded", "band_solve_reduced"),
-    ("pliant.models.rod3d.kernels", "assemble"),
-    ("pliant.models.rod3d.kernels", "rest_shape"),
-    ("pliant.scene.triangles", "pseudonormal_sums"),
-    ("pliant.scene.triangles", "build_bvh"),
-    ("pliant.scene.grid", "band_values"),  # a mesh's distance grid, on a fresh disk cache
-    ("pliant.models.rod3d.kernels", "apply_step"),
-    ("pliant.models.rod3d.kernels", "difference"),
-    ("pliant.models.rod3d.kernels", "unknown_sizes"),
-    ("pliant.models.rod3d.contact_kernels", "contact_max"),
-    ("pliant.models.rod3d.kernels", "node_outputs"),
-    ("pliant.models.lanczos", "softest_mode"),
-    ("pliant.scene.interference", "_polyline_distance"),
-)
 HELPER_TIMEOUT = 300.0  # s: past this the helper is stopped and the rest compiles lazily
+
+Key = tuple[str, str]  # (module, kernel)
 
 
 def dispatcher(module: str, name: str) -> Any:
@@ -79,73 +51,191 @@ def cold() -> bool:
     return not any(cache.glob(pattern))
 
 
-def _signatures() -> dict[tuple[str, str], list[Any]]:
-    """The recorded signatures by kernel; empty where the file cannot be read with this
-    numba (then everything compiles lazily)."""
+def recorded() -> dict[str, dict]:
+    """The recorded kernels: {"signatures": {key: [signature]}, "cost": {key: seconds of
+    its own compile}, "calls": {key: [keys it calls]}}; empty where the file cannot be
+    read with this numba (then everything compiles lazily)."""
     try:
         with SIGNATURES.open("rb") as f:
             data = pickle.load(f)  # our own file, shipped with the package
     except Exception:  # another numba's types: compile lazily instead
         return {}
-    return data if isinstance(data, dict) else {}
+    if not isinstance(data, dict) or not isinstance(data.get("signatures"), dict):
+        return {}
+    return data
 
 
-def compile_kernels(kernels: Iterable[tuple[str, str]],
-                    on_kernel: Callable[[str], None] | None = None,
-                    signatures: dict[tuple[str, str], list[Any]] | None = None) -> int:
+def plan(cost: dict[Key, float], calls: dict[Key, list[Key]],
+         workers: int = 2) -> list[list[Key]]:
+    """Each worker's kernels in order: list scheduling on ``workers`` processes. A kernel
+    is ready once its callees are done; the worker free first takes, of those it can
+    start at once, the one heading the longest chain of callers (else the one it waits
+    least for). Deterministic: the helper computes the same plan from the same file."""
+    keys = sorted(cost)
+    callers: dict[Key, list[Key]] = {k: [] for k in keys}
+    for k in keys:
+        for c in calls.get(k, ()):
+            if c in callers:
+                callers[c].append(k)
+    rank: dict[Key, float] = {}
+
+    def chain(k: Key) -> float:  # its cost and the longest chain of callers after it
+        if k not in rank:
+            rank[k] = cost[k] + max((chain(c) for c in callers[k]), default=0.0)
+        return rank[k]
+
+    for k in keys:
+        chain(k)
+    finish: dict[Key, float] = {}
+    free = [0.0] * workers
+    lists: list[list[Key]] = [[] for _ in range(workers)]
+    left = set(keys)
+    while left:
+        w = min(range(workers), key=lambda i: (free[i], i))
+        ready = [k for k in left if all(c in finish or c not in cost for c in calls.get(k, ()))]
+        ready = ready or list(left)  # (a cycle: recursion)
+
+        # What can start at once, the longest chain first; else what waits least.
+        at = {k: max([free[w], *(finish[c] for c in calls.get(k, ()) if c in finish)])
+              for k in ready}
+        k = min(ready, key=lambda k: (at[k], -rank[k], k))
+        start = at[k]
+        finish[k] = free[w] = start + cost[k]
+        lists[w].append(k)
+        left.remove(k)
+    return lists
+
+
+def compile_kernels(kernels: Iterable[Key], on_kernel: Callable[[str], None] | None = None,
+                    signatures: dict[Key, list[Any]] | None = None,
+                    before: Callable[[Key], None] | None = None,
+                    after: Callable[[Key], None] | None = None) -> int:
     """Compile (or load from the cache) each kernel for its recorded signatures (read
-    from ``SIGNATURES`` unless given); the number compiled or loaded. A signature numba
-    refuses is skipped: the kernel then compiles lazily for the one it is called with."""
-    signatures = _signatures() if signatures is None else signatures
+    from ``SIGNATURES`` unless given); the number compiled or loaded. ``before(key)`` is
+    called before each (to wait for its callees), ``after(key)`` once it is done. A
+    signature numba refuses is skipped: the kernel then compiles lazily for the one it is
+    called with."""
+    signatures = recorded().get("signatures", {}) if signatures is None else signatures
     done = 0
-    for module, name in kernels:
+    for key in kernels:
+        if before is not None:
+            before(key)
         if on_kernel is not None:
-            on_kernel(name)
-        for signature in signatures.get((module, name), ()):
+            on_kernel(key[1])
+        for signature in signatures.get(key, ()):
             try:
-                dispatcher(module, name).compile(signature)
+                dispatcher(*key).compile(signature)
                 done += 1
             except Exception:  # a stale signature: the kernel compiles lazily
                 continue
+        if after is not None:
+            after(key)
     return done
+
+
+class _Peer:
+    """What the other process has finished, read from its pipe line by line (a key's
+    index in the sorted keys); all of it at once when the pipe ends (it died: waiting
+    for it would be waiting forever, and compiling here is never wrong)."""
+
+    def __init__(self, stream, keys: list[Key]) -> None:
+        self.index = {k: i for i, k in enumerate(keys)}
+        self.done = [threading.Event() for _ in keys]
+        threading.Thread(target=self._read, args=(stream,), daemon=True).start()
+
+    def _read(self, stream) -> None:
+        try:
+            for line in stream:
+                i = int(line)
+                if 0 <= i < len(self.done):
+                    self.done[i].set()
+        except (ValueError, OSError):
+            pass
+        for event in self.done:
+            event.set()
+
+    def wait(self, keys: Iterable[Key], timeout: float) -> None:
+        for k in keys:
+            if k in self.index:
+                self.done[self.index[k]].wait(timeout)
+
+
+def _run(mine: list[Key], theirs: set[Key], data: dict, peer: _Peer, out,
+         on_kernel: Callable[[str], None] | None = None) -> None:
+    """Compile this process's list, each kernel after its callees of the other list,
+    telling ``out`` the index of each one done."""
+    calls = data.get("calls", {})
+    index = peer.index
+
+    def before(key: Key) -> None:
+        peer.wait([c for c in calls.get(key, ()) if c in theirs], HELPER_TIMEOUT)
+
+    def after(key: Key) -> None:
+        try:
+            out.write(f"{index[key]}\n")
+            out.flush()
+        except (OSError, ValueError):  # the other process is gone
+            pass
+
+    compile_kernels(mine, on_kernel, data["signatures"], before, after)
 
 
 def compile_ahead(on_kernel: Callable[[str], None] | None = None,
                   cores: int | None = None) -> bool:
-    """Compile the 3D kernels a scene needs, half here and half in a helper process
+    """Compile the 3D kernels a scene needs, by ``plan``, here and in a helper process
     where the machine has a second core (see the module); True when a helper ran.
     ``on_kernel(name)`` is told each kernel this process starts."""
     cores = (os.cpu_count() or 1) if cores is None else cores
-    helper = None
-    if cores >= 2:
-        try:
-            helper = subprocess.Popen(
-                [sys.executable, "-m", "pliant.models.first_run", str(os.getpid())],
-                stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL,
-                stderr=subprocess.DEVNULL)
-        except OSError:
-            helper = None
-    compile_kernels(OURS if helper is not None else OURS + THEIRS, on_kernel)
-    if helper is None:
+    data = recorded()
+    if not data:
         return False
+    keys = sorted(data["signatures"])
+    if cores < 2:
+        compile_kernels(plan(_costs(data, keys), data.get("calls", {}), 1)[0], on_kernel,
+                        data["signatures"])
+        return False
+    try:
+        helper = subprocess.Popen(
+            [sys.executable, "-m", "pliant.models.first_run", str(os.getpid())],
+            stdin=subprocess.PIPE, stdout=subprocess.PIPE, stderr=subprocess.DEVNULL,
+            text=True, bufsize=1)
+    except OSError:
+        compile_kernels(keys, on_kernel, data["signatures"])
+        return False
+    ours, theirs = plan(_costs(data, keys), data.get("calls", {}))
+    peer = _Peer(helper.stdout, keys)
+    _run(ours, set(theirs), data, peer, helper.stdin, on_kernel)
     if on_kernel is not None:
         on_kernel("the helper's half")
     try:
+        helper.stdin.close()  # type: ignore[union-attr]
         helper.wait(timeout=HELPER_TIMEOUT)
     except subprocess.TimeoutExpired:
         helper.kill()
         helper.wait()
+    except OSError:
+        pass
     return True
 
 
+def _costs(data: dict, keys: list[Key]) -> dict[Key, float]:
+    cost = data.get("cost", {})
+    return {k: float(cost.get(k, 0.1)) for k in keys}
+
+
 def _helper(parent: int) -> None:
-    """The helper's work: its half, stopping early if the process that started it is
-    gone (nothing would wait for it)."""
-    signatures = _signatures()  # read once, not once a kernel
-    for kernel in THEIRS:
+    """The helper's work: the plan's second list, told by the parent (stdin) what it has
+    finished; it stops early if the parent is gone (nothing would wait for it)."""
+    data = recorded()
+    if not data:
+        return
+    keys = sorted(data["signatures"])
+    ours, theirs = plan(_costs(data, keys), data.get("calls", {}))
+    peer = _Peer(sys.stdin, keys)
+    for key in theirs:
         if os.getppid() != parent:
             return
-        compile_kernels((kernel,), signatures=signatures)
+        _run([key], set(ours), data, peer, sys.stdout)
 
 
 if __name__ == "__main__":
