@@ -49,21 +49,18 @@ def add_block(ab, kl, ku, i0, j0, block):
 
 
 @njit(cache=True)
-def _column_sizes(ab):
-    """Each column's largest entry's size (band storage: row j of ``ab`` holds column j),
-    or None where an entry is not finite; the sum of the sizes is finite exactly when
-    every entry is, short of 1e308, which keeps the loop branch-free."""
-    n = ab.shape[0]
-    size = np.zeros(n)
+def _scale(ab):
+    """The largest entry's size, or NaN where an entry is not finite; branch-free, so
+    that it vectorises (the sum of the sizes is finite exactly when every entry is,
+    short of 1e308)."""
+    scale = 0.0
     total = 0.0
-    for j in range(n):
-        top = 0.0
-        for k in range(ab.shape[1]):
-            v = abs(ab[j, k])
-            top = max(top, v)
-            total += v
-        size[j] = top
-    return size, math.isfinite(total)
+    flat = ab.ravel()
+    for k in range(flat.shape[0]):
+        v = abs(flat[k])
+        scale = max(scale, v)
+        total += v
+    return scale if math.isfinite(total) else math.nan
 
 
 @njit(cache=True)
@@ -72,8 +69,8 @@ def band_lu_lapack(ab, kl, ku):
     ``band_lu`` is tested against. Returns (pivots, ok), ok as ``band_lu``'s."""
     n = ab.shape[0]
     piv = np.zeros(n, dtype=np.int32)
-    size, finite = _column_sizes(ab)
-    if n == 0 or not finite:
+    scale = _scale(ab)
+    if n == 0 or scale == 0.0 or not math.isfinite(scale):
         return piv, n == 0
     if not ab.flags.c_contiguous:  # LAPACK reads it in place: every caller builds one
         raise ValueError("band_lu: the band array must be C-contiguous")
@@ -84,7 +81,7 @@ def band_lu_lapack(ab, kl, ku):
         return piv, False
     kv = kl + ku
     for j in range(n):  # U's diagonal: the pivots
-        if not abs(ab[j, kv]) > 1e-14 * size[j]:
+        if not abs(ab[j, kv]) > 1e-14 * scale:
             return piv, False
     return piv, True
 
@@ -109,18 +106,15 @@ def band_lu(ab, kl, ku):
     """LU with partial pivoting of a band matrix, in place: LAPACK's dgbtf2 written out,
     each pivot's update over its nonzero multipliers only (a KKT band is mostly zeros,
     which LAPACK multiplies through). Returns (pivots, ok); ok is False where a pivot is
-    below 1e-14 of its column's largest entry (the column is a combination of the others
-    to round-off: a fold, a bifurcation) or an entry is not finite. Relative to its own
-    column, not to the whole matrix: a KKT matrix's columns differ in size by many
-    orders (a fine rod's bending terms grow as 1 / h^2, a contact's compliance is 1e-9),
-    and a regular column must not be judged by the largest one's round-off."""
+    below 1e-14 of the largest entry (the matrix is singular to round-off: a fold, a
+    bifurcation) or an entry is not finite."""
     n = ab.shape[0]
     kv = kl + ku
     piv = np.zeros(n, dtype=np.int64)
     rows = np.empty(kl + 1, dtype=np.int64)
     ju = 0
-    size, finite = _column_sizes(ab)
-    if n == 0 or not finite:
+    scale = _scale(ab)
+    if n == 0 or scale == 0.0 or not math.isfinite(scale):
         return piv, n == 0
     for j in range(n):
         km = min(kl, n - 1 - j)
@@ -132,7 +126,7 @@ def band_lu(ab, kl, ku):
                 best = v
                 p = r
         piv[j] = j + p
-        if not best > 1e-14 * size[j]:  # (a zero column too)
+        if best <= 1e-14 * scale:
             return piv, False
         ju = max(ju, min(j + ku + p, n - 1))
         if p != 0:
