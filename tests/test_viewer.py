@@ -855,3 +855,20 @@ def test_the_page_the_cli_and_the_frames_warn_in_the_same_words(folder):
         bend_radius=1.0 / frame.curvature[k], bend_at=frame.s[k], allowed=0.5,
         penetrations=frame.interference.penetrations, preview=True)
     assert frame.warnings and all(w.startswith(PREVIEW) for w in frame.warnings)
+
+
+def test_a_scene_linked_into_the_folder_opens_and_a_name_that_leaves_does_not(tmp_path):
+    """The bundled examples link to the package's demo scene: a link in the user's own
+    folder is followed; a name that climbs out (``..``, an absolute path) is refused."""
+    folder = tmp_path / "scenes"
+    folder.mkdir()
+    elsewhere = tmp_path / "elsewhere"
+    elsewhere.mkdir()
+    (elsewhere / "hose.toml").write_text(SCENE)
+    (folder / "hose.toml").symlink_to(elsewhere / "hose.toml")
+    viewer = ViewerState(Path("hose.toml"), folder, live=False)
+    assert viewer.path == folder / "hose.toml" and viewer.scene is not None
+    viewer.close()
+    for name in ("../elsewhere/hose.toml", str(elsewhere / "hose.toml")):
+        with pytest.raises(ProtocolError, match="outside the scene's folder"):
+            ViewerState(Path(name), folder, live=False)

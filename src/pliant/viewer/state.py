@@ -54,8 +54,11 @@ def save_folder(root: Path) -> Path:
 
 
 def inside(root: Path, name: str, what: str) -> Path:
-    """``root / name`` resolved, or a ``ProtocolError`` when it leaves ``root``."""
-    path = (root / name).resolve()
+    """``root / name``, or a ``ProtocolError`` when it leaves ``root``. A scene is judged
+    by its name as written (``..`` and absolute paths leave), so that a link the user put
+    in their folder is followed (the bundled examples link to the package's demo scene);
+    a session file, which clients write and name, also by where its links lead."""
+    path = (root / name).resolve() if what != "scene" else Path(os.path.normpath(root / name))
     if not path.is_relative_to(root):
         raise ProtocolError(f"{what} {name!r} is outside the scene's folder {root}; the "
                             "server reads and writes only there", what)
