@@ -108,7 +108,15 @@ def hessian_point(p, o, field):
         Hl = feature_hessian(d, g, e, feature)
     else:
         Hl = primitive_hessian(kind[o], x, y, z, param[o])
-    return R @ Hl @ R.T
+    H = np.zeros((3, 3))  # R Hl R^T, written out: numba's matrix product compiles slowly
+    for i in range(3):
+        for j in range(3):
+            v = 0.0
+            for k in range(3):
+                for m in range(3):
+                    v += R[i, k] * Hl[k, m] * R[j, m]
+            H[i, j] = v
+    return H
 
 
 # -- grids ---------------------------------------------------------------------------------

@@ -588,13 +588,14 @@ def apply_step(X, Q, lam, nu, du, num, step):
         for c in range(3):
             theta[c] = step * du[ith[f] + c]
         qn = qmul(Q[f], qexp(theta))
-        norm = math.sqrt(np.dot(qn, qn))
+        norm = math.sqrt(qn[0] * qn[0] + qn[1] * qn[1] + qn[2] * qn[2] + qn[3] * qn[3])
         for c in range(4):
             Qn[f, c] = _flushed(qn[c] / norm)
     # Keep consecutive frames in the same hemisphere (q and -q are the same rotation;
     # the discrete curvature needs the short way round).
     for f in range(1, Q.shape[0]):
-        if np.dot(Qn[f - 1], Qn[f]) < 0.0:
+        a, b = Qn[f - 1], Qn[f]
+        if a[0] * b[0] + a[1] * b[1] + a[2] * b[2] + a[3] * b[3] < 0.0:
             for c in range(4):
                 Qn[f, c] = -Qn[f, c]
     for e in range(lam.shape[0]):
