@@ -15,10 +15,29 @@ tol * theta (ARPACK's test).
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 from numba import njit
 
 from pliant.models.banded import band_lu_solve
+
+
+@njit(cache=True)
+def _inner(u, v, weight):
+    """sum(weight u v), written out: numba's array expressions compile their
+    broadcasting checks, seconds on a first run."""
+    total = 0.0
+    for i in range(u.shape[0]):
+        total += weight[i] * u[i] * v[i]
+    return total
+
+
+@njit(cache=True)
+def _take(z, c, v):
+    """z -= c v, in place."""
+    for i in range(z.shape[0]):
+        z[i] -= c * v[i]
 
 
 @njit(cache=True)
@@ -31,9 +50,9 @@ def softest_mode(ab, piv, kl, ku, primal, weight, v0, tol, max_steps):
     Q = np.zeros((max_steps + 1, p))
     alpha = np.zeros(max_steps)
     beta = np.zeros(max_steps)
-    q = v0.copy()
-    q /= np.sqrt(np.sum(weight * q * q))
-    Q[0] = q
+    norm = math.sqrt(_inner(v0, v0, weight))
+    for i in range(p):
+        Q[0, i] = v0[i] / norm
     rhs = np.zeros(n)
     theta = 0.0
     best = np.zeros(p)
@@ -45,15 +64,14 @@ def softest_mode(ab, piv, kl, ku, primal, weight, v0, tol, max_steps):
         z = np.empty(p)
         for i in range(p):
             z[i] = x[primal[i]]
-        a = np.sum(z * weight * Q[j])
-        z -= a * Q[j]
+        a = _inner(z, Q[j], weight)
+        _take(z, a, Q[j])
         if j > 0:
-            z -= beta[j - 1] * Q[j - 1]
+            _take(z, beta[j - 1], Q[j - 1])
         for _ in range(2):  # full reorthogonalisation, twice ("twice is enough")
             for k in range(j + 1):
-                c = np.sum(z * weight * Q[k])
-                z -= c * Q[k]
-        b = np.sqrt(np.sum(weight * z * z))
+                _take(z, _inner(z, Q[k], weight), Q[k])
+        b = math.sqrt(_inner(z, z, weight))
         alpha[j] = a
         beta[j] = b
         m = j + 1
@@ -68,10 +86,11 @@ def softest_mode(ab, piv, kl, ku, primal, weight, v0, tol, max_steps):
         s = vectors[:, m - 1]
         best = np.zeros(p)
         for k in range(m):
-            best += s[k] * Q[k]
+            _take(best, -s[k], Q[k])
         if b * abs(s[m - 1]) <= tol * abs(theta) or b <= 1e-300:
             return theta, best, True, m
-        Q[j + 1] = z / b
+        for i in range(p):
+            Q[j + 1, i] = z[i] / b
     return theta, best, False, max_steps
 
 
