@@ -67,8 +67,6 @@ def _child(out: Path, folder: str) -> None:
                 own[(func.__module__, func.__name__)] += spent - nested
                 if stack:
                     stack[-1][2] += spent
-            elif stack:  # give it back to the caller
-                stack[-1][2] += 0.0
 
     event.register("numba:compile", Timer())
     first_run.compile_ahead = lambda *a, **k: False  # everything lazily, in this process

@@ -66,8 +66,7 @@ def dump_problem(problem: Problem, description: str = "", meshes: Path | None = 
             if value is not None:
                 lines.append(f"{key} = {_num(value)}")
         if c.moment is not None:
-            moment = c.moment
-            lines.append(f"moment = {_vec(moment) if isinstance(moment, tuple) else _num(moment)}")
+            lines.append(f"moment = {_value(c.moment)}")
     for ld in problem.loads:  # each writes its own table's keys
         lines += ["", "[[load]]"]
         for key, value in ld.to_dict().items():

@@ -27,12 +27,13 @@ import pickle
 import subprocess
 import sys
 import threading
+import time
 from collections.abc import Callable, Iterable
 from pathlib import Path
 from typing import Any
 
 SIGNATURES = Path(__file__).with_name("kernel_signatures.pkl")
-HELPER_TIMEOUT = 300.0  # s: past this the helper is stopped and the rest compiles lazily
+HELPER_TIMEOUT = 300.0  # s: past this nothing waits for the other process any more
 
 Key = tuple[str, str]  # (module, kernel)
 
@@ -135,12 +136,12 @@ def compile_kernels(kernels: Iterable[Key], on_kernel: Callable[[str], None] | N
 
 class _Peer:
     """What the other process has finished, read from its pipe line by line (a key's
-    index in the sorted keys); all of it at once when the pipe ends (it died: waiting
-    for it would be waiting forever, and compiling here is never wrong)."""
+    index among the recorded kernels, sorted); all of it at once when the pipe ends (it
+    died: waiting for it would be waiting forever, and compiling here is never wrong)."""
 
-    def __init__(self, stream, keys: list[Key]) -> None:
-        self.index = {k: i for i, k in enumerate(keys)}
-        self.done = [threading.Event() for _ in keys]
+    def __init__(self, stream, data: dict) -> None:
+        self.index = {k: i for i, k in enumerate(sorted(data["signatures"]))}
+        self.done = [threading.Event() for _ in self.index]
         threading.Thread(target=self._read, args=(stream,), daemon=True).start()
 
     def _read(self, stream) -> None:
@@ -154,21 +155,34 @@ class _Peer:
         for event in self.done:
             event.set()
 
-    def wait(self, keys: Iterable[Key], timeout: float) -> None:
+    def wait(self, keys: Iterable[Key], deadline: float) -> None:
+        """Until those keys are done, or the deadline (``time.monotonic``) has passed."""
         for k in keys:
             if k in self.index:
-                self.done[self.index[k]].wait(timeout)
+                self.done[self.index[k]].wait(max(0.0, deadline - time.monotonic()))
 
 
-def _run(mine: list[Key], theirs: set[Key], data: dict, peer: _Peer, out,
-         on_kernel: Callable[[str], None] | None = None) -> None:
-    """Compile this process's list, each kernel after its callees of the other list,
-    telling ``out`` the index of each one done."""
+def _schedule(data: dict, workers: int) -> list[list[Key]]:
+    """``plan`` over the recorded kernels (a kernel recorded without its cost counts
+    0.1 s)."""
+    cost = data.get("cost", {})
+    return plan({k: float(cost.get(k, 0.1)) for k in sorted(data["signatures"])},
+                data.get("calls", {}), workers)
+
+
+def _run(mine: list[Key], theirs: list[Key], data: dict, peer: _Peer, out,
+         on_kernel: Callable[[str], None] | None = None,
+         alive: Callable[[], bool] = lambda: True) -> None:
+    """Compile this process's list, each kernel after its callees of the other list
+    (waiting at most ``HELPER_TIMEOUT`` in all), telling ``out`` the index of each one
+    done; it stops where ``alive()`` turns false."""
     calls = data.get("calls", {})
     index = peer.index
+    other = set(theirs)
+    deadline = time.monotonic() + HELPER_TIMEOUT
 
     def before(key: Key) -> None:
-        peer.wait([c for c in calls.get(key, ()) if c in theirs], HELPER_TIMEOUT)
+        peer.wait([c for c in calls.get(key, ()) if c in other], deadline)
 
     def after(key: Key) -> None:
         try:
@@ -177,7 +191,10 @@ def _run(mine: list[Key], theirs: set[Key], data: dict, peer: _Peer, out,
         except (OSError, ValueError):  # the other process is gone
             pass
 
-    compile_kernels(mine, on_kernel, data["signatures"], before, after)
+    for key in mine:
+        if not alive():
+            return
+        compile_kernels([key], on_kernel, data["signatures"], before, after)
 
 
 def compile_ahead(on_kernel: Callable[[str], None] | None = None,
@@ -189,22 +206,20 @@ def compile_ahead(on_kernel: Callable[[str], None] | None = None,
     data = recorded()
     if not data:
         return False
-    keys = sorted(data["signatures"])
-    if cores < 2:
-        compile_kernels(plan(_costs(data, keys), data.get("calls", {}), 1)[0], on_kernel,
-                        data["signatures"])
+    helper = None
+    if cores >= 2:
+        try:
+            helper = subprocess.Popen(
+                [sys.executable, "-m", "pliant.models.first_run", str(os.getpid())],
+                stdin=subprocess.PIPE, stdout=subprocess.PIPE, stderr=subprocess.DEVNULL,
+                text=True, bufsize=1)
+        except OSError:
+            helper = None
+    if helper is None:  # one process: the one-worker schedule, callees first
+        compile_kernels(_schedule(data, 1)[0], on_kernel, data["signatures"])
         return False
-    try:
-        helper = subprocess.Popen(
-            [sys.executable, "-m", "pliant.models.first_run", str(os.getpid())],
-            stdin=subprocess.PIPE, stdout=subprocess.PIPE, stderr=subprocess.DEVNULL,
-            text=True, bufsize=1)
-    except OSError:
-        compile_kernels(keys, on_kernel, data["signatures"])
-        return False
-    ours, theirs = plan(_costs(data, keys), data.get("calls", {}))
-    peer = _Peer(helper.stdout, keys)
-    _run(ours, set(theirs), data, peer, helper.stdin, on_kernel)
+    ours, theirs = _schedule(data, 2)
+    _run(ours, theirs, data, _Peer(helper.stdout, data), helper.stdin, on_kernel)
     if on_kernel is not None:
         on_kernel("the helper's half")
     try:
@@ -218,24 +233,15 @@ def compile_ahead(on_kernel: Callable[[str], None] | None = None,
     return True
 
 
-def _costs(data: dict, keys: list[Key]) -> dict[Key, float]:
-    cost = data.get("cost", {})
-    return {k: float(cost.get(k, 0.1)) for k in keys}
-
-
 def _helper(parent: int) -> None:
     """The helper's work: the plan's second list, told by the parent (stdin) what it has
     finished; it stops early if the parent is gone (nothing would wait for it)."""
     data = recorded()
     if not data:
         return
-    keys = sorted(data["signatures"])
-    ours, theirs = plan(_costs(data, keys), data.get("calls", {}))
-    peer = _Peer(sys.stdin, keys)
-    for key in theirs:
-        if os.getppid() != parent:
-            return
-        _run([key], set(ours), data, peer, sys.stdout)
+    ours, theirs = _schedule(data, 2)
+    _run(theirs, ours, data, _Peer(sys.stdin, data), sys.stdout,
+         alive=lambda: os.getppid() == parent)
 
 
 if __name__ == "__main__":

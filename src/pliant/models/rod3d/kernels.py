@@ -242,8 +242,8 @@ def assemble(X, Q, lam, nu, mesh, tg, num, want_jac):
     X (N+1, 3) node positions; Q (F, 4) frame quaternions; lam (N, 3) element
     multipliers; nu (m,) station multipliers (in station order, each station's position
     components first, then its 2 (axis) or 3 (full) orientation ones; the twist gauge
-    last); mesh, tg, num: ``Mesh``, ``Targets`` (with the gauge's frame), ``Numbering``.
-    the gauge holds its frame's twist.
+    last); mesh, tg, num: ``Mesh``, ``Targets`` (with the frame whose twist the gauge
+    holds), ``Numbering``.
     """
     h, elem_frame, joint_hh, K, st_node, st_frame, st_pos_mask, st_kind = mesh
     joint_k0, fnode, st_pos, st_axis_b, st_quat, st_moment, st_ffollow, st_mfollow, _, _ = tg
