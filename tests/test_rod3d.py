@@ -18,7 +18,7 @@ from pliant.errors import (
     UnreachableTargetError,
 )
 from pliant.io.problem_file import load_problem
-from pliant.models import rod3d
+from pliant.models import continuation, rod3d
 from pliant.models.banded import dense
 from pliant.models.rod3d import kernels
 from pliant.models.rod3d.lowering import lower, slerp_vectors
@@ -120,7 +120,7 @@ def test_a_snap_that_ends_on_a_saddle_is_pushed_off_it():
     run = Run(strip.state.rod.retarget(problem, 40) or lower(problem, 40), solver)
     saddle, _, status, _ = run.newton(strip.state.state, run.rod.target, strict=False)
     assert status == kernels.CONVERGED and not stability_of(run, saddle)[0]
-    stayed = run.relax(saddle, run.rod.target)
+    stayed = continuation.relax(run, saddle, run.rod.target)
     assert np.abs(stayed[0][:, 2]).max() < 1e-8  # the plain relaxation: still the saddle
     settled = run.settle(saddle, run.rod.target)
     assert settled is not None and stability_of(run, settled)[0]
@@ -515,7 +515,7 @@ def test_past_a_fold_the_part_snaps_and_settles():
             pass
     last = err.value.last_good
     run = Run(last.state.rod.retarget(strip_turned(0.8), 100), rod3d.RodSolver())
-    fold = Stalled(0.6, 1e-6, "a fold", state=last.state.state, gauge=last.state.gauge_quat,
+    fold = Stalled(0.6, 1e-6, "a fold", state=last.state.state, memo=last.state.gauge_quat,
                     loads=last.state.rod.target, ahead=(run.rod.target,))
     state = run.beyond_fold(fold)
     assert "snaps through" in run.notes[0]

@@ -28,7 +28,7 @@ import itertools
 import math
 from collections.abc import Callable, Iterable, Iterator
 from dataclasses import dataclass, field, replace
-from functools import cmp_to_key
+from functools import partial
 from typing import Any
 
 import numpy as np
@@ -51,9 +51,11 @@ from pliant.core.events import (
 )
 from pliant.core.problem import Problem
 from pliant.errors import ConvergenceError
-from pliant.models import clock
+from pliant.models import clock, continuation
+from pliant.models.continuation import Candidate, Line, Stalled, first_route, ranked
 from pliant.models.elastica2d import kernels, minimum
 from pliant.models.elastica2d.lowering import (
+    APPLIED,
     NODE_SPAN,
     PRESCRIBED,
     Arrays,
@@ -88,6 +90,10 @@ class ShootingSolver:
     bow : the chord shortening of the imperfection that leaves a singular start, as a
         fraction of the shortening the targets ask for; bow_min, bow_max bound its
         curvature amplitude (dimensionless)
+    shared_driver : run each continuation in Python through the shared driver
+        (``pliant.models.continuation.follow``) instead of its compiled twin
+        (``kernels.follow``, the same steps, which also follows the sign of det J): some
+        ten times slower; for checking one against the other
     lowest : in a cold solve with positions held at two stations or more, also minimise
         the energy from a few starting shapes and answer with the stable equilibrium of
         lowest energy found (about 10 ms more); False answers with the route's (as fast
@@ -112,20 +118,10 @@ class ShootingSolver:
     bow_min: float = 0.01
     bow_max: float = 40.0
     lowest: bool = True
+    shared_driver: bool = False
 
     def __post_init__(self) -> None:
         check(self, fractions=("contraction", "shrink"))
-
-
-@dataclass
-class Stalled(Exception):
-    t: float
-    z: np.ndarray
-    residual: float
-    reason: str
-    singular_start: bool = False  # the Jacobian was singular at the homotopy's start
-    budget: bool = False  # a step or time budget ran out (not a property of the path)
-    status: Status = Status.FOLD  # why, for the ConvergenceError
 
 
 @dataclass(frozen=True, eq=False)
@@ -193,10 +189,11 @@ class Run:
         """Continuation from (start, z0), an exact solution, to end (see
         ``kernels.follow``)."""
         opts, low = self.solver, self.low
+        if opts.shared_driver:
+            return self.follow_shared(start, end, z0, mesh, jac0)
         if clock.now() > self.deadline:
-            raise Stalled(0.0, z0, math.inf,
-                           f"the time budget of {opts.time_budget} s ran out", budget=True,
-                           status=Status.TIME_BUDGET)
+            raise Stalled(0.0, math.inf, f"the time budget of {opts.time_budget} s ran out",
+                          budget=True, state=z0, status=Status.TIME_BUDGET)
         options = np.array([opts.tolerance, max(opts.tolerance, opts.loose_tolerance),
                             opts.contraction, opts.min_step, opts.max_steps,
                             opts.max_iterations, opts.accuracy, opts.min_density,
@@ -207,12 +204,12 @@ class Run:
         self.iterations += iterations
         self.steps += steps
         if status == kernels.BUDGET:
-            raise Stalled(t, z, r, f"the continuation budget of {opts.max_steps} steps "
-                           "ran out", budget=True, status=Status.STEP_BUDGET)
+            raise Stalled(t, r, f"the continuation budget of {opts.max_steps} steps "
+                          "ran out", budget=True, state=z, status=Status.STEP_BUDGET)
         if status != kernels.CONVERGED:
-            raise Stalled(t, z, r, _REASONS.get(
+            raise Stalled(t, r, _REASONS.get(
                 last, "Newton stopped contracting however short the step (a fold: the "
-                "branch ends or turns back here)"),
+                "branch ends or turns back here)"), state=z,
                 singular_start=last == kernels.SINGULAR and steps == 0 and t == 0.0,
                 status=_STATUS.get(last, Status.FOLD))
         if crossings:
@@ -222,25 +219,106 @@ class Run:
                 "branch may be the one the part takes"))
         return _Point(z, jac, low.mesh(density), stats, r)
 
+    # -- the shared driver (continuation.Continuable) ------------------------------------
+    def follow_shared(self, start: Arrays, end: Arrays, z0: np.ndarray, mesh: Mesh,
+                      jac0: np.ndarray = _EMPTY_JAC) -> _Point:
+        """``follow`` by the shared driver (``continuation.follow``): its steps are the
+        compiled ``kernels.follow``'s, less the sign of det J; the mesh is refined as the
+        path's solution needs (``correct``), and at the end to the full accuracy."""
+        opts = self.solver
+        span = max(float(np.abs(end.val - start.val).max(initial=0.0)),
+                   float(np.abs(end.fol - start.fol).max(initial=0.0)),
+                   float(np.abs(end.dist - start.dist).max(initial=0.0)),
+                   float(np.abs(end.prm[:3] - start.prm[:3]).max()))
+        stepping = continuation.Stepping(
+            tolerance=opts.tolerance, loose=max(opts.tolerance, opts.loose_tolerance * span),
+            min_step=opts.min_step, max_steps=opts.max_steps, grow=opts.grow,
+            shrink=opts.shrink, wave_step=opts.wave_step, time_budget=opts.time_budget)
+        try:
+            point = continuation.follow(self, Line(start, end),
+                                        _Point(z0, jac0, mesh, np.zeros(2), math.inf),
+                                        stepping, self.deadline)
+        except Stalled as stall:
+            if isinstance(stall.state, _Point):
+                stall.state = stall.state.z
+            raise
+        return self.polish(point)  # the end point on a mesh of the full accuracy
+
+    def correct(self, predictor: _Point, loads: Arrays, *, strict: bool,
+                tol: float | None) -> tuple[_Point, float, Status]:
+        """Newton from the prediction; a converged point whose wavenumber outgrew the
+        mesh (at the path's accuracy) converges again on a finer one."""
+        tol = self.solver.tolerance if tol is None else tol
+        mesh = predictor.mesh
+        z, r, status, jac, stats = self.newton(predictor.z, loads, mesh, strict=strict,
+                                               tol=tol, jac0=predictor.jac)
+        need = int(kernels.needed_density(stats, self.solver.path_accuracy,
+                                           self.solver.min_density))
+        if status == kernels.CONVERGED and need > mesh.density:
+            mesh = self.low.mesh(int(math.ceil(1.1 * need)))
+            z, r, status, jac, stats = self.newton(z, loads, mesh, strict=False, tol=tol)
+        word = Status.CONVERGED if status == kernels.CONVERGED else _STATUS.get(
+            status, Status.FOLD)
+        return _Point(z, jac, mesh, stats, r), r, word
+
+    def tangent(self, state: _Point, path: Line) -> np.ndarray | None:
+        """dz/dt = -J^-1 dG/dt at the start, dG/dt by a forward difference."""
+        eps = 1e-7
+        res, jac, _ = kernels.shoot(  # type: ignore[call-arg]
+            state.z, *self.low.args(path.at(eps), state.mesh), True,
+            np.zeros((0, kernels.NSTATE)))
+        dz, ok = kernels.lu_solve(jac, -res / eps)
+        return dz if ok else None
+
+    def step(self, state: _Point, du: np.ndarray, scale: float) -> _Point:
+        return replace(state, z=state.z + scale * du)
+
+    def difference(self, a: _Point, b: _Point) -> np.ndarray:
+        return b.z - a.z
+
+    def miss(self, predicted: _Point, corrected: _Point) -> float:
+        z = corrected.z
+        return float(np.max(np.abs(z - predicted.z) / np.maximum(1.0, np.abs(z)),
+                            initial=0.0))
+
+    def load_size(self, path: Line) -> tuple[float, float]:
+        """(F, C), the change of the applied forces and moments on the path (as
+        ``kernels.follow`` measures them, distributed loads by their totals)."""
+        low, a, b = self.low, path.start, path.end
+        applied = low.st_kind == APPLIED
+        dv = np.abs(b.val - a.val)
+        force = (float(dv[:, :2][applied[:, :2]].sum()) + float(np.abs(b.fol - a.fol).sum())
+                 + math.hypot(b.prm[0] - a.prm[0], b.prm[1] - a.prm[1])
+                 + float((np.abs(b.dist - a.dist).sum(axis=1)[:-1] * np.diff(low.st_s)).sum()))
+        moment = float(dv[:, 2][applied[:, 2]].sum()) + abs(float(b.prm[2] - a.prm[2]))
+        return force, moment
+
+    def begin_step(self, state: _Point) -> _Point:
+        return state
+
+    def memo(self) -> None:
+        return None
+
     # -- routes ---------------------------------------------------------------------------
     def cold(self) -> _Point:
-        """Try the routes in turn; raise the furthest stall when all fail."""
+        """Try the routes in turn (``continuation.first_route``), the shooting's
+        intervals shortened once where the straight route stalls; where all meet a
+        fold, the energy's minima, else beyond the fold; else the furthest stall."""
         problem = self.low.problem
-        best: Stalled | None = None
         nodes = len(self.low.nodes) + 1
-        attempts = [(nodes, self.straight), (4 * nodes, self.straight),
-                    (nodes, self.two_stage), (nodes, self.swing)]
-        for count, legs in attempts:
+
+        def attempt(count: int, legs: Callable[[Arrays], list[Arrays]]) -> _Point:
             if count != len(self.low.nodes) + 1:
                 self.low = lower(problem, nodes=count)
-            said = len(self.notes)
-            try:
-                return self.lowest(self.route(legs))
-            except Stalled as stall:
-                del self.notes[said:]  # what a failed route found does not hold
-                if best is None or stall.t > best.t:
-                    best = stall
-        assert best is not None
+            return self.lowest(self.route(legs))
+
+        attempts = ((nodes, self.straight), (4 * nodes, self.straight),
+                    (nodes, self.two_stage), (nodes, self.swing), (nodes, self.loads_first))
+        try:
+            return first_route([partial(attempt, c, legs) for c, legs in attempts],
+                               self.notes, self.deadline)
+        except Stalled as stall:
+            best = stall
         if clock.now() < self.deadline:  # a route's step budget is not the solve's
             point = self.minimised(best)
             if point is not None:
@@ -301,12 +379,9 @@ class Run:
         twins = len(found) == 2 and abs(energies[1] - energies[0]) <= 1e-9 * abs(energies[0])
         judged = [(side, point, energy, self.stable(point) if len(found) == 2 and not twins
                    else None) for (side, point), energy in zip(found, energies)]
-        best = judged[0]  # the side the targets push to, unless the other is better:
-        for other in judged[1:]:  # stable (or neutral) first, then the lower energy
-            if (other[3] is not False) > (best[3] is not False) or (
-                    (other[3] is not False) == (best[3] is not False)
-                    and other[2] < best[2] - 1e-9 * abs(best[2]) - 1e-300):
-                best = other
+        # The side the targets push to, unless the other is better (stable or neutral
+        # first, then the lower energy: ``continuation.ranked``).
+        best = ranked([Candidate(j[3], j[2], j) for j in judged], self.scale)[0].item
         word = {True: "stable", False: "unstable", None: "stability undecided"}
         took = (f"{why} (a bifurcation: it can buckle to either side); pliant took "
                 f"the branch that bows to the {'left' if best[0] > 0 else 'right'} of its "
@@ -390,6 +465,16 @@ class Run:
                         np.zeros_like(low.target.dist))
         return [placed, low.target]
 
+    def loads_first(self, rest: Arrays) -> list[Arrays]:
+        """Loads first, with the held components where the rest shape has them; then
+        the targets (as in 3D)."""
+        low = self.low
+        prm = rest.prm.copy()
+        prm[:2] = low.target.prm[:2]
+        loaded = Arrays(np.where(low.st_kind == PRESCRIBED, rest.val, low.target.val),
+                        low.target.fol, prm, low.target.dist)
+        return [loaded, low.target]
+
     def swing(self, rest: Arrays, legs: int = 8) -> list[Arrays]:
         """Carry the held points round the first one along arcs (their distance and
         bearing from it move linearly), as a hand would, instead of along straight
@@ -397,8 +482,8 @@ class Run:
         low = self.low
         ends = low.chord()
         if ends is None:
-            raise Stalled(0.0, np.zeros(low.nz), math.inf, "nothing to swing around",
-                           status=Status.NO_ROUTE)
+            raise Stalled(0.0, math.inf, "nothing to swing around", state=np.zeros(low.nz),
+                          status=Status.NO_ROUTE)
         pivot = ends[0]
         located = np.nonzero((low.st_kind[:, 0] == PRESCRIBED)
                              & (low.st_kind[:, 1] == PRESCRIBED))[0]
@@ -458,10 +543,10 @@ class Run:
         return out
 
     def _judged(self, candidates: list[tuple[Lowered, _Point]]) -> list[tuple]:
-        """Distinct candidates as (unstable, energy, low, point), the best first: stable
-        (or neutral) before unstable, then the lower potential energy; a tie (mirror
-        twins, to 1e-9) keeps the earlier candidate first."""
-        judged: list[tuple] = []
+        """Distinct candidates as (unstable, energy, low, point), the best first
+        (``continuation.ranked``: stable or neutral before unstable, then the lower
+        potential energy; a tie, mirror twins to 1e-9, keeps the earlier first)."""
+        judged: list[Candidate] = []
         seen: list[Equilibrium] = []
         for low, point in candidates:
             self.low = low
@@ -469,15 +554,16 @@ class Run:
             if any(_same(eq, other) for other in seen):
                 continue
             seen.append(eq)
-            judged.append((self.stable(point) is False, self.energy(point), low, point))
+            stable = self.stable(point)
+            energy = self.energy(point)
+            judged.append(Candidate(stable, energy, (stable is False, energy, low, point)))
+        return [c.item for c in ranked(judged, self.scale)]
+
+    @property
+    def scale(self) -> float:
+        """The part's EI / L [J]: the energy below which two levels are one."""
         part = self.low.problem.part
-        scale = part.bending_stiffness / part.length
-
-        def key(j: tuple) -> tuple:  # energies within 1e-9 are one level
-            return j[0], round(j[1] / (1e-9 * (abs(j[1]) + scale)))
-
-        judged.sort(key=key)  # stable sort: ties keep their order
-        return judged
+        return part.bending_stiffness / part.length
 
     @staticmethod
     def _listed(judged: list[tuple]) -> str:
@@ -543,7 +629,8 @@ class Run:
         low = self.low = lower(self.low.problem)
         mesh = self.first_mesh()
         _, z_rest = low.rest(mesh)
-        starts = [stall.z] if stall.z.shape[0] == low.nz else []
+        starts = [stall.state] if (stall.state is not None
+                                   and stall.state.shape[0] == low.nz) else []
         for z0 in starts + [z_rest]:
             z, r, status, jac, stats = self.newton(z0, low.target, mesh, strict=False,
                                                    tol=self.solver.tolerance)
@@ -627,7 +714,7 @@ class Run:
         z, r, status, jac, stats = self.newton(point.z, self.low.target, mesh, strict=False,
                                                tol=self.solver.tolerance, jac0=point.jac)
         if status != kernels.CONVERGED:
-            raise Stalled(1.0, point.z, r, "the refined mesh did not converge")
+            raise Stalled(1.0, r, "the refined mesh did not converge", state=point.z)
         return _Point(z, jac, mesh, stats, r)
 
 
@@ -724,17 +811,17 @@ def equilibria(problem: Problem, *, solver: ShootingSolver | None = None,
                budget: float = 5.0) -> list[Equilibrium]:
     """The distinct equilibria of a 2D problem that pliant's routes reach from the
     unloaded part within ``budget`` seconds: each route of a cold solve (straight, more
-    restart nodes, positions first, a swing round the first support) and, from a singular
-    start, each bow side; then the minima of the energy from a few starting shapes
-    (``minimum``). Stable (and neutral) ones first, then unstable, each group by
-    potential energy (``pliant.core.equilibrium.potential_energy``); the first is what
+    restart nodes, positions first, a swing round the first support, loads first) and,
+    from a singular start, each bow side; then the minima of the energy from a few
+    starting shapes (``minimum``). Stable (and neutral) ones first, then unstable, each
+    group by potential energy (``pliant.core.equilibrium.potential_energy``); the first is what
     ``solve`` would choose among them. Empty when no route reaches one."""
     solver = solver or ShootingSolver()
     deadline = clock.now() + budget
     nodes = len(lower(problem).nodes) + 1
     found: list[Equilibrium] = []
     for count, name in ((nodes, "straight"), (4 * nodes, "straight"),
-                        (nodes, "two_stage"), (nodes, "swing")):
+                        (nodes, "two_stage"), (nodes, "swing"), (nodes, "loads_first")):
         left = deadline - clock.now()
         if left <= 0.0:
             break
@@ -762,19 +849,12 @@ def equilibria(problem: Problem, *, solver: ShootingSolver | None = None,
                          notes=("reached by minimising the energy",))
             if not any(_same(eq, other) for other in found):
                 found.append(eq)
-    energy = {id(e): potential_energy(e) for e in found}
-
-    def order(a: Equilibrium, b: Equilibrium) -> int:
-        ua, ub = a.verdict == "unstable", b.verdict == "unstable"
-        if ua != ub:
-            return 1 if ua else -1
-        ea, eb = energy[id(a)], energy[id(b)]
-        if abs(ea - eb) <= 1e-9 * max(abs(ea), abs(eb)):
-            return 0  # twins keep the order the routes reached them in (solve's first)
-        return -1 if ea < eb else 1
-
-    found.sort(key=cmp_to_key(order))
-    return found
+    # Stable and neutral first, then by energy; twins keep the order the routes reached
+    # them in (solve's first): ``continuation.ranked``.
+    part = problem.part
+    return [c.item for c in ranked(
+        [Candidate(e.verdict != "unstable", potential_energy(e), e) for e in found],
+        part.bending_stiffness / part.length)]
 
 
 def _same(a: Equilibrium, b: Equilibrium) -> bool:

@@ -39,10 +39,12 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from pliant.core.events import Status
 from pliant.core.problem import PROBE_SAG, WALL_COMPLIANCE
 from pliant.errors import ConvergenceError
-from pliant.models import clock
+from pliant.models import clock, continuation
 from pliant.models.banded import band_lu, band_lu_solve, band_reduce
+from pliant.models.continuation import Stalled
 from pliant.models.rod3d import kernels, spline
 from pliant.models.rod3d.links import Joint, LinkTerms, Pivot, Slider, _Block
 from pliant.models.rod3d.lowering import Loads, Rod, State
@@ -722,8 +724,8 @@ class Coupling(LinkTerms):
             states, mus, ev, r = new_states, new_mus, new, rn
         return states, mus, r, r <= tol
 
-    def tangent(self, members: list[_Member], states: list[State], mus: list[np.ndarray],
-                w0: float, w1: float):
+    def direction_at(self, members: list[_Member], states: list[State],
+                     mus: list[np.ndarray], w0: float, w1: float):
         """The path's tangent at its start, (du, dmu) per unit of t: J d/dt (u) = -dR/dt,
         dR/dt by a forward difference (the first predictor; secants after it). None
         where the start is singular."""
@@ -745,68 +747,82 @@ class Coupling(LinkTerms):
     def follow(self, members: list[_Member], states: list[State], mus: list[np.ndarray],
                w0: float, w1: float, deadline: float, strict: bool = True):
         """Continuation from (states, mus), an equilibrium of the members' start loads at
-        weight w0, to their end loads at weight w1: steps halved where Newton fails,
-        secant predictors."""
+        weight w0, to their end loads at weight w1, by the shared driver
+        (``continuation.follow``): steps doubled after each success and cut where Newton
+        fails (after one more try from the last point), secant predictors."""
+        return continuation.follow(self, _Leg(members, w0, w1), (states, mus),
+                                   self.stepping, deadline, strict=strict,
+                                   need_tangent=False)
+
+    # -- what the shared driver asks (continuation.Continuable) --------------------------
+    @property
+    def stepping(self) -> continuation.Stepping:
         opts = self.solver
-        t, dt = 0.0, 1.0
-        prev = None
-        tangent = self.tangent(members, states, mus, w0, w1)
-        while True:
-            if clock.now() > deadline:
-                raise _CoupledStall(t, "the time budget of "
-                                    f"{opts.time_budget} s ran out", states, mus)
-            t_next = min(1.0, t + dt)
-            loads = [m.start.lerp(m.end, t_next) for m in members]
-            weight = w0 + t_next * (w1 - w0)
-            # Friction in sliding clips is measured from where this step starts.
-            self.slide_ref = {k: float(mus[self.slot("slider", k)][0])
-                              for k in range(len(self.sliders))}
-            if self.rubbing:
-                mus = [m.copy() for m in mus]
-                self.hold_friction(states, mus)
-            if prev is None and tangent is not None:
-                du, dmu = tangent
-                guess = [run.step(s, d, t_next - t) for run, s, d in zip(self.runs, states, du)]
-                guess_mu = [mu + (t_next - t) * d for mu, d in zip(mus, dmu)]
-            elif prev is None:
-                guess, guess_mu = states, mus
-            else:
-                t_prev, s_prev, mu_prev = prev
-                f = (t_next - t) / (t - t_prev)
-                guess = [run.step(s, run.difference(sp, s), f)
-                         for run, s, sp in zip(self.runs, states, s_prev)]
-                guess_mu = [mu + f * (mu - mp) for mu, mp in zip(mus, mu_prev)]
-                guess_mu = [np.maximum(g, 0.0) if i < len(self.pairs) else g
-                            for i, g in enumerate(guess_mu)]  # contact forces push
-            final = t_next >= 1.0
-            tol = opts.tolerance if final else max(opts.tolerance, 1e-7)
-            new, new_mu, r, ok = self.newton(guess, guess_mu, loads, weight, strict=strict,
-                                             tol=tol)
-            if not ok and prev is not None:  # the secant overshot: from the last point
-                new, new_mu, r, ok = self.newton(states, mus, loads, weight, strict=strict,
-                                                 tol=tol)
-            if ok:
-                self.steps += 1
-                prev = (t, states, mus)
-                states, mus, t = new, new_mu, t_next
-                if final:
-                    return states, mus
-                dt = min(1.0 - t, 2.0 * dt)
-            else:
-                dt *= 0.25
-                if dt < 1e-5:
-                    raise _CoupledStall(t, f"Newton failed however short the step "
-                                        f"(residual {r:.2e}): a fold, or parts driven "
-                                        "through each other", states, mus, r)
+        return continuation.Stepping(
+            tolerance=opts.tolerance, loose=max(opts.tolerance, 1e-7), min_step=1e-5,
+            max_steps=None, grow=None, retry_from_last=True, time_budget=opts.time_budget,
+            fold_hint=", or parts driven through each other")
+
+    def correct(self, predictor: tuple, loads: tuple, *, strict: bool, tol: float | None
+                ) -> tuple[tuple, float, Status]:
+        states, mus = predictor
+        tol = self.solver.tolerance if tol is None else tol
+        new, new_mu, r, ok = self.newton(states, mus, loads[0], loads[1], strict=strict,
+                                         tol=tol)
+        return (new, new_mu), r, Status.CONVERGED if ok else Status.FOLD
+
+    def tangent(self, state: tuple, path: _Leg) -> tuple | None:
+        states, mus = state
+        return self.direction_at(path.members, states, mus, path.w0, path.w1)
+
+    def step(self, state: tuple, du: tuple, scale: float) -> tuple:
+        (states, mus), (dus, dmus) = state, du
+        moved = [mu + scale * d for mu, d in zip(mus, dmus)]
+        return ([run.step(s, d, scale) for run, s, d in zip(self.runs, states, dus)],
+                [np.maximum(g, 0.0) if i < len(self.pairs) else g  # contact forces push
+                 for i, g in enumerate(moved)])
+
+    def difference(self, a: tuple, b: tuple) -> tuple:
+        return ([run.difference(sa, sb) for run, sa, sb in zip(self.runs, a[0], b[0])],
+                [mb - ma for ma, mb in zip(a[1], b[1])])
+
+    def miss(self, predicted: tuple, corrected: tuple) -> float:
+        return 0.0  # the steps double: no distance aimed at
+
+    def load_size(self, path: _Leg) -> tuple[float, float]:
+        return 0.0, 0.0
+
+    def begin_step(self, state: tuple) -> tuple:
+        """Friction in sliding clips, and between parts, is measured from where this
+        step starts."""
+        states, mus = state
+        self.slide_ref = {k: float(mus[self.slot("slider", k)][0])
+                          for k in range(len(self.sliders))}
+        if self.rubbing:
+            mus = [m.copy() for m in mus]
+            self.hold_friction(states, mus)
+        return states, mus
+
+    def memo(self) -> None:
+        return None
 
 
-@dataclass
-class _CoupledStall(Exception):
-    t: float
-    reason: str
-    states: list
-    mus: list
-    residual: float = math.inf
+@dataclass(frozen=True)
+class _Leg:
+    """The coupled homotopy: each member's loads from its start to its end, and the
+    weight of the contact forces on the second part of every pair from w0 to w1."""
+
+    members: list[_Member]
+    w0: float
+    w1: float
+
+    @property
+    def end(self) -> tuple[list[Loads], float]:
+        return self.at(1.0)
+
+    def at(self, t: float) -> tuple[list[Loads], float]:
+        return ([m.start.lerp(m.end, t) for m in self.members],
+                self.w0 + t * (self.w1 - self.w0))
 
 
 def _factor(run: Run, ab: np.ndarray):
@@ -883,8 +899,9 @@ def solve_coupled(runs: list[Run], states: list[State], *, solver: RodSolver,
             states, mus = coupling.follow(fixed, states, mus, 0.0, 1.0, deadline)
             members = [_Member(run, s, run.rod.target) for run, s in zip(runs, start)]
         states, mus = coupling.follow(members, states, mus, 1.0, 1.0, deadline)
-    except _CoupledStall as stall:
+    except Stalled as stall:
         raise ConvergenceError(
             f"no equilibrium of the parts together: {stall.reason}; stopped at "
-            f"{stall.t:.3g} of the way", residual=stall.residual, progress=stall.t) from None
+            f"{stall.t:.3g} of the way", residual=stall.residual, progress=stall.t,
+            status=stall.status) from None
     return coupling, states, mus

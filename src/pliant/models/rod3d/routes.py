@@ -7,38 +7,25 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable
-from dataclasses import dataclass, replace
-from typing import TYPE_CHECKING, Any, cast
+from dataclasses import replace
+from functools import partial
+from typing import TYPE_CHECKING, cast
 
 import numpy as np
 
 from pliant.core.equilibrium import potential_energy
 from pliant.core.events import BranchTaken, Snapped, Status
-from pliant.models import clock
-from pliant.models.rod3d import kernels
+from pliant.models import continuation
+from pliant.models.continuation import Candidate, Stalled, first_route, ranked
 from pliant.models.rod3d.lowering import Loads, Rod, State, quat_matrix
 from pliant.models.rod3d.results import probe
-from pliant.models.rod3d.stability import conservative, metric, stability_of
+from pliant.models.rod3d.stability import conservative, stability_of
 
 if TYPE_CHECKING:
     from pliant.models.rod3d.solver import RodSolver, Run
 
 
 _BRANCH_NOTE = "the unloaded part was a singular start"
-
-
-@dataclass
-class Stalled(Exception):
-    t: float
-    residual: float
-    reason: str
-    singular_start: bool = False
-    budget: bool = False
-    state: State | None = None  # the last good state on the path
-    gauge: np.ndarray | None = None  # its twist gauge
-    loads: Loads | None = None  # its loads and targets
-    ahead: tuple[Loads, ...] = ()  # what was left of the route: the leg's end and after
-    status: Status = Status.FOLD  # why, for the ConvergenceError
 
 
 class Routes:
@@ -52,38 +39,22 @@ class Routes:
     deadline: float
     reached: list | None
 
-    if TYPE_CHECKING:  # Run's: the continuation and the Newton the routes drive
-        def follow(self, start: Loads, end: Loads, state: State) -> State: ...
-
-        def newton(self, state: State, loads: Loads, *, strict: bool,
-                   tol: float | None = None) -> Any: ...
-
-        def residual(self, state: State, loads: Loads, want_jac: bool = False) -> Any: ...
-
-        def solve_linear(self, ab: np.ndarray, rhs: np.ndarray
-                         ) -> tuple[np.ndarray, bool]: ...
-
-        def step(self, state: State, du: np.ndarray, scale: float) -> State: ...
+    if TYPE_CHECKING:  # Run's: the driver's settings
+        @property
+        def stepping(self) -> continuation.Stepping: ...
 
     # -- routes ---------------------------------------------------------------------------
     def cold(self) -> State:
-        """Try the routes in turn; past a fold on all, look beyond it; else raise the
-        furthest stall."""
-        best: Stalled | None = None
-        for legs in (self.straight, self.two_stage, self.swing, self.loads_first):
-            said = len(self.notes)
-            try:
-                return self.route(legs)
-            except Stalled as stall:
-                del self.notes[said:]  # what a failed route found does not hold
-                if best is None or stall.t > best.t:
-                    best = stall
-                if stall.budget and clock.now() > self.deadline:
-                    break
-        assert best is not None
-        if best.budget:
-            raise best
-        return self.beyond_fold(best)
+        """Try the routes in turn (``continuation.first_route``); past a fold on all,
+        look beyond it; else raise the furthest stall."""
+        try:
+            return first_route([partial(self.route, legs) for legs in (
+                self.straight, self.two_stage, self.swing, self.loads_first)],
+                self.notes, self.deadline)
+        except Stalled as best:
+            if best.budget:
+                raise
+            return self.beyond_fold(best)
 
     def route(self, legs: Callable[[Loads], list[Loads]]) -> State:
         """Follow the legs from the rest state to the problem. A singular start (an end
@@ -166,12 +137,12 @@ class Routes:
             if len(stable) == 2 and self.reached is None:
                 break
         if stable:
-            # Of the first two stable branches, the lower potential energy; the side the
-            # targets push to keeps a tie (mirror twins).
+            # The lowest stable branch (``continuation.ranked``); the side the targets
+            # push to keeps a tie (mirror twins).
+            part = rod.problem.part
             first = stable[0]
-            chosen = first
-            if len(stable) == 2 and stable[1][3] < first[3] - 1e-9 * abs(first[3]) - 1e-300:
-                chosen = stable[1]
+            chosen = ranked([Candidate(True, c[3], c) for c in stable],
+                            part.bending_stiffness / part.length)[0].item
             found, bow_side, self.gauge_quat, energy = chosen
             if chosen is first and first[1] is side:
                 why = "where its targets and loads push it"
@@ -201,17 +172,10 @@ class Routes:
             "may exist", side=tuple(float(c) for c in side)))
 
     def through(self, start: Loads, targets: list[Loads], state: State) -> State:
-        """Follow the homotopies start -> targets[0] -> targets[1] -> ...; a stall's
-        progress counts over the whole route."""
-        for i, end in enumerate(targets):
-            try:
-                state = self.follow(start, end, state)
-            except Stalled as stall:
-                stall.t = (i + stall.t) / len(targets)
-                stall.ahead = stall.ahead + tuple(targets[i + 1:])
-                raise
-            start = end
-        return state
+        """Follow the homotopies start -> targets[0] -> targets[1] -> ...
+        (``continuation.through``)."""
+        return continuation.through(cast("Run", self), start, targets, state,
+                                    self.stepping, self.deadline)
 
     def straight(self, rest: Loads) -> list[Loads]:
         """Loads and targets together: positions along straight lines, orientations along
@@ -283,11 +247,11 @@ class Routes:
         fold, then go on along the route; up to ``snaps`` times. Say so."""
         at: list[float] = []
         while True:
-            if (stall.state is None or stall.loads is None or stall.gauge is None
+            if (stall.state is None or stall.loads is None or stall.memo is None
                     or not stall.ahead or len(at) >= snaps):
                 raise stall
             at.append(stall.t)
-            self.gauge_quat = stall.gauge
+            self.gauge_quat = stall.memo
             end, *rest = stall.ahead
             past = stall.loads.lerp(end, min(1.0, max(1e-3, 10.0 * self.solver.min_step)))
             state = self.settle(stall.state, past)
@@ -307,74 +271,10 @@ class Routes:
                 at=float(at[0]), count=len(at)))
             return state
 
-    def settle(self, state: State, loads: Loads, push: float = 0.05) -> State | None:
-        """Relax (``relax``); where that ends on a saddle (an unstable equilibrium: the
-        flow slowed next to it and the closing Newton landed on it), push the part along
-        the saddle's unstable mode by ``push`` L, one way then the other, and relax
-        again, so that the snap cannot stall at a saddle: the state it settles in is
-        stable (or neutral), or None."""
-        current = self.relax(state, loads)
-        for _ in range(3):
-            if current is None:
-                return None
-            mode: list = []
-            stable, _ = stability_of(cast("Run", self), current, found=mode, loads=loads)
-            if stable or not mode:
-                return current
-            primal, _ = metric(self.rod)
-            du = np.zeros(self.rod.n)
-            du[np.flatnonzero(primal)] = mode[0]
-            du *= push / max(float(np.abs(du).max()), 1e-300)
-            pushed = None
-            for sign in (1.0, -1.0):
-                pushed = self.relax(self.step(current, sign * du, 1.0), loads)
-                if pushed is not None:
-                    break
-            current = pushed
-        return None
-
-    def relax(self, state: State, loads: Loads, max_steps: int = 600,
-              stride: float = 0.02) -> State | None:
-        """Pseudo-transient continuation: implicit Euler steps of the gradient flow
-        W du/dtau = -grad E under the constraints, each one Newton iteration on
-        [K + W / dtau, A^T; A, 0] [du; dlam] = -R. The pseudo-time step adapts so that
-        each step moves the part about ``stride`` L; as the flow settles the steps grow
-        and it ends as Newton. Implicit Euler leaves a saddle (an equilibrium just past a
-        fold) along its unstable direction, where a Newton would stay or wander."""
-        rod = self.rod
-        primal, weight = metric(rod)
-        shift_of = np.where(primal, weight, 0.0)
-        kl, ku = rod.kl, rod.ku
-        R, ab, _ = self.residual(state, loads, want_jac=True)
-        if not np.isfinite(R).all():
-            return None
-        sigma = float((np.abs(ab[primal, kl + ku]) / shift_of[primal]).max())
-        ceiling = 1e8 * max(sigma, 1.0)
-        for _ in range(max_steps):
-            if clock.now() > self.deadline or sigma > ceiling:
-                return None  # out of time, or no step short enough: it cannot settle
-            ab[:, kl + ku] += sigma * shift_of
-            du, ok = self.solve_linear(ab, -R)
-            move = float(np.abs(du[primal]).max()) if ok else math.inf
-            if not math.isfinite(move) or move > 4.0 * stride:
-                sigma *= 4.0  # too long a step: a shorter one
-                R, ab, _ = self.residual(state, loads, want_jac=True)
-                continue
-            state = self.step(state, du, 1.0)
-            R, ab, _ = self.residual(state, loads, want_jac=True)
-            self.iterations += 1
-            if move < 0.25 * stride:
-                sigma *= 0.25
-                if sigma < 1e-12:  # a Newton step: settled
-                    break
-            elif move < stride:
-                sigma *= 0.5
-            else:
-                sigma *= 2.0
-        else:
-            return None
-        state, _r, status, _ = self.newton(state, loads, strict=False)
-        return state if status == kernels.CONVERGED else None
+    def settle(self, state: State, loads: Loads) -> State | None:
+        """Let the part settle past a fold (``continuation.settle``: a relaxation pushed
+        along a saddle's unstable mode)."""
+        return continuation.settle(cast("Run", self), state, loads)
 
 
 def _chord(rod: Rod) -> tuple[int, int] | None:

@@ -40,15 +40,20 @@ from pliant.core.equilibrium import WARM_START_LOST, Equilibrium3D, StationLoad,
 from pliant.core.events import BranchTaken, LowestEquilibrium, Status, WarmStartLost
 from pliant.core.problem import Problem
 from pliant.errors import ConvergenceError, IllPosedProblemError, InputError
-from pliant.models import clock
+from pliant.models import clock, continuation
+from pliant.models.continuation import Line, Stalled
 from pliant.models.rod3d import contact_kernels, kernels
 from pliant.models.rod3d.kernels import AXIS
 from pliant.models.rod3d.lowering import Loads, Rod, State, axis_basis, lower, qmul, quat_matrix
 from pliant.models.rod3d.results import WarmState, build, station_loads
-from pliant.models.rod3d.routes import _BRANCH_NOTE, Routes, Stalled
-from pliant.models.rod3d.stability import conservative
+from pliant.models.rod3d.routes import _BRANCH_NOTE, Routes
+from pliant.models.rod3d.stability import conservative, metric, stability_of
 from pliant.models.settings import check
 
+# The Newton kernels' codes as the driver's statuses (a corrector that did not contract:
+# the path turns back there).
+_STATUS = {kernels.CONVERGED: Status.CONVERGED, kernels.SINGULAR: Status.SINGULAR,
+           kernels.NOT_FINITE: Status.NOT_FINITE}
 _SWITCHES = 6  # active-set changes a Newton may take without contracting
 # Weighs a gap against a contact force in min(gam, scale g), times (0.01 / h)^2 past 100
 # elements: the rows then grow with the bending terms (as 1 / h^2), so that the pivot of
@@ -237,66 +242,76 @@ class Run(Routes):
         return du
 
     def follow(self, start: Loads, end: Loads, state: State) -> State:
-        """Continuation from (start, state), an exact solution, to end."""
+        """Continuation from (start, state), an exact solution, to end (the shared
+        driver's ``continuation.follow``)."""
+        return continuation.follow(self, Line(start, end), state, self.stepping,
+                                   self.deadline)
+
+    # -- what the shared driver asks (continuation.Continuable, Relaxable) --------------
+    @cached_property
+    def stepping(self) -> continuation.Stepping:
         opts = self.solver
-        # The tangent at the start: J du = -dR/dt, dR/dt by a forward difference.
+        return continuation.Stepping(
+            tolerance=opts.tolerance, loose=max(opts.tolerance, 1e-7),
+            min_step=opts.min_step, max_steps=opts.max_steps, grow=opts.grow,
+            wave_step=opts.wave_step, time_budget=opts.time_budget)
+
+    def correct(self, predictor: State, loads: Loads, *, strict: bool, tol: float | None
+                ) -> tuple[State, float, Status]:
+        state, r, status, _ = self.newton(predictor, loads, strict=strict, tol=tol)
+        return state, r, _STATUS.get(status, Status.FOLD)
+
+    def tangent(self, state: State, path: Line) -> np.ndarray | None:
+        """J du = -dR/dt at the start, dR/dt by a forward difference."""
         eps = 1e-7
-        R_eps, ab, _ = self.residual(state, start.lerp(end, eps), want_jac=True)
-        tangent, ok = self.solve_linear(ab, -R_eps / eps)
-        if not ok or not float(np.abs(tangent).max()) < 1e10:  # singular up to rounding
-            raise Stalled(0.0, math.inf, "the start is singular", singular_start=True,
-                           status=Status.SINGULAR)
-        load_f, load_c = _load_size(start, end, self.rod.h)
-        root_f = math.sqrt(load_f)
-        t, dt = 0.0, 1.0
-        prev: tuple[float, State] | None = None
-        steps = 0
-        while True:
-            if steps >= opts.max_steps:
-                raise Stalled(t, math.inf, f"the continuation budget of {opts.max_steps} "
-                               "steps ran out", budget=True, state=state,
-                               gauge=self.gauge_quat.copy(), status=Status.STEP_BUDGET)
-            if clock.now() > self.deadline:
-                raise Stalled(t, math.inf, f"the time budget of {opts.time_budget} s ran "
-                               "out", budget=True, state=state, gauge=self.gauge_quat.copy(),
-                               status=Status.TIME_BUDGET)
-            # No step may raise the loads' wavenumber sqrt(t F) + t C by more than wave_step.
-            k_next = math.sqrt(t) * root_f + t * load_c + opts.wave_step
-            if load_c > 0.0 or root_f > 0.0:
-                u = 2.0 * k_next / (root_f + math.sqrt(root_f**2 + 4.0 * load_c * k_next))
-                dt = min(dt, max(u * u - t, opts.min_step))
-            t_next = min(1.0, t + dt)
-            loads = start.lerp(end, t_next)
-            if prev is None:
-                predictor = self.step(state, tangent, t_next - t)
-            else:
-                t_prev, s_prev = prev
-                predictor = self.step(state, self.difference(s_prev, state),
-                                      (t_next - t) / (t - t_prev))
-            final = t_next >= 1.0
-            corrected, r, status, _ = self.newton(predictor, loads, strict=True,
-                                                  tol=None if final else max(
-                                                      opts.tolerance, 1e-7))
-            if status == kernels.CONVERGED:
-                steps += 1
-                self.steps += 1
-                du = self.difference(predictor, corrected)
-                miss = float(np.max((np.abs(du) / self.sizes(corrected))[self.judged]))
-                prev, state, t = (t, state), corrected, t_next
-                if final:
-                    return state
-                dt = min(1.0, dt * min(4.0, max(0.5, math.sqrt(opts.grow / max(miss, 1e-300)))))
-            else:
-                dt *= 0.25
-                if dt < opts.min_step:
-                    reason = ("the Jacobian became singular (a fold or bifurcation: the branch "
-                              "ends or turns back here)" if status == kernels.SINGULAR else
-                              "Newton stopped contracting however short the step (a fold: "
-                              "the branch ends or turns back here)")
-                    raise Stalled(t, r, reason, state=state, gauge=self.gauge_quat.copy(),
-                                   loads=start.lerp(end, t), ahead=(end,),
-                                   status=Status.SINGULAR if status == kernels.SINGULAR
-                                   else Status.FOLD)
+        R_eps, ab, _ = self.residual(state, path.at(eps), want_jac=True)
+        du, ok = self.solve_linear(ab, -R_eps / eps)
+        if not ok or not float(np.abs(du).max()) < 1e10:  # singular up to rounding
+            return None
+        return du
+
+    def miss(self, predicted: State, corrected: State) -> float:
+        du = self.difference(predicted, corrected)
+        return float(np.max((np.abs(du) / self.sizes(corrected))[self.judged]))
+
+    def load_size(self, path: Line) -> tuple[float, float]:
+        return _load_size(path.start, path.end, self.rod.h)
+
+    def begin_step(self, state: State) -> State:
+        return state
+
+    def memo(self) -> np.ndarray:
+        return self.gauge_quat.copy()
+
+    @cached_property
+    def _metric(self) -> tuple[np.ndarray, np.ndarray]:
+        primal, weight = metric(self.rod)
+        return primal, np.where(primal, weight, 0.0)
+
+    def gradient(self, state: State, loads: Loads) -> tuple[np.ndarray, np.ndarray]:
+        R, ab, _ = self.residual(state, loads, want_jac=True)
+        return R, ab
+
+    def diagonal_scale(self, jac: np.ndarray) -> float:
+        primal, shift = self._metric
+        return float((np.abs(jac[primal, self.rod.kl + self.rod.ku]) / shift[primal]).max())
+
+    def shifted_solve(self, jac: np.ndarray, sigma: float, rhs: np.ndarray
+                      ) -> tuple[np.ndarray, bool]:
+        jac[:, self.rod.kl + self.rod.ku] += sigma * self._metric[1]
+        return self.solve_linear(jac, rhs)
+
+    def primal_move(self, du: np.ndarray) -> float:
+        return float(np.abs(du[self._metric[0]]).max())
+
+    def unstable_mode(self, state: State, loads: Loads) -> np.ndarray | None:
+        mode: list = []
+        stable, _ = stability_of(self, state, found=mode, loads=loads)
+        if stable or not mode:
+            return None
+        du = np.zeros(self.rod.n)
+        du[np.flatnonzero(self._metric[0])] = mode[0]
+        return du
 
     @cached_property
     def judged(self) -> np.ndarray:
@@ -664,7 +679,7 @@ def _release_roll(run: Run, state: State) -> State:
         run.gauge_quat = base
         raise Stalled(1.0, math.inf, "the roll of the flat section that nothing holds in "
                        "twist could not be found; hold the section's orientation "
-                       "(tangent and normal) somewhere", state=state, gauge=base)
+                       "(tangent and normal) somewhere", state=state, memo=base)
     phi, s, _ = found
     at(phi, s)  # the gauge where the root is, for the state and the warm starts after
     return s

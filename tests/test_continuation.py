@@ -1,0 +1,208 @@
+"""The shared continuation driver (``pliant.models.continuation``): its stepping on a
+model with a closed-form path and fold, its budgets and stalls, the branch ranking, and
+the 2D model driven by it against its compiled twin."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import pytest
+
+import pliant as pl
+from pliant.core.events import Status
+from pliant.models import clock, continuation, elastica2d
+from pliant.models.continuation import Candidate, Stalled, Stepping, ranked
+
+from .helpers import zoo
+from .test_elastica2d_closed_form import cantilever_tip
+
+
+@dataclass
+class Cubic:
+    """x^3 - 3 x = lam, lam from ``start`` to ``end``: the middle branch (|x| < 1) runs
+    from x = 0 at lam = 0 down to its fold at x = -1, lam = 2 (dlam/dx = 3 x^2 - 3)."""
+
+    steps: int = 0
+    iterations: int = 0
+    force: float = 0.0  # the load size F that the wavenumber rule caps
+
+    def correct(self, predictor, loads, *, strict, tol):
+        x, lam = float(predictor), float(loads)
+        r0 = abs(x**3 - 3 * x - lam)
+        tol = 1e-12 if tol is None else tol
+        for _ in range(30):
+            r = x**3 - 3 * x - lam
+            if abs(r) <= tol:
+                return np.float64(x), abs(r), Status.CONVERGED
+            slope = 3 * x * x - 3
+            if abs(slope) < 1e-14:
+                return np.float64(x), abs(r), Status.SINGULAR
+            new = x - r / slope
+            self.iterations += 1
+            if strict and abs(new**3 - 3 * new - lam) > 0.5 * max(abs(r), 1e-300) \
+                    and abs(new**3 - 3 * new - lam) > tol:
+                return np.float64(x), r0, Status.FOLD
+            x = new
+        return np.float64(x), abs(x**3 - 3 * x - lam), Status.FOLD
+
+    def tangent(self, state, path):
+        slope = 3 * float(state) ** 2 - 3
+        return None if abs(slope) < 1e-14 else np.float64((path.end - path.start) / slope)
+
+    def step(self, state, du, scale):
+        return state + scale * du
+
+    def difference(self, a, b):
+        return b - a
+
+    def miss(self, predicted, corrected):
+        return abs(float(corrected) - float(predicted)) / max(1.0, abs(float(corrected)))
+
+    def load_size(self, path):
+        return self.force, 0.0
+
+    def begin_step(self, state):
+        return state
+
+    def memo(self):
+        return "memo"
+
+
+@dataclass(frozen=True)
+class Lam:
+    start: float
+    end: float
+
+    def at(self, t: float) -> float:
+        return self.start + t * (self.end - self.start)
+
+
+STEPPING = Stepping(tolerance=1e-12, loose=1e-9, min_step=1e-7, max_steps=500, grow=0.1)
+
+
+def middle_root(lam: float) -> float:
+    roots = np.roots([1.0, 0.0, -3.0, -lam])
+    return float(next(r.real for r in roots if abs(r.imag) < 1e-9 and abs(r.real) < 1.0))
+
+
+def test_the_driver_follows_a_branch_to_its_end():
+    model = Cubic()
+    x = continuation.follow(model, Lam(0.0, 1.5), np.float64(0.0), STEPPING,
+                            clock.now() + 10.0)
+    assert float(x) == pytest.approx(middle_root(1.5), abs=1e-11)
+    assert 1 <= model.steps < 50
+
+
+def test_no_step_raises_the_loads_wavenumber_by_more_than_one():
+    """With F = 100 the wavenumber sqrt(t F) reaches 10 at t = 1: steps of one in it end
+    at t = (n / 10)^2, ten steps, where the corrector alone would take one."""
+    model = Cubic(force=100.0)
+    x = continuation.follow(model, Lam(0.0, 1.5), np.float64(0.0), STEPPING,
+                            clock.now() + 10.0)
+    assert float(x) == pytest.approx(middle_root(1.5), abs=1e-11)
+    assert model.steps in (10, 11)  # (11 where round-off leaves t a hair below 1)
+    free = Cubic()
+    continuation.follow(free, Lam(0.0, 1.5), np.float64(0.0), STEPPING, clock.now() + 10.0)
+    assert free.steps < model.steps
+
+
+def test_the_driver_stops_at_a_fold_and_keeps_the_last_good_point():
+    """Past lam = 2 the middle branch has no point: the stall is at t = 2/3 of the way
+    0 -> 3, a fold, with the last good point on the branch next to x = -1."""
+    with pytest.raises(Stalled) as err:
+        continuation.follow(Cubic(), Lam(0.0, 3.0), np.float64(0.0), STEPPING,
+                            clock.now() + 10.0)
+    stall = err.value
+    assert stall.status in (Status.FOLD, Status.SINGULAR) and not stall.budget
+    assert stall.t == pytest.approx(2.0 / 3.0, abs=1e-3)
+    lam = 3.0 * stall.t
+    x = float(stall.state)  # on the middle branch, to the path's loose tolerance
+    assert -1.0 < x < -0.99 and abs(x**3 - 3 * x - lam) <= STEPPING.loose
+    assert x == pytest.approx(middle_root(lam), abs=STEPPING.loose / abs(3 * x * x - 3))
+    assert stall.memo == "memo" and stall.ahead == (3.0,) and stall.loads == lam
+
+
+def test_a_singular_start_and_the_budgets_are_typed_stalls():
+    with pytest.raises(Stalled) as err:  # x = 1 is the other fold: singular at the start
+        continuation.follow(Cubic(), Lam(-2.0, -1.0), np.float64(1.0), STEPPING,
+                            clock.now() + 10.0)
+    assert err.value.singular_start and err.value.status == Status.SINGULAR
+    tight = Stepping(tolerance=1e-12, loose=1e-9, min_step=1e-7, max_steps=2, grow=0.1)
+    with pytest.raises(Stalled) as err:
+        continuation.follow(Cubic(force=100.0), Lam(0.0, 1.5), np.float64(0.0), tight,
+                            clock.now() + 10.0)
+    assert err.value.budget and err.value.status == Status.STEP_BUDGET
+    assert 0.0 < err.value.t < 1.0
+    with pytest.raises(Stalled) as err:
+        continuation.follow(Cubic(), Lam(0.0, 1.5), np.float64(0.0), STEPPING,
+                            clock.now() - 1.0)
+    assert err.value.budget and err.value.status == Status.TIME_BUDGET
+
+
+def test_the_route_ladder_takes_the_first_that_arrives_and_drops_what_failed_said():
+    notes: list[str] = []
+
+    def fails(t: float):
+        def route():
+            notes.append(f"said by a route that stalls at {t}")
+            raise Stalled(t, 1.0, "a fold")
+        return route
+
+    assert continuation.first_route([fails(0.2), lambda: "arrived"], notes,
+                                    clock.now() + 1.0) == "arrived"
+    assert notes == []
+    with pytest.raises(Stalled) as err:
+        continuation.first_route([fails(0.2), fails(0.7), fails(0.4)], notes,
+                                 clock.now() + 1.0)
+    assert err.value.t == 0.7 and notes == []
+
+
+def test_ranked_puts_stable_first_then_the_lower_energy_and_keeps_ties_in_order():
+    a = Candidate(True, 5.0, "a")
+    b = Candidate(False, 1.0, "b")  # lower but unstable
+    c = Candidate(None, 4.0, "c")  # neutral: not unstable
+    d = Candidate(True, 4.0 + 1e-12, "d")  # c's mirror twin
+    assert [x.item for x in ranked([a, b, c, d])] == ["c", "d", "a", "b"]
+    assert [x.item for x in ranked([d, c])] == ["d", "c"]
+    # Energies far apart in size still order by value (not by their relative size).
+    assert [x.item for x in ranked([Candidate(True, 45.1, 1), Candidate(True, 20.9, 2)])] \
+        == [2, 1]
+
+
+@pytest.mark.parametrize("name", ["case1", "case2", "case3", "gravity grip",
+                                  "pre-curved pin", "compressed cantilever",
+                                  "follower and moment"])
+def test_the_2d_model_driven_by_the_shared_driver_matches_its_compiled_twin(name):
+    """The 2D model implements the driver's protocol: solved through it (in Python) and
+    through the compiled ``kernels.follow``, the same equilibrium to 1e-9 L and its
+    reactions to 1e-7 of their size."""
+    problem = zoo()[name]
+    compiled = elastica2d.solve(problem)
+    shared = elastica2d.solve(problem, solver=elastica2d.ShootingSolver(shared_driver=True))
+    L = problem.part.length
+    assert np.abs(shared.position - compiled.position).max() <= 1e-9 * L
+    for key, load in compiled.reactions.items():
+        other = shared.reactions[key]
+        size = max(np.abs(load.force).max(), 1.0)
+        assert np.abs(np.asarray(other.force) - load.force).max() <= 1e-7 * size
+    assert shared.residual <= 1e-9
+
+
+def test_a_warm_2d_step_through_the_shared_driver_meets_the_elliptic_solution():
+    """A warm start far from the next problem (a tip load from 1 to 15 N on a unit
+    cantilever: one Newton from it does not contract) is followed by continuation; in
+    both drivers the tip is Bisshopp and Drucker's elliptic-integral one to 1e-8 L (the
+    closed-form tests' bound; the two differ by about that, each refining its own
+    mesh)."""
+    part = pl.Part(length=1.0, bending_stiffness=1.0)
+    path = [pl.Problem(part, (pl.clamp(0.0), pl.push(1.0, force=(0.0, -f), name="tip")))
+            for f in (1.0, 15.0)]
+    x, y, phi = cantilever_tip(15.0)
+    for shared in (False, True):
+        answers = list(elastica2d.trace(path, solver=elastica2d.ShootingSolver(
+            shared_driver=shared)))
+        assert answers[-1].steps > 1  # the continuation ran, not one Newton
+        tip = answers[-1].tip
+        assert abs(tip[0] - x) <= 1e-8 and abs(tip[1] + y) <= 1e-8
+        assert abs(tip[2] + phi) <= 1e-8
