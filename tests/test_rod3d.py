@@ -698,5 +698,9 @@ def test_equilibria_lists_every_bow_side_of_a_buckled_strip():
         axis = int(np.argmax(np.abs(mid[1:]))) + 1
         sides.add((axis, float(np.sign(mid[axis]))))
     assert sides == {(1, 1.0), (1, -1.0), (2, 1.0), (2, -1.0)}
+    from pliant.core.events import ReachedBy
+
+    assert all(isinstance(eq.events[0], ReachedBy) and eq.events[0].how.startswith("bowed")
+               for eq in found)
     answer = rod3d.solve(problem, solver=solver)
     assert any(same_shape(answer, eq) for eq in found)

@@ -132,6 +132,11 @@ def test_equilibria_lists_what_the_routes_reach_the_answer_first(capsys):
         assert np.abs(eq.position[-1] - (0.333, -0.002)).max() < 1e-8
     shapes = [e.position[len(e.position) // 2] for e in found]
     assert all(np.abs(a - b).max() > 1e-3 for i, a in enumerate(shapes) for b in shapes[:i])
+    from pliant.core.events import ReachedBy  # how each was reached, as a typed record
+
+    routes = {"straight", "two stage", "swing", "loads first", "energy minimum"}
+    assert all(isinstance(e.events[0], ReachedBy) and e.events[0].route in routes
+               for e in found)
     all_equilibria(problem, as_json=True)
     import json
 

@@ -144,6 +144,23 @@ class CrossedBifurcation(Event):
     kind = "bifurcation_crossed"
 
 
+class ReachedBy(Event):
+    """How an equilibrium that ``equilibria`` lists was reached: the ``route`` it
+    followed from the unloaded part ("straight", "two stage", "swing", "loads first",
+    "energy minimum") and ``how`` (3D: which branch, as "bowed toward [0, 0, 1]")."""
+
+    kind = "reached_by"
+    route: str = ""
+    how: str = ""
+
+
+class NoStableBranch(Event):
+    """The straight equilibrium of a compressed part is unstable and no route to a
+    buckled one converged: the answer is that unstable equilibrium."""
+
+    kind = "no_stable_branch"
+
+
 class PlanarRoute(Event):
     """A 2D answer found from the 3D rod's equilibrium of the same problem in the plane."""
 

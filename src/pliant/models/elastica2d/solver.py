@@ -46,6 +46,7 @@ from pliant.core.events import (
     CrossedBifurcation,
     LowestEquilibrium,
     OthersFound,
+    ReachedBy,
     Status,
     WarmStartLost,
 )
@@ -834,8 +835,9 @@ def equilibria(problem: Problem, *, solver: ShootingSolver | None = None,
         for point in run.reached:
             run.low = low  # each point's unknowns are those of the route's lowering
             try:
+                route = name.replace('_', ' ')
                 eq = _answer(run, run.polish(point), problem, solver, notes=(
-                    f"reached by the {name.replace('_', ' ')} route",))
+                    ReachedBy(f"reached by the {route} route", route=route),))
             except Stalled:
                 continue
             if not any(_same(eq, other) for other in found):
@@ -845,8 +847,8 @@ def equilibria(problem: Problem, *, solver: ShootingSolver | None = None,
         run = Run(lower(problem), replace(solver, time_budget=left))
         for low, point in run.minima():
             run.low = low
-            eq = _answer(run, point, problem, solver,
-                         notes=("reached by minimising the energy",))
+            eq = _answer(run, point, problem, solver, notes=(
+                ReachedBy("reached by minimising the energy", route="energy minimum"),))
             if not any(_same(eq, other) for other in found):
                 found.append(eq)
     # Stable and neutral first, then by energy; twins keep the order the routes reached

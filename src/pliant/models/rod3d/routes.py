@@ -14,7 +14,7 @@ from typing import TYPE_CHECKING, cast
 import numpy as np
 
 from pliant.core.equilibrium import potential_energy
-from pliant.core.events import BranchTaken, Snapped, Status
+from pliant.core.events import BranchTaken, NoStableBranch, Snapped, Status
 from pliant.models import continuation
 from pliant.models.continuation import Candidate, Stalled, first_route, ranked
 from pliant.models.rod3d.lowering import Loads, Rod, State, quat_matrix
@@ -159,8 +159,9 @@ class Routes:
             return found
         if straight is not None:
             found, self.gauge_quat = straight
-            self.notes.append("the straight equilibrium of this compressed part is unstable, "
-                              "and no route to a buckled one converged")
+            self.notes.append(NoStableBranch(
+                "the straight equilibrium of this compressed part is unstable, and no route "
+                "to a buckled one converged"))
             return found
         assert best is not None
         raise best

@@ -37,11 +37,17 @@ from functools import cached_property
 import numpy as np
 
 from pliant.core.equilibrium import WARM_START_LOST, Equilibrium3D, StationLoad, potential_energy
-from pliant.core.events import BranchTaken, LowestEquilibrium, Status, WarmStartLost
+from pliant.core.events import (
+    BranchTaken,
+    LowestEquilibrium,
+    ReachedBy,
+    Status,
+    WarmStartLost,
+)
 from pliant.core.problem import Problem
 from pliant.errors import ConvergenceError, IllPosedProblemError, InputError
 from pliant.models import clock, continuation
-from pliant.models.continuation import Line, Stalled
+from pliant.models.continuation import Candidate, Line, Stalled, ranked
 from pliant.models.rod3d import contact_kernels, kernels
 from pliant.models.rod3d.kernels import AXIS
 from pliant.models.rod3d.lowering import Loads, Rod, State, axis_basis, lower, qmul, quat_matrix
@@ -470,12 +476,15 @@ def equilibria(problem: Problem, *, solver: RodSolver | None = None,
                 eq = build(run, state)
             except (Stalled, IllPosedProblemError):
                 continue
-            eq = replace(eq, notes=(f"reached by the {name.replace('_', ' ')} route, "
-                                    f"{how}",))
+            route = name.replace('_', ' ')
+            eq = replace(eq, notes=(ReachedBy(f"reached by the {route} route, {how}",
+                                              route=route, how=how),))
             if not any(same_shape(eq, other) for other in found):
                 found.append(eq)
-    energy = {id(e): potential_energy(e) for e in found}
-    found.sort(key=lambda e: (e.verdict == "unstable", energy[id(e)]))
+    part = problem.part  # stable and neutral first, then by energy (continuation.ranked)
+    found = [c.item for c in ranked(
+        [Candidate(e.verdict != "unstable", potential_energy(e), e) for e in found],
+        part.bending_stiffness / part.length)]
     return found
 
 
