@@ -32,7 +32,7 @@ _dgbtrf = types.ExternalFunction("pliant_dgbtrf", types.void(*(types.voidptr,) *
 _dgbtrs = types.ExternalFunction("pliant_dgbtrs", types.void(*(types.voidptr,) * 11))
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def add(ab, kl, ku, i, j, v):
     """A[i, j] += v."""
     ab[j, kl + ku + i - j] += v

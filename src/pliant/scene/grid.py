@@ -16,7 +16,7 @@ from pliant.scene.triangles import mesh_exact
 GRID_ERROR = 2.6
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def onto_grid(f, top):
     """A grid coordinate clamped to [0, top], and how far (in cells) it lay beyond."""
     if f < 0.0:

@@ -60,7 +60,7 @@ def primitive(kind, x, y, z, param):
     return z, 0.0, 0.0, 1.0  # HALFSPACE: solid below the local plane z = 0
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def to_local(p, R, t):
     """p (world) in the frame of an obstacle placed by R (local to world) and t."""
     ux, uy, uz = p[0] - t[0], p[1] - t[1], p[2] - t[2]

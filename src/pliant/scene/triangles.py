@@ -146,7 +146,7 @@ def build_bvh(tri, leaf_size=4):
             right[:nodes].copy(), start[:nodes].copy(), count[:nodes].copy())
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def box_distance2(p, lo, hi):
     d2 = 0.0
     for a in range(3):

@@ -141,7 +141,7 @@ class Settings(NamedTuple):
 
 
 # -- quaternions (w, x, y, z) ------------------------------------------------------------
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def qmul(a, b):
     return np.array([
         a[0] * b[0] - a[1] * b[1] - a[2] * b[2] - a[3] * b[3],
@@ -150,7 +150,7 @@ def qmul(a, b):
         a[0] * b[3] + a[1] * b[2] - a[2] * b[1] + a[3] * b[0]])
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def qconj(a):
     return np.array([a[0], -a[1], -a[2], -a[3]])
 
@@ -176,13 +176,13 @@ def qexp(theta):
     return np.array([c, s * theta[0], s * theta[1], s * theta[2]])
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def skew(v):
     return np.array([[0.0, -v[2], v[1]], [v[2], 0.0, -v[0]], [-v[1], v[0], 0.0]])
 
 
 # -- assembly -----------------------------------------------------------------------------
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def _qm(aw, ax, ay, az, bw, bx, by, bz):
     """Quaternion product as a tuple (no allocation)."""
     return (aw * bw - ax * bx - ay * by - az * bz,
@@ -191,7 +191,7 @@ def _qm(aw, ax, ay, az, bw, bx, by, bz):
             aw * bz + ax * by - ay * bx + az * bw)
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def _rot_into(q, out):
     w, x, y, z = q[0], q[1], q[2], q[3]
     out[0, 0] = 1 - 2 * (y * y + z * z)
@@ -205,7 +205,7 @@ def _rot_into(q, out):
     out[2, 2] = 1 - 2 * (x * x + y * y)
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def _tmul(Rm, v0, v1, v2):
     """R^T v as a tuple."""
     return (Rm[0, 0] * v0 + Rm[1, 0] * v1 + Rm[2, 0] * v2,
@@ -213,7 +213,7 @@ def _tmul(Rm, v0, v1, v2):
             Rm[0, 2] * v0 + Rm[1, 2] * v1 + Rm[2, 2] * v2)
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def _mul(Rm, v0, v1, v2):
     """R v as a tuple."""
     return (Rm[0, 0] * v0 + Rm[0, 1] * v1 + Rm[0, 2] * v2,
@@ -566,7 +566,7 @@ def assemble(X, Q, lam, nu, mesh, tg, num, want_jac):
 FLUSH = 1e-150
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def _flushed(v):
     return 0.0 if abs(v) < FLUSH else v
 
