@@ -10,6 +10,9 @@ import json
 import os
 import subprocess
 import sys
+from pathlib import Path
+
+import pytest
 
 from pliant.models import first_run
 
@@ -19,8 +22,9 @@ from typer.testing import CliRunner
 from pliant.cli.app import app
 from numba.core import event
 from pliant.models import clock, first_run
-cold = first_run.cold()
-helped = first_run.compile_ahead(cores=2)
+kind, job = sys.argv[2], sys.argv[3:]
+cold = first_run.cold(kind)
+helped = first_run.compile_ahead(cores=2, kind=kind)
 ahead = clock.compiling()
 late = []  # the kernels the job compiles itself, named in the failure
 class Names(event.Listener):
@@ -29,20 +33,25 @@ class Names(event.Listener):
     def on_end(self, ev):
         pass
 event.register("numba:compile", Names())
-result = CliRunner().invoke(app, ["demo", "--out", sys.argv[1]])
-print(json.dumps({"cold": cold, "helped": helped, "ahead": ahead, "exit": result.exit_code,
+codes = [CliRunner().invoke(app, j.split(",")).exit_code for j in job]
+print(json.dumps({"cold": cold, "helped": helped, "ahead": ahead, "exit": max(codes),
                   "compiled": clock.compiling() - ahead, "late": late,
-                  "cold_after": first_run.cold()}))
+                  "cold_after": first_run.cold(kind)}))
 """
+PAPER = Path(__file__).resolve().parents[1] / "examples" / "paper"
 
 
-def test_after_the_compile_ahead_the_main_job_compiles_nothing(tmp_path):
-    # a fresh machine: no compiled kernels and no disk cache (so the scene's fitted parts
-    # are solved too, by kernels of their own)
+@pytest.mark.parametrize("kind", ["3d", "2d"])
+def test_after_the_compile_ahead_the_main_job_compiles_nothing(tmp_path, kind):
+    """3D: the demo; 2D: the paper's three cases (a fresh machine: no compiled kernels
+    and no disk cache, so the scene's fitted parts are solved too, by kernels of their
+    own)."""
     env = dict(os.environ, NUMBA_CACHE_DIR=str(tmp_path / "numba"),
                PLIANT_CACHE=str(tmp_path / "cache"))
-    done = subprocess.run([sys.executable, "-c", SCRIPT, str(tmp_path / "out")], env=env,
-                          capture_output=True, text=True, timeout=600)
+    jobs = ([f"demo,--out,{tmp_path / 'out'}"] if kind == "3d" else
+            [f"solve,{PAPER / f'case{i}.toml'}" for i in (1, 2, 3)])
+    done = subprocess.run([sys.executable, "-c", SCRIPT, str(tmp_path / "out"), kind, *jobs],
+                          env=env, capture_output=True, text=True, timeout=600)
     assert done.returncode == 0, done.stderr[-2000:]
     facts = json.loads(done.stdout.strip().splitlines()[-1])
     assert facts["cold"] and facts["helped"] and facts["exit"] == 0
@@ -52,11 +61,12 @@ def test_after_the_compile_ahead_the_main_job_compiles_nothing(tmp_path):
     assert not facts["cold_after"]
     # each kernel of both halves has its cache index, the helper's included
     cached = {p.name.split(".")[1].rsplit("-", 1)[0] for p in (tmp_path / "numba").rglob("*.nbi")}
-    assert {name for _, name in first_run.recorded()["signatures"]} <= cached
+    assert {name for _, name in first_run.recorded(kind)["signatures"]} <= cached
 
 
-def test_the_schedule_compiles_each_kernel_after_its_callees_and_balances_the_work():
-    data = first_run.recorded()
+@pytest.mark.parametrize("kind", ["3d", "2d"])
+def test_the_schedule_compiles_each_kernel_after_its_callees_and_balances_the_work(kind):
+    data = first_run.recorded(kind)
     cost, calls = data["cost"], data["calls"]
     lists = first_run.plan(cost, calls)
     assert sorted(lists[0] + lists[1]) == sorted(cost)  # each kernel once
@@ -86,13 +96,14 @@ def test_the_schedule_compiles_each_kernel_after_its_callees_and_balances_the_wo
 
     bound = max(sum(cost.values()) / 2, max(longest(k) for k in cost))
     assert max(clock) <= 1.1 * bound
+    assert first_run.estimate(kind) == pytest.approx(bound)  # what the CLI announces
 
 
 def test_an_unreadable_signature_file_leaves_the_kernels_to_compile_lazily(tmp_path,
                                                                             monkeypatch):
     bad = tmp_path / "kernel_signatures.pkl"
     bad.write_bytes(b"not a pickle")
-    monkeypatch.setattr(first_run, "SIGNATURES", bad)
+    monkeypatch.setitem(first_run.KINDS, "3d", (bad, "rod3d"))
     assert first_run.recorded() == {}
     assert first_run.compile_kernels([("pliant.models.banded", "band_lu")]) == 0
     assert first_run.compile_ahead(cores=1) is False

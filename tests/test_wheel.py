@@ -62,7 +62,7 @@ def test_the_wheel_runs_the_demo_and_serves_the_page(installed, tmp_path):
     demo = subprocess.run([str(installed / "pliant"), "demo", "--out", "out"], cwd=tmp_path,
                           env=env, capture_output=True, text=True, timeout=900)
     assert demo.returncode == 0, demo.stderr[-2000:]
-    assert "compiling the solvers (first run only" in demo.stderr
+    assert "compiling the 3D solvers (first run only" in demo.stderr
     # the signatures the first run compiles ahead by, on two cores (models.first_run)
     assert list(installed.parent.glob("lib/python*/site-packages/pliant/models/"
                                       "kernel_signatures.pkl"))

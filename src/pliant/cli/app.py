@@ -45,29 +45,27 @@ def _main(version: Annotated[bool, typer.Option(
 
 
 def _first_run_note(three_d: bool = True) -> None:
-    """On a first run (the numba kernels not cached yet), say so on stderr, so that a
-    fresh install does not look hung, and compile the 3D kernels ahead on two cores
-    (``pliant.models.first_run``), with the kernel being compiled shown on a terminal.
-    A 2D problem's kernels compile as they are first called."""
+    """On a first run of a model (its numba kernels not cached yet), say so on stderr,
+    with about how long it takes, so that a fresh install does not look hung, and
+    compile the model's kernels ahead on two cores (``pliant.models.first_run``), with
+    the kernel being compiled shown on a terminal."""
     from pliant.models import first_run  # noqa: PLC0415 (light: no numba until used)
 
-    if not first_run.cold():
-        return
-    if not three_d:
-        typer.echo("compiling the solvers (first run only, a few seconds)…", err=True)
+    kind = "3d" if three_d else "2d"
+    if not first_run.cold(kind):
         return
     cores = min(os.cpu_count() or 1, 2)
-    typer.echo(f"compiling the solvers (first run only, on {cores} "
-               f"core{'s' if cores > 1 else ''}, about {20 if cores > 1 else 30} s)…",
-               err=True)
+    seconds = max(5, 5 * round(first_run.estimate(kind, cores) / 5))
+    typer.echo(f"compiling the {kind.upper()} solvers (first run only, on {cores} "
+               f"core{'s' if cores > 1 else ''}, about {seconds} s)…", err=True)
     from rich.console import Console  # noqa: PLC0415
 
     console = Console(stderr=True)
     if not console.is_terminal:
-        first_run.compile_ahead()
+        first_run.compile_ahead(kind=kind)
         return
     with console.status("compiling…") as status:
-        first_run.compile_ahead(lambda name: status.update(f"compiling {name}…"))
+        first_run.compile_ahead(lambda name: status.update(f"compiling {name}…"), kind=kind)
 
 
 class _ReadingBar:

@@ -2,12 +2,13 @@
 a kernel's arguments: a developer's command, at the top layer because it runs the main
 job::
 
-    python -m pliant.cli.record_kernels
+    python -m pliant.cli.record_kernels       # the 3D kernels, from pliant demo
+    python -m pliant.cli.record_kernels 2d    # the 2D ones, from the paper's cases
 
-It runs ``pliant demo`` in a child process on a fresh machine's terms (empty numba and
-disk caches, nothing compiled ahead), so that every kernel compiles in that process as
-it is first called, and records for each of pliant's kernels the signatures it was
-called with, its own compile time (without its callees') and the kernels it calls.
+It runs the job in a child process on a fresh machine's terms (empty numba and disk
+caches, nothing compiled ahead), so that every kernel compiles in that process as it is
+first called, and records for each of pliant's kernels the signatures it was called
+with, its own compile time (without its callees') and the kernels it calls.
 """
 
 from __future__ import annotations
@@ -22,17 +23,20 @@ import time
 from pathlib import Path
 from typing import Any
 
-from pliant.models.first_run import SIGNATURES, Key
+from pliant.models.first_run import KINDS, Key
 
 
-def record(path: Path = SIGNATURES) -> dict[str, Any]:
-    """Run the child (see the module) and write what it found to ``path``."""
+def record(kind: str = "3d") -> dict[str, Any]:
+    """Run the child (see the module) on the model's job and write what it found to its
+    file (``first_run.KINDS``)."""
+    path = KINDS[kind][0]
     with tempfile.TemporaryDirectory() as folder:
         env = dict(os.environ, NUMBA_CACHE_DIR=str(Path(folder) / "numba"),
                    PLIANT_CACHE=str(Path(folder) / "cache"))
         out = Path(folder) / "kernels.pkl"
         done = subprocess.run([sys.executable, "-m", "pliant.cli.record_kernels", "--child",
-                               str(out), folder], env=env, capture_output=True, text=True)
+                               str(out), folder, kind], env=env, capture_output=True,
+                              text=True)
         if done.returncode != 0:
             raise RuntimeError(f"the recording failed: {done.stderr[-2000:]}")
         data = pickle.loads(out.read_bytes())  # our own child's file
@@ -42,7 +46,12 @@ def record(path: Path = SIGNATURES) -> dict[str, Any]:
     return data
 
 
-def _child(out: Path, folder: str) -> None:
+# The 2D job: the paper's three cases (force space, a follower load, a held tip that
+# buckles: shooting, continuation, the energy's minima and the stability check).
+PAPER = Path(__file__).resolve().parents[3] / "examples" / "paper"
+
+
+def _child(out: Path, folder: str, kind: str) -> None:
     from numba.core import event  # noqa: PLC0415 (the child only)
     from numba.core.registry import CPUDispatcher  # noqa: PLC0415
     from typer.testing import CliRunner  # noqa: PLC0415
@@ -70,9 +79,12 @@ def _child(out: Path, folder: str) -> None:
 
     event.register("numba:compile", Timer())
     first_run.compile_ahead = lambda *a, **k: False  # everything lazily, in this process
-    result = CliRunner().invoke(app, ["demo", "--out", folder])
-    if result.exit_code != 0:
-        raise SystemExit(f"pliant demo failed: {result.output[-2000:]}")
+    jobs = ([["demo", "--out", folder]] if kind == "3d" else
+            [["solve", str(PAPER / f"case{i}.toml")] for i in (1, 2, 3)])
+    for job in jobs:
+        result = CliRunner().invoke(app, job)
+        if result.exit_code != 0:
+            raise SystemExit(f"pliant {job[0]} failed: {result.output[-2000:]}")
     kernels: dict[Key, Any] = {}
     for name, module in list(sys.modules.items()):
         if not name.startswith("pliant"):
@@ -93,9 +105,9 @@ def _child(out: Path, folder: str) -> None:
 
 if __name__ == "__main__":
     if sys.argv[1:2] == ["--child"]:
-        _child(Path(sys.argv[2]), sys.argv[3])
+        _child(Path(sys.argv[2]), sys.argv[3], sys.argv[4])
     else:
-        found = record()
+        found = record(sys.argv[1] if len(sys.argv) > 1 else "3d")
         for key in sorted(found["signatures"]):
             print(*key, len(found["signatures"][key]), found["cost"][key],
                   [c[1] for c in found["calls"][key]])

@@ -1,11 +1,12 @@
-"""The 3D solvers' first compile, on two cores instead of one.
+"""The solvers' first compile, on two cores instead of one.
 
 numba compiles a kernel when it is first called and keeps it (``cache=True``), so only a
 fresh install pays. Compiled lazily, one kernel after the other in the one process, the
 bundled scene's first ``pliant demo`` spent 24 of its 27 s compiling on one core. Here
 every kernel a 3D scene needs, its callees included, is compiled ahead by the signatures
 it is called with, split between this process and a helper process
-(``python -m pliant.models.first_run``) that compile into the same cache.
+(``python -m pliant.models.first_run``) that compile into the same cache; likewise the
+2D model's kernels for a planar problem (``KINDS``).
 
 The split is a schedule (``plan``): each kernel's own compile time and the kernels it
 calls are recorded with its signatures (``SIGNATURES``, by ``python -m
@@ -33,6 +34,11 @@ from pathlib import Path
 from typing import Any
 
 SIGNATURES = Path(__file__).with_name("kernel_signatures.pkl")
+# Each model's kernels: the 3D ones a scene needs (recorded from the demo) and the 2D
+# ones a planar problem needs (from the paper's cases), each with the folder of the
+# module that says whether they are cached.
+KINDS = {"3d": (SIGNATURES, "rod3d"),
+         "2d": (SIGNATURES.with_name("kernel_signatures_2d.pkl"), "elastica2d")}
 HELPER_TIMEOUT = 300.0  # s: past this nothing waits for the other process any more
 
 Key = tuple[str, str]  # (module, kernel)
@@ -42,22 +48,23 @@ def dispatcher(module: str, name: str) -> Any:
     return getattr(importlib.import_module(module), name)
 
 
-def cold() -> bool:
-    """Whether the 3D kernels are not cached yet (a fresh install, or a new
-    ``NUMBA_CACHE_DIR``): numba keeps an index (.nbi) per kernel."""
-    source = Path(__file__).resolve().parent / "rod3d"
+def cold(kind: str = "3d") -> bool:
+    """Whether the model's kernels (``KINDS``) are not cached yet (a fresh install, or a
+    new ``NUMBA_CACHE_DIR``): numba keeps an index (.nbi) per kernel."""
+    folder = KINDS[kind][1]
+    source = Path(__file__).resolve().parent / folder
     cache, pattern = source / "__pycache__", "kernels.*.nbi"
     if os.environ.get("NUMBA_CACHE_DIR"):  # numba keeps a folder per source folder there
-        cache, pattern = Path(os.environ["NUMBA_CACHE_DIR"]), f"rod3d_*/{pattern}"
+        cache, pattern = Path(os.environ["NUMBA_CACHE_DIR"]), f"{folder}_*/{pattern}"
     return not any(cache.glob(pattern))
 
 
-def recorded() -> dict[str, dict]:
-    """The recorded kernels: {"signatures": {key: [signature]}, "cost": {key: seconds of
-    its own compile}, "calls": {key: [keys it calls]}}; empty where the file cannot be
-    read with this numba (then everything compiles lazily)."""
+def recorded(kind: str = "3d") -> dict[str, dict]:
+    """The model's recorded kernels: {"signatures": {key: [signature]}, "cost": {key:
+    seconds of its own compile}, "calls": {key: [keys it calls]}}; empty where the file
+    cannot be read with this numba (then everything compiles lazily)."""
     try:
-        with SIGNATURES.open("rb") as f:
+        with KINDS[kind][0].open("rb") as f:
             data = pickle.load(f)  # our own file, shipped with the package
     except Exception:  # another numba's types: compile lazily instead
         return {}
@@ -197,20 +204,41 @@ def _run(mine: list[Key], theirs: list[Key], data: dict, peer: _Peer, out,
         compile_kernels([key], on_kernel, data["signatures"], before, after)
 
 
+def estimate(kind: str = "3d", cores: int = 2) -> float:
+    """About how long [s] the ahead compile takes on ``cores`` (the recording machine's
+    seconds: the longer of the work's share and the longest chain of callees)."""
+    data = recorded(kind)
+    cost = data.get("cost", {})
+    if not cost:
+        return 0.0
+    calls = data.get("calls", {})
+    chain: dict[Key, float] = {}
+
+    def longest(k: Key) -> float:
+        if k not in chain:
+            chain[k] = cost.get(k, 0.0) + max((longest(c) for c in calls.get(k, ())
+                                                if c in cost), default=0.0)
+        return chain[k]
+
+    return max(sum(cost.values()) / max(1, min(cores, 2)),
+               max(longest(k) for k in cost))
+
+
 def compile_ahead(on_kernel: Callable[[str], None] | None = None,
-                  cores: int | None = None) -> bool:
-    """Compile the 3D kernels a scene needs, by ``plan``, here and in a helper process
-    where the machine has a second core (see the module); True when a helper ran.
-    ``on_kernel(name)`` is told each kernel this process starts."""
+                  cores: int | None = None, kind: str = "3d") -> bool:
+    """Compile the model's kernels (``KINDS``: the 3D ones a scene needs, or the 2D ones
+    a planar problem needs), by ``plan``, here and in a helper process where the machine
+    has a second core (see the module); True when a helper ran. ``on_kernel(name)`` is
+    told each kernel this process starts."""
     cores = (os.cpu_count() or 1) if cores is None else cores
-    data = recorded()
+    data = recorded(kind)
     if not data:
         return False
     helper = None
     if cores >= 2:
         try:
             helper = subprocess.Popen(
-                [sys.executable, "-m", "pliant.models.first_run", str(os.getpid())],
+                [sys.executable, "-m", "pliant.models.first_run", str(os.getpid()), kind],
                 stdin=subprocess.PIPE, stdout=subprocess.PIPE, stderr=subprocess.DEVNULL,
                 text=True, bufsize=1)
         except OSError:
@@ -233,10 +261,10 @@ def compile_ahead(on_kernel: Callable[[str], None] | None = None,
     return True
 
 
-def _helper(parent: int) -> None:
+def _helper(parent: int, kind: str = "3d") -> None:
     """The helper's work: the plan's second list, told by the parent (stdin) what it has
     finished; it stops early if the parent is gone (nothing would wait for it)."""
-    data = recorded()
+    data = recorded(kind)
     if not data:
         return
     ours, theirs = _schedule(data, 2)
@@ -245,4 +273,4 @@ def _helper(parent: int) -> None:
 
 
 if __name__ == "__main__":
-    _helper(int(sys.argv[1]))
+    _helper(int(sys.argv[1]), sys.argv[2] if len(sys.argv) > 2 else "3d")
