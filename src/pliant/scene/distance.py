@@ -101,7 +101,10 @@ def hessian_point(p, o, field):
         if 1 <= region <= 3:
             a = tri[t, region - 1]
             b = tri[t, region % 3]
-            e = (b - a) / max(np.sqrt(((b - a) ** 2).sum()), 1e-300)
+            size = max(math.sqrt((b[0] - a[0]) ** 2 + (b[1] - a[1]) ** 2
+                                 + (b[2] - a[2]) ** 2), 1e-300)
+            for c in range(3):  # (written out: an array expression compiles slowly)
+                e[c] = (b[c] - a[c]) / size
             feature = 1
         elif region >= 4:
             feature = 2
@@ -123,7 +126,7 @@ def hessian_point(p, o, field):
 
 
 # -- the whole scene -----------------------------------------------------------------------
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def _packed_mesh_feature(x, y, z, m, f):
     """``mesh_feature`` of packed mesh m of the ``Field`` f at the local point (x, y, z):
     (signed distance, unit gradient, the nearest triangle's index in ``f.tri``, its

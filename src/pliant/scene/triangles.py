@@ -131,7 +131,10 @@ def build_bvh(tri, leaf_size=4):
                 c = centroid[order[e], a]
                 cmin[a] = min(cmin[a], c)
                 cmax[a] = max(cmax[a], c)
-        axis = int(np.argmax(cmax - cmin))
+        axis = 0  # the widest spread (written out: an array expression compiles slowly)
+        for a in (1, 2):
+            if cmax[a] - cmin[a] > cmax[axis] - cmin[axis]:
+                axis = a
         half = n0 // 2
         select(order, centroid[:, axis], s0, s0 + n0 - 1, s0 + half)
         a_, b_ = nodes, nodes + 1
@@ -199,7 +202,8 @@ def mesh_feature(p, tri, pseudo, solid, bvh):
         dr = box_distance2(p, lo[b_], hi[b_])
         if top + 2 > stack.shape[0]:
             grown = np.empty(2 * stack.shape[0], dtype=np.int64)
-            grown[:top] = stack[:top]
+            for i in range(top):
+                grown[i] = stack[i]
             stack = grown
         if dl < dr:  # the nearer child is walked first
             stack[top] = b_
@@ -210,14 +214,18 @@ def mesh_feature(p, tri, pseudo, solid, bvh):
         top += 2
     dist = math.sqrt(best)
     gx, gy, gz = p[0] - bq0, p[1] - bq1, p[2] - bq2
+    grad = np.empty(3)
     if dist > 1e-300:
-        grad = np.array([gx / dist, gy / dist, gz / dist])
+        grad[0], grad[1], grad[2] = gx / dist, gy / dist, gz / dist
     else:
-        grad = pseudo[best_t, 0].copy()
+        for c in range(3):
+            grad[c] = pseudo[best_t, 0, c]
     if solid:
         n = pseudo[best_t, best_r]
         if gx * n[0] + gy * n[1] + gz * n[2] < 0.0:
-            return -dist, -grad, best_t, best_r
+            for c in range(3):
+                grad[c] = -grad[c]
+            return -dist, grad, best_t, best_r
     return dist, grad, best_t, best_r
 
 

@@ -216,7 +216,7 @@ def _friction_terms(gam, k, o, p, con, num, R, ab, want_jac):
     return kind
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def _contact_residual(X, Q, lam, nu, gam, mesh, tg, num, con):
     """The KKT residual and Jacobian with the contact terms; (R, ab, energy, active)."""
     yes = num.n >= 0  # a runtime True (see newton)
