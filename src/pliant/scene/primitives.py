@@ -78,17 +78,20 @@ def primitive_hessian(kind, x, y, z, param):
     if kind == SPHERE:
         r = math.sqrt(x * x + y * y + z * z)
         if r > 1e-12:
-            u = np.array([x, y, z]) / r
+            u = np.empty(3)  # (written out: array expressions compile slowly)
+            u[0], u[1], u[2] = x / r, y / r, z / r
             for i in range(3):
                 for j in range(3):
                     H[i, j] = ((1.0 if i == j else 0.0) - u[i] * u[j]) / r
         return H
     if kind == BOX:
-        q = np.array([abs(x) - param[0], abs(y) - param[1], abs(z) - param[2]])
-        if q.max() <= 0.0:
+        q = np.empty(3)
+        q[0], q[1], q[2] = abs(x) - param[0], abs(y) - param[1], abs(z) - param[2]
+        if max(q[0], q[1], q[2]) <= 0.0:
             return H  # inside: a face's distance
         d, gx, gy, gz = box(x, y, z, param[0], param[1], param[2])
-        g = np.array([gx, gy, gz])
+        g = np.empty(3)
+        g[0], g[1], g[2] = gx, gy, gz
         for i in range(3):
             for j in range(3):
                 H[i, j] = ((1.0 if (i == j and q[i] > 0.0) else 0.0) - g[i] * g[j]) / d
@@ -99,10 +102,12 @@ def primitive_hessian(kind, x, y, z, param):
             return H
         radius, half = param[0], param[1]
         qx, qz = rho - radius, abs(z) - half
-        t = np.array([-y / rho, x / rho, 0.0])
+        t = np.empty(3)
+        t[0], t[1], t[2] = -y / rho, x / rho, 0.0
         if qx > 0.0 and qz > 0.0:  # the rim: a circle
             d, gx, gy, gz = cylinder(x, y, z, radius, half)
-            g = np.array([gx, gy, gz])
+            g = np.empty(3)
+            g[0], g[1], g[2] = gx, gy, gz
             for i in range(3):
                 for j in range(3):
                     H[i, j] = ((1.0 if i == j else 0.0) - g[i] * g[j]
