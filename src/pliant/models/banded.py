@@ -248,84 +248,39 @@ def band_reduce(ab, kl, ku, drop):
 
 
 @njit(cache=True)
-def band_lu_fixed(ab, kl, ku, fixed):
-    """``band_lu`` where each row i with fixed[i] is the identity's (x_i = rhs_i is
-    known: a free contact probe's force, 0): such a row is its own pivot, nothing is
-    eliminated with it, and its column's entries become the multipliers that carry the
-    known value to the other rows in the forward solve (``band_lu_solve``). No other
-    column pivots on it (its entries there are 0), so the other unknowns are factorised
-    exactly as in a band renumbered without the fixed ones, in place; the singular test
-    is judged against the largest entry of the other columns. Returns (pivots, ok)."""
-    n = ab.shape[0]
-    kv = kl + ku
-    piv = np.zeros(n, dtype=np.int64)
-    rows = np.empty(kl + 1, dtype=np.int64)
-    ju = 0
-    scale = 0.0
-    total = 0.0
-    for j in range(n):  # the largest entry outside the fixed columns (branch-free)
-        if not fixed[j]:
-            for c in range(ab.shape[1]):
-                v = abs(ab[j, c])
-                scale = max(scale, v)
-                total += v
-    if not math.isfinite(total):
-        return piv, False
-    for j in range(n):
-        km = min(kl, n - 1 - j)
-        if fixed[j]:
-            piv[j] = j
-            ju = max(ju, min(j + ku, n - 1))
-            continue  # U's row j is the diagonal's 1: its column is its multipliers
-        p = 0
-        best = abs(ab[j, kv])
-        for r in range(1, km + 1):
-            v = abs(ab[j, kv + r])
-            if v > best:
-                best = v
-                p = r
-        piv[j] = j + p
-        if best <= 1e-14 * scale:
-            return piv, False
-        ju = max(ju, min(j + ku + p, n - 1))
-        if p != 0:
-            for c in range(j, ju + 1):
-                a = ab[c, kv + j - c]
-                ab[c, kv + j - c] = ab[c, kv + j + p - c]
-                ab[c, kv + j + p - c] = a
-        inv = 1.0 / ab[j, kv]
-        nz = 0
-        for r in range(1, km + 1):
-            ab[j, kv + r] *= inv
-            if ab[j, kv + r] != 0.0:
-                rows[nz] = r
-                nz += 1
-        if nz == 0:
-            continue
-        for c in range(j + 1, ju + 1):
-            u = ab[c, kv + j - c]
-            if u != 0.0:
-                base = kv + j - c
-                for t in range(nz):
-                    r = rows[t]
-                    ab[c, base + r] -= ab[j, kv + r] * u
-    return piv, True
-
-
-@njit(cache=True)
 def band_solve_reduced(ab, kl, ku, rhs, drop):
     """Solve A x = rhs where each row i with drop[i] is the identity's (x_i = rhs_i is
-    known): those unknowns are not factorised (``band_lu_fixed``). The contact probes
-    far from everything are such rows: leaving them out halves the factorisation. ``ab``
-    is left as it was. Returns (x, ok)."""
+    known): those unknowns go to the right-hand side and only the others are factorised,
+    in a band renumbered without them (``band_reduce``). The contact probes far from
+    everything are such rows: leaving them out halves the factorisation. ``ab`` is left
+    as it was. Returns (x, ok)."""
     n = ab.shape[0]
-    if n == 0:
-        return rhs.copy(), True
-    c = ab.copy()
-    piv, ok = band_lu_fixed(c, kl, ku, drop)
+    x = np.zeros(n)
+    b = rhs.copy()
+    for j in range(n):  # the known unknowns' columns to the right-hand side
+        if drop[j]:
+            xj = rhs[j]
+            x[j] = xj
+            if xj != 0.0:
+                for i in range(max(0, j - ku), min(n, j + kl + 1)):
+                    if i != j:
+                        b[i] -= ab[j, kl + ku + i - j] * xj
+    c, lo, up, new = band_reduce(ab, kl, ku, drop)
+    m = c.shape[0]
+    if m == 0:
+        return x, True
+    bc = np.empty(m)
+    for j in range(n):
+        if not drop[j]:
+            bc[new[j]] = b[j]
+    piv, ok = band_lu(c, lo, up)
     if not ok:
-        return np.zeros(n), False
-    return band_lu_solve(c, piv, kl, ku, rhs), True
+        return x, False
+    y = band_lu_solve(c, piv, lo, up, bc)
+    for i in range(n):
+        if not drop[i]:
+            x[i] = y[new[i]]
+    return x, True
 
 
 def dense(ab, kl: int, ku: int, n: int) -> np.ndarray:
