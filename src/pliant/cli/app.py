@@ -577,7 +577,7 @@ def identify(
     console = Console()
     console.print(f"[bold]{test.name}[/bold]: fitting {', '.join(test.unknowns)} to "
                   f"{len(test.measured)} measurement(s)")
-    _first_run_note(three_d=False)
+    _first_run_note(test.problem.dimension == 3)
     solver = None
     if test.problem.dimension == 3:
         from pliant.models.rod3d import RodSolver  # noqa: PLC0415
