@@ -36,6 +36,7 @@ from typing import Any, Protocol, TypeVar
 
 import numpy as np
 
+from pliant.core.equilibrium import potential_energy
 from pliant.core.events import Status
 from pliant.models import clock
 
@@ -288,14 +289,23 @@ class Candidate:
 def ranked(candidates: Sequence[Candidate], scale: float = 0.0) -> list[Candidate]:
     """The candidates best first: stable (or neutral, or undecided) before unstable,
     then the lower potential energy; energies within 1e-9 of the largest (and of
-    ``scale`` [J], the part's EI / L) are one level, where the earlier candidate stays first (a
-    mirror twin does not displace the side the targets push to)."""
+    ``scale`` [J], the part's EI / L) are one level, where the earlier candidate stays
+    first (a mirror twin does not displace the side the targets push to)."""
     step = 1e-9 * (max((abs(c.energy) for c in candidates), default=0.0) + scale) or 1e-300
 
     def level(c: Candidate) -> tuple[bool, int]:
         return c.stable is False, round(c.energy / step)
 
     return sorted(candidates, key=level)  # a stable sort: ties keep their order
+
+
+def best_first(found: Sequence[T], part: Any) -> list[T]:
+    """Equilibria of one problem (``Result``s) in ``ranked``'s order: stable and neutral
+    first, then by potential energy, twins in the order they were reached (what
+    ``equilibria`` lists, in both models)."""
+    return [c.item for c in ranked(
+        [Candidate(e.verdict != "unstable", potential_energy(e), e)  # type: ignore[attr-defined]
+         for e in found], part.bending_stiffness / part.length)]
 
 
 class Relaxable(Protocol):

@@ -815,8 +815,8 @@ def equilibria(problem: Problem, *, solver: ShootingSolver | None = None,
     restart nodes, positions first, a swing round the first support, loads first) and,
     from a singular start, each bow side; then the minima of the energy from a few
     starting shapes (``minimum``). Stable (and neutral) ones first, then unstable, each
-    group by potential energy (``pliant.core.equilibrium.potential_energy``); the first is what
-    ``solve`` would choose among them. Empty when no route reaches one."""
+    group by potential energy (``continuation.best_first``); the first is what ``solve``
+    would choose among them. Empty when no route reaches one."""
     solver = solver or ShootingSolver()
     deadline = clock.now() + budget
     nodes = len(lower(problem).nodes) + 1
@@ -851,12 +851,7 @@ def equilibria(problem: Problem, *, solver: ShootingSolver | None = None,
                 ReachedBy("reached by minimising the energy", route="energy minimum"),))
             if not any(_same(eq, other) for other in found):
                 found.append(eq)
-    # Stable and neutral first, then by energy; twins keep the order the routes reached
-    # them in (solve's first): ``continuation.ranked``.
-    part = problem.part
-    return [c.item for c in ranked(
-        [Candidate(e.verdict != "unstable", potential_energy(e), e) for e in found],
-        part.bending_stiffness / part.length)]
+    return continuation.best_first(found, problem.part)  # twins: solve's first
 
 
 def _same(a: Equilibrium, b: Equilibrium) -> bool:

@@ -47,7 +47,7 @@ from pliant.core.events import (
 from pliant.core.problem import Problem
 from pliant.errors import ConvergenceError, IllPosedProblemError, InputError
 from pliant.models import clock, continuation
-from pliant.models.continuation import Candidate, Line, Stalled, ranked
+from pliant.models.continuation import Line, Stalled
 from pliant.models.rod3d import contact_kernels, kernels
 from pliant.models.rod3d.kernels import AXIS
 from pliant.models.rod3d.lowering import Loads, Rod, State, axis_basis, lower, qmul, quat_matrix
@@ -481,11 +481,7 @@ def equilibria(problem: Problem, *, solver: RodSolver | None = None,
                                               route=route, how=how),))
             if not any(same_shape(eq, other) for other in found):
                 found.append(eq)
-    part = problem.part  # stable and neutral first, then by energy (continuation.ranked)
-    found = [c.item for c in ranked(
-        [Candidate(e.verdict != "unstable", potential_energy(e), e) for e in found],
-        part.bending_stiffness / part.length)]
-    return found
+    return continuation.best_first(found, problem.part)
 
 
 def same_shape(a: Equilibrium3D, b: Equilibrium3D) -> bool:
