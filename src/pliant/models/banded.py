@@ -177,9 +177,10 @@ def band_lu_solve(ab, piv, kl, ku, rhs):
     return x
 
 
-@njit(cache=True)
 def band_solve(ab, kl, ku, rhs):
-    """Solve A x = rhs for a band matrix (ab is overwritten); returns (x, ok)."""
+    """Solve A x = rhs for a band matrix (ab is overwritten); returns (x, ok). Not a
+    kernel of its own: its two calls cost microseconds, a kernel's compile half a
+    second on a first run."""
     piv, ok = band_lu(ab, kl, ku)
     if not ok:
         return rhs.copy(), False

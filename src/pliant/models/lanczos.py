@@ -1,5 +1,5 @@
-"""The softest mode of a banded symmetric pencil by shift-invert Lanczos, in one numba
-kernel: the stability test of the accurate 3D rod at every step of a path, without the
+"""The softest mode of a banded symmetric pencil by shift-invert Lanczos, its steps in a
+numba kernel: the stability test of the accurate 3D rod at every step of a path, without the
 Python round trips of ARPACK's reverse communication (about 80 per eigenvalue, each a
 band solve: most of its cost at a few hundred unknowns).
 
@@ -16,6 +16,7 @@ tol * theta (ARPACK's test).
 from __future__ import annotations
 
 import math
+from typing import NamedTuple
 
 import numpy as np
 from numba import njit
@@ -40,24 +41,27 @@ def _take(z, c, v):
         z[i] -= c * v[i]
 
 
+class Basis(NamedTuple):
+    """What the Lanczos steps fill: the M-orthonormal basis Q (rows), the tridiagonal's
+    diagonal alpha and off-diagonal beta, and a right-hand side's room (n,)."""
+
+    Q: np.ndarray
+    alpha: np.ndarray
+    beta: np.ndarray
+    rhs: np.ndarray
+
+
 @njit(cache=True)
-def softest_mode(ab, piv, kl, ku, primal, weight, v0, tol, max_steps):
-    """(theta, vector (p,), converged, steps): the largest eigenvalue of OP (see the
-    module) and its M-normalised vector over the ``primal`` unknowns (p,), from the band
-    LU factors (ab, piv) of A - sigma M. ``weight`` (p,) is M's diagonal."""
-    n = ab.shape[0]
+def _lanczos_steps(ab, piv, kl, ku, primal, weight, basis, first, last):
+    """Lanczos steps first .. last - 1 (see the module): alpha[j], beta[j] and the next
+    basis vector Q[j + 1], each from one solve with the band LU factors (ab, piv); the
+    number of steps done in all, fewer where the Krylov space is exhausted (beta[j] 0
+    to round-off: its Ritz values are then exact)."""
+    Q, alpha, beta, rhs = basis
     p = primal.shape[0]
-    Q = np.zeros((max_steps + 1, p))
-    alpha = np.zeros(max_steps)
-    beta = np.zeros(max_steps)
-    norm = math.sqrt(_inner(v0, v0, weight))
-    for i in range(p):
-        Q[0, i] = v0[i] / norm
-    rhs = np.zeros(n)
-    theta = 0.0
-    best = np.zeros(p)
-    for j in range(max_steps):
-        rhs[:] = 0.0
+    for j in range(first, last):
+        for i in range(rhs.shape[0]):
+            rhs[i] = 0.0
         for i in range(p):
             rhs[primal[i]] = weight[i] * Q[j, i]
         x = band_lu_solve(ab, piv, kl, ku, rhs)
@@ -74,24 +78,41 @@ def softest_mode(ab, piv, kl, ku, primal, weight, v0, tol, max_steps):
         b = math.sqrt(_inner(z, z, weight))
         alpha[j] = a
         beta[j] = b
-        m = j + 1
-        T = np.zeros((m, m))
-        for k in range(m):
-            T[k, k] = alpha[k]
-            if k + 1 < m:
-                T[k, k + 1] = beta[k]
-                T[k + 1, k] = beta[k]
-        values, vectors = np.linalg.eigh(T)
-        theta = values[m - 1]
-        s = vectors[:, m - 1]
-        best = np.zeros(p)
-        for k in range(m):
-            _take(best, -s[k], Q[k])
-        if b * abs(s[m - 1]) <= tol * abs(theta) or b <= 1e-300:
-            return theta, best, True, m
+        if b <= 1e-14 * (abs(a) + (beta[j - 1] if j > 0 else 0.0)) or b <= 1e-300:
+            return j + 1
         for i in range(p):
             Q[j + 1, i] = z[i] / b
-    return theta, best, False, max_steps
+    return last
+
+
+def softest_mode(ab, piv, kl, ku, primal, weight, v0, tol, max_steps, block: int = 4):
+    """(theta, vector (p,), converged, steps): the largest eigenvalue of OP (see the
+    module) and its M-normalised vector over the ``primal`` unknowns (p,), from the band
+    LU factors (ab, piv) of A - sigma M. ``weight`` (p,) is M's diagonal.
+
+    The steps run compiled, ``block`` at a time; the tridiagonal's eigenpair is found
+    here between blocks (numpy's eigh of at most ``max_steps`` rows, microseconds): in
+    the kernel, numba's eigh cost every first run 0.9 s of compiling. A converged mode
+    takes up to ``block`` - 1 steps more than it needs, each one band solve."""
+    p = primal.shape[0]
+    steps = min(max_steps, p)  # at most p: the space is exhausted by then
+    Q = np.zeros((steps + 1, p))
+    alpha = np.zeros(steps)
+    beta = np.zeros(steps)
+    Q[0] = v0 / math.sqrt(float(np.sum(weight * v0 * v0)))
+    basis = Basis(Q, alpha, beta, np.zeros(ab.shape[0]))
+    done, theta, s = 0, 0.0, np.ones(1)
+    while done < steps:
+        last = _lanczos_steps(ab, piv, kl, ku, primal, weight, basis, done,
+                              min(steps, done + block))
+        exhausted = last < min(steps, done + block)
+        done = last
+        T = np.diag(alpha[:done]) + np.diag(beta[:done - 1], 1) + np.diag(beta[:done - 1], -1)
+        values, vectors = np.linalg.eigh(T)
+        theta, s = float(values[-1]), vectors[:, -1]
+        if exhausted or beta[done - 1] * abs(s[-1]) <= tol * abs(theta) or done == p:
+            return theta, -(s @ Q[:done]), True, done
+    return theta, -(s @ Q[:done]), False, done
 
 
 def smallest_by_arpack(solve, weight: np.ndarray, shift: float, tol: float = 1e-10,

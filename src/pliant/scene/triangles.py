@@ -249,81 +249,40 @@ def pseudonormals(vertices: np.ndarray, faces: np.ndarray) -> tuple[np.ndarray, 
     """(T, 7, 3) pseudonormals: face normal, the three edges' (sum of the adjacent face
     normals), the three vertices' (angle-weighted); and whether every edge has exactly
     two faces (a closed mesh, with an inside). Edges are found by sorting one integer
-    key per edge (numpy's radix sort), the sums run in one compiled pass: a CAD part of
-    millions of triangles takes about a second."""
+    key per edge (numpy's radix sort) and summed by segments, vertices by ``bincount``:
+    whole-array numpy, 0.25 s for 330,000 triangles where a compiled loop took 0.1 s
+    but cost every first run 1.1 s of compiling (a scene's structures are cached)."""
+    T = faces.shape[0]
+    corner = vertices[faces]  # (T, 3 corners, 3)
+    u = np.roll(corner, -1, axis=1) - corner  # each corner to the next
+    w = -np.roll(u, 1, axis=1)  # and to the one before
+    n = np.cross(u[:, 0], w[:, 0])
+    n /= np.maximum(np.sqrt(np.einsum("tk,tk->t", n, n)), 1e-300)[:, None]  # 0 stays 0
+    uu = np.einsum("tck,tck->tc", u, u)
+    cos = np.einsum("tck,tck->tc", u, w) / np.maximum(np.sqrt(uu * np.roll(uu, 1, axis=1)),
+                                                         1e-300)
+    angle = np.arccos(np.clip(cos, -1.0, 1.0))  # (T, 3) each corner's
+    vert = np.empty((vertices.shape[0], 3))
+    for k in range(3):
+        vert[:, k] = np.bincount(faces.ravel(), (angle * n[:, k, None]).ravel(),
+                                 vertices.shape[0])
+    vert /= np.maximum(np.sqrt(np.einsum("vk,vk->v", vert, vert)), 1e-300)[:, None]
+    pseudo = np.empty((T, 7, 3))
+    pseudo[:, 0] = n
+    pseudo[:, 4:7] = vert[faces]
     a = np.minimum(faces, np.roll(faces, -1, axis=1))  # edges (ab, bc, ca) of each face
     b = np.maximum(faces, np.roll(faces, -1, axis=1))
     keys = (a * np.int64(vertices.shape[0]) + b).ravel()
     order = np.argsort(keys, kind="stable")
-    pseudo = np.zeros((faces.shape[0], 7, 3))
-    closed = pseudonormal_sums(vertices, faces, keys, order, pseudo)
-    return pseudo, bool(closed)
-
-
-@njit(cache=True)
-def pseudonormal_sums(vertices, faces, keys, order, pseudo):
-    """Fill ``pseudo`` (see ``pseudonormals``) from the edges' keys sorted by ``order``;
-    True when every edge has two faces."""
-    T = faces.shape[0]
-    vert = np.zeros((vertices.shape[0], 3))
-    for f in range(T):
-        i0, i1, i2 = faces[f, 0], faces[f, 1], faces[f, 2]
-        ux = vertices[i1, 0] - vertices[i0, 0]
-        uy = vertices[i1, 1] - vertices[i0, 1]
-        uz = vertices[i1, 2] - vertices[i0, 2]
-        wx = vertices[i2, 0] - vertices[i0, 0]
-        wy = vertices[i2, 1] - vertices[i0, 1]
-        wz = vertices[i2, 2] - vertices[i0, 2]
-        nx, ny, nz = uy * wz - uz * wy, uz * wx - ux * wz, ux * wy - uy * wx
-        length = math.sqrt(nx * nx + ny * ny + nz * nz)
-        if length > 0.0:
-            nx, ny, nz = nx / length, ny / length, nz / length
-        pseudo[f, 0, 0], pseudo[f, 0, 1], pseudo[f, 0, 2] = nx, ny, nz
-        for corner in range(3):
-            ia = faces[f, corner]
-            ib = faces[f, (corner + 1) % 3]
-            ic = faces[f, (corner + 2) % 3]
-            dot = 0.0
-            uu = 0.0
-            ww = 0.0
-            for k in range(3):
-                u = vertices[ib, k] - vertices[ia, k]
-                w = vertices[ic, k] - vertices[ia, k]
-                dot += u * w
-                uu += u * u
-                ww += w * w
-            cos = dot / max(math.sqrt(uu * ww), 1e-300)
-            angle = math.acos(min(1.0, max(-1.0, cos)))
-            vert[ia, 0] += angle * nx
-            vert[ia, 1] += angle * ny
-            vert[ia, 2] += angle * nz
-    for v in range(vert.shape[0]):
-        length = max(math.sqrt(vert[v, 0] ** 2 + vert[v, 1] ** 2 + vert[v, 2] ** 2), 1e-300)
-        for k in range(3):
-            vert[v, k] /= length
-    for f in range(T):
-        for corner in range(3):
-            for k in range(3):
-                pseudo[f, 4 + corner, k] = vert[faces[f, corner], k]
-    closed = True
-    m = keys.shape[0]
-    i = 0
-    while i < m:
-        j = i
-        sx = sy = sz = 0.0
-        while j < m and keys[order[j]] == keys[order[i]]:
-            f = order[j] // 3
-            sx += pseudo[f, 0, 0]
-            sy += pseudo[f, 0, 1]
-            sz += pseudo[f, 0, 2]
-            j += 1
-        if j - i != 2:
-            closed = False
-        length = max(math.sqrt(sx * sx + sy * sy + sz * sz), 1e-300)
-        for e in range(i, j):
-            f, edge = order[e] // 3, 1 + order[e] % 3
-            pseudo[f, edge, 0] = sx / length
-            pseudo[f, edge, 1] = sy / length
-            pseudo[f, edge, 2] = sz / length
-        i = j
-    return closed
+    ordered = keys[order]
+    first = np.empty(ordered.shape[0], dtype=bool)  # where an edge's run of faces starts
+    first[:1] = True
+    np.not_equal(ordered[1:], ordered[:-1], out=first[1:])
+    starts = np.flatnonzero(first)
+    sums = np.add.reduceat(n[order // 3], starts, axis=0)
+    sums /= np.maximum(np.sqrt(np.einsum("ek,ek->e", sums, sums)), 1e-300)[:, None]
+    edge = np.empty(ordered.shape[0], dtype=np.int64)
+    edge[order] = np.cumsum(first) - 1
+    pseudo[:, 1:4] = sums[edge].reshape(T, 3, 3)
+    closed = bool(np.all(np.diff(np.append(starts, ordered.shape[0])) == 2))
+    return pseudo, closed

@@ -177,6 +177,17 @@ def qexp(theta):
 
 
 @njit(cache=True)
+def _qexp_t(t0, t1, t2):
+    """``qexp`` as a tuple (no array: the Newton update's, on every frame)."""
+    angle = math.sqrt(t0 * t0 + t1 * t1 + t2 * t2)
+    if angle < 1e-12:
+        return 1.0, 0.5 * t0, 0.5 * t1, 0.5 * t2
+    c = math.cos(0.5 * angle)
+    s = math.sin(0.5 * angle) / angle
+    return c, s * t0, s * t1, s * t2
+
+
+@njit(cache=True)
 def skew(v):
     return np.array([[0.0, -v[2], v[1]], [v[2], 0.0, -v[0]], [-v[1], v[0], 0.0]])
 
@@ -584,13 +595,14 @@ def apply_step(X, Q, lam, nu, du, num, step):
         for c in range(3):
             Xn[i, c] = _flushed(Xn[i, c] + step * du[ix[i] + c])
     for f in range(Q.shape[0]):
-        theta = np.empty(3)
-        for c in range(3):
-            theta[c] = step * du[ith[f] + c]
-        qn = qmul(Q[f], qexp(theta))
-        norm = math.sqrt(qn[0] * qn[0] + qn[1] * qn[1] + qn[2] * qn[2] + qn[3] * qn[3])
-        for c in range(4):
-            Qn[f, c] = _flushed(qn[c] / norm)
+        t = ith[f]
+        e0, e1, e2, e3 = _qexp_t(step * du[t], step * du[t + 1], step * du[t + 2])
+        q0, q1, q2, q3 = _qm(Q[f, 0], Q[f, 1], Q[f, 2], Q[f, 3], e0, e1, e2, e3)
+        norm = math.sqrt(q0 * q0 + q1 * q1 + q2 * q2 + q3 * q3)
+        Qn[f, 0] = _flushed(q0 / norm)
+        Qn[f, 1] = _flushed(q1 / norm)
+        Qn[f, 2] = _flushed(q2 / norm)
+        Qn[f, 3] = _flushed(q3 / norm)
     # Keep consecutive frames in the same hemisphere (q and -q are the same rotation;
     # the discrete curvature needs the short way round).
     for f in range(1, Q.shape[0]):
@@ -700,14 +712,16 @@ def difference(X1, Q1, l1, n1, X2, Q2, l2, n2, num):
         for c in range(3):
             du[ix[i] + c] = X2[i, c] - X1[i, c]
     for f in range(Q1.shape[0]):
-        r = qmul(qconj(Q1[f]), Q2[f])
-        if r[0] < 0.0:
-            r = -r
-        s = math.sqrt(r[1] ** 2 + r[2] ** 2 + r[3] ** 2)
-        angle = 2.0 * math.atan2(s, r[0])
+        r0, r1, r2, r3 = _qm(Q1[f, 0], -Q1[f, 1], -Q1[f, 2], -Q1[f, 3],
+                             Q2[f, 0], Q2[f, 1], Q2[f, 2], Q2[f, 3])
+        if r0 < 0.0:
+            r0, r1, r2, r3 = -r0, -r1, -r2, -r3
+        s = math.sqrt(r1 * r1 + r2 * r2 + r3 * r3)
+        angle = 2.0 * math.atan2(s, r0)
         factor = angle / s if s > 1e-14 else 2.0
-        for c in range(3):
-            du[ith[f] + c] = factor * r[c + 1]
+        du[ith[f]] = factor * r1
+        du[ith[f] + 1] = factor * r2
+        du[ith[f] + 2] = factor * r3
     for e in range(l1.shape[0]):
         for c in range(3):
             du[ilam[e] + c] = l2[e, c] - l1[e, c]
@@ -769,23 +783,6 @@ def node_outputs(Q, elem_frame, joint_hh, joint_k0, K, node_station_frame):
             for c in range(3):
                 frames[i, r, c] = Rm[r, c]
     return frames, moments
-
-
-@njit(cache=True)
-def unknown_sizes(X, lam, nu, num):
-    """Each unknown's size floored at 1 (frame rotations count as 1)."""
-    ix, _, ilam, inu, nu_off, nu_cnt, _, _, n, _, _ = num
-    out = np.ones(n)
-    for i in range(X.shape[0]):
-        for c in range(3):
-            out[ix[i] + c] = max(1.0, abs(X[i, c]))
-    for e in range(lam.shape[0]):
-        for c in range(3):
-            out[ilam[e] + c] = max(1.0, abs(lam[e, c]))
-    for s in range(inu.shape[0]):
-        for k in range(nu_cnt[s]):
-            out[inu[s] + k] = max(1.0, abs(nu[nu_off[s] + k]))
-    return out
 
 
 @njit(cache=True)

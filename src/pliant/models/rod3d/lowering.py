@@ -290,6 +290,13 @@ class Rod:
                                  self.nu_cnt, self.gauge_frame, self.igauge, self.n,
                                  self.kl, self.ku)
 
+    @cached_property
+    def station_unknowns(self) -> tuple[np.ndarray, np.ndarray]:
+        """(unknown, entry in nu) of every station multiplier, in nu's order."""
+        entry = np.arange(int(self.nu_cnt.sum()))
+        first = np.repeat(self.nu_off, self.nu_cnt)
+        return np.repeat(self.inu, self.nu_cnt) + entry - first, entry
+
     def targets(self, loads: Loads, gauge: np.ndarray) -> kernels.Targets:
         """The kernels' load- and target-dependent arrays at ``loads``, the twist gauge
         holding the twist of the frame ``gauge`` (4,)."""

@@ -337,7 +337,12 @@ class Run(Routes):
     def sizes(self, state: State) -> np.ndarray:
         """Each unknown's size, floored at 1 (frame rotations count as 1)."""
         rod = self.rod
-        sizes = kernels.unknown_sizes(state[0], state[2], state[3], rod.numbering)
+        sizes = np.ones(rod.n)
+        three = np.arange(3)
+        sizes[rod.ix[:, None] + three] = np.maximum(1.0, np.abs(state[0]))
+        sizes[rod.ilam[:, None] + three] = np.maximum(1.0, np.abs(state[2]))
+        unknown, entry = rod.station_unknowns
+        sizes[unknown] = np.maximum(1.0, np.abs(state[3][entry]))
         sizes[rod.islot] = np.maximum(1.0, np.abs(state[4]))
         return sizes
 
