@@ -162,11 +162,26 @@ class _Peer:
         for event in self.done:
             event.set()
 
-    def wait(self, keys: Iterable[Key], deadline: float) -> None:
-        """Until those keys are done, or the deadline (``time.monotonic``) has passed."""
+    def wait(self, keys: Iterable[Key], deadline: float,
+             idle: list[Callable[[], object]] | None = None) -> None:
+        """Until those keys are done, or the deadline (``time.monotonic``) has passed;
+        while a key is not done yet, the ``idle`` work is done first, one piece at a
+        time (each taken off the list)."""
         for k in keys:
             if k in self.index:
-                self.done[self.index[k]].wait(max(0.0, deadline - time.monotonic()))
+                event = self.done[self.index[k]]
+                while idle and not event.is_set():
+                    _quietly(idle.pop(0))
+                event.wait(max(0.0, deadline - time.monotonic()))
+
+
+def _quietly(work: Callable[[], object]) -> None:
+    """Idle work is a head start on what comes after, never needed: whatever fails in
+    it is done (or fails, and says so) again where it is needed."""
+    try:
+        work()
+    except Exception:
+        pass
 
 
 def _schedule(data: dict, workers: int) -> list[list[Key]]:
@@ -225,11 +240,17 @@ def estimate(kind: str = "3d", cores: int = 2) -> float:
 
 
 def compile_ahead(on_kernel: Callable[[str], None] | None = None,
-                  cores: int | None = None, kind: str = "3d") -> bool:
+                  cores: int | None = None, kind: str = "3d",
+                  idle: Iterable[Callable[[], object]] = ()) -> bool:
     """Compile the model's kernels (``KINDS``: the 3D ones a scene needs, or the 2D ones
     a planar problem needs), by ``plan``, here and in a helper process where the machine
     has a second core (see the module); True when a helper ran. ``on_kernel(name)`` is
-    told each kernel this process starts."""
+    told each kernel this process starts. ``idle`` is work the job does later anyway
+    (importing its plotting libraries): done here in the time this process would
+    otherwise wait for the helper's last kernels, so that it costs the first run
+    nothing; what does not fit is left for later. (Not while waiting for a callee
+    half way: the helper may soon need a kernel of this process's, and would wait.)"""
+    work = list(idle)
     cores = (os.cpu_count() or 1) if cores is None else cores
     data = recorded(kind)
     if not data:
@@ -247,9 +268,11 @@ def compile_ahead(on_kernel: Callable[[str], None] | None = None,
         compile_kernels(_schedule(data, 1)[0], on_kernel, data["signatures"])
         return False
     ours, theirs = _schedule(data, 2)
-    _run(ours, theirs, data, _Peer(helper.stdout, data), helper.stdin, on_kernel)
+    peer = _Peer(helper.stdout, data)
+    _run(ours, theirs, data, peer, helper.stdin, on_kernel)
     if on_kernel is not None:
         on_kernel("the helper's half")
+    peer.wait(theirs, time.monotonic() + HELPER_TIMEOUT, work)
     try:
         helper.stdin.close()  # type: ignore[union-attr]
         helper.wait(timeout=HELPER_TIMEOUT)
