@@ -293,3 +293,52 @@ def test_mesh_files_and_display_meshes_are_kept_by_content(tmp_path, monkeypatch
     assert len(drawn.faces) <= 1000 and np.array_equal(kept.vertices, drawn.vertices)
     assert np.array_equal(kept.faces, drawn.faces)
     assert len(display_obstacle(obstacle, 500).faces) <= 500  # another count, another entry
+
+
+def _pseudonormals_by_definition(vertices, faces):
+    """Baerentzen and Aanaes's pseudonormals, one face, edge and vertex at a time."""
+    normals = []
+    for f in faces:
+        n = np.cross(vertices[f[1]] - vertices[f[0]], vertices[f[2]] - vertices[f[0]])
+        normals.append(n / np.linalg.norm(n))
+    vertex = np.zeros_like(vertices)
+    edges: dict[tuple[int, int], np.ndarray] = {}
+    for f, n in zip(faces, normals):
+        for c in range(3):
+            a, b, before = f[c], f[(c + 1) % 3], f[(c + 2) % 3]
+            u, w = vertices[b] - vertices[a], vertices[before] - vertices[a]
+            vertex[a] += np.arccos(np.clip(u @ w / np.linalg.norm(u) / np.linalg.norm(w),
+                                           -1, 1)) * n
+            key = (min(a, b), max(a, b))
+            edges[key] = edges.get(key, 0.0) + n
+    out = np.zeros((len(faces), 7, 3))
+    for t, (f, n) in enumerate(zip(faces, normals)):
+        out[t, 0] = n
+        for c in range(3):
+            e = edges[(min(f[c], f[(c + 1) % 3]), max(f[c], f[(c + 1) % 3]))]
+            out[t, 1 + c] = e / np.linalg.norm(e)
+            out[t, 4 + c] = vertex[f[c]] / np.linalg.norm(vertex[f[c]])
+    return out
+
+
+@settings(max_examples=25, deadline=None, derandomize=True)
+@given(points=st.integers(8, 60), seed=st.integers(0, 2**31 - 1), cut=st.booleans())
+def test_pseudonormals_match_their_definition(points, seed, cut):
+    """The whole-array pseudonormals against the definition written one face at a time,
+    on the convex hull of random points (closed: every edge has two faces; every
+    pseudonormal points out of the hull) and on the hull with a face removed (open)."""
+    from pliant.scene.triangles import pseudonormals
+
+    rng = np.random.default_rng(seed)
+    hull = trimesh.convex.convex_hull(rng.normal(size=(points, 3)))
+    vertices, faces = np.asarray(hull.vertices, float), np.asarray(hull.faces, np.int64)
+    if cut:
+        faces = faces[1:]
+    pseudo, closed = pseudonormals(vertices, faces)
+    expected = _pseudonormals_by_definition(vertices, faces)
+    assert closed is not cut
+    assert np.abs(pseudo - expected).max() < 1e-12
+    if not cut:  # outward: each feature's normal has its point on the hull's near side
+        centre = vertices.mean(axis=0)
+        for k, points_of in ((0, faces[:, 0]), (4, faces[:, 0]), (1, faces[:, 0])):
+            assert np.all(np.einsum("tk,tk->t", pseudo[:, k], vertices[points_of] - centre) > 0)
