@@ -62,7 +62,7 @@ def stability_of(run: Run, state: State, seed: np.ndarray | None = None,
     constraints' tangent space (positions and frame rotations, weighed by the metric of
     ``metric``): positive definite means stable.
 
-    Shift-invert Lanczos (``pliant.models.lanczos``, one numba kernel; ARPACK where it
+    Shift-invert Lanczos (``pliant.models.lanczos``, its steps compiled; ARPACK where it
     does not converge) at a shift -c below any negative eigenvalue, each step
     one solve with the band LU of the shifted KKT matrix (its solutions lie in the
     tangent space), so the eigenvalue nearest -c is the smallest: milliseconds where a
@@ -76,7 +76,7 @@ def stability_of(run: Run, state: State, seed: np.ndarray | None = None,
     the state balances, when not the problem's (a state on the way).
     """
     from pliant.models.banded import band_reduce  # noqa: PLC0415
-    from pliant.models.lanczos import softest_mode  # noqa: PLC0415 (its own kernel)
+    from pliant.models.lanczos import softest_mode  # noqa: PLC0415 (its own kernels)
 
     rod = run.rod
     _X, Q, lam = state[:3]
