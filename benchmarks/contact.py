@@ -162,7 +162,10 @@ def realtime() -> None:
 
 def resolution(counts: tuple[int, ...] = (100, 400, 1600)) -> None:
     """(e) The same lowering onto the block at finer resolutions: Newton iterations per
-    warm step (they should not grow with N) and any step that fails."""
+    warm step (they should not grow with N), any step that fails, and the hand's force
+    at the end (x and z), whose change with N is the discretisation's error: over the
+    block's sharp edge a probe's normal leans by up to half the probes' spacing over the
+    radius, so the force converges with the spacing (first order)."""
     from pliant.errors import PliantError
 
     print("(e) the hose's end lowered onto the block at", ", ".join(map(str, counts)),
@@ -191,10 +194,12 @@ def resolution(counts: tuple[int, ...] = (100, 400, 1600)) -> None:
             iterations.append(eq.iterations)
             if len(eq.contacts):
                 touching.append(eq.iterations)
+        force = eq.reactions["hand"].force
         print(f"    {count:5d} elements: {len(iterations)} steps, iterations median "
               f"{statistics.median(iterations):.1f} "
               f"(touching {statistics.median(touching or [0]):.1f}), "
-              f"max {max(iterations)}; {time.perf_counter() - start:.1f} s"
+              f"max {max(iterations)}; {time.perf_counter() - start:.1f} s; the hand's "
+              f"force at the end ({force[0]:.4f}, {force[2]:.4f}) N"
               + (f"; {failed}" if failed else ""))
 
 
