@@ -231,3 +231,27 @@ def test_the_path_table_fits_80_columns_with_its_units(tmp_path, monkeypatch):
         assert unit in header
     rows = [line for line in table if line.strip()[:1].isdigit()]
     assert len(rows) >= 2 and all(len(line.split()) >= 7 for line in rows)
+
+
+@pytest.mark.parametrize(("argv", "status", "said"), [
+    (["--version"], 0, "pliant "), (["solve", "no-such-file.toml"], 2, "no such file")])
+def test_the_command_leaves_at_once_with_its_status_its_output_and_exit_handlers(
+        tmp_path, argv, status, said):
+    """``entry`` (the console script) skips the interpreter's teardown, not what a
+    command leaves to it: the status, the output flushed, the exit handlers run (Dask's
+    and multiprocessing's close their processes there)."""
+    code = ("import atexit, sys; atexit.register(lambda: print('handler ran'));"
+            "from pliant.cli.app import entry; sys.argv = ['pliant', *sys.argv[1:]]; entry()")
+    out = subprocess.run([sys.executable, "-c", code, *argv], capture_output=True, text=True,
+                         cwd=tmp_path, timeout=120)
+    assert out.returncode == status
+    assert said in out.stdout + out.stderr and "handler ran" in out.stdout
+
+
+def test_under_a_profiler_the_command_exits_as_usual(tmp_path):
+    """``python -m cProfile`` writes its profile: ``entry`` leaves the usual way there."""
+    profile = tmp_path / "run.prof"
+    out = subprocess.run([sys.executable, "-m", "cProfile", "-o", str(profile), "-m",
+                          "pliant.cli.app", "--version"], capture_output=True, text=True,
+                         cwd=tmp_path, timeout=120)
+    assert out.returncode == 0 and profile.stat().st_size > 0
