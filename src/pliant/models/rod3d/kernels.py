@@ -142,43 +142,9 @@ class Settings(NamedTuple):
 
 # -- quaternions (w, x, y, z) ------------------------------------------------------------
 @njit(cache=True)
-def qmul(a, b):
-    return np.array([
-        a[0] * b[0] - a[1] * b[1] - a[2] * b[2] - a[3] * b[3],
-        a[0] * b[1] + a[1] * b[0] + a[2] * b[3] - a[3] * b[2],
-        a[0] * b[2] - a[1] * b[3] + a[2] * b[0] + a[3] * b[1],
-        a[0] * b[3] + a[1] * b[2] - a[2] * b[1] + a[3] * b[0]])
-
-
-@njit(cache=True)
-def qconj(a):
-    return np.array([a[0], -a[1], -a[2], -a[3]])
-
-
-@njit(cache=True)
-def qmat(q):
-    """Rotation matrix of a unit quaternion; its columns are d1, d2, d3."""
-    w, x, y, z = q[0], q[1], q[2], q[3]
-    return np.array([
-        [1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
-        [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],
-        [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)]])
-
-
-@njit(cache=True)
-def qexp(theta):
-    """exp of a rotation vector as a unit quaternion."""
-    angle = math.sqrt(theta[0] ** 2 + theta[1] ** 2 + theta[2] ** 2)
-    if angle < 1e-12:
-        return np.array([1.0, 0.5 * theta[0], 0.5 * theta[1], 0.5 * theta[2]])
-    c = math.cos(0.5 * angle)
-    s = math.sin(0.5 * angle) / angle
-    return np.array([c, s * theta[0], s * theta[1], s * theta[2]])
-
-
-@njit(cache=True)
 def _qexp_t(t0, t1, t2):
-    """``qexp`` as a tuple (no array: the Newton update's, on every frame)."""
+    """exp of the rotation vector (t0, t1, t2) as a quaternion tuple (no array: the
+    Newton update's, on every frame); unit but for the first order at tiny angles."""
     angle = math.sqrt(t0 * t0 + t1 * t1 + t2 * t2)
     if angle < 1e-12:
         return 1.0, 0.5 * t0, 0.5 * t1, 0.5 * t2
@@ -187,9 +153,9 @@ def _qexp_t(t0, t1, t2):
     return c, s * t0, s * t1, s * t2
 
 
-@njit(cache=True)
-def skew(v):
-    return np.array([[0.0, -v[2], v[1]], [v[2], 0.0, -v[0]], [-v[1], v[0], 0.0]])
+def qexp(theta: np.ndarray) -> np.ndarray:
+    """exp of a rotation vector (3,) as a quaternion (4,): ``_qexp_t`` from Python."""
+    return np.array(_qexp_t(float(theta[0]), float(theta[1]), float(theta[2])))
 
 
 # -- assembly -----------------------------------------------------------------------------
