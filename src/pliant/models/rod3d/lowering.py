@@ -291,11 +291,10 @@ class Rod:
                                  self.kl, self.ku)
 
     @cached_property
-    def station_unknowns(self) -> tuple[np.ndarray, np.ndarray]:
-        """(unknown, entry in nu) of every station multiplier, in nu's order."""
+    def station_unknowns(self) -> np.ndarray:
+        """The unknown of every station multiplier, in nu's order (the gauge's after)."""
         entry = np.arange(int(self.nu_cnt.sum()))
-        first = np.repeat(self.nu_off, self.nu_cnt)
-        return np.repeat(self.inu, self.nu_cnt) + entry - first, entry
+        return np.repeat(self.inu - self.nu_off, self.nu_cnt) + entry
 
     def targets(self, loads: Loads, gauge: np.ndarray) -> kernels.Targets:
         """The kernels' load- and target-dependent arrays at ``loads``, the twist gauge

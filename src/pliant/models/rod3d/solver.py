@@ -341,8 +341,8 @@ class Run(Routes):
         three = np.arange(3)
         sizes[rod.ix[:, None] + three] = np.maximum(1.0, np.abs(state[0]))
         sizes[rod.ilam[:, None] + three] = np.maximum(1.0, np.abs(state[2]))
-        unknown, entry = rod.station_unknowns
-        sizes[unknown] = np.maximum(1.0, np.abs(state[3][entry]))
+        unknown = rod.station_unknowns
+        sizes[unknown] = np.maximum(1.0, np.abs(state[3][:unknown.shape[0]]))
         sizes[rod.islot] = np.maximum(1.0, np.abs(state[4]))
         return sizes
 
