@@ -245,6 +245,11 @@ def feature_hessian(dist, n, tangent, kind):
     return H / dist
 
 
+def _unit_rows(v: np.ndarray) -> None:
+    """Each row of v (k, 3) scaled to length 1, in place; a zero row stays zero."""
+    v /= np.maximum(np.sqrt(np.einsum("ik,ik->i", v, v)), 1e-300)[:, None]
+
+
 def pseudonormals(vertices: np.ndarray, faces: np.ndarray) -> tuple[np.ndarray, bool]:
     """(T, 7, 3) pseudonormals: face normal, the three edges' (sum of the adjacent face
     normals), the three vertices' (angle-weighted); and whether every edge has exactly
@@ -257,7 +262,7 @@ def pseudonormals(vertices: np.ndarray, faces: np.ndarray) -> tuple[np.ndarray, 
     u = np.roll(corner, -1, axis=1) - corner  # each corner to the next
     w = -np.roll(u, 1, axis=1)  # and to the one before
     n = np.cross(u[:, 0], w[:, 0])
-    n /= np.maximum(np.sqrt(np.einsum("tk,tk->t", n, n)), 1e-300)[:, None]  # 0 stays 0
+    _unit_rows(n)
     uu = np.einsum("tck,tck->tc", u, u)
     cos = np.einsum("tck,tck->tc", u, w) / np.maximum(np.sqrt(uu * np.roll(uu, 1, axis=1)),
                                                          1e-300)
@@ -266,7 +271,7 @@ def pseudonormals(vertices: np.ndarray, faces: np.ndarray) -> tuple[np.ndarray, 
     for k in range(3):
         vert[:, k] = np.bincount(faces.ravel(), (angle * n[:, k, None]).ravel(),
                                  vertices.shape[0])
-    vert /= np.maximum(np.sqrt(np.einsum("vk,vk->v", vert, vert)), 1e-300)[:, None]
+    _unit_rows(vert)
     pseudo = np.empty((T, 7, 3))
     pseudo[:, 0] = n
     pseudo[:, 4:7] = vert[faces]
@@ -280,7 +285,7 @@ def pseudonormals(vertices: np.ndarray, faces: np.ndarray) -> tuple[np.ndarray, 
     np.not_equal(ordered[1:], ordered[:-1], out=first[1:])
     starts = np.flatnonzero(first)
     sums = np.add.reduceat(n[order // 3], starts, axis=0)
-    sums /= np.maximum(np.sqrt(np.einsum("ek,ek->e", sums, sums)), 1e-300)[:, None]
+    _unit_rows(sums)
     edge = np.empty(ordered.shape[0], dtype=np.int64)
     edge[order] = np.cumsum(first) - 1
     pseudo[:, 1:4] = sums[edge].reshape(T, 3, 3)
