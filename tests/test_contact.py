@@ -43,17 +43,30 @@ def penetration(eq) -> float:
 
 
 @pytest.mark.parametrize("a", [1.0, 0.8])
-def test_propped_cantilever(a):
+@pytest.mark.parametrize("kind", ["rod", "knife edge"])
+def test_propped_cantilever(a, kind):
     """A cantilever under its weight (q L^3 / EI = 0.1, small deflection) resting on a
-    thin rod across it at x = a: the prop carries q (6 L^2 - 4 L a + a^2) / 8a (3 q L / 8
-    at the tip)."""
-    prop = Obstacle.cylinder("prop", 0.005, 0.2, (a, 0.0, -(RADIUS + 0.005)), ACROSS_Y)
-    problem = pl.Problem(part(0.1), (pl.clamp(0.0, position=(0.0, 0.0, 0.0)),),
+    thin rod across it, or on the sharp edge of a plate (1 mm thick, beyond x = a), at
+    x = a: the prop carries P = q (6 L^2 - 4 L a + a^2) / 8a (3 q L / 8 at the tip), and
+    the frictionless prop's force is square to the part where they touch, so it leans
+    by the part's slope there, q (a^3 - 3 L a^2 + 3 L^2 a) / 6 EI - P a^2 / 2 EI. Over
+    the knife's edge a probe fixed on the part would lean by up to half its spacing over
+    the radius (0.125 here), not by the slope (2e-3 at the tip): the element's point
+    nearest the edge takes the force (the straight element's slope is the part's to
+    O(h) there: 2%)."""
+    q = 0.1
+    if kind == "rod":
+        prop = Obstacle.cylinder("prop", 0.005, 0.2, (a, 0.0, -(RADIUS + 0.005)), ACROSS_Y)
+    else:
+        prop = Obstacle.box("prop", (0.001, 0.2, 0.1), (a + 0.0005, 0.0, -RADIUS - 0.05))
+    problem = pl.Problem(part(q), (pl.clamp(0.0, position=(0.0, 0.0, 0.0)),),
                          gravity=(0.0, 0.0, -9.81), obstacles=(prop,))
     eq = rod3d.solve(problem)
     total = eq.contacts.by_obstacle()["prop"]
-    assert total[2] == pytest.approx(0.1 * (6 - 4 * a + a * a) / (8 * a), rel=2e-3)
-    assert abs(total[0]) < 2e-3 * total[2] and total[1] == 0.0  # tilted by the slope
+    P = q * (6 - 4 * a + a * a) / (8 * a)
+    assert total[2] == pytest.approx(P, rel=2e-3)
+    slope = q * (a**3 - 3 * a * a + 3 * a) / 6 - P * a * a / 2  # downward, small
+    assert total[0] / total[2] == pytest.approx(slope, rel=0.02) and total[1] == 0.0
     assert penetration(eq) < 1e-6
 
 
@@ -223,6 +236,60 @@ def test_contact_jacobian_matches_finite_differences():
     idle = rod.iprobe[(gam == 0.0) & (touching == 0)]
     fd[:, idle] = J[:, idle]
     assert np.all(J[np.ix_(idle, idle)] == np.eye(idle.size))
+    assert np.abs(J - fd).max() < 1e-5 * max(1.0, np.abs(J).max())
+
+
+def test_sliders_jacobian_matches_finite_differences():
+    """Over an edge or a curved obstacle an element's contact point is its point nearest
+    the obstacle, which moves along it with the nodes: the force's Jacobian gains
+    lam c c^T / g'' (contact_kernels._slide_jacobian). Checked against central
+    differences where sliders rest inside their elements over a drum, a box's edge
+    and a mesh's edges and vertices (an icosphere), each dipped 0.3 mm."""
+    from dataclasses import replace
+
+    import trimesh
+
+    from pliant.models.rod3d import solver as rod_solver
+    from pliant.scene.distance import DistanceField
+
+    def height(x):
+        return 0.03 * np.maximum(x - 0.45, 0.0)
+
+    ball = trimesh.creation.icosphere(subdivisions=2, radius=0.05)
+    placed = (Obstacle.cylinder("drum", 0.05, 0.3, (0.2, 0.0, -0.1), ACROSS_Y),
+              Obstacle.box("block", (0.12, 0.2, 0.1), (0.58, 0.0, -0.1)),
+              Obstacle.from_mesh("ball", ball.vertices + [0.83, 0.013, -0.1], ball.faces))
+    x = np.linspace(0.0, 1.0, 20001)
+    line = np.column_stack([x, np.zeros_like(x), height(x)])
+    obstacles = []
+    for ob in placed:  # each raised until the part's axis dips 0.3 mm into its tube
+        for _ in range(4):  # (a sloped line: a shift moves the nearest point a little)
+            d, _, _ = DistanceField([ob]).query(line, band=1.0)
+            ob = replace(ob, translation=ob.translation
+                         + [0.0, 0.0, d.min() - (RADIUS - 0.0003)])
+        obstacles.append(ob)
+    hose = pl.Part(length=1.0, bending_stiffness=0.05, mass_per_length=0.3,
+                   outer_diameter=2 * RADIUS)
+    problem = pl.Problem(hose, (pl.clamp(0.0, position=(0.0, 0.0, 0.0)),),
+                         gravity=(0.0, 0.0, -9.81), obstacles=tuple(obstacles))
+    rod = lower(problem, 24)
+    run = rod_solver.Run(rod, rod3d.RodSolver())
+    _, rest = rod.rest()
+    run.gauge_quat = rest[1][0].copy()
+    X = rest[0].copy()
+    X[:, 2] = height(X[:, 0])
+    gaps = run.contacts((X, rest[1], rest[2], rest[3], np.zeros(rod.iprobe.shape[0])),
+                        rod.target)[0]
+    gam = np.where(gaps < 0.0, np.random.default_rng(1).uniform(0.5, 2.0, gaps.shape), 0.0)
+    state = (X, rest[1], rest[2], rest[3], gam)
+    _, _, which, touching, where, _, _ = run.contacts(state, rod.target)
+    slid = rod.slider[(where[rod.slider] > 0.0) & (where[rod.slider] < 1.0)
+                      & (where[rod.slider] != 0.5) & (gam[rod.slider] > 0.0)]
+    names = {rod.distance_field.obstacles[o].name for o in which[slid]}
+    assert names == {"drum", "block", "ball"}
+    J, fd = _jacobians(run, state)
+    idle = rod.iprobe[(gam == 0.0) & (touching == 0)]
+    fd[:, idle] = J[:, idle]
     assert np.abs(J - fd).max() < 1e-5 * max(1.0, np.abs(J).max())
 
 

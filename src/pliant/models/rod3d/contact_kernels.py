@@ -31,11 +31,13 @@ COMPLIANCE = 1e-9  # a contact's gap per unit normal force, dimensionless (see b
 
 
 @njit(cache=True)
-def contact_terms(X, gam, con, num, R, ab, want_jac):
+def contact_terms(X, gam, con, num, R, ab, want_jac, hand_over):
     """Add the contacts (``Contact``) to a KKT residual (and its Jacobian), in place.
 
     Each probe p = (1 - a) x_e + a x_e+1 has the gap g = (D(p L) - radius) / L + offset
-    (D the scene's signed distance) and the multiplier gam >= 0, the normal force it takes
+    (D the scene's signed distance; a fixed place a, but for each element's slider, which
+    without friction may move to the element's point nearest an edge or a curved
+    obstacle, see ``_slide``) and the multiplier gam >= 0, the normal force it takes
     (by EI / L^2); the force gam n (n = grad D) acts on its two nodes. The unilateral
     condition is the complementarity function min(gam, scale g) = 0, solved by a
     semismooth Newton: a probe with gam <= scale g is free (its row: gam = 0), else it
@@ -56,7 +58,10 @@ def contact_terms(X, gam, con, num, R, ab, want_jac):
     along it), and a stiff one leaves Newton a disc too narrow to land in: its iterates
     jump from rim to rim.
     Returns (gaps (K,), normals (K, 3), obstacles (K,), state (K,) int8: 0 free,
-    1 touching (sticking, with friction), 2 touching and sliding).
+    1 touching (sticking, with friction), 2 touching and sliding, places a (K,), and
+    for each probe held free where a slider took over, the probe its force goes to
+    (K,; -1: none, see ``_hand_over``), and the forces gam, those handed over moved
+    to their takers where ``hand_over`` (``newton_contact``)).
     """
     probe_elem, probe_a, iprobe, slot = con.probe_elem, con.probe_a, con.iprobe, con.slot
     L, radius, offset, scale, field = con.length, con.radius, con.offset, con.scale, con.field
@@ -73,9 +78,31 @@ def contact_terms(X, gam, con, num, R, ab, want_jac):
             points[k, c] = ((1.0 - a) * X[e, c] + a * X[e + 1, c]) * L
     # One batched query: a call per probe would pay the scene's many arrays each time.
     dist, normals, found = query_points(points, con.band, field)
+    where = probe_a.copy()
+    slid = np.zeros(K, dtype=np.int8)  # each probe: ANCHORED, SLID, BOUND or DEFERS
+    mode = np.zeros(X.shape[0] - 1, dtype=np.int8)  # each element: its slider's
+    if slot == 1:  # (friction's slip is a material point's: its probes stay put)
+        for e in range(con.slider.shape[0]):
+            k = con.slider[e]
+            slid[k] = _slide(X, k, e, con, dist, normals, found, points, where)
+            mode[e] = slid[k]
+    takers = _hand_over(slid, mode, where, gam, probe_elem, con.slider, con.held, slot)
+    if hand_over:
+        # A probe held free that still has a force (a slider took its element over, or
+        # the nearest point passed a node) hands it to the probe that now holds that
+        # point: dropped, the force would leave the part with nothing holding it for one
+        # Newton step, and the step would run far into the obstacle.
+        copied = False
+        for k in range(K):
+            if takers[k] >= 0 and gam[k * slot] != 0.0:
+                if not copied:
+                    gam = gam.copy()
+                    copied = True
+                gam[takers[k] * slot] += gam[k * slot]
+                gam[k * slot] = 0.0
     for k in range(K):
         e = probe_elem[k]
-        a = probe_a[k]
+        a = where[k]
         d, o = dist[k], found[k]
         g = (d - radius) / L + offset
         gaps[k] = g
@@ -92,7 +119,10 @@ def contact_terms(X, gam, con, num, R, ab, want_jac):
         # probes are dependent (a part lying along a plane: a probe between two
         # touching ones adds no new constraint) and changes no gap beyond 1e-9 L a unit.
         soft = g + COMPLIANCE * lam
-        touching = lam > scale * soft
+        # Where its slider took over, an element's other probes are held free: their
+        # gaps are no smaller than the slider's (see _slide).
+        held_free = mode[e] != ANCHORED and (slid[k] == ANCHORED or slid[k] == DEFERS)
+        touching = lam > scale * soft and not held_free
         R[ip] = scale * soft if touching else lam
         kind = 0
         if slot == 3:
@@ -125,7 +155,216 @@ def contact_terms(X, gam, con, num, R, ab, want_jac):
                         _add(ab, kl, ku, ix[e] + c, ix[e + 1] + j, w0 * w1 * v)
                         _add(ab, kl, ku, ix[e + 1] + c, ix[e] + j, w1 * w0 * v)
                         _add(ab, kl, ku, ix[e + 1] + c, ix[e + 1] + j, w1 * w1 * v)
-    return gaps, normals, which, active
+            if slid[k] == SLID:
+                _slide_jacobian(X, e, a, lam, n, H, ix, ab, kl, ku)
+    return gaps, normals, which, active, where, takers, gam
+
+
+SLIDE_TURN = 1e-3  # an element whose normal turns less than this [rad] keeps its probes
+ANCHORED, SLID, BOUND, DEFERS = 0, 1, 2, 3  # where _slide leaves a probe
+
+
+@njit(cache=True, inline="always")
+def _slide(X, k, e, con, dist, normals, found, points, where):
+    """Element e's slider, its probe k: moved to the element's point nearest the
+    obstacles (a 1D Newton on the squared distance along the element: exact in one step
+    at a mesh's edge or vertex), its entries in dist, normals, found, points [m] and
+    where updated in place.
+
+    Over a face, fixed probes spread the contact along the part and their normals are
+    exact. Over an edge or a curved surface they are not: a fixed probe's normal leans
+    by up to half the probes' spacing over the tube's radius, a force error first order
+    in the spacing (4 % at the default resolution over a box's edge). There a straight
+    element meets a convex obstacle at one point, the nearest, where the normal is
+    square to the part's axis: the slider holds that point, and the element's other
+    probes, whose gaps are no smaller, are held free (``contact_terms``).
+
+    Returns ``ANCHORED`` where the element keeps its fixed probes (the slider one of
+    them, at its place): its normal turns by less than ``SLIDE_TURN`` along it (a face,
+    a gentle curve), or it is too far to touch. Else the element is the slider's:
+    ``SLID`` where the nearest point lies inside it (it then moves with the nodes, see
+    ``_slide_jacobian``); ``BOUND`` where it is an end node that the next element does
+    not come nearer than (a kink at the nearest point: both elements' sliders hold it,
+    one row twice, which the compliance keeps regular; or the part's end); ``DEFERS``
+    where it is an end beyond which the next element comes nearer (its slider or its
+    probes hold that): it is then held free. So, as the nearest point passes a node,
+    the two sliders share it before the next takes it over: neither a point that
+    nothing holds nor two rows at nearby points at once, which a straight element
+    cannot meet together (see also ``_hand_over``).
+    """
+    held, radius, L, field = con.held, con.radius, con.length, con.field
+    if held[e] or held[e + 1]:
+        # Beside a node a station holds, the nearest point can come to that node: a held
+        # point on the surface about which the element turns, whose gap then changes
+        # with the turn only to second order (no force could hold it).
+        return ANCHORED
+    D = np.empty(3)  # d p / d a [m]
+    for c in range(3):
+        D[c] = (X[e + 1, c] - X[e, c]) * L
+    size = math.sqrt(D[0] * D[0] + D[1] * D[1] + D[2] * D[2])
+    a, d, o = where[k], dist[k], found[k]
+    if not (d - radius) + con.offset * L < size:  # no part of it can touch
+        return ANCHORED
+    n0, n1, n2 = normals[k, 0], normals[k, 1], normals[k, 2]
+    p = points[k].copy()
+    turns = False
+    settled = False
+    # A safeguarded Newton: along a line the distance to a convex piece is convex, so
+    # the sign of its slope brackets the nearest point; a step past the bracket tries
+    # the bracket's untried end (an end may be the nearest point), else halves it.
+    lo, hi = 0.0, 1.0
+    lo_seen, hi_seen = False, False
+    for _ in range(40):
+        if o < 0 or d <= 0.0:
+            break
+        H = hessian_point(p, o, field)
+        fp = n0 * D[0] + n1 * D[1] + n2 * D[2]
+        fpp = 0.0
+        bend = 0.0
+        for i in range(3):
+            hd = H[i, 0] * D[0] + H[i, 1] * D[1] + H[i, 2] * D[2]
+            fpp += D[i] * hd
+            bend += hd * hd
+        if math.sqrt(bend) > SLIDE_TURN:
+            turns = True
+        if fp > 0.0:
+            hi, hi_seen = a, True
+        elif fp < 0.0:
+            lo, lo_seen = a, True
+        if fp == 0.0 or (fp > 0.0 and a == 0.0) or (fp < 0.0 and a == 1.0) or (
+                hi - lo <= 1e-12):
+            settled = True
+            break
+        den = fp * fp + d * fpp
+        an = a - d * fp / den if den > 0.0 else -1.0
+        if abs(an - a) <= 1e-12:  # the minimum
+            settled = True
+            break
+        if not lo < an < hi:
+            if fp > 0.0 and not lo_seen:
+                an = lo
+            elif fp < 0.0 and not hi_seen:
+                an = hi
+            else:
+                an = 0.5 * (lo + hi)
+        if abs(an - a) <= 1e-12:
+            settled = True
+            break
+        a = an
+        for c in range(3):
+            p[c] = ((1.0 - a) * X[e, c] + a * X[e + 1, c]) * L
+        dq, nq, oq = query_points(p.reshape(1, 3), con.band, field)
+        d, n0, n1, n2, o = dq[0], nq[0, 0], nq[0, 1], nq[0, 2], oq[0]
+    if not turns or not settled or not d > 0.5 * radius:
+        # (Half the tube inside an obstacle: a homotopy's start or a wild iterate, where
+        # the squared distance's minimum may be where the axis crosses the surface.)
+        return ANCHORED
+    kind = SLID
+    if a == 0.0 or a == 1.0:
+        node = e if a == 0.0 else e + 1
+        other = node - 1 if a == 0.0 else node + 1  # the next element's far node
+        kind = BOUND
+        if 0 <= other < X.shape[0]:
+            # Along the next element, away from the node: does the distance fall?
+            fa = (n0 * (X[other, 0] - X[node, 0]) + n1 * (X[other, 1] - X[node, 1])
+                  + n2 * (X[other, 2] - X[node, 2]))
+            if fa < 0.0:
+                kind = DEFERS
+    where[k], dist[k], found[k] = a, d, o
+    normals[k, 0], normals[k, 1], normals[k, 2] = n0, n1, n2
+    for c in range(3):
+        points[k, c] = p[c]
+    return kind
+
+
+NEAR_NODE = 0.25  # a nearest point this close to a node (by its element) is beside it
+
+
+@njit(cache=True)
+def _hand_over(slid, mode, where, gam, elem, slider, held, slot):
+    """Settle who holds what across nodes, and return, for each probe held free because
+    a slider took its element over, the probe that takes its force over
+    (``newton_contact``; -1 for none).
+
+    First, a slider that defers across a node while it still has a force holds the node
+    instead (``BOUND``) where the next element's nearest point lies just beside the
+    node (within ``NEAR_NODE`` of that element): there the part touches on both sides
+    of the node, two points a small turn apart, and a force handed from one to the other
+    would hand itself back at the next Newton step, round and round. Where the nearest
+    point walked farther (a long load step on fine elements) the hand-over stands.
+
+    The taker: the element's slider where it holds a point; where it defers across a
+    node, the next element's slider or, where that element keeps its probes, its probe
+    nearest the node (none where a station holds the node)."""
+    K = elem.shape[0]
+    N = mode.shape[0]
+    out = np.full(K, -1, dtype=np.int64)
+    if slider.shape[0] == 0:
+        return out
+    for e in range(N):
+        k = slider[e]
+        if mode[e] != DEFERS or gam[k * slot] == 0.0:
+            continue
+        node = e if where[k] == 0.0 else e + 1
+        nxt = node - 1 if node == e else node
+        if held[node] or nxt < 0 or nxt >= N or mode[nxt] != SLID:
+            continue
+        a = where[slider[nxt]]
+        if (1.0 - a if nxt < e else a) < NEAR_NODE:
+            mode[e] = BOUND
+            slid[k] = BOUND
+    first = np.full(N, K, dtype=np.int64)  # each element's probes: first and last
+    last = np.full(N, -1, dtype=np.int64)
+    for k in range(K):
+        first[elem[k]] = min(first[elem[k]], k)
+        if where[k] < 1.0 or elem[k] < N - 1:  # (not the part's last node's probe)
+            last[elem[k]] = max(last[elem[k]], k)
+    for k in range(K):
+        e = elem[k]
+        if mode[e] == ANCHORED or slid[k] == SLID or slid[k] == BOUND:
+            continue
+        for _ in range(4):  # (a chain of deferring sliders is short)
+            if mode[e] == SLID or mode[e] == BOUND:
+                out[k] = slider[e]
+                break
+            if mode[e] == ANCHORED:
+                break
+            node = e if where[slider[e]] == 0.0 else e + 1
+            nxt = node - 1 if node == e else node
+            if held[node] or nxt < 0 or nxt >= N:
+                break
+            if mode[nxt] == ANCHORED:  # it keeps its probes: the one nearest the node
+                out[k] = first[nxt] if nxt == node else last[nxt]
+                break
+            e = nxt
+    return out
+
+
+@njit(cache=True)
+def _slide_jacobian(X, e, a, lam, n, H, ix, ab, kl, ku):
+    """The force's Jacobian from its point's motion along its element (H: d n / d p, by
+    L). The gap is g(x) = min over the element of the distance: its gradient is the one
+    at the nearest point (the point's motion changes g only to second order), and its
+    Hessian gains - c c^T / g'' with g' = n . (x_e+1 - x_e), c = d g' / d x and
+    g'' = d g' / d a: the nearest point moves by - c . dx / g'' as the nodes move.
+    (Written out in loops: array expressions cost seconds to compile.)"""
+    D = np.empty(3)
+    for i in range(3):
+        D[i] = X[e + 1, i] - X[e, i]
+    c = np.empty(6)  # d g' / d (x_e, x_e+1)
+    fpp = 0.0
+    for i in range(3):
+        hd = H[i, 0] * D[0] + H[i, 1] * D[1] + H[i, 2] * D[2]
+        fpp += D[i] * hd
+        c[i] = (1.0 - a) * hd - n[i]
+        c[3 + i] = a * hd + n[i]
+    if not fpp > 0.0:
+        return
+    q = lam / fpp
+    for i in range(6):
+        row = ix[e + i // 3] + i % 3
+        for j in range(6):
+            _add(ab, kl, ku, row, ix[e + j // 3] + j % 3, q * c[i] * c[j])
 
 
 ELASTIC_SLIP = 0.005  # a sticking probe's slip at the friction limit, by its element
@@ -218,11 +457,12 @@ def _friction_terms(gam, k, o, p, con, num, R, ab, want_jac):
 
 @njit(cache=True, inline="always")
 def _contact_residual(X, Q, lam, nu, gam, mesh, tg, num, con):
-    """The KKT residual and Jacobian with the contact terms; (R, ab, energy, active)."""
+    """The KKT residual and Jacobian with the contact terms, forces handed over (see
+    ``contact_terms``); (R, ab, energy, active, gam)."""
     yes = num.n >= 0  # a runtime True (see newton)
     R, ab, energy = assemble(X, Q, lam, nu, mesh, tg, num, yes)
-    active = contact_terms(X, gam, con, num, R, ab, yes)[3]
-    return R, ab, energy, active
+    out = contact_terms(X, gam, con, num, R, ab, yes, yes)
+    return R, ab, energy, out[3], out[6]
 
 
 @njit(cache=True)
@@ -255,12 +495,13 @@ def newton_contact(X, Q, lam, nu, gam, mesh, tg, num, con, opts):
       from the full one (the Jacobian jumps on an obstacle's seams, a face meeting an
       edge's rounding, so convergence there is not quadratic); a corrector gives up
       below a tenth of a step, and its continuation shortens the load step instead;
-    - a full step that changes which probes touch, up to ``max_switches`` times.
+    - a full step that changes which probes touch, or gives a touching probe its first
+      force, up to ``max_switches`` times.
 
     Returns (X, Q, lam, nu, gam, residual, iterations, status, energy)."""
     tol, max_iter, contraction, strict, max_switches = opts
     iprobe, slot = con.iprobe, con.slot
-    R, ab, energy, active = _contact_residual(X, Q, lam, nu, gam, mesh, tg, num, con)
+    R, ab, energy, active, gam = _contact_residual(X, Q, lam, nu, gam, mesh, tg, num, con)
     r = contact_max(R, con)
     if not math.isfinite(r):
         return X, Q, lam, nu, gam, r, 0, NOT_FINITE, energy
@@ -276,9 +517,16 @@ def newton_contact(X, Q, lam, nu, gam, mesh, tg, num, con, opts):
         if not ok:
             return X, Q, lam, nu, gam, r, it, SINGULAR, energy
         damped = not strict
+        # A probe that touches with no force yet (it has just met the obstacle) takes its
+        # first force in this step: its normal's turn as its point moves is then not in
+        # the Jacobian (it scales with the force), so the residual may grow once. Like a
+        # switch, that full step is taken.
+        entering = False
         for k in range(active.shape[0]):
             if active[k]:
                 damped = True
+                if gam[k * slot] == 0.0:
+                    entering = True
         step = 1.0
         accepted = False
         for _ in range(30 if damped else 1):
@@ -287,7 +535,7 @@ def newton_contact(X, Q, lam, nu, gam, mesh, tg, num, con, opts):
             for k in range(iprobe.shape[0]):
                 for j in range(slot):
                     gn[k * slot + j] += step * du[iprobe[k] + j]
-            Rn, abn, en, an = _contact_residual(Xn, Qn, ln, nn, gn, mesh, tg, num, con)
+            Rn, abn, en, an, gn = _contact_residual(Xn, Qn, ln, nn, gn, mesh, tg, num, con)
             rn = contact_max(Rn, con)
             finite = math.isfinite(rn)
             if damped:
@@ -295,7 +543,7 @@ def newton_contact(X, Q, lam, nu, gam, mesh, tg, num, con, opts):
             else:
                 accepted = rn <= contraction * r or rn <= tol
             if not accepted and step == 1.0 and switches < max_switches and finite:
-                changed = False
+                changed = entering
                 for k in range(an.shape[0]):
                     if an[k] != active[k]:
                         changed = True

@@ -211,6 +211,10 @@ class Rod:
     # each with a multiplier (its contact force) numbered beside its node.
     probe_elem: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=np.int64))
     probe_a: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    # Each element's slider (a probe index, see contact_kernels._slide), and which nodes
+    # a station holds whole (no probe there: the station takes that point).
+    slider: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=np.int64))
+    held: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=np.bool_))
     iprobe: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=np.int64))
     # Unknowns per probe: its normal force, and with friction two tangential ones after it.
     slot: int = 1
@@ -256,9 +260,10 @@ class Rod:
             raise ValueError("this rod has no obstacles (no contact probes)")
         return self.obstacles
 
-    def probe_points(self, X: np.ndarray) -> np.ndarray:
-        """The probes' points (K, 3) on the nodes X, in X's units."""
-        a = self.probe_a[:, None]
+    def probe_points(self, X: np.ndarray, where: np.ndarray | None = None) -> np.ndarray:
+        """The probes' points (K, 3) on the nodes X, in X's units, at their anchors or at
+        the places ``where`` (K,) they slid to."""
+        a = (self.probe_a if where is None else where)[:, None]
         return (1.0 - a) * X[self.probe_elem] + a * X[self.probe_elem + 1]
 
     @property
@@ -570,6 +575,7 @@ def lower(problem: Problem, elements: int = 100) -> Rod:
         width = max(width, abs(igauge - ith[gauge_frame]) + 2)
     probe_elem = np.zeros(0, dtype=np.int64)
     probe_a = np.zeros(0)
+    slider = np.zeros(0, dtype=np.int64)
     iprobe = np.zeros(0, dtype=np.int64)
     obstacles = None
     if contact:
@@ -585,6 +591,9 @@ def lower(problem: Problem, elements: int = 100) -> Rod:
                                  first[mids] + (node_probe[mids] + j - 1) * slot]).astype(np.int64)
         order = np.argsort(iprobe)
         probe_elem, probe_a, iprobe = probe_elem[order], probe_a[order], iprobe[order]
+        # Each element's slider: its middle inner probe (see contact_kernels._slide).
+        slider = np.nonzero(np.rint(probe_a * per) == per // 2)[0]
+        slider = slider[np.argsort(probe_elem[slider])]
         for k in range(iprobe.shape[0]):
             e = probe_elem[k]
             width = max(width, abs(iprobe[k] + slot - 1 - ix[e]), abs(ix[e + 1] + 2 - iprobe[k]))
@@ -599,8 +608,9 @@ def lower(problem: Problem, elements: int = 100) -> Rod:
                ith=ith, ilam=ilam, inu=inu, nu_off=nu_off, nu_cnt=nu_cnt, igauge=igauge,
                n=n, kl=width, ku=width, m=m, target=target, key=key, rest_k0=rest_k0,
                node_frame=node_frame, requested=elements, probe_elem=probe_elem,
-               probe_a=probe_a, iprobe=iprobe, slot=slot, obstacles=obstacles,
-               radius=radius)
+               probe_a=probe_a, slider=slider, held=held, iprobe=iprobe, slot=slot,
+               obstacles=obstacles, radius=radius)
+
 
 
 # The rod's unknowns: node positions, frame quaternions, element forces, station

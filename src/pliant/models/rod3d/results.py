@@ -90,12 +90,12 @@ def _contacts(run: Run, state: State) -> Contacts:
     gam = state[4]
     if not gam.shape[0]:
         return NO_CONTACTS
-    _, normals, which, _ = run.contacts(state, rod.target)
+    _, normals, which, _, where, _, _ = run.contacts(state, rod.target)
     normal = gam[::rod.slot]
     # Forces at rounding level (a probe just touching) are not contacts.
     on = np.nonzero(normal > 1e-10 * max(1.0, float(normal.max())))[0]
-    e, a = rod.probe_elem[on], rod.probe_a[on]
-    points = rod.probe_points(state[0])[on] * rod.length
+    e, a = rod.probe_elem[on], where[on]
+    points = rod.probe_points(state[0], where)[on] * rod.length
     names = tuple(rod.distance_field.obstacles[o].name for o in which[on])
     friction = np.zeros((on.shape[0], 3))
     if rod.friction:

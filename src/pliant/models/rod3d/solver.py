@@ -206,15 +206,15 @@ class Run(Routes):
 
     def contacts(self, state: State, loads: Loads, R: np.ndarray | None = None,
                  ab: np.ndarray | None = None, want_jac: bool = False):
-        """Add the contact terms to (R, ab) and return (gaps, normals, obstacles, active)
-        of the probes (see ``contact_kernels.contact_terms``)."""
+        """Add the contact terms to (R, ab) and return (gaps, normals, obstacles, active,
+        places, takers, forces) of the probes (see ``contact_kernels.contact_terms``)."""
         rod = self.rod
         if R is None:
             R = np.zeros(rod.n)
         if ab is None:
             ab = np.zeros((0, 2 * rod.kl + rod.ku + 1))
-        return contact_kernels.contact_terms(state[0], state[4], self.contact(loads), rod.numbering,
-                                     R, ab, want_jac)
+        return contact_kernels.contact_terms(state[0], state[4], self.contact(loads),
+                                             rod.numbering, R, ab, bool(want_jac), False)
 
     def solve_linear(self, ab: np.ndarray, rhs: np.ndarray) -> tuple[np.ndarray, bool]:
         """Solve J du = rhs, J's band in ``ab`` (which may be overwritten). A free probe's
@@ -230,9 +230,9 @@ class Run(Routes):
         """The contact terms' bundle at ``loads``: the band of exact distances reaches two
         radii and 5% of L past the tube."""
         rod = self.rod
-        return kernels.Contact(rod.probe_elem, rod.probe_a, rod.iprobe, rod.slot,
-                               float(rod.length), float(rod.radius), float(loads.offset),
-                               2.0 * rod.radius + 0.05 * rod.length,
+        return kernels.Contact(rod.probe_elem, rod.probe_a, rod.slider, rod.held, rod.iprobe,
+                               rod.slot, float(rod.length), float(rod.radius),
+                               float(loads.offset), 2.0 * rod.radius + 0.05 * rod.length,
                                CONTACT_SCALE * max(1.0, (0.01 / float(rod.h.min())) ** 2),
                                rod.distance_field.args, self.friction)
 

@@ -149,7 +149,7 @@ def _start_together(problem, own, rigid: Equilibrium3D, parts: list, solver: Rod
     nu = _station_multipliers(old.rod, old.state[3], rod)
     names: list[str] = []
     if old.rod.iprobe.shape[0]:
-        _, _, which, _ = Run(old.rod, solver).contacts(old.state, old.rod.target)
+        which = Run(old.rod, solver).contacts(old.state, old.rod.target)[2]
         names = [old.rod.distance_field.obstacles[o].name if o >= 0 else "" for o in which]
     on_part = np.array([n in {p.name for p in parts} for n in names], dtype=bool)
     if rod.islot.shape[0] == old.rod.islot.shape[0] and rod.slot == old.rod.slot:
