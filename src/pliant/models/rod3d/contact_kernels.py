@@ -82,8 +82,25 @@ def contact_terms(X, gam, con, num, R, ab, want_jac, hand_over):
     slid = np.zeros(K, dtype=np.int8)  # each probe: ANCHORED, SLID, BOUND or DEFERS
     mode = np.zeros(X.shape[0] - 1, dtype=np.int8)  # each element: its slider's
     if slot == 1:  # (friction's slip is a material point's: its probes stay put)
+        # Each node's probe (-1 where a station holds the node): an element whose two
+        # nodes and slider lie over one face (one obstacle, one normal) lies over it
+        # whole (a face's region is convex), its distance linear: it keeps its probes.
+        at_node = np.full(X.shape[0], -1, dtype=np.int64)
+        for k in range(K):
+            if probe_a[k] == 0.0:
+                at_node[probe_elem[k]] = k
+            elif probe_a[k] == 1.0:
+                at_node[probe_elem[k] + 1] = k
         for e in range(con.slider.shape[0]):
             k = con.slider[e]
+            k0, k1 = at_node[e], at_node[e + 1]
+            if k0 >= 0 and k1 >= 0 and found[k0] == found[k] and found[k1] == found[k]:
+                c0 = (normals[k0, 0] * normals[k, 0] + normals[k0, 1] * normals[k, 1]
+                      + normals[k0, 2] * normals[k, 2])
+                c1 = (normals[k1, 0] * normals[k, 0] + normals[k1, 1] * normals[k, 1]
+                      + normals[k1, 2] * normals[k, 2])
+                if c0 > 1.0 - 1e-14 and c1 > 1.0 - 1e-14:
+                    continue
             slid[k] = _slide(X, k, e, con, dist, normals, found, points, where)
             mode[e] = slid[k]
     takers = _hand_over(slid, mode, where, gam, probe_elem, con.slider, con.held, slot)
