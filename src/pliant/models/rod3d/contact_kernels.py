@@ -82,18 +82,12 @@ def contact_terms(X, gam, con, num, R, ab, want_jac, hand_over):
     slid = np.zeros(K, dtype=np.int8)  # each probe: ANCHORED, SLID, BOUND or DEFERS
     mode = np.zeros(X.shape[0] - 1, dtype=np.int8)  # each element: its slider's
     if slot == 1:  # (friction's slip is a material point's: its probes stay put)
-        # Each node's probe (-1 where a station holds the node): an element whose two
-        # nodes and slider lie over one face (one obstacle, one normal) lies over it
-        # whole (a face's region is convex), its distance linear: it keeps its probes.
-        at_node = np.full(X.shape[0], -1, dtype=np.int64)
-        for k in range(K):
-            if probe_a[k] == 0.0:
-                at_node[probe_elem[k]] = k
-            elif probe_a[k] == 1.0:
-                at_node[probe_elem[k] + 1] = k
+        # An element whose two nodes and slider lie over one face (one obstacle, one
+        # normal) lies over it whole (a face's region is convex), its distance linear: it
+        # keeps its probes.
         for e in range(con.slider.shape[0]):
             k = con.slider[e]
-            k0, k1 = at_node[e], at_node[e + 1]
+            k0, k1 = con.node_probe[e], con.node_probe[e + 1]
             if k0 >= 0 and k1 >= 0 and found[k0] == found[k] and found[k1] == found[k]:
                 c0 = (normals[k0, 0] * normals[k, 0] + normals[k0, 1] * normals[k, 1]
                       + normals[k0, 2] * normals[k, 2])
@@ -103,7 +97,7 @@ def contact_terms(X, gam, con, num, R, ab, want_jac, hand_over):
                     continue
             slid[k] = _slide(X, k, e, con, dist, normals, found, points, where)
             mode[e] = slid[k]
-    takers = _hand_over(slid, mode, where, gam, probe_elem, con.slider, con.held, slot)
+    takers = _hand_over(slid, mode, where, gam, probe_elem, con.slider, con.node_probe, slot)
     if hand_over:
         # A probe held free that still has a force (a slider took its element over, or
         # the nearest point passed a node) hands it to the probe that now holds that
@@ -191,7 +185,7 @@ def _slide(X, k, e, con, dist, normals, found, points, where):
     Over a face, fixed probes spread the contact along the part and their normals are
     exact. Over an edge or a curved surface they are not: a fixed probe's normal leans
     by up to half the probes' spacing over the tube's radius, a force error first order
-    in the spacing (4 % at the default resolution over a box's edge). There a straight
+    in the spacing (3 % at the default resolution over a box's edge). There a straight
     element meets a convex obstacle at one point, the nearest, where the normal is
     square to the part's axis: the slider holds that point, and the element's other
     probes, whose gaps are no smaller, are held free (``contact_terms``).
@@ -209,8 +203,8 @@ def _slide(X, k, e, con, dist, normals, found, points, where):
     nothing holds nor two rows at nearby points at once, which a straight element
     cannot meet together (see also ``_hand_over``).
     """
-    held, radius, L, field = con.held, con.radius, con.length, con.field
-    if held[e] or held[e + 1]:
+    radius, L, field = con.radius, con.length, con.field
+    if con.node_probe[e] < 0 or con.node_probe[e + 1] < 0:
         # Beside a node a station holds, the nearest point can come to that node: a held
         # point on the surface about which the element turns, whose gap then changes
         # with the turn only to second order (no force could hold it).
@@ -298,7 +292,7 @@ NEAR_NODE = 0.25  # a nearest point this close to a node (by its element) is bes
 
 
 @njit(cache=True)
-def _hand_over(slid, mode, where, gam, elem, slider, held, slot):
+def _hand_over(slid, mode, where, gam, elem, slider, node_probe, slot):
     """Settle who holds what across nodes, and return, for each probe held free because
     a slider took its element over, the probe that takes its force over
     (``newton_contact``; -1 for none).
@@ -312,8 +306,8 @@ def _hand_over(slid, mode, where, gam, elem, slider, held, slot):
 
     The taker: the element's slider where it holds a point; where it defers across a
     node, the next element's slider or, where that element keeps its probes, its probe
-    nearest the node (none where a station holds the node)."""
-    K = elem.shape[0]
+    nearest the node (none where a station holds the node: it has no probe)."""
+    K = where.shape[0]
     N = mode.shape[0]
     out = np.full(K, -1, dtype=np.int64)
     if slider.shape[0] == 0:
@@ -324,18 +318,12 @@ def _hand_over(slid, mode, where, gam, elem, slider, held, slot):
             continue
         node = e if where[k] == 0.0 else e + 1
         nxt = node - 1 if node == e else node
-        if held[node] or nxt < 0 or nxt >= N or mode[nxt] != SLID:
+        if node_probe[node] < 0 or nxt < 0 or nxt >= N or mode[nxt] != SLID:
             continue
         a = where[slider[nxt]]
         if (1.0 - a if nxt < e else a) < NEAR_NODE:
             mode[e] = BOUND
             slid[k] = BOUND
-    first = np.full(N, K, dtype=np.int64)  # each element's probes: first and last
-    last = np.full(N, -1, dtype=np.int64)
-    for k in range(K):
-        first[elem[k]] = min(first[elem[k]], k)
-        if where[k] < 1.0 or elem[k] < N - 1:  # (not the part's last node's probe)
-            last[elem[k]] = max(last[elem[k]], k)
     for k in range(K):
         e = elem[k]
         if mode[e] == ANCHORED or slid[k] == SLID or slid[k] == BOUND:
@@ -348,10 +336,13 @@ def _hand_over(slid, mode, where, gam, elem, slider, held, slot):
                 break
             node = e if where[slider[e]] == 0.0 else e + 1
             nxt = node - 1 if node == e else node
-            if held[node] or nxt < 0 or nxt >= N:
+            if node_probe[node] < 0 or nxt < 0 or nxt >= N:
                 break
-            if mode[nxt] == ANCHORED:  # it keeps its probes: the one nearest the node
-                out[k] = first[nxt] if nxt == node else last[nxt]
+            if mode[nxt] == ANCHORED:
+                # It keeps its probes: the one nearest the node, the node's own on the
+                # element after it, the one before that (probes run along the part) on
+                # the element before.
+                out[k] = node_probe[node] if nxt == node else node_probe[node] - 1
                 break
             e = nxt
     return out

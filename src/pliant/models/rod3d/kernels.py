@@ -109,8 +109,8 @@ class Numbering(NamedTuple):
 
 class Contact(NamedTuple):
     """The probes and the scene (see ``contact_terms``): each probe's element and place
-    in it; each element's slider (a probe, see ``_slide``) and whether each node is
-    held whole by a station; each probe's first unknown; unknowns per probe (1, or 3
+    in it; each element's slider (a probe, see ``_slide``) and each node's probe (-1
+    where a station holds the node whole); each probe's first unknown; unknowns per probe (1, or 3
     with friction); L [m], the tube's radius [m], the offset added to every gap, the
     exact-distance band [m], the complementarity's scale; the scene's packed distance
     field; and friction's reference (mu per obstacle, where each probe's spring is
@@ -119,7 +119,7 @@ class Contact(NamedTuple):
     probe_elem: np.ndarray
     probe_a: np.ndarray
     slider: np.ndarray
-    held: np.ndarray
+    node_probe: np.ndarray
     iprobe: np.ndarray
     slot: int
     length: float

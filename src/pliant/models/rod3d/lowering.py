@@ -211,10 +211,10 @@ class Rod:
     # each with a multiplier (its contact force) numbered beside its node.
     probe_elem: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=np.int64))
     probe_a: np.ndarray = field(default_factory=lambda: np.zeros(0))
-    # Each element's slider (a probe index, see contact_kernels._slide), and which nodes
-    # a station holds whole (no probe there: the station takes that point).
+    # Each element's slider and each node's probe (probe indices, see
+    # contact_kernels._slide; -1 where a station holds the node whole: it takes that point).
     slider: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=np.int64))
-    held: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=np.bool_))
+    node_probe: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=np.int64))
     iprobe: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=np.int64))
     # Unknowns per probe: its normal force, and with friction two tangential ones after it.
     slot: int = 1
@@ -576,6 +576,7 @@ def lower(problem: Problem, elements: int = 100) -> Rod:
     probe_elem = np.zeros(0, dtype=np.int64)
     probe_a = np.zeros(0)
     slider = np.zeros(0, dtype=np.int64)
+    probe_at_node = np.zeros(0, dtype=np.int64)
     iprobe = np.zeros(0, dtype=np.int64)
     obstacles = None
     if contact:
@@ -594,6 +595,9 @@ def lower(problem: Problem, elements: int = 100) -> Rod:
         # Each element's slider: its middle inner probe (see contact_kernels._slide).
         slider = np.nonzero(np.rint(probe_a * per) == per // 2)[0]
         slider = slider[np.argsort(probe_elem[slider])]
+        probe_at_node = np.full(N + 1, -1, dtype=np.int64)
+        at_node = (probe_a == 0.0) | (probe_a == 1.0)
+        probe_at_node[probe_elem[at_node] + (probe_a[at_node] == 1.0)] = np.nonzero(at_node)[0]
         for k in range(iprobe.shape[0]):
             e = probe_elem[k]
             width = max(width, abs(iprobe[k] + slot - 1 - ix[e]), abs(ix[e + 1] + 2 - iprobe[k]))
@@ -608,8 +612,8 @@ def lower(problem: Problem, elements: int = 100) -> Rod:
                ith=ith, ilam=ilam, inu=inu, nu_off=nu_off, nu_cnt=nu_cnt, igauge=igauge,
                n=n, kl=width, ku=width, m=m, target=target, key=key, rest_k0=rest_k0,
                node_frame=node_frame, requested=elements, probe_elem=probe_elem,
-               probe_a=probe_a, slider=slider, held=held, iprobe=iprobe, slot=slot,
-               obstacles=obstacles, radius=radius)
+               probe_a=probe_a, slider=slider, node_probe=probe_at_node, iprobe=iprobe,
+               slot=slot, obstacles=obstacles, radius=radius)
 
 
 

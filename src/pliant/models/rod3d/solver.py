@@ -230,8 +230,8 @@ class Run(Routes):
         """The contact terms' bundle at ``loads``: the band of exact distances reaches two
         radii and 5% of L past the tube."""
         rod = self.rod
-        return kernels.Contact(rod.probe_elem, rod.probe_a, rod.slider, rod.held, rod.iprobe,
-                               rod.slot, float(rod.length), float(rod.radius),
+        return kernels.Contact(rod.probe_elem, rod.probe_a, rod.slider, rod.node_probe,
+                               rod.iprobe, rod.slot, float(rod.length), float(rod.radius),
                                float(loads.offset), 2.0 * rod.radius + 0.05 * rod.length,
                                CONTACT_SCALE * max(1.0, (0.01 / float(rod.h.min())) ** 2),
                                rod.distance_field.args, self.friction)
