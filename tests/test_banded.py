@@ -9,11 +9,14 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from pliant.models.banded import (
+    band_factor_reduced,
     band_lu,
     band_lu_lapack,
     band_lu_solve,
     band_lu_solve_lapack,
+    band_reduce,
     band_solve,
+    band_solve_factored,
     band_solve_reduced,
     dense,
 )
@@ -64,6 +67,44 @@ def test_identity_rows_leave_the_factorisation_and_the_answer_stays(n, kl, ku, s
     assert np.array_equal(ab, before)
     assert np.array_equal(x[drop], b[drop])
     assert np.allclose(A @ x, b, atol=1e-8 * np.linalg.cond(A))
+
+
+@settings(max_examples=80, deadline=None, derandomize=True)
+@given(n=st.integers(1, 40), kl=st.integers(0, 6), ku=st.integers(0, 6),
+       seed=st.integers(0, 2**31 - 1), share=st.floats(0.0, 0.9),
+       fill=st.floats(0.05, 1.0))
+def test_the_reduced_band_is_the_kept_submatrix_and_no_wider(n, kl, ku, seed, share,
+                                                             fill):
+    """A sparse band (most entries zero, as a KKT band is) without some rows and columns:
+    the reduced band holds exactly the kept submatrix, its widths are the farthest kept
+    nonzero's (found here by brute force), and one factorisation solves several
+    right-hand sides."""
+    rng = np.random.default_rng(seed)
+    ab = random_band(rng, n, kl, ku)
+    ab[:, : kl] = 0.0  # the fill rows stay empty
+    ab *= rng.random(ab.shape) < fill
+    for j in range(n):  # a nonzero diagonal (a singular kept part is another test)
+        ab[j, kl + ku] = 3.0 + rng.random()
+    drop = rng.random(n) < share
+    for i in np.nonzero(drop)[0]:  # row i of the identity
+        for j in range(max(0, i - kl), min(n, i + ku + 1)):
+            ab[j, kl + ku + i - j] = 1.0 if i == j else 0.0
+    A = dense(ab, kl, ku, n)
+    keep = np.flatnonzero(~drop)
+    sub = A[np.ix_(keep, keep)]
+    c, lo, up, new = band_reduce(ab, kl, ku, drop)
+    rows, cols = np.nonzero(sub)
+    assert lo == max((rows - cols).max(initial=0), 0)
+    assert up == max((cols - rows).max(initial=0), 0)
+    assert np.array_equal(new[keep], np.arange(keep.size)) and np.all(new[drop] == -1)
+    assert np.array_equal(dense(c, lo, up, keep.size), sub)
+    factors = band_factor_reduced(ab, kl, ku, drop)
+    assert factors[-1]
+    for _ in range(2):
+        b = rng.normal(size=n)
+        x = band_solve_factored(ab, kl, ku, drop, *factors[:5], b)
+        assert np.array_equal(x[drop], b[drop])
+        assert np.allclose(A @ x, b, atol=1e-8 * np.linalg.cond(A))
 
 
 @settings(max_examples=60, deadline=None, derandomize=True)

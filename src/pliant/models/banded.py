@@ -212,7 +212,9 @@ def band_reduce(ab, kl, ku, drop):
     """The band matrix without the rows and columns where ``drop`` (n,) is True,
     renumbered in order and as narrow as its entries allow: (c, lo, up, new), c in the
     same layout with lo sub- and up superdiagonals, new (n,) each unknown's number in it
-    (-1 where dropped)."""
+    (-1 where dropped). Each column is searched from its band's ends inward, only as far
+    as it could widen the band found so far, and copied in runs of kept rows: the band
+    is mostly zeros, and the copy is what the time goes to."""
     n = ab.shape[0]
     kv = kl + ku
     new = np.empty(n, dtype=np.int64)
@@ -228,37 +230,67 @@ def band_reduce(ab, kl, ku, drop):
     for j in range(n):
         if drop[j]:
             continue
-        for i in range(max(0, j - ku), min(n, j + kl + 1)):
-            if not drop[i] and ab[j, kv + i - j] != 0.0:
-                d = new[i] - new[j]
-                if d > lo:
-                    lo = d
-                elif -d > up:
-                    up = -d
-    c = np.zeros((m, 2 * lo + up + 1))
+        nj = new[j]
+        for i in range(max(0, j - ku), j):  # above the diagonal, farthest first
+            if not drop[i]:
+                if nj - new[i] <= up:
+                    break
+                if ab[j, kv + i - j] != 0.0:
+                    up = nj - new[i]
+                    break
+        for i in range(min(n - 1, j + kl), j, -1):  # below it
+            if not drop[i]:
+                if new[i] - nj <= lo:
+                    break
+                if ab[j, kv + i - j] != 0.0:
+                    lo = new[i] - nj
+                    break
+    w = 2 * lo + up + 1
+    c = np.zeros((m, w))
     for j in range(n):
         if drop[j]:
             continue
         jn = new[j]
-        for i in range(max(0, j - ku), min(n, j + kl + 1)):
-            if not drop[i]:
-                v = ab[j, kv + i - j]
-                if v != 0.0:
-                    c[jn, lo + up + new[i] - jn] = v
+        i = max(0, j - ku)
+        end = min(n, j + kl + 1)
+        while i < end:
+            if drop[i]:
+                i += 1
+                continue
+            k = i + 1
+            while k < end and not drop[k]:
+                k += 1
+            # Rows i .. k - 1 are kept: consecutive in both numberings. Entries outside
+            # the narrowed band are zeros.
+            off = lo + up + new[i] - jn
+            src = kv + i - j
+            for t in range(max(0, lo - off), min(k - i, w - off)):
+                c[jn, off + t] = ab[j, src + t]
+            i = k
     return c, lo, up, new
 
 
 @njit(cache=True)
-def band_solve_reduced(ab, kl, ku, rhs, drop):
-    """Solve A x = rhs where each row i with drop[i] is the identity's (x_i = rhs_i is
-    known): those unknowns go to the right-hand side and only the others are factorised,
-    in a band renumbered without them (``band_reduce``). The contact probes far from
-    everything are such rows: leaving them out halves the factorisation. ``ab`` is left
-    as it was. Returns (x, ok)."""
+def band_factor_reduced(ab, kl, ku, drop):
+    """The LU factors of A without the identity rows ``drop`` (see
+    ``band_solve_reduced``): (c, lo, up, new, piv, ok); ``ab`` is left as it was, and
+    with it they solve any right-hand side (``band_solve_factored``)."""
+    c, lo, up, new = band_reduce(ab, kl, ku, drop)
+    if c.shape[0] == 0:
+        return c, lo, up, new, np.zeros(0, dtype=np.int64), True
+    piv, ok = band_lu(c, lo, up)
+    return c, lo, up, new, piv, ok
+
+
+@njit(cache=True)
+def band_solve_factored(ab, kl, ku, drop, c, lo, up, new, piv, rhs):
+    """Solve A x = rhs with ``band_factor_reduced``'s factors of A (``ab``, unchanged):
+    the known unknowns (x_i = rhs_i where drop[i]) go to the right-hand side through
+    A's columns, the others through the factors."""
     n = ab.shape[0]
     x = np.zeros(n)
     b = rhs.copy()
-    for j in range(n):  # the known unknowns' columns to the right-hand side
+    for j in range(n):
         if drop[j]:
             xj = rhs[j]
             x[j] = xj
@@ -266,22 +298,30 @@ def band_solve_reduced(ab, kl, ku, rhs, drop):
                 for i in range(max(0, j - ku), min(n, j + kl + 1)):
                     if i != j:
                         b[i] -= ab[j, kl + ku + i - j] * xj
-    c, lo, up, new = band_reduce(ab, kl, ku, drop)
     m = c.shape[0]
     if m == 0:
-        return x, True
+        return x
     bc = np.empty(m)
     for j in range(n):
         if not drop[j]:
             bc[new[j]] = b[j]
-    piv, ok = band_lu(c, lo, up)
-    if not ok:
-        return x, False
     y = band_lu_solve(c, piv, lo, up, bc)
     for i in range(n):
         if not drop[i]:
             x[i] = y[new[i]]
-    return x, True
+    return x
+
+
+def band_solve_reduced(ab, kl, ku, rhs, drop):
+    """Solve A x = rhs where each row i with drop[i] is the identity's (x_i = rhs_i is
+    known): those unknowns go to the right-hand side and only the others are factorised,
+    in a band renumbered without them (``band_reduce``). The contact probes far from
+    everything are such rows: leaving them out halves the factorisation. ``ab`` is left
+    as it was. Returns (x, ok). Not a kernel of its own (see ``band_solve``)."""
+    c, lo, up, new, piv, ok = band_factor_reduced(ab, kl, ku, drop)
+    if not ok:
+        return np.zeros(ab.shape[0]), False
+    return band_solve_factored(ab, kl, ku, drop, c, lo, up, new, piv, rhs), True
 
 
 def dense(ab, kl: int, ku: int, n: int) -> np.ndarray:

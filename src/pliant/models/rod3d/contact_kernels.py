@@ -13,7 +13,7 @@ import numpy as np
 from numba import njit
 
 from pliant.models.banded import add as _add
-from pliant.models.banded import band_solve_reduced, identity_rows
+from pliant.models.banded import band_factor_reduced, band_solve_factored, identity_rows
 from pliant.models.rod3d.kernels import (
     CONVERGED,
     MAX_ITERATIONS,
@@ -464,12 +464,12 @@ def _friction_terms(gam, k, o, p, con, num, R, ab, want_jac):
 
 
 @njit(cache=True, inline="always")
-def _contact_residual(X, Q, lam, nu, gam, mesh, tg, num, con):
-    """The KKT residual and Jacobian with the contact terms, forces handed over (see
-    ``contact_terms``); (R, ab, energy, active, gam)."""
-    yes = num.n >= 0  # a runtime True (see newton)
-    R, ab, energy = assemble(X, Q, lam, nu, mesh, tg, num, yes)
-    out = contact_terms(X, gam, con, num, R, ab, yes, yes)
+def _contact_residual(X, Q, lam, nu, gam, mesh, tg, num, con, want_jac):
+    """The KKT residual and, where ``want_jac`` (a runtime flag: see newton), Jacobian
+    with the contact terms, forces handed over (see ``contact_terms``); (R, ab, energy,
+    active, gam)."""
+    R, ab, energy = assemble(X, Q, lam, nu, mesh, tg, num, want_jac)
+    out = contact_terms(X, gam, con, num, R, ab, want_jac, num.n >= 0)
     return R, ab, energy, out[3], out[6]
 
 
@@ -492,11 +492,20 @@ def contact_max(R, con):
     return r
 
 
+# A chord step (the last factorisation reused) is taken where it shrinks the residual
+# tenfold, as in kernels.newton; it costs a residual and a back substitution, a fresh
+# step a Jacobian and a band LU more (0.1, 0.05 and 0.25 gave the same time, within
+# the machine's noise, on benchmarks/contact.py (b)).
+CHORD = 0.1
+
+
 @njit(cache=True)
 def newton_contact(X, Q, lam, nu, gam, mesh, tg, num, con, opts):
-    """The semismooth Newton of a problem with obstacles, in one kernel, its Jacobian
-    rebuilt every iteration (the active set may change). Acceptance (opts: ``Settings``):
+    """The semismooth Newton of a problem with obstacles, in one kernel. Acceptance
+    (opts: ``Settings``):
 
+    - ``predict``: the first step is a continuation's predictor (from an equilibrium of
+      nearby loads), taken in full;
     - a corrector (strict) with no probe touching: the full step must contract by
       ``contraction``;
     - while probes touch, or not strict: any step that lowers the residual, backtracking
@@ -506,24 +515,60 @@ def newton_contact(X, Q, lam, nu, gam, mesh, tg, num, con, opts):
     - a full step that changes which probes touch, or gives a touching probe its first
       force, up to ``max_switches`` times.
 
+    The factorised Jacobian is kept (a chord step) while the same probes touch and a
+    full step shrinks the residual by ``CHORD``; otherwise it is rebuilt where the
+    iteration stands (the active set may have changed). A chord step is tried after
+    the predictor and after steps that converged as fast.
+
     Returns (X, Q, lam, nu, gam, residual, iterations, status, energy)."""
-    tol, max_iter, contraction, strict, max_switches = opts
+    tol, max_iter, contraction, strict, max_switches, predict = opts
     iprobe, slot = con.iprobe, con.slot
-    R, ab, energy, active, gam = _contact_residual(X, Q, lam, nu, gam, mesh, tg, num, con)
+    kl, ku = num.kl, num.ku
+    yes, no = num.n >= 0, num.n < 0  # runtime flags (see kernels.newton)
+    R, ab, energy, active, gam = _contact_residual(X, Q, lam, nu, gam, mesh, tg, num, con,
+                                                   yes)
     r = contact_max(R, con)
     if not math.isfinite(r):
         return X, Q, lam, nu, gam, r, 0, NOT_FINITE, energy
     it = 0
     switches = 0
+    # The last factorisation: of ``fab`` without its identity rows ``fdrop`` (none yet).
+    fab, fdrop = ab, np.zeros(0, dtype=np.bool_)
+    c, lo, up, new, piv = np.zeros((0, 0)), 0, 0, np.zeros(0, dtype=np.int64), np.zeros(
+        0, dtype=np.int64)
+    chord = False  # whether the last step converged fast enough to try one
     while r > tol:
         if it >= max_iter:
             return X, Q, lam, nu, gam, r, it, MAX_ITERATIONS, energy
         it += 1
+        if chord:
+            # A chord step: its residual needs no Jacobian unless it is refused.
+            du = band_solve_factored(fab, kl, ku, fdrop, c, lo, up, new, piv, -R)
+            Xn, Qn, ln, nn = apply_step(X, Q, lam, nu, du, num, 1.0)
+            gn = gam.copy()
+            for k in range(iprobe.shape[0]):
+                for j in range(slot):
+                    gn[k * slot + j] += du[iprobe[k] + j]
+            Rn, abn, en, an, gn = _contact_residual(Xn, Qn, ln, nn, gn, mesh, tg, num, con,
+                                                    no)
+            rn = contact_max(Rn, con)
+            same = rn <= CHORD * r  # (and finite)
+            for k in range(an.shape[0]):
+                if an[k] != active[k]:
+                    same = False
+            if same:
+                X, Q, lam, nu, gam, R, ab, r, energy = Xn, Qn, ln, nn, gn, Rn, abn, rn, en
+                continue
+            if ab.shape[0] == 0:  # the Jacobian where the last chord step ended
+                R, ab, energy, active, gam = _contact_residual(X, Q, lam, nu, gam, mesh, tg,
+                                                               num, con, yes)
         # The free probes' rows are the identity's: they leave the factorisation.
-        du, ok = band_solve_reduced(ab, num.kl, num.ku, -R,
-                                    identity_rows(ab, num.kl, num.ku, iprobe, slot))
+        drop = identity_rows(ab, kl, ku, iprobe, slot)
+        c, lo, up, new, piv, ok = band_factor_reduced(ab, kl, ku, drop)
         if not ok:
             return X, Q, lam, nu, gam, r, it, SINGULAR, energy
+        fab, fdrop = ab, drop
+        du = band_solve_factored(ab, kl, ku, drop, c, lo, up, new, piv, -R)
         damped = not strict
         # A probe that touches with no force yet (it has just met the obstacle) takes its
         # first force in this step: its normal's turn as its point moves is then not in
@@ -543,10 +588,13 @@ def newton_contact(X, Q, lam, nu, gam, mesh, tg, num, con, opts):
             for k in range(iprobe.shape[0]):
                 for j in range(slot):
                     gn[k * slot + j] += step * du[iprobe[k] + j]
-            Rn, abn, en, an, gn = _contact_residual(Xn, Qn, ln, nn, gn, mesh, tg, num, con)
+            Rn, abn, en, an, gn = _contact_residual(Xn, Qn, ln, nn, gn, mesh, tg, num, con,
+                                                    yes)
             rn = contact_max(Rn, con)
             finite = math.isfinite(rn)
-            if damped:
+            if it == 1 and predict:
+                accepted = finite
+            elif damped:
                 accepted = finite and rn <= (1.0 - 1e-4 * step) * r
             else:
                 accepted = rn <= contraction * r or rn <= tol
@@ -565,6 +613,10 @@ def newton_contact(X, Q, lam, nu, gam, mesh, tg, num, con, opts):
             # A corrector crawling in tiny steps is far from its basin: the
             # continuation does better with a shorter step in the load.
             return X, Q, lam, nu, gam, r, it, NOT_CONTRACTING, energy
+        # After the predictor, or a step that converged as fast as a chord must: the
+        # next may keep this factorisation. Elsewhere (a probe entering, a step on an
+        # obstacle's seam) a chord would only cost a residual before the rebuild.
+        chord = (it == 1 and predict) or rn <= CHORD * r
         X, Q, lam, nu, gam, R, ab, r, energy, active = (Xn, Qn, ln, nn, gn, Rn, abn, rn, en,
                                                         an)
     return X, Q, lam, nu, gam, r, it, CONVERGED, energy

@@ -133,14 +133,16 @@ class Contact(NamedTuple):
 
 class Settings(NamedTuple):
     """A Newton's budget: tolerance, iterations, the contraction a corrector must reach
-    (<= 0: damped), whether it is a corrector (contact) and the active-set switches a
-    full step may make."""
+    (<= 0: damped), whether it is a corrector (contact), the active-set switches a
+    full step may make, and whether its first step is a predictor (contact: taken in
+    full)."""
 
     tol: float
     max_iter: int
     contraction: float
     strict: bool
     max_switches: int
+    predict: bool
 
 
 # -- quaternions (w, x, y, z) ------------------------------------------------------------

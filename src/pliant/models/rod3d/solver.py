@@ -129,6 +129,9 @@ class Run(Routes):
     # ``equilibria``: every branch a route reaches is kept here (state, gauge, note), not
     # only the one the route returns.
     reached: list | None = None
+    # The last converged Newton: (state, loads, residual), so that the answer built from
+    # that very state at those very loads need not evaluate its residual again.
+    converged: tuple | None = None
 
     def __post_init__(self) -> None:
         self.deadline = clock.now() + self.solver.time_budget
@@ -165,13 +168,16 @@ class Run(Routes):
         self.friction = (rod.distance_field.friction, points, basis, give)
         return (*state[:4], gam.ravel())
 
-    def newton(self, state: State, loads: Loads, *, strict: bool, tol: float | None = None):
+    def newton(self, state: State, loads: Loads, *, strict: bool, tol: float | None = None,
+               predict: bool = False):
+        """Newton from ``state`` at ``loads``; ``predict`` (with obstacles): its first step
+        is a continuation's predictor from an equilibrium of nearby loads."""
         opts = self.solver
         rod = self.rod
         tol = opts.tolerance if tol is None else tol
         settings = kernels.Settings(float(tol), int(opts.max_iterations),
                                     float(opts.contraction if strict else 0.0), bool(strict),
-                                    _SWITCHES)
+                                    _SWITCHES, bool(predict))
         if rod.iprobe.shape[0]:
             X, Q, lam, nu, gam, r, it, status, energy = contact_kernels.newton_contact(
                 *state[:5], rod.mesh, rod.targets(loads, self.gauge_quat), rod.numbering,
@@ -184,6 +190,7 @@ class Run(Routes):
         self.iterations += it
         if status == kernels.CONVERGED and not self._axes_agree(new[1], loads):
             status = kernels.NOT_CONTRACTING
+        self.converged = (new, loads, r) if status == kernels.CONVERGED else None
         return new, r, status, energy
 
     def _axes_agree(self, Q: np.ndarray, loads: Loads) -> bool:
@@ -355,16 +362,17 @@ class Run(Routes):
             return self.transfer(warm, old)
         self.gauge_quat = old.gauge_quat
         start = self.hold(old.state, old.friction)
-        # With obstacles, predictor and corrector at once: Newton from the old state makes
-        # the predictor's step, but judged by the residual's largest entry (a probe's gap
-        # among them) it is often refused and crawls in halved steps, where a corrector
-        # from it converges in two or three iterations, in half the time. Without them
-        # Newton from the old state converges as fast on one factorisation.
-        if not self.rod.iprobe.shape[0]:
-            state, _r, status, _ = self.newton(start, self.rod.target, strict=True)
-            if status == kernels.CONVERGED:
-                self.steps += 1
-                return state
+        # Newton from the old state converges on one factorisation. With obstacles its
+        # first step is the continuation's predictor (J du = -R at the new loads is, to
+        # first order in the step, the tangent's), taken in full: judged by the
+        # residual's largest entry (a probe's gap among them) it would often be refused
+        # and crawl in halved steps. The corrector then keeps that factorisation while
+        # it contracts. Where this fails, the continuation takes over from the start.
+        state, _r, status, _ = self.newton(start, self.rod.target, strict=True,
+                                           predict=True)
+        if status == kernels.CONVERGED:
+            self.steps += 1
+            return state
         try:
             return self.follow(old.rod.target, self.rod.target, start)
         except Stalled as stall:
