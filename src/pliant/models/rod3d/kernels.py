@@ -134,8 +134,8 @@ class Contact(NamedTuple):
 class Settings(NamedTuple):
     """A Newton's budget: tolerance, iterations, the contraction a corrector must reach
     (<= 0: damped), whether it is a corrector (contact), the active-set switches a
-    full step may make, and whether its first step is a predictor (contact: taken in
-    full)."""
+    full step may make, and whether it is a warm step (contact: its first step the
+    predictor, taken in full, then chord steps while they contract)."""
 
     tol: float
     max_iter: int

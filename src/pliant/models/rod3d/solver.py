@@ -170,8 +170,8 @@ class Run(Routes):
 
     def newton(self, state: State, loads: Loads, *, strict: bool, tol: float | None = None,
                predict: bool = False):
-        """Newton from ``state`` at ``loads``; ``predict`` (with obstacles): its first step
-        is a continuation's predictor from an equilibrium of nearby loads."""
+        """Newton from ``state`` at ``loads``; ``predict`` (with obstacles): a warm step
+        from an equilibrium of nearby loads (``Settings``)."""
         opts = self.solver
         rod = self.rod
         tol = opts.tolerance if tol is None else tol
