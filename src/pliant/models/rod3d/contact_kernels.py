@@ -561,9 +561,9 @@ def newton_contact(X, Q, lam, nu, gam, mesh, tg, num, con, opts):
             if same:
                 X, Q, lam, nu, gam, R, ab, r, energy = Xn, Qn, ln, nn, gn, Rn, abn, rn, en
                 continue
-            if ab.shape[0] == 0:  # the Jacobian where the last chord step ended
-                R, ab, energy, active, gam = _contact_residual(X, Q, lam, nu, gam, mesh, tg,
-                                                               num, con, yes)
+        if ab.shape[0] == 0:  # the Jacobian where the iteration stands (see below)
+            R, ab, energy, active, gam = _contact_residual(X, Q, lam, nu, gam, mesh, tg, num,
+                                                           con, yes)
         # The free probes' rows are the identity's: they leave the factorisation.
         drop = identity_rows(ab, kl, ku, iprobe, slot)
         c, lo, up, new, piv, ok = band_factor_reduced(ab, kl, ku, drop)
@@ -584,6 +584,9 @@ def newton_contact(X, Q, lam, nu, gam, mesh, tg, num, con, opts):
                     entering = True
         step = 1.0
         accepted = False
+        # A warm step's trial points are judged without their Jacobian (the next step is
+        # often a chord step, which needs none); it is built where a fresh one is needed.
+        jac = not predict
         for _ in range(30 if damped else 1):
             Xn, Qn, ln, nn = apply_step(X, Q, lam, nu, du, num, step)
             gn = gam.copy()
@@ -591,7 +594,7 @@ def newton_contact(X, Q, lam, nu, gam, mesh, tg, num, con, opts):
                 for j in range(slot):
                     gn[k * slot + j] += step * du[iprobe[k] + j]
             Rn, abn, en, an, gn = _contact_residual(Xn, Qn, ln, nn, gn, mesh, tg, num, con,
-                                                    yes)
+                                                    jac)
             rn = contact_max(Rn, con)
             finite = math.isfinite(rn)
             if it == 1 and predict:

@@ -59,7 +59,7 @@ def frame_matrix(tangent, normal) -> np.ndarray:
     """The rotation whose columns are d1 = normal, d2 = d3 x d1, d3 = tangent."""
     d3 = np.asarray(tangent, float)
     d1 = np.asarray(normal, float)
-    return np.column_stack([d1, np.cross(d3, d1), d3])
+    return np.column_stack([d1, _cross(d3, d1), d3])
 
 
 def rotation_between(a: np.ndarray, b: np.ndarray) -> np.ndarray:
