@@ -85,6 +85,9 @@ class Station3D:
     dead_moment: tuple[float, float, float] = field(init=False)
     follower_force: tuple[float, float, float] = field(init=False)
     follower_moment: tuple[float, float, float] = field(init=False)
+    # Which of (x, y, z, axis, twist) a condition prescribes (owner's not None), read
+    # many times per solve.
+    prescribed: tuple[bool, ...] = field(init=False, repr=False, compare=False)
 
     def __post_init__(self) -> None:
         pos = [0.0, 0.0, 0.0]
@@ -106,15 +109,13 @@ class Station3D:
                 for i, m in enumerate(c.moment):  # type: ignore[arg-type]
                     loads[f"{kind}_moment"][i] += m or 0.0
         set_ = object.__setattr__
+        set_(self, "prescribed", tuple(o is not None for o in self.owner))
         set_(self, "position", tuple(pos))
         set_(self, "tangent", tangent)
         set_(self, "normal", normal)
         for key, total in loads.items():
             set_(self, key, tuple(total))
 
-    @property
-    def prescribed(self) -> tuple[bool, ...]:
-        return tuple(o is not None for o in self.owner)
 
 
 # Contact between two parts (the accurate model's ``coupled``): walls flatten 10

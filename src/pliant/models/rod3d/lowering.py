@@ -430,41 +430,46 @@ def _targets(problem: Problem, st_node: np.ndarray, h: np.ndarray) -> _Targets:
     part = problem.part
     L, EI1 = part.length, part.bending_stiffness
     fs, ms = EI1 / L**2, EI1 / L
-    S = len(problem.stations)
-    st_pos = np.zeros((S, 3))
-    st_tangent = np.zeros((S, 3))
+    stations = problem.stations
+    S = len(stations)
+    # (Built from lists in one call each: this runs at every warm step.)
+    zero = (0.0, 0.0, 0.0)
+    st_pos = np.array([[p if held else 0.0 for p, held in zip(st.position, st.prescribed)]
+                       for st in stations], float).reshape(S, 3) / L
+    st_tangent = np.array([st.tangent if st.tangent is not None else zero
+                           for st in stations], float).reshape(S, 3)
     st_quat = np.zeros((S, 4))
-    st_moment = np.zeros((S, 3))
-    st_ffollow = np.zeros((S, 3))
-    st_mfollow = np.zeros((S, 3))
-    fnode = np.zeros((h.shape[0] + 1, 3))
-    for k, st in enumerate(problem.stations):
-        mask = np.array(st.prescribed[:3])
-        st_pos[k] = np.where(mask, st.position, 0.0) / L
-        if st.tangent is not None:
-            st_tangent[k] = st.tangent
+    for k, st in enumerate(stations):
         if st.normal is not None:
             st_quat[k] = quat_from_matrix(frame_matrix(st.tangent, st.normal))
-        st_moment[k] = np.array(st.dead_moment) / ms
-        st_ffollow[k] = np.array(st.follower_force) / fs
-        st_mfollow[k] = np.array(st.follower_moment) / ms
-        fnode[st_node[k]] += np.where(mask, 0.0, st.dead_force) / fs
+    st_moment = np.array([st.dead_moment for st in stations], float).reshape(S, 3) / ms
+    st_ffollow = np.array([st.follower_force for st in stations], float).reshape(S, 3) / fs
+    st_mfollow = np.array([st.follower_moment for st in stations], float).reshape(S, 3) / ms
+    applied = np.array([[0.0 if held else f for f, held in zip(st.dead_force, st.prescribed)]
+                        for st in stations], float).reshape(S, 3) / fs
+    fnode = np.zeros((h.shape[0] + 1, 3))
+    for k in range(S):
+        fnode[st_node[k]] += applied[k]
     # Distributed loads per element, by L^3 / EI1 (force per length by EI1 / L^3): the
     # weight and dead loads lumped half on each node, follower loads kept per element
     # (the kernel turns them with the element's frame). The mesh is cut where each
     # load starts and ends, so an element is covered whole or not at all.
     per_length = L**3 / EI1
-    dead = np.tile(part.mass_per_length * np.asarray(problem.gravity) * per_length,
-                   (h.shape[0], 1))
+    weight = part.mass_per_length * np.asarray(problem.gravity, float) * per_length
     follow = np.zeros((h.shape[0], 3))
-    s_node = np.concatenate([[0.0], np.cumsum(h)]) * L
-    for ld in problem.distributed:
-        cover = np.array([ld.overlap(a, b, L) for a, b in itertools.pairwise(s_node)])
-        share = cover / (h * L)
-        (follow if ld.follower else dead)[:] += share[:, None] * np.asarray(ld.force) \
-            * per_length
-    fnode[:-1] += 0.5 * h[:, None] * dead
-    fnode[1:] += 0.5 * h[:, None] * dead
+    if problem.distributed:
+        dead = np.tile(weight, (h.shape[0], 1))
+        s_node = np.concatenate([[0.0], np.cumsum(h)]) * L
+        for ld in problem.distributed:
+            cover = np.array([ld.overlap(a, b, L) for a, b in itertools.pairwise(s_node)])
+            share = cover / (h * L)
+            (follow if ld.follower else dead)[:] += share[:, None] * np.asarray(ld.force) \
+                * per_length
+        half = 0.5 * h[:, None] * dead
+    else:
+        half = np.outer(0.5 * h, weight)
+    fnode[:-1] += half
+    fnode[1:] += half
     return fnode, st_pos, st_tangent, st_quat, st_moment, st_ffollow, st_mfollow, follow
 
 

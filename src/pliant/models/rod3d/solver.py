@@ -175,13 +175,15 @@ class Run(Routes):
         opts = self.solver
         rod = self.rod
         tol = opts.tolerance if tol is None else tol
+        contact = bool(rod.iprobe.shape[0])
+        # (The contact kernel reads ``strict`` itself; the free one a contraction of 0.)
         settings = kernels.Settings(float(tol), int(opts.max_iterations),
-                                    float(opts.contraction if strict else 0.0), bool(strict),
-                                    _SWITCHES, bool(predict))
-        if rod.iprobe.shape[0]:
+                                    float(opts.contraction if strict or contact else 0.0),
+                                    bool(strict), _SWITCHES, bool(predict))
+        if contact:
             X, Q, lam, nu, gam, r, it, status, energy = contact_kernels.newton_contact(
                 *state[:5], rod.mesh, rod.targets(loads, self.gauge_quat), rod.numbering,
-                self.contact(loads), settings._replace(contraction=float(opts.contraction)))
+                self.contact(loads), settings)
             new = (X, Q, lam, nu, gam)
         else:
             X, Q, lam, nu, r, it, status, energy = kernels.newton(
@@ -236,12 +238,18 @@ class Run(Routes):
     def contact(self, loads: Loads) -> kernels.Contact:
         """The contact terms' bundle at ``loads``: the band of exact distances reaches two
         radii and 5% of L past the tube."""
+        return self._contact_bundle._replace(offset=float(loads.offset),
+                                             friction=self.friction)
+
+    @cached_property
+    def _contact_bundle(self) -> kernels.Contact:
+        """``contact``'s fixed part (built once: it is asked for at every residual)."""
         rod = self.rod
         return kernels.Contact(rod.probe_elem, rod.probe_a, rod.slider, rod.node_probe,
                                rod.iprobe, rod.slot, float(rod.length), float(rod.radius),
-                               float(loads.offset), 2.0 * rod.radius + 0.05 * rod.length,
+                               0.0, 2.0 * rod.radius + 0.05 * rod.length,
                                CONTACT_SCALE * max(1.0, (0.01 / float(rod.h.min())) ** 2),
-                               rod.distance_field.args, self.friction)
+                               rod.distance_field.args, ())
 
     def step(self, state: State, du: np.ndarray, scale: float) -> State:
         rod = self.rod
