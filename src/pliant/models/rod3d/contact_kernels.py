@@ -526,51 +526,43 @@ def newton_contact(X, Q, lam, nu, gam, mesh, tg, num, con, opts):
     tol, max_iter, contraction, strict, max_switches, predict = opts
     iprobe, slot = con.iprobe, con.slot
     kl, ku = num.kl, num.ku
-    yes, no = num.n >= 0, num.n < 0  # runtime flags (see kernels.newton)
-    R, ab, energy, active, gam = _contact_residual(X, Q, lam, nu, gam, mesh, tg, num, con,
-                                                   yes)
-    r = contact_max(R, con)
-    if not math.isfinite(r):
-        return X, Q, lam, nu, gam, r, 0, NOT_FINITE, energy
+    yes = num.n >= 0  # a runtime flag (see kernels.newton)
     it = 0
     switches = 0
     # The last factorisation: of ``fab`` without its identity rows ``fdrop`` (none yet).
-    fab, fdrop = ab, np.zeros(0, dtype=np.bool_)
+    fab, fdrop = np.zeros((0, 0)), np.zeros(0, dtype=np.bool_)
     c, lo, up, new, piv = np.zeros((0, 0)), 0, 0, np.zeros(0, dtype=np.int64), np.zeros(
         0, dtype=np.int64)
     chord = False  # whether the last step converged fast enough to try one
-    while r > tol:
+    # A warm step's trial points are judged without their Jacobian (the next step is
+    # often a chord step, which needs none); it is built where a fresh one is needed.
+    jac = not predict
+    R, ab, energy, r = np.zeros(0), np.zeros((0, 0)), 0.0, math.inf
+    active = np.zeros(iprobe.shape[0], dtype=np.int8)
+    while True:
+        if ab.shape[0] == 0 and not chord and r > tol:
+            # The residual and Jacobian where the iteration stands: at the start, and
+            # where a fresh step follows a point judged without its Jacobian. (One call
+            # site: each costs compile time, the arguments' bundles being large.)
+            R, ab, energy, active, gam = _contact_residual(X, Q, lam, nu, gam, mesh, tg, num,
+                                                           con, yes)
+            r = contact_max(R, con)
+            if not math.isfinite(r):
+                return X, Q, lam, nu, gam, r, it, NOT_FINITE, energy
+        if r <= tol:
+            break
         if it >= max_iter:
             return X, Q, lam, nu, gam, r, it, MAX_ITERATIONS, energy
         it += 1
-        if chord:
-            # A chord step: its residual needs no Jacobian unless it is refused.
-            du = band_solve_factored(fab, kl, ku, fdrop, c, lo, up, new, piv, -R)
-            Xn, Qn, ln, nn = apply_step(X, Q, lam, nu, du, num, 1.0)
-            gn = gam.copy()
-            for k in range(iprobe.shape[0]):
-                for j in range(slot):
-                    gn[k * slot + j] += du[iprobe[k] + j]
-            Rn, abn, en, an, gn = _contact_residual(Xn, Qn, ln, nn, gn, mesh, tg, num, con,
-                                                    no)
-            rn = contact_max(Rn, con)
-            same = rn <= CHORD * r  # (and finite)
-            for k in range(an.shape[0]):
-                if an[k] != active[k]:
-                    same = False
-            if same:
-                X, Q, lam, nu, gam, R, ab, r, energy = Xn, Qn, ln, nn, gn, Rn, abn, rn, en
-                continue
-        if ab.shape[0] == 0:  # the Jacobian where the iteration stands (see below)
-            R, ab, energy, active, gam = _contact_residual(X, Q, lam, nu, gam, mesh, tg, num,
-                                                           con, yes)
-        # The free probes' rows are the identity's: they leave the factorisation.
-        drop = identity_rows(ab, kl, ku, iprobe, slot)
-        c, lo, up, new, piv, ok = band_factor_reduced(ab, kl, ku, drop)
-        if not ok:
-            return X, Q, lam, nu, gam, r, it, SINGULAR, energy
-        fab, fdrop = ab, drop
-        du = band_solve_factored(ab, kl, ku, drop, c, lo, up, new, piv, -R)
+        fresh = not chord
+        if fresh:
+            # The free probes' rows are the identity's: they leave the factorisation.
+            fdrop = identity_rows(ab, kl, ku, iprobe, slot)
+            c, lo, up, new, piv, ok = band_factor_reduced(ab, kl, ku, fdrop)
+            if not ok:
+                return X, Q, lam, nu, gam, r, it, SINGULAR, energy
+            fab = ab
+        du = band_solve_factored(fab, kl, ku, fdrop, c, lo, up, new, piv, -R)
         damped = not strict
         # A probe that touches with no force yet (it has just met the obstacle) takes its
         # first force in this step: its normal's turn as its point moves is then not in
@@ -584,10 +576,7 @@ def newton_contact(X, Q, lam, nu, gam, mesh, tg, num, con, opts):
                     entering = True
         step = 1.0
         accepted = False
-        # A warm step's trial points are judged without their Jacobian (the next step is
-        # often a chord step, which needs none); it is built where a fresh one is needed.
-        jac = not predict
-        for _ in range(30 if damped else 1):
+        for _ in range(30 if damped and fresh else 1):
             Xn, Qn, ln, nn = apply_step(X, Q, lam, nu, du, num, step)
             gn = gam.copy()
             for k in range(iprobe.shape[0]):
@@ -597,23 +586,31 @@ def newton_contact(X, Q, lam, nu, gam, mesh, tg, num, con, opts):
                                                     jac)
             rn = contact_max(Rn, con)
             finite = math.isfinite(rn)
+            changed = False
+            for k in range(an.shape[0]):
+                if an[k] != active[k]:
+                    changed = True
+            if not fresh:  # a chord step: the same probes touching, tenfold smaller
+                accepted = rn <= CHORD * r and not changed
+                break
             if it == 1 and predict:
                 accepted = finite
             elif damped:
                 accepted = finite and rn <= (1.0 - 1e-4 * step) * r
             else:
                 accepted = rn <= contraction * r or rn <= tol
-            if not accepted and step == 1.0 and switches < max_switches and finite:
-                changed = entering
-                for k in range(an.shape[0]):
-                    if an[k] != active[k]:
-                        changed = True
-                if changed:
-                    switches += 1
-                    accepted = True
+            if (not accepted and step == 1.0 and switches < max_switches and finite
+                    and (changed or entering)):
+                switches += 1
+                accepted = True
             if accepted:
                 break
             step *= 0.5
+        if not fresh and not accepted:
+            # Refused: a fresh step from where the iteration stands, in the same count.
+            chord = False
+            it -= 1
+            continue
         if not accepted or (strict and step < 0.1):
             # A corrector crawling in tiny steps is far from its basin: the
             # continuation does better with a shorter step in the load.
@@ -621,7 +618,8 @@ def newton_contact(X, Q, lam, nu, gam, mesh, tg, num, con, opts):
         # After the predictor, or a step that converged as fast as a chord must: the
         # next may keep this factorisation. Elsewhere (a probe entering, a step on an
         # obstacle's seam) a chord would only cost a residual before the rebuild.
-        chord = predict and (it == 1 or rn <= CHORD * r)
+        if fresh:
+            chord = predict and (it == 1 or rn <= CHORD * r)
         X, Q, lam, nu, gam, R, ab, r, energy, active = (Xn, Qn, ln, nn, gn, Rn, abn, rn, en,
                                                         an)
     return X, Q, lam, nu, gam, r, it, CONVERGED, energy
