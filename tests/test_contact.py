@@ -162,6 +162,32 @@ def test_warm_steps_press_a_part_onto_a_block_and_lift_it_off():
         0.3 * forces[first])
 
 
+def test_a_warm_contact_step_lands_where_a_cold_solve_does():
+    """A warm step (its predictor, then chord steps on that one factorisation) and a
+    cold solve (the continuation from the straight part, a fresh Jacobian every Newton
+    step) reach a touching equilibrium by different iterations: the same one, to far
+    below the discretisation's error, with the same contact force."""
+    block = Obstacle.box("block", (0.2, 0.2, 0.1), (0.7, 0.0, -0.12))
+    hose = pl.Part(length=1.0, bending_stiffness=0.05, mass_per_length=0.3,
+                   outer_diameter=2 * RADIUS)
+
+    def held(z: float) -> pl.Problem:
+        return pl.Problem(hose, (pl.clamp(0.0, position=(0.0, 0.0, 0.0)),
+                                 pl.pin(1.0, position=(0.95, 0.0, z), name="hand")),
+                          gravity=(0.0, 0.0, -9.81), obstacles=(block,))
+
+    warm = rod3d.solve(held(-0.02))
+    for z in (-0.0235, -0.027, -0.0305):
+        warm = rod3d.solve(held(z), warm_start=warm)
+    cold = rod3d.solve(held(-0.0305))
+    assert len(warm.contacts) and warm.residual < 1e-9 and cold.residual < 1e-9
+    assert np.abs(warm.position - cold.position).max() < 1e-8
+    force = warm.contacts.by_obstacle()["block"]
+    assert np.allclose(force, cold.contacts.by_obstacle()["block"], rtol=1e-6, atol=1e-9)
+    assert np.allclose(warm.loads["hand"].force, cold.loads["hand"].force, rtol=1e-6,
+                       atol=1e-9)
+
+
 @settings(max_examples=25, deadline=None, derandomize=True,
           suppress_health_check=[HealthCheck.too_slow])
 @given(x=st.floats(0.55, 0.85), y=st.floats(-0.3, 0.3), z=st.floats(-0.3, 0.3),
