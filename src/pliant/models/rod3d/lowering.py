@@ -9,6 +9,7 @@ element that starts there (frame and multiplier).
 
 from __future__ import annotations
 
+import functools
 import itertools
 import math
 from dataclasses import dataclass, field, replace
@@ -423,6 +424,12 @@ def _loads(targets: _Targets, joint_k0: np.ndarray) -> Loads:
                  joint_k0=joint_k0, elem_follow=follow)
 
 
+@functools.lru_cache(maxsize=256)
+def _frame_quat(tangent: tuple, normal: tuple) -> tuple[float, ...]:
+    """The quaternion of a station's frame (a clamp's pose is the same step after step)."""
+    return tuple(quat_from_matrix(frame_matrix(tangent, normal)))
+
+
 def _targets(problem: Problem, st_node: np.ndarray, h: np.ndarray) -> _Targets:
     """The load- and target-dependent arrays of a problem on a mesh (dimensionless):
     nodal dead forces, prescribed positions, tangents and orientations, moments and
@@ -441,7 +448,7 @@ def _targets(problem: Problem, st_node: np.ndarray, h: np.ndarray) -> _Targets:
     st_quat = np.zeros((S, 4))
     for k, st in enumerate(stations):
         if st.normal is not None:
-            st_quat[k] = quat_from_matrix(frame_matrix(st.tangent, st.normal))
+            st_quat[k] = _frame_quat(tuple(st.tangent), tuple(st.normal))
     st_moment = np.array([st.dead_moment for st in stations], float).reshape(S, 3) / ms
     st_ffollow = np.array([st.follower_force for st in stations], float).reshape(S, 3) / fs
     st_mfollow = np.array([st.follower_moment for st in stations], float).reshape(S, 3) / ms

@@ -110,6 +110,9 @@ class RodSolver:
         check(self, fractions=("contraction",))
 
 
+_DEFAULT = RodSolver()  # (frozen: one shared, not validated again at every warm step)
+
+
 # X, Q, lam, nu and gam: positions, frames, element and station multipliers, and the
 # contact probes' normal forces (empty without obstacles).
 
@@ -457,7 +460,7 @@ def _load_size(start: Loads, end: Loads, h: np.ndarray) -> tuple[float, float]:
 def solve(problem: Problem, *, warm_start: Equilibrium3D | None = None,
           solver: RodSolver | None = None) -> Equilibrium3D:
     """The equilibrium of a 3D problem; see the module docstring."""
-    return _solve(problem, warm_start, solver or RodSolver(), follow_only=False)
+    return _solve(problem, warm_start, solver or _DEFAULT, follow_only=False)
 
 
 def equilibria(problem: Problem, *, solver: RodSolver | None = None,
