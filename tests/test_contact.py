@@ -15,7 +15,7 @@ from scipy.optimize import brentq
 import pliant as pl
 from pliant.errors import PliantError
 from pliant.models import rod3d
-from pliant.models.banded import dense
+from pliant.models.banded import dense, identity_rows
 from pliant.models.rod3d import contact_kernels
 from pliant.models.rod3d.contact_kernels import COMPLIANCE
 from pliant.models.rod3d.lowering import lower
@@ -226,6 +226,19 @@ def _jacobians(run, state, eps: float = 1e-7) -> tuple[np.ndarray, np.ndarray]:
     return dense(ab, rod.kl, rod.ku, n), fd
 
 
+def _free_rows_agree(run, state) -> None:
+    """The rows the contact Newton leaves out of its factorisation as the free probes'
+    (read from the active set) are exactly those the band shows to be the identity's
+    (``banded.identity_rows``), some of each kind present."""
+    rod = run.rod
+    _, ab, _ = run.residual(state, rod.target, want_jac=True)
+    active = run.contacts(state, rod.target)[3]
+    found = identity_rows(ab, rod.kl, rod.ku, rod.iprobe, rod.slot)
+    free = contact_kernels.free_rows(active, rod.iprobe, rod.slot, rod.n)
+    assert np.array_equal(free, found)
+    assert found[rod.islot].any() and not found[rod.islot].all()
+
+
 def test_contact_jacobian_matches_finite_differences():
     """The KKT Jacobian with contacts (forces on the nodes, the gap rows of touching
     probes, the turning of the normals over a box's face, edge and corner and round a
@@ -263,6 +276,7 @@ def test_contact_jacobian_matches_finite_differences():
     fd[:, idle] = J[:, idle]
     assert np.all(J[np.ix_(idle, idle)] == np.eye(idle.size))
     assert np.abs(J - fd).max() < 1e-5 * max(1.0, np.abs(J).max())
+    _free_rows_agree(run, state)
 
 
 def test_sliders_jacobian_matches_finite_differences():
@@ -317,6 +331,7 @@ def test_sliders_jacobian_matches_finite_differences():
     idle = rod.iprobe[(gam == 0.0) & (touching == 0)]
     fd[:, idle] = J[:, idle]
     assert np.abs(J - fd).max() < 1e-5 * max(1.0, np.abs(J).max())
+    _free_rows_agree(run, state)
 
 
 # -- friction --------------------------------------------------------------------------
@@ -496,6 +511,7 @@ def test_contact_jacobian_with_friction_matches_finite_differences():
     on = gam[:, 0] > 0
     assert np.any(v[on] < 0.9) and np.any(v[on] > 1.1)
     assert np.abs(J - fd).max() < 1e-5 * max(1.0, np.abs(J).max())
+    _free_rows_agree(run, state)
 
 
 def test_the_rest_shape_through_an_obstacle_is_measured_in_metres_on_a_2_m_part():

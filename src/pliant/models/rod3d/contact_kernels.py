@@ -13,7 +13,7 @@ import numpy as np
 from numba import njit
 
 from pliant.models.banded import add as _add
-from pliant.models.banded import band_factor_reduced, band_solve_factored, identity_rows
+from pliant.models.banded import band_factor_reduced, band_solve_factored
 from pliant.models.rod3d.kernels import (
     CONVERGED,
     MAX_ITERATIONS,
@@ -492,6 +492,19 @@ def contact_max(R, con):
     return r
 
 
+@njit(cache=True, inline="always")
+def free_rows(active, iprobe, slot, n):
+    """(n,) True at the rows of the probes that touch nothing: ``contact_terms`` writes
+    each of them as the identity's (1 on the diagonal, nothing else in the row), what
+    ``banded.identity_rows`` would find by reading the band (tested to agree)."""
+    out = np.zeros(n, dtype=np.bool_)
+    for k in range(iprobe.shape[0]):
+        if active[k] == 0:
+            for j in range(slot):
+                out[iprobe[k] + j] = True
+    return out
+
+
 # A chord step (the last factorisation reused) is taken where it shrinks the residual
 # tenfold, as in kernels.newton; it costs a residual and a back substitution, a fresh
 # step a Jacobian and a band LU more (0.1, 0.05 and 0.25 gave the same time, within
@@ -557,7 +570,7 @@ def newton_contact(X, Q, lam, nu, gam, mesh, tg, num, con, opts):
         fresh = not chord
         if fresh:
             # The free probes' rows are the identity's: they leave the factorisation.
-            fdrop = identity_rows(ab, kl, ku, iprobe, slot)
+            fdrop = free_rows(active, iprobe, slot, ab.shape[0])
             c, lo, up, new, piv, ok = band_factor_reduced(ab, kl, ku, fdrop)
             if not ok:
                 return X, Q, lam, nu, gam, r, it, SINGULAR, energy
