@@ -124,20 +124,23 @@ def test_drape_over_a_drum_touches_where_statics_says():
     assert penetration(eq) < 0.01
 
 
+def _lowered_onto_a_block(z: float) -> pl.Problem:
+    """A 1 m hose (EI = 0.05 N m^2, 20 mm) clamped at the origin, its end held at
+    (0.95, 0, z) over a block whose top is at z = -0.07."""
+    hose = pl.Part(length=1.0, bending_stiffness=0.05, mass_per_length=0.3,
+                   outer_diameter=2 * RADIUS)
+    block = Obstacle.box("block", (0.2, 0.2, 0.1), (0.7, 0.0, -0.12))
+    return pl.Problem(hose, (pl.clamp(0.0, position=(0.0, 0.0, 0.0)),
+                             pl.pin(1.0, position=(0.95, 0.0, z), name="hand")),
+                      gravity=(0.0, 0.0, -9.81), obstacles=(block,))
+
+
 def test_warm_steps_press_a_part_onto_a_block_and_lift_it_off():
     """A hand lowers the end of a hose onto a block and lifts it again: contact comes
     and goes along the trace, each step balanced, the force continuous and zero when
     lifted. The hose bends over the block's edge: its probes (2.5 mm apart) keep the
     chord's sag round the edge, and so any penetration, under 1% of the radius."""
-    block = Obstacle.box("block", (0.2, 0.2, 0.1), (0.7, 0.0, -0.12))
-    hose = pl.Part(length=1.0, bending_stiffness=0.05, mass_per_length=0.3,
-                   outer_diameter=2 * RADIUS)
-
-    def held(z: float) -> pl.Problem:
-        return pl.Problem(hose, (pl.clamp(0.0, position=(0.0, 0.0, 0.0)),
-                                 pl.pin(1.0, position=(0.95, 0.0, z), name="hand")),
-                          gravity=(0.0, 0.0, -9.81), obstacles=(block,))
-
+    held = _lowered_onto_a_block
     heights = np.concatenate([np.linspace(0.2, -0.15, 25), np.linspace(-0.15, 0.2, 25)[1:]])
     forces = []
     for eq in rod3d.trace([held(z) for z in heights]):
@@ -167,15 +170,7 @@ def test_a_warm_contact_step_lands_where_a_cold_solve_does():
     cold solve (the continuation from the straight part, a fresh Jacobian every Newton
     step) reach a touching equilibrium by different iterations: the same one, to far
     below the discretisation's error, with the same contact force."""
-    block = Obstacle.box("block", (0.2, 0.2, 0.1), (0.7, 0.0, -0.12))
-    hose = pl.Part(length=1.0, bending_stiffness=0.05, mass_per_length=0.3,
-                   outer_diameter=2 * RADIUS)
-
-    def held(z: float) -> pl.Problem:
-        return pl.Problem(hose, (pl.clamp(0.0, position=(0.0, 0.0, 0.0)),
-                                 pl.pin(1.0, position=(0.95, 0.0, z), name="hand")),
-                          gravity=(0.0, 0.0, -9.81), obstacles=(block,))
-
+    held = _lowered_onto_a_block
     warm = rod3d.solve(held(-0.02))
     for z in (-0.0235, -0.027, -0.0305):
         warm = rod3d.solve(held(z), warm_start=warm)
