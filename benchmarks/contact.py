@@ -15,8 +15,9 @@ accurate solve with contact, its interference and stability checks).
 (d) A real-time frame (50 control points, curve points held out of a drum) against the
 same frame without the drum.
 (e) `benchmarks/contact.py resolution`: (b)'s lowering at 100, 400 and 1,600 elements,
-the Newton iterations per warm step (issue 20: they should not grow with N) and the
-hand's force at the end (its change with N: the discretisation's error).
+the Newton iterations per warm step (issue 20: they should not grow with N; since stop
+39 they count a warm step's chord steps, on one factorisation, with its fresh ones) and
+the hand's force at the end (its change with N: the discretisation's error).
 (f) Friction while sliding: a hose lying along a bench (mu = 0.3), its end dragged
 sideways in 5 mm steps, against the same drag on a frictionless bench.
 Timings are machine-dependent; the ratios, measured in the same run, are the figures.
