@@ -117,7 +117,6 @@ class Station3D:
             set_(self, key, tuple(total))
 
 
-
 # Contact between two parts (the accurate model's ``coupled``): walls flatten 10
 # micrometres per newton where two tubes press together (a contact stiffness of 1e5 N/m,
 # a hose wall's local ovalisation under a line load), and probes along the first part sit

@@ -43,7 +43,7 @@ from pliant.core.events import Status
 from pliant.core.problem import PROBE_SAG, WALL_COMPLIANCE
 from pliant.errors import ConvergenceError
 from pliant.models import clock, continuation
-from pliant.models.banded import band_lu, band_lu_solve, band_reduce
+from pliant.models.banded import band_factor_reduced, band_lu_solve
 from pliant.models.continuation import Stalled
 from pliant.models.rod3d import kernels, spline
 from pliant.models.rod3d.links import Joint, LinkTerms, Pivot, Slider, _Block
@@ -833,8 +833,7 @@ def _factor(run: Run, ab: np.ndarray):
         idx = np.nonzero(drop)[0]
         if idx.shape[0]:  # its column must be empty too: its value then moves nothing
             drop[idx[np.count_nonzero(ab[idx], axis=1) != 1]] = False
-    c, lo, up, new = band_reduce(ab, rod.kl, rod.ku, drop)
-    piv, ok = band_lu(c, lo, up)
+    c, lo, up, new, piv, ok = band_factor_reduced(ab, rod.kl, rod.ku, drop)
     if not ok:
         return None
     return c, lo, up, piv, new >= 0

@@ -628,7 +628,6 @@ def lower(problem: Problem, elements: int = 100) -> Rod:
                slot=slot, obstacles=obstacles, radius=radius)
 
 
-
 # The rod's unknowns: node positions, frame quaternions, element forces, station
 # multipliers and contact (probe) forces, in the units of the lowering.
 State = tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]

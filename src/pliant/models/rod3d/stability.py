@@ -75,7 +75,7 @@ def stability_of(run: Run, state: State, seed: np.ndarray | None = None,
     needs fewer iterations. ``found`` (a list) receives this one's mode. ``loads``: those
     the state balances, when not the problem's (a state on the way).
     """
-    from pliant.models.banded import band_reduce  # noqa: PLC0415
+    from pliant.models.banded import band_factor_reduced  # noqa: PLC0415
     from pliant.models.lanczos import softest_mode  # noqa: PLC0415 (its own kernels)
 
     rod = run.rod
@@ -92,8 +92,7 @@ def stability_of(run: Run, state: State, seed: np.ndarray | None = None,
     # A free probe's row and column are the identity's and its part of every solve is 0:
     # they leave the factorisation (a narrower band, as in the Newton steps).
     drop = kernels.identity_rows(ab, kl, ku, rod.iprobe, rod.slot)
-    reduced, lo, up, new = band_reduce(ab, kl, ku, drop)
-    piv, ok = kernels.band_lu(reduced, lo, up)
+    reduced, lo, up, new, piv, ok = band_factor_reduced(ab, kl, ku, drop)
     if not ok:
         return stability_dense(run, state, loads)
     size = int(primal.sum())
