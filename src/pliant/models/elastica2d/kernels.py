@@ -221,6 +221,12 @@ def _integrate(y, Y, lo, hi, seg, nsteps, work, want_jac):
         for q in range(NSTATE):
             traj[tpos, q] = y[q]
         tpos += 1
+    # h a once per segment; the tableau's zeros are multiplied, not tested (the branch
+    # cost more than the multiply-add it saved).
+    ha = np.empty((nst, nst))
+    for i in range(nst):
+        for j in range(nst):
+            ha[i, j] = h * a[i, j]
     for step in range(nsteps):
         s = s0 + step * h
         th0 = y[2]
@@ -234,19 +240,17 @@ def _integrate(y, Y, lo, hi, seg, nsteps, work, want_jac):
             th = th0
             m = m0
             for j in range(i):
-                w = h * a[i, j]
-                if w != 0.0:
-                    th += w * K[j, 0]
-                    m += w * K[j, 1]
+                w = ha[i, j]
+                th += w * K[j, 0]
+                m += w * K[j, 1]
             si = s + c[i] * h
             if follower:
                 nx = nxs
                 ny = nys
                 for j in range(i):
-                    w = h * a[i, j]
-                    if w != 0.0:
-                        nx += w * K[j, 2]
-                        ny += w * K[j, 3]
+                    w = ha[i, j]
+                    nx += w * K[j, 2]
+                    ny += w * K[j, 3]
             else:
                 nx = nx0 - gx * (si - s0)
                 ny = ny0 - gy * (si - s0)
@@ -277,22 +281,21 @@ def _integrate(y, Y, lo, hi, seg, nsteps, work, want_jac):
                     de += bi * 0.5 * (m * m + comp * axial * axial)
             if want_jac:
                 dm_dth = st * ny + ct * nx
+                hb = h * bi
                 for q in range(lo, hi):
                     yth = Y[2, q]
                     ym = Y[5, q]
                     for j in range(i):
-                        w = h * a[i, j]
-                        if w != 0.0:
-                            yth += w * KY[j, 0, q]
-                            ym += w * KY[j, 1, q]
+                        w = ha[i, j]
+                        yth += w * KY[j, 0, q]
+                        ym += w * KY[j, 1, q]
                     ynx = Y[3, q]
                     yny = Y[4, q]
                     if follower:
                         for j in range(i):
-                            w = h * a[i, j]
-                            if w != 0.0:
-                                ynx += w * KY[j, 2, q]
-                                yny += w * KY[j, 3, q]
+                            w = ha[i, j]
+                            ynx += w * KY[j, 2, q]
+                            yny += w * KY[j, 3, q]
                         # d/dtheta of -(ft t + fn nu) = (ft sin + fn cos, fn sin - ft cos)
                         KY[i, 2, q] = (ft * st + fn * ct) * yth
                         KY[i, 3, q] = (fn * st - ft * ct) * yth
@@ -300,16 +303,16 @@ def _integrate(y, Y, lo, hi, seg, nsteps, work, want_jac):
                     if comp == 0.0:
                         KY[i, 1, q] = dm_dth * yth + st * ynx - ct * yny
                         if bi != 0.0:
-                            Y[0, q] += h * bi * (-st * yth)
-                            Y[1, q] += h * bi * (ct * yth)
+                            Y[0, q] -= hb * st * yth
+                            Y[1, q] += hb * ct * yth
                     else:
                         # dN = Q dtheta + t . dn, and lam = 1 + c N
                         dlam = comp * (shear * yth + ct * ynx + st * yny)
                         KY[i, 1, q] = (lam * (dm_dth * yth + st * ynx - ct * yny)
                                        - dlam * shear)
                         if bi != 0.0:
-                            Y[0, q] += h * bi * (dlam * ct - lam * st * yth)
-                            Y[1, q] += h * bi * (dlam * st + lam * ct * yth)
+                            Y[0, q] += hb * (dlam * ct - lam * st * yth)
+                            Y[1, q] += hb * (dlam * st + lam * ct * yth)
         for i in range(nst):
             w = h * b[i]
             if w != 0.0:

@@ -96,7 +96,7 @@ class Lowered:
     station_of: tuple[Station | None, ...]  # the problem's station behind each one
     nz: int
     key: tuple = ()  # equal keys: same structure (a warm start can reuse unknowns)
-    inputs: np.ndarray = field(default_factory=lambda: np.zeros(0))  # val, fol, prm flat
+    inputs: tuple[float, ...] = ()  # val, fol, prm, dist flat (``_flat``)
     nodes: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=np.int64))
     interval: float = 1.0  # the longest stretch between restarts (dimensionless)
     problem_rows: tuple[int, ...] = ()  # the kernel station of each problem station
@@ -131,37 +131,42 @@ class Lowered:
         rows = self.problem_rows
         if len(problem.stations) != len(rows):
             return None
-        length = self.length
-        scales = (length, length, 1.0)
-        loads = (self.force_scale, self.force_scale, self.moment_scale)
-        val = np.zeros_like(self.target.val)
-        fol = np.zeros_like(self.target.fol)
-        for k, st, old in zip(rows, problem.stations, (self.station_of[k] for k in rows)):
+        length, fs, ms = self.length, self.force_scale, self.moment_scale
+        val = self.target.val.copy()  # rows of no problem station hold zeros
+        fol = self.target.fol.copy()
+        station_of = list(self.station_of)
+        for k, st in zip(rows, problem.stations):
+            old = station_of[k]
             if st.s != old.s or st.prescribed != old.prescribed:  # type: ignore[union-attr]
                 return None
-            for i in range(3):
-                val[k, i] = (st.kinematics[i] / scales[i] if st.prescribed[i]
-                             else st.dead_load[i] / loads[i])
-            fol[k] = (st.follower_load[0] / loads[0], st.follower_load[1] / loads[0])
+            (px, py, pa), (kx, ky, ka), (dx, dy, da) = (st.prescribed, st.kinematics,
+                                                        st.dead_load)
+            val[k] = (kx / length if px else dx / fs, ky / length if py else dy / fs,
+                      ka if pa else da / ms)
+            ft, fn = st.follower_load
+            if ft or fn or fol[k, 0] or fol[k, 1]:
+                fol[k] = (ft / fs, fn / fs)
+            station_of[k] = st
         dist = self.target.dist  # zeros without loads on stretches (the warm path)
         if problem.distributed or self.problem.distributed:
             if _load_spans(problem) != _load_spans(self.problem):
                 return None  # the kernel's stations are cut where each load starts and ends
             dist = segment_loads(problem, self.st_s)
-        prm = self.target.prm.copy()
-        prm[0], prm[1] = distributed_load(problem)
-        station_of = list(self.station_of)
-        for k, st in zip(rows, problem.stations):
-            station_of[k] = st
-        return Lowered(problem=problem, length=length, stiffness=self.stiffness,
-                       st_s=self.st_s, st_kind=self.st_kind, st_col=self.st_col,
-                       seg_lo=self.seg_lo, seg_hi=self.seg_hi, st_kappa=self.st_kappa,
-                       target=Arrays(val, fol, prm, dist), station_of=tuple(station_of),
-                       nz=self.nz, key=self.key,
-                       inputs=np.concatenate([val.ravel(), fol.ravel(), prm, dist.ravel()]),
-                       nodes=self.nodes, interval=self.interval,
-                       problem_rows=self.problem_rows, stations=self.stations,
-                       unloaded=self.unloaded)
+        prm = self.target.prm
+        fx, fy = distributed_load(problem)
+        if fx != prm[0] or fy != prm[1]:
+            prm = prm.copy()  # the kernels copy what they change: arrays may be shared
+            prm[0], prm[1] = fx, fy
+        # A copy of this lowering with the new targets: its structure (the arrays the
+        # kernels' ``Stations`` hold) is shared, and the frozen dataclass's per-field
+        # __init__ is skipped (a warm step's budget is some tens of microseconds).
+        out = object.__new__(Lowered)
+        out.__dict__.update(self.__dict__)
+        out.__dict__.update(
+            problem=problem, target=Arrays(val, fol, prm, dist),
+            station_of=tuple(station_of),
+            inputs=_flat(val, fol, prm, dist))
+        return out
 
     # -- kernel calls ---------------------------------------------------------------------
     def mesh(self, density: int) -> Mesh:
@@ -281,6 +286,14 @@ class Lowered:
                     z[col] = (load.force[i] / self.force_scale if i < 2
                               else load.moment / self.moment_scale)
         return z
+
+
+def _flat(val: np.ndarray, fol: np.ndarray, prm: np.ndarray,
+          dist: np.ndarray) -> tuple[float, ...]:
+    """The targets and loads as one tuple of floats: the solver measures the distance
+    between two problems by them (``math.dist``, faster on floats than on arrays)."""
+    return (*val.ravel().tolist(), *fol.ravel().tolist(), *prm.tolist(),
+            *dist.ravel().tolist())
 
 
 def distributed_load(problem: Problem) -> tuple[float, float]:
@@ -469,7 +482,7 @@ def lower(problem: Problem, nodes: int | None = None) -> Lowered:
                    st_kind=st_kind, st_col=st_col, seg_lo=seg_lo, seg_hi=seg_hi,
                    st_kappa=st_kappa, target=Arrays(val, fol, prm, dist),
                    station_of=tuple(st for _, st, _ in stations), nz=col, key=key,
-                   inputs=np.concatenate([val.ravel(), fol.ravel(), prm, dist.ravel()]),
+                   inputs=_flat(val, fol, prm, dist),
                    nodes=node_index,
                    interval=max(b - a for a, b in itertools.pairwise(cuts)),
                    problem_rows=tuple(k for k, (_, st, _) in enumerate(stations)

@@ -29,7 +29,6 @@ import math
 from collections.abc import Callable, Iterable, Iterator
 from dataclasses import dataclass, field, replace
 from functools import partial
-from typing import Any
 
 import numpy as np
 
@@ -123,6 +122,9 @@ class ShootingSolver:
 
     def __post_init__(self) -> None:
         check(self, fractions=("contraction", "shrink"))
+
+
+_DEFAULT = ShootingSolver()  # immutable: one instance (its checks cost microseconds)
 
 
 @dataclass(frozen=True, eq=False)
@@ -724,30 +726,27 @@ def _extrapolate(history: tuple[Equilibrium, ...], old: _WarmState,
     """Predict the unknowns along a path of problems from the last equilibria: a
     quadratic (or, with two points, linear) extrapolation in the distance travelled
     through the problems' inputs. Only equilibria of the same structure count."""
-    states = [h.state for h in history[-2:]
-              if isinstance(h.state, _WarmState) and h.state.low.key == low.key]
-    if not states:
+    key = low.key
+    points = [h.state for h in history[-2:]
+              if type(h.state) is _WarmState and h.state.low.key == key]
+    if not points:
         return None
-    points = states + [old]  # oldest first; at most three
+    points.append(old)  # oldest first; at most three
     taus = [0.0]
     for a, b in itertools.pairwise(points):
-        taus.append(taus[-1] + _distance(a.low, b.low))
-    target = taus[-1] + _distance(old.low, low)
-    if any(b - a <= 0.0 for a, b in itertools.pairwise(taus)):
-        return None
-    z: Any = 0.0
+        step = math.dist(a.low.inputs, b.low.inputs)
+        if step <= 0.0:
+            return None
+        taus.append(taus[-1] + step)
+    target = taus[-1] + math.dist(old.low.inputs, low.inputs)
+    z = None
     for i, (ti, pi) in enumerate(zip(taus, points)):
-        weight = 1.0
+        weight = 1.0  # Lagrange's basis polynomial of point i, at the target
         for j, tj in enumerate(taus):
             if j != i:
                 weight *= (target - tj) / (ti - tj)
-        z = z + weight * pi.z
+        z = weight * pi.z if z is None else z + weight * pi.z
     return z
-
-
-def _distance(a: Lowered, b: Lowered) -> float:
-    d = a.inputs - b.inputs
-    return math.sqrt(float(d @ d))
 
 
 def _same_structure(a: Lowered, b: Lowered) -> bool:
@@ -763,7 +762,7 @@ def solve(problem: Problem, *, warm_start: Equilibrium | None = None,
     Raises ConvergenceError (with the residual and how far it got) when no equilibrium
     is found within the solver's budgets.
     """
-    return _solve(problem, warm_start, solver or ShootingSolver(), follow_only=False)
+    return _solve(problem, warm_start, solver or _DEFAULT, follow_only=False)
 
 
 def _solve(problem: Problem, warm_start: Equilibrium | None, solver: ShootingSolver,
@@ -817,7 +816,7 @@ def equilibria(problem: Problem, *, solver: ShootingSolver | None = None,
     starting shapes (``minimum``). Stable (and neutral) ones first, then unstable, each
     group by potential energy (``continuation.best_first``); the first is what ``solve``
     would choose among them. Empty when no route reaches one."""
-    solver = solver or ShootingSolver()
+    solver = solver or _DEFAULT
     deadline = clock.now() + budget
     nodes = len(lower(problem).nodes) + 1
     found: list[Equilibrium] = []
@@ -948,7 +947,7 @@ def trace(problems: Iterable[Problem], *, start: Equilibrium | None = None,
     snap-through) it raises ConvergenceError with ``last_good`` the last equilibrium,
     instead of jumping silently to another branch.
     """
-    solver = solver or ShootingSolver()
+    solver = solver or _DEFAULT
     previous = start
     history: tuple[Equilibrium, ...] = ()  # the two before previous, oldest first
     for problem in problems:
