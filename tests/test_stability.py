@@ -166,3 +166,9 @@ def test_the_sparse_eigensolver_agrees_with_the_dense_one(monkeypatch):
         dense = planar.smallest_eigenvalue(eq, 120)
         monkeypatch.undo()
         assert sparse == pytest.approx(dense, rel=1e-9, abs=1e-9)
+        # The solver's quick verdicts (60 elements) take the dense path; forced through
+        # the Lanczos instead, the same eigenvalue.
+        quick = planar.smallest_eigenvalue(eq, 60)
+        monkeypatch.setattr(planar, "DENSE_UP_TO", 0)
+        assert planar.smallest_eigenvalue(eq, 60) == pytest.approx(quick, rel=1e-9, abs=1e-9)
+        monkeypatch.undo()

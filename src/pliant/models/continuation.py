@@ -87,6 +87,9 @@ class Stepping:
         overshoots where the set of touching probes changes)
     time_budget : the solve's budget [s], for the message when it runs out
     fold_hint : what else a stall on the way may mean, added to its reason
+    parabola : from the third step on, predict along the parabola through the last
+        three points (an error like dt^3) instead of the secant (the 2D model's twin of
+        its compiled ``follow``; dt still scales by the secant's rule, the more cautious)
     """
 
     tolerance: float
@@ -99,6 +102,7 @@ class Stepping:
     retry_from_last: bool = False
     time_budget: float = math.inf
     fold_hint: str = ""
+    parabola: bool = False
 
 
 class Path(Protocol):
@@ -185,6 +189,7 @@ def follow(model: Continuable, path: Path, state: Any, stepping: Stepping,
     root_f = math.sqrt(load_f)
     t, dt = 0.0, 1.0
     prev: tuple[float, Any] | None = None
+    prev2: tuple[float, Any] | None = None
     steps = 0
     while True:
         if stepping.max_steps is not None and steps >= stepping.max_steps:
@@ -204,7 +209,13 @@ def follow(model: Continuable, path: Path, state: Any, stepping: Stepping,
         t_next = min(1.0, t + dt)
         loads = path.at(t_next)
         state = model.begin_step(state)
-        if prev is not None:
+        if stepping.parabola and prev2 is not None and prev is not None:
+            (t0, s0), (t1, s1) = prev2, prev  # Lagrange's parabola through three points
+            l0 = (t_next - t1) * (t_next - t) / ((t0 - t1) * (t0 - t))
+            l1 = (t_next - t0) * (t_next - t) / ((t1 - t0) * (t1 - t))
+            predictor = model.step(model.step(state, model.difference(state, s0), l0),
+                                   model.difference(state, s1), l1)
+        elif prev is not None:
             t_prev, s_prev = prev
             predictor = model.step(state, model.difference(s_prev, state),
                                    (t_next - t) / (t - t_prev))
@@ -223,7 +234,7 @@ def follow(model: Continuable, path: Path, state: Any, stepping: Stepping,
             steps += 1
             model.steps += 1
             miss = model.miss(predictor, corrected) if stepping.grow is not None else 0.0
-            prev, state, t = (t, state), corrected, t_next
+            prev2, prev, state, t = prev, (t, state), corrected, t_next
             if final:
                 return state
             if stepping.grow is None:

@@ -187,13 +187,12 @@ class Run:
         return int(kernels.needed_density(stats, self.solver.accuracy,
                                           self.solver.min_density))
 
-    def follow(self, start: Arrays, end: Arrays, z0: np.ndarray, mesh: Mesh,
-               jac0: np.ndarray = _EMPTY_JAC) -> _Point:
+    def follow(self, start: Arrays, end: Arrays, z0: np.ndarray, mesh: Mesh) -> _Point:
         """Continuation from (start, z0), an exact solution, to end (see
         ``kernels.follow``)."""
         opts, low = self.solver, self.low
         if opts.shared_driver:
-            return self.follow_shared(start, end, z0, mesh, jac0)
+            return self.follow_shared(start, end, z0, mesh)
         if clock.now() > self.deadline:
             raise Stalled(0.0, math.inf, f"the time budget of {opts.time_budget} s ran out",
                           budget=True, state=z0, status=Status.TIME_BUDGET)
@@ -203,7 +202,7 @@ class Run:
                             opts.grow, opts.shrink, opts.path_accuracy, opts.wave_step],
                            dtype=float)
         z, jac, density, stats, r, status, last, t, iterations, steps, crossings = kernels.follow(
-            z0, jac0, mesh.density, low.stations, start.inputs, end.inputs, options)
+            z0, mesh.density, low.stations, start.inputs, end.inputs, options)
         self.iterations += iterations
         self.steps += steps
         if status == kernels.BUDGET:
@@ -223,23 +222,26 @@ class Run:
         return _Point(z, jac, low.mesh(density), stats, r)
 
     # -- the shared driver (continuation.Continuable) ------------------------------------
-    def follow_shared(self, start: Arrays, end: Arrays, z0: np.ndarray, mesh: Mesh,
-                      jac0: np.ndarray = _EMPTY_JAC) -> _Point:
+    def follow_shared(self, start: Arrays, end: Arrays, z0: np.ndarray,
+                      mesh: Mesh) -> _Point:
         """``follow`` by the shared driver (``continuation.follow``): its steps are the
-        compiled ``kernels.follow``'s, less the sign of det J; the mesh is refined as the
-        path's solution needs (``correct``), and at the end to the full accuracy."""
+        compiled ``kernels.follow``'s (the parabola's predictor, a fresh Jacobian in each
+        corrector), less the sign of det J; the mesh is refined as the path's solution
+        needs (``correct``), and at the end to the full accuracy."""
         opts = self.solver
         span = max(float(np.abs(end.val - start.val).max(initial=0.0)),
                    float(np.abs(end.fol - start.fol).max(initial=0.0)),
                    float(np.abs(end.dist - start.dist).max(initial=0.0)),
                    float(np.abs(end.prm[:3] - start.prm[:3]).max()))
+        loose = max(opts.tolerance, opts.loose_tolerance * span)
         stepping = continuation.Stepping(
-            tolerance=opts.tolerance, loose=max(opts.tolerance, opts.loose_tolerance * span),
-            min_step=opts.min_step, max_steps=opts.max_steps, grow=opts.grow,
-            shrink=opts.shrink, wave_step=opts.wave_step, time_budget=opts.time_budget)
+            tolerance=opts.tolerance, loose=loose, min_step=opts.min_step,
+            max_steps=opts.max_steps, grow=opts.grow, shrink=opts.shrink,
+            wave_step=opts.wave_step, time_budget=opts.time_budget,
+            parabola=8.0 * loose <= 0.01 * opts.grow)  # as ``kernels.follow``'s rule
         try:
             point = continuation.follow(self, Line(start, end),
-                                        _Point(z0, jac0, mesh, np.zeros(2), math.inf),
+                                        _Point(z0, _EMPTY_JAC, mesh, np.zeros(2), math.inf),
                                         stepping, self.deadline)
         except Stalled as stall:
             if isinstance(stall.state, _Point):
@@ -249,12 +251,13 @@ class Run:
 
     def correct(self, predictor: _Point, loads: Arrays, *, strict: bool,
                 tol: float | None) -> tuple[_Point, float, Status]:
-        """Newton from the prediction; a converged point whose wavenumber outgrew the
-        mesh (at the path's accuracy) converges again on a finer one."""
+        """Newton from the prediction, with a fresh Jacobian there (as ``kernels.follow``);
+        a converged point whose wavenumber outgrew the mesh (at the path's accuracy)
+        converges again on a finer one."""
         tol = self.solver.tolerance if tol is None else tol
         mesh = predictor.mesh
         z, r, status, jac, stats = self.newton(predictor.z, loads, mesh, strict=strict,
-                                               tol=tol, jac0=predictor.jac)
+                                               tol=tol)
         need = int(kernels.needed_density(stats, self.solver.path_accuracy,
                                            self.solver.min_density))
         if status == kernels.CONVERGED and need > mesh.density:
@@ -450,8 +453,7 @@ class Run:
         """Follow the homotopies start -> targets[0] -> targets[1] -> ..."""
         point = None
         for end in targets:
-            point = self.follow(start, end, z, mesh if point is None else point.mesh,
-                                _EMPTY_JAC if point is None else point.jac)
+            point = self.follow(start, end, z, mesh if point is None else point.mesh)
             start, z = end, point.z
         assert point is not None
         return point
@@ -690,7 +692,7 @@ class Run:
             return None
         assert old is not None
         try:
-            return self.follow(old.low.target, low.target, z0, mesh, jac0)
+            return self.follow(old.low.target, low.target, z0, mesh)
         except Stalled as stall:
             if not stall.budget:
                 # Perhaps the shooting intervals are too long for the forces on the way:
