@@ -345,6 +345,7 @@ class Run:
         mesh = self.first_mesh()
         rest, z = low.rest(mesh)
         straight = None
+        before = len(self.notes)
         try:
             point = self.through(rest, legs(rest), z, mesh)
             # An extensible part's start is not singular: its chord shortens by
@@ -356,6 +357,8 @@ class Run:
         except Stalled as stall:
             if not stall.singular_start:
                 raise
+        # What the straight route said (a bifurcation it crossed) is of its own answer.
+        said, self.notes[before:] = self.notes[before:], []
         why = _BRANCH_NOTE if straight is None else (
             f"{_BRANCH_NOTE} for the inextensible part; this one shortens, and its straight "
             "equilibrium is unstable")
@@ -365,6 +368,7 @@ class Run:
         except Stalled:
             if straight is None:
                 raise
+            self.notes.extend(said)
             self.reached = [straight]
             return straight
         if low.target.follower:  # no potential to compare the sides by
