@@ -183,3 +183,23 @@ def test_lowest_false_answers_with_the_route_alone():
     np.testing.assert_allclose(alone.position, searched.position, atol=1e-12)
     assert any("minimising the energy" in n for n in searched.notes)
     assert not any("minimising the energy" in n for n in alone.notes)
+
+
+def test_where_the_side_pushed_to_meets_a_fold_the_other_bow_side_answers():
+    """A part clamped along +x, its end held at (0.5, -0.6) m pointing down and on
+    (-1 rad): the route bowing to the side the target pushes it to meets a fold (its
+    bow would have to turn over), and the cold solve used to try four more routes and
+    then minimise the energy. The other bow side reaches the equilibrium by
+    continuation: right (the ODE integrated again), stable, no higher than the
+    exhaustive twin's lowest, and the note says which side was taken and why."""
+    problem = pl.Problem(pl.Part(1.0, 1.0), (pl.clamp(0.0), pl.grip(
+        1.0, (0.5, -0.6), angle=-1.0, name="hand")))
+    eq = pl.solve(problem)
+    assert equilibrium_error(eq) < 1e-8
+    assert eq.verdict == "stable"
+    scale = problem.part.bending_stiffness / problem.part.length
+    twin = twin_lowest(problem)
+    assert potential_energy(eq) <= twin + 1e-3 * (abs(twin) + scale)
+    (note,) = [n for n in eq.events if type(n).__name__ == "BranchTaken"]
+    assert note.side == "left" and "met a fold" in str(note)
+    assert not any("stopped at" in n for n in eq.notes)  # no route stalled to the end

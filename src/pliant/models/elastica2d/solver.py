@@ -363,28 +363,41 @@ class Run:
             f"{_BRANCH_NOTE} for the inextensible part; this one shortens, and its straight "
             "equilibrium is unstable")
         pushed = low.lateral_side(rest)
-        try:
-            found = [(pushed, self.bowed(pushed, legs, mesh))]
-        except Stalled:
+        # The side the targets and loads push to first; where its path meets a fold (a
+        # cable held below its clamp, whose bow would have to turn over), the other.
+        found: list[tuple[float, _Point]] = []
+        stalls: list[Stalled] = []
+        for side in (pushed, -pushed):
+            try:
+                found.append((side, self.bowed(side, legs, mesh)))
+                break
+            except Stalled as stall:
+                if stall.budget:
+                    raise
+                stalls.append(stall)
+        if not found:
             if straight is None:
-                raise
+                raise max(stalls, key=lambda stall: stall.t)
             self.notes.extend(said)
             self.reached = [straight]
             return straight
+        fold = (f"; the path bowing to the other side, the one its targets and loads push "
+                f"it to, met a fold at {stalls[0].t:.3g} of the way" if stalls else "")
         if low.target.follower:  # no potential to compare the sides by
-            side = "left" if pushed > 0 else "right"
+            side = "left" if found[0][0] > 0 else "right"
             self.notes.append(BranchTaken(
                 f"{why} (a bifurcation: it can buckle to either side); pliant took "
-                f"the branch that bows to the {side} of its "
-                "chord, the side its targets and loads push it to; another equilibrium may "
-                "exist on the other side", side=side))
+                f"the branch that bows to the {side} of its chord"
+                + (fold or ", the side its targets and loads push it to; another "
+                   "equilibrium may exist on the other side"), side=side))
             self.reached = [found[0][1]]
             return found[0][1]
-        try:  # the other side too: keep the lower stable equilibrium, say what else exists
-            found.append((-pushed, self.bowed(-pushed, legs, mesh)))
-        except Stalled as stall:
-            if stall.budget:
-                raise
+        if not stalls:  # the other side too: keep the lower stable one, say what else exists
+            try:
+                found.append((-pushed, self.bowed(-pushed, legs, mesh)))
+            except Stalled as stall:
+                if stall.budget:
+                    raise
         energies = [self.energy(point) for _, point in found]
         twins = len(found) == 2 and abs(energies[1] - energies[0]) <= 1e-9 * abs(energies[0])
         judged = [(side, point, energy, self.stable(point) if len(found) == 2 and not twins
@@ -399,8 +412,8 @@ class Run:
         side = "left" if best[0] > 0 else "right"
         if len(judged) == 1:
             self.notes.append(BranchTaken(
-                took + "; the route to the other side found no equilibrium", side=side,
-                energy=best[2]))
+                took + (fold or "; the route to the other side found no equilibrium"),
+                side=side, energy=best[2]))
             self.reached = [best[1]]
             return best[1]
         other = next(j for j in judged if j is not best)
