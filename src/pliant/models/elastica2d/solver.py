@@ -364,12 +364,13 @@ class Run:
             "equilibrium is unstable")
         pushed = low.lateral_side(rest)
         # The side the targets and loads push to first; where its path meets a fold (a
-        # cable held below its clamp, whose bow would have to turn over), the other.
+        # part held below and on from its clamp, whose bow would have to turn over), the
+        # other.
         found: list[tuple[float, _Point]] = []
         stalls: list[Stalled] = []
-        for side in (pushed, -pushed):
+        for bow in (pushed, -pushed):
             try:
-                found.append((side, self.bowed(side, legs, mesh)))
+                found.append((bow, self.bowed(bow, legs, mesh)))
                 break
             except Stalled as stall:
                 if stall.budget:
