@@ -56,7 +56,11 @@ def print_evaluation(ev: Any, console: Console | None = None) -> None:
 
 # -- plots --------------------------------------------------------------------------------
 def _figure(plt, rows: int = 1, cols: int = 1, height: float = 3.0):
-    return plt.subplots(rows, cols, figsize=(9.5, height), layout="constrained", squeeze=False)
+    from pliant.cli.plot import margins  # noqa: PLC0415 (matplotlib's side of the CLI)
+
+    fig, axes = plt.subplots(rows, cols, figsize=(9.5, height), squeeze=False)
+    margins(fig, wspace=0.9, hspace=0.5)
+    return fig, axes
 
 
 def inline_svg(fig, plt) -> str:
@@ -186,8 +190,9 @@ def pictures(ev: Any, steps: list[tuple[str, int]]) -> list[tuple[str, str]]:
     out = []
     for caption, k in steps:
         eq = ev.run.equilibria[k]
-        fig = plt.figure(figsize=(4.6, 4.0), layout="constrained")
+        fig = plt.figure(figsize=(4.6, 4.0))
         ax = fig.add_subplot(projection="3d")
+        fig.subplots_adjust(left=0.02, right=0.92, bottom=0.1, top=0.92)
         for _, mesh in meshes:
             tri = mesh.vertices[mesh.faces]
             ax.add_collection3d(Poly3DCollection(tri, facecolor="#b9c0c8", edgecolor="none",

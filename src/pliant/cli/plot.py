@@ -128,6 +128,24 @@ def matplotlib_norm(values: np.ndarray):
     return Normalize(vmin=0.0, vmax=top if top > 0.0 else 1.0)
 
 
+def margins(fig, left: float = 0.8, bottom: float = 0.55, right: float = 0.15,
+            top: float = 0.3, wspace: float = 0.0, hspace: float = 0.0) -> None:
+    """Fixed margins [in] round the axes and between them (wspace, hspace: the gaps
+    between columns and rows), instead of a layout engine: constrained layout measures
+    every label's extent, about 0.15 s a figure, most of the time of a report's plots
+    (a run's first report is part of its first run). They suit the reports' plots,
+    whose labels are known: the tick labels' width is what they leave room for."""
+    width, height = fig.get_size_inches()
+    grid = fig.axes[0].get_gridspec() if fig.axes else None
+    cols, rows = (grid.ncols, grid.nrows) if grid is not None else (1, 1)
+    inner_w = width - left - right - (cols - 1) * wspace
+    inner_h = height - bottom - top - (rows - 1) * hspace
+    fig.subplots_adjust(left=left / width, right=1.0 - right / width,
+                        bottom=bottom / height, top=1.0 - top / height,
+                        wspace=wspace * cols / max(inner_w, 1e-9),
+                        hspace=hspace * rows / max(inner_h, 1e-9))
+
+
 def _save(fig, path: Path, plt) -> None:
     from pliant.io.atomic import atomic_write  # noqa: PLC0415
 
@@ -150,7 +168,8 @@ def plot_path(run, path: str | Path, min_bend_radius: float | None = None) -> Pa
     path = Path(path)
     steps = run.steps
     progress = np.array([r.progress for r in steps]) * 100.0
-    fig, axes = plt.subplots(2, 2, figsize=(11, 6.5), layout="constrained", sharex=True)
+    fig, axes = plt.subplots(2, 2, figsize=(11, 6.5), sharex=True)
+    margins(fig, wspace=0.9, hspace=0.25)
     (force, moment), (clearance, bend) = axes
     force.plot(progress, [r.force_norm for r in steps], color="tab:blue")
     force.set_ylabel(f"|force| at {run.grip} [N]")
