@@ -3,6 +3,7 @@ through a sphere and a box, and the contacts of a solved part."""
 
 from __future__ import annotations
 
+import itertools
 import math
 
 import numpy as np
@@ -14,6 +15,7 @@ import pliant as pl
 from pliant.errors import InputError
 from pliant.models import rod3d
 from pliant.scene import Obstacle, interference, interference_of_curve
+from pliant.scene.interference import polyline_distance
 
 R, r = 0.1, 0.01  # the sphere's radius, the tube's
 
@@ -101,3 +103,40 @@ def test_bad_input_names_the_field():
     eq2d = pl.solve(pl.Problem(pl.Part(length=1.0, bending_stiffness=1.0), (pl.clamp(0.0),)))
     with pytest.raises(InputError):
         interference(eq2d)
+
+
+def _point_to_polyline(p, line) -> float:
+    """The slow twin: each segment in turn, the foot of the perpendicular clamped to it."""
+    best = math.inf
+    for a, b in itertools.pairwise(line):
+        ab = [b[c] - a[c] for c in range(3)]
+        ap = [p[c] - a[c] for c in range(3)]
+        t = sum(x * y for x, y in zip(ap, ab)) / max(sum(x * x for x in ab), 1e-300)
+        t = min(1.0, max(0.0, t))
+        best = min(best, math.dist(p, [a[c] + t * ab[c] for c in range(3)]))
+    return best
+
+
+@settings(max_examples=40, deadline=None, derandomize=True)
+@given(st.integers(2, 30), st.integers(1, 50), st.integers(0, 2**32 - 1))
+def test_the_distance_to_a_polyline_is_the_slow_twins(segments, count, seed):
+    """The distance of points to another part's neutral line (numpy, in blocks) against
+    the plain per-segment loop, with repeated vertices (zero-length segments) too."""
+    rng = np.random.default_rng(seed)
+    line = rng.normal(size=(segments, 3))
+    line[rng.integers(segments)] = line[0]  # a vertex repeated
+    points = rng.normal(size=(count, 3)) * 2.0
+    got = polyline_distance(points, line)
+    want = [_point_to_polyline(p.tolist(), line.tolist()) for p in points]
+    np.testing.assert_allclose(got, want, rtol=1e-12, atol=1e-14)
+
+
+def test_the_distance_to_a_straight_line_is_the_perpendicular():
+    """Closed form: points beside a segment along x are their (y, z) radius from it; past
+    its end, the distance to the end; a one-point line, the distance to the point."""
+    line = np.array([[0.0, 0.0, 0.0], [0.4, 0.0, 0.0], [1.0, 0.0, 0.0]])
+    points = np.array([[0.3, 0.3, 0.4], [0.9, -0.05, 0.0], [1.3, 0.4, 0.0]])
+    np.testing.assert_allclose(polyline_distance(points, line),
+                               [0.5, 0.05, 0.5], rtol=1e-14)
+    np.testing.assert_allclose(polyline_distance(points, line[:1]),
+                               np.linalg.norm(points, axis=1), rtol=1e-14)

@@ -14,12 +14,10 @@ samples is cut into ``subdivide`` pieces) and the distances exact near the surfa
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
-from numba import njit
 
 from pliant.core.equilibrium import Equilibrium3D, Result
 from pliant.core.numbers import triple
@@ -168,31 +166,23 @@ def fitted_tubes(eq: Equilibrium3D, obstacles) -> dict[str, tuple[np.ndarray, fl
 
 
 def polyline_distance(points: np.ndarray, line: np.ndarray) -> np.ndarray:
-    """The distance [m] of each point (k, 3) to the polyline ``line`` (m, 3)."""
-    return _polyline_distance(np.ascontiguousarray(points, dtype=float),
-                              np.ascontiguousarray(line, dtype=float))
-
-
-@njit(cache=True)
-def _polyline_distance(points, line):
+    """The distance [m] of each point (k, 3) to the polyline ``line`` (m, 3): to the
+    nearest of its segments, in whole-array numpy over blocks of points (about a
+    million point-segment pairs a block). A kernel took microseconds less on a part's
+    few hundred points and cost half a second of every first run to compile."""
+    points = np.asarray(points, dtype=float).reshape(-1, 3)
+    line = np.asarray(line, dtype=float).reshape(-1, 3)
+    if line.shape[0] == 1:
+        return np.linalg.norm(points - line[0], axis=1)
+    start, along = line[:-1], np.diff(line, axis=0)
+    length2 = np.maximum(np.einsum("ij,ij->i", along, along), 1e-300)
     out = np.empty(points.shape[0])
-    for k in range(points.shape[0]):
-        best = 1e300
-        for f in range(line.shape[0] - 1):
-            ss = 0.0
-            rs = 0.0
-            for c in range(3):
-                s = line[f + 1, c] - line[f, c]
-                ss += s * s
-                rs += (points[k, c] - line[f, c]) * s
-            t = min(1.0, max(0.0, rs / max(ss, 1e-300)))
-            d2 = 0.0
-            for c in range(3):
-                v = points[k, c] - line[f, c] - t * (line[f + 1, c] - line[f, c])
-                d2 += v * v
-            if d2 < best:
-                best = d2
-        out[k] = math.sqrt(best)
+    block = max(1, 2**20 // start.shape[0])
+    for i in range(0, points.shape[0], block):
+        rel = points[i:i + block, None, :] - start[None, :, :]  # (b, m - 1, 3)
+        t = np.clip(np.einsum("bmc,mc->bm", rel, along) / length2, 0.0, 1.0)
+        off = rel - t[..., None] * along
+        out[i:i + block] = np.sqrt(np.einsum("bmc,bmc->bm", off, off).min(axis=1))
     return out
 
 
