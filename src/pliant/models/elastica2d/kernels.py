@@ -656,6 +656,15 @@ def mesh_steps(st_s, density):
 
 
 @njit(cache=True)
+def parabola_fits(loose, grow):
+    """Whether a continuation predicts along the parabola through its last three points:
+    their own errors, amplified by it up to about eightfold (``loose`` each), must stay
+    within a hundredth of the corrector distance the steps aim at (``grow``). The rule
+    of ``follow`` and of the shared driver's twin of it (``solver.Run.follow_shared``)."""
+    return 8.0 * loose <= 0.01 * grow
+
+
+@njit(cache=True)
 def needed_density(stats, accuracy, min_density):
     """Steps per unit length that resolve the wavenumber max|theta'| + sqrt(max|n|)."""
     k = stats[0] + math.sqrt(stats[1])
@@ -775,9 +784,7 @@ def follow(z0, density, stations, start, end, opts):
     t_prev = -1.0
     z_prev2 = z0.copy()
     t_prev2 = -1.0
-    # The parabola's amplified errors of the points, 8 loose, at most a hundredth of
-    # the corrector distance the steps aim at.
-    parabola = 8.0 * loose <= 0.01 * grow
+    parabola = parabola_fits(loose, grow)
     t = 0.0
     dt = 1.0
     r = math.inf

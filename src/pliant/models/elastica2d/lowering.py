@@ -143,9 +143,7 @@ class Lowered:
                                                         st.dead_load)
             val[k] = (kx / length if px else dx / fs, ky / length if py else dy / fs,
                       ka if pa else da / ms)
-            ft, fn = st.follower_load
-            if ft or fn or fol[k, 0] or fol[k, 1]:
-                fol[k] = (ft / fs, fn / fs)
+            fol[k] = (st.follower_load[0] / fs, st.follower_load[1] / fs)
             station_of[k] = st
         dist = self.target.dist  # zeros without loads on stretches (the warm path)
         if problem.distributed or self.problem.distributed:

@@ -238,7 +238,7 @@ class Run:
             tolerance=opts.tolerance, loose=loose, min_step=opts.min_step,
             max_steps=opts.max_steps, grow=opts.grow, shrink=opts.shrink,
             wave_step=opts.wave_step, time_budget=opts.time_budget,
-            parabola=8.0 * loose <= 0.01 * opts.grow)  # as ``kernels.follow``'s rule
+            parabola=bool(kernels.parabola_fits(loose, opts.grow)))
         try:
             point = continuation.follow(self, Line(start, end),
                                         _Point(z0, _EMPTY_JAC, mesh, np.zeros(2), math.inf),
