@@ -306,6 +306,8 @@ def band_solve_factored(ab, kl, ku, drop, c, lo, up, new, piv, rhs):
     the known unknowns (x_i = rhs_i where drop[i]) go to the right-hand side through
     A's columns, the others through the factors."""
     n = ab.shape[0]
+    if c.shape[0] == n:  # nothing dropped (c is A's band, perhaps narrowed)
+        return band_lu_solve(c, piv, lo, up, rhs)
     x = np.zeros(n)
     b = rhs.copy()
     for j in range(n):

@@ -13,7 +13,7 @@ import numpy as np
 from numba import njit
 
 from pliant.models.banded import add as _add
-from pliant.models.banded import band_factor_reduced, band_solve_factored
+from pliant.models.banded import band_factor_reduced, band_lu, band_solve_factored
 from pliant.models.rod3d.kernels import (
     CONVERGED,
     MAX_ITERATIONS,
@@ -465,10 +465,12 @@ def _friction_terms(gam, k, o, p, con, num, R, ab, want_jac):
 
 @njit(cache=True, inline="always")
 def _contact_residual(X, Q, lam, nu, gam, mesh, tg, num, con, want_jac):
-    """The KKT residual and, where ``want_jac`` (a runtime flag: see newton), Jacobian
+    """The KKT residual and, where ``want_jac`` (a runtime flag: see newton_contact), Jacobian
     with the contact terms, forces handed over (see ``contact_terms``); (R, ab, energy,
     active, gam)."""
     R, ab, energy = assemble(X, Q, lam, nu, mesh, tg, num, want_jac)
+    if con.iprobe.shape[0] == 0:  # a part touching nothing (10 us of empty work at 100 elements)
+        return R, ab, energy, np.zeros(0, dtype=np.int8), gam
     out = contact_terms(X, gam, con, num, R, ab, want_jac, num.n >= 0)
     return R, ab, energy, out[3], out[6]
 
@@ -506,7 +508,7 @@ def free_rows(active, iprobe, slot, n):
 
 
 # A chord step (the last factorisation reused) is taken where it shrinks the residual
-# tenfold, as in kernels.newton; it costs a residual and a back substitution, a fresh
+# tenfold; it costs a residual and a back substitution, a fresh
 # step a Jacobian and a band LU more (0.1, 0.05 and 0.25 gave the same time, within
 # the machine's noise, on benchmarks/contact.py (b)).
 CHORD = 0.1
@@ -514,8 +516,10 @@ CHORD = 0.1
 
 @njit(cache=True)
 def newton_contact(X, Q, lam, nu, gam, mesh, tg, num, con, opts):
-    """The semismooth Newton of a problem with obstacles, in one kernel. Acceptance
-    (opts: ``Settings``):
+    """The semismooth Newton of a problem with obstacles, in one kernel; also a part's
+    without any (no probes, an empty scene: its chord steps kept while they contract as
+    ``contraction`` asks of a corrector, or lower the residual in a damped Newton).
+    Acceptance (opts: ``Settings``):
 
     - ``predict`` (a warm step, from an equilibrium of nearby loads): the first step is
       the continuation's predictor, taken in full;
@@ -539,7 +543,9 @@ def newton_contact(X, Q, lam, nu, gam, mesh, tg, num, con, opts):
     tol, max_iter, contraction, strict, max_switches, predict = opts
     iprobe, slot = con.iprobe, con.slot
     kl, ku = num.kl, num.ku
-    yes = num.n >= 0  # a runtime flag (see kernels.newton)
+    # Runtime flags, not the literals True and False: numba compiles a callee once more
+    # for each literal it is called with.
+    yes = num.n >= 0
     it = 0
     switches = 0
     # The last factorisation: of ``fab`` without its identity rows ``fdrop`` (none yet).
@@ -547,9 +553,14 @@ def newton_contact(X, Q, lam, nu, gam, mesh, tg, num, con, opts):
     c, lo, up, new, piv = np.zeros((0, 0)), 0, 0, np.zeros(0, dtype=np.int64), np.zeros(
         0, dtype=np.int64)
     chord = False  # whether the last step converged fast enough to try one
+    # A part touching nothing (no probes) has no active set to change: chord steps pay
+    # in every mode, each kept while it contracts as a fresh step must, so that a slower
+    # one still makes its progress before the Jacobian is rebuilt.
+    free = iprobe.shape[0] == 0
+    chords = predict or free
     # A warm step's trial points are judged without their Jacobian (the next step is
     # often a chord step, which needs none); it is built where a fresh one is needed.
-    jac = not predict
+    jac = not chords
     R, ab, energy, r = np.zeros(0), np.zeros((0, 0)), 0.0, math.inf
     active = np.zeros(iprobe.shape[0], dtype=np.int8)
     while True:
@@ -569,9 +580,13 @@ def newton_contact(X, Q, lam, nu, gam, mesh, tg, num, con, opts):
         it += 1
         fresh = not chord
         if fresh:
-            # The free probes' rows are the identity's: they leave the factorisation.
-            fdrop = free_rows(active, iprobe, slot, ab.shape[0])
-            c, lo, up, new, piv, ok = band_factor_reduced(ab, kl, ku, fdrop)
+            if free:  # nothing to leave out: factorised in place (ab is not read again)
+                piv, ok = band_lu(ab, kl, ku)
+                c, lo, up = ab, kl, ku
+            else:
+                # The free probes' rows are the identity's: they leave the factorisation.
+                fdrop = free_rows(active, iprobe, slot, ab.shape[0])
+                c, lo, up, new, piv, ok = band_factor_reduced(ab, kl, ku, fdrop)
             if not ok:
                 return X, Q, lam, nu, gam, r, it, SINGULAR, energy
             fab = ab
@@ -604,7 +619,11 @@ def newton_contact(X, Q, lam, nu, gam, mesh, tg, num, con, opts):
                 if an[k] != active[k]:
                     changed = True
             if not fresh:  # a chord step: the same probes touching, tenfold smaller
-                accepted = rn <= CHORD * r and not changed
+                if free:
+                    accepted = finite and (rn <= tol or rn <= (
+                        contraction if strict else 1.0 - 1e-4) * r)
+                else:
+                    accepted = rn <= CHORD * r and not changed
                 break
             if it == 1 and predict:
                 accepted = finite
@@ -632,7 +651,9 @@ def newton_contact(X, Q, lam, nu, gam, mesh, tg, num, con, opts):
         # next may keep this factorisation. Elsewhere (a probe entering, a step on an
         # obstacle's seam) a chord would only cost a residual before the rebuild.
         if fresh:
-            chord = predict and (it == 1 or rn <= CHORD * r)
+            chord = chords and ((predict and it == 1) or rn <= CHORD * r)
+        elif rn > CHORD * r:  # (a free part's slower chord step) the next one is fresh
+            chord = False
         X, Q, lam, nu, gam, R, ab, r, energy, active = (Xn, Qn, ln, nn, gn, Rn, abn, rn, en,
                                                         an)
     return X, Q, lam, nu, gam, r, it, CONVERGED, energy

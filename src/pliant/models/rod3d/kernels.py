@@ -33,7 +33,7 @@ with f the applied nodal forces and Q the applied generalised moments (dead mome
 the global frame, follower loads in the material frame). Its exact Jacobian is banded
 when the unknowns are numbered along s; it is solved by a banded LU with partial
 pivoting. Everything is dimensionless (lengths by L, stiffness by EI1). Contact with
-obstacles, and the Newton solve with it, are ``contact_kernels``'s.
+obstacles, and the one Newton solve with or without them, are ``contact_kernels``'s.
 """
 
 from __future__ import annotations
@@ -132,8 +132,8 @@ class Contact(NamedTuple):
 
 
 class Settings(NamedTuple):
-    """A Newton's budget: tolerance, iterations, the contraction a corrector must reach
-    (<= 0: damped), whether it is a corrector (contact), the active-set switches a
+    """A Newton's budget: tolerance, iterations, the contraction a corrector must reach,
+    whether it is a corrector (else a damped Newton), the active-set switches a
     full step may make, and whether it is a warm step (contact: its first step the
     predictor, taken in full, then chord steps while they contract)."""
 
@@ -608,70 +608,6 @@ MAX_ITERATIONS = 1
 SINGULAR = 2
 NOT_CONTRACTING = 3
 NOT_FINITE = 4
-
-
-@njit(cache=True)
-def newton(X, Q, lam, nu, mesh, tg, num, opts):
-    """Newton on the KKT system from (X, Q, lam, nu), keeping the factorised Jacobian
-    while an iteration contracts the residual tenfold (the band LU is most of the cost).
-
-    opts (``Settings``): contraction > 0 is a continuation corrector, rejected
-    (NOT_CONTRACTING) as soon as an iteration with a fresh Jacobian fails to shrink the
-    residual by that factor; contraction <= 0 a damped Newton with backtracking on the
-    residual's largest entry. Returns (X, Q, lam, nu, residual, iterations, status,
-    energy).
-    """
-    tol, max_iter, contraction = opts.tol, opts.max_iter, opts.contraction
-    kl, ku = num.kl, num.ku
-    # Runtime flags, not the literals True and False: numba compiles a callee once more
-    # for each literal it is called with.
-    yes, no = num.n >= 0, num.n < 0
-    R, ab, energy = assemble(X, Q, lam, nu, mesh, tg, num, yes)
-    r = max_abs(R)
-    if not math.isfinite(r):
-        return X, Q, lam, nu, r, 0, NOT_FINITE, energy
-    piv, ok = band_lu(ab, kl, ku)
-    if not ok:
-        return X, Q, lam, nu, r, 0, SINGULAR, energy
-    fresh = True
-    it = 0
-    while it < max_iter:
-        if r <= tol:
-            return X, Q, lam, nu, r, it, CONVERGED, energy
-        it += 1
-        du = band_lu_solve(ab, piv, kl, ku, -R)
-        step = 1.0
-        accepted = False
-        for _ in range(30):
-            Xn, Qn, ln, nn = apply_step(X, Q, lam, nu, du, num, step)
-            Rn, _, en = assemble(Xn, Qn, ln, nn, mesh, tg, num, no)
-            rn = max_abs(Rn)
-            if contraction > 0.0:
-                accepted = rn <= contraction * r or rn <= tol
-                break
-            if math.isfinite(rn) and rn <= (1.0 - 1e-4 * step) * r:
-                accepted = True
-                break
-            if not fresh:
-                break
-            step *= 0.5
-        if accepted:
-            slow = rn > 0.1 * r
-            X, Q, lam, nu, R, r, energy = Xn, Qn, ln, nn, Rn, rn, en
-        if not accepted or (slow and r > tol):
-            if not accepted and fresh:
-                return X, Q, lam, nu, r, it, NOT_CONTRACTING, energy
-            # Refactorise at the current point.
-            R, ab, energy = assemble(X, Q, lam, nu, mesh, tg, num, yes)
-            piv, ok = band_lu(ab, kl, ku)
-            if not ok:
-                return X, Q, lam, nu, r, it, SINGULAR, energy
-            fresh = True
-        else:
-            fresh = False
-    if r <= tol:
-        return X, Q, lam, nu, r, it, CONVERGED, energy
-    return X, Q, lam, nu, r, it, MAX_ITERATIONS, energy
 
 
 @njit(cache=True)

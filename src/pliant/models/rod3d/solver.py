@@ -29,6 +29,7 @@ a problem onto them are ``lowering``'s, the compiled terms ``kernels``'.
 
 from __future__ import annotations
 
+import functools
 import math
 from collections.abc import Iterable, Iterator
 from dataclasses import dataclass, field, replace
@@ -61,6 +62,16 @@ from pliant.models.settings import check
 _STATUS = {kernels.CONVERGED: Status.CONVERGED, kernels.SINGULAR: Status.SINGULAR,
            kernels.NOT_FINITE: Status.NOT_FINITE}
 _SWITCHES = 6  # active-set changes a Newton may take without contracting
+
+
+@functools.cache
+def _empty_scene() -> tuple:
+    """A scene without obstacles, packed as the contact kernel takes it (a free rod's)."""
+    from pliant.scene.distance import DistanceField  # noqa: PLC0415 (the free rod only)
+
+    return DistanceField([]).args
+
+
 # Weighs a gap against a contact force in min(gam, scale g), times (0.01 / h)^2 past 100
 # elements: the rows then grow with the bending terms (as 1 / h^2), so that the pivot of
 # a probe that only the compliance keeps regular (flat contact) is not round-off beside
@@ -178,20 +189,15 @@ class Run(Routes):
         opts = self.solver
         rod = self.rod
         tol = opts.tolerance if tol is None else tol
-        contact = bool(rod.iprobe.shape[0])
-        # (The contact kernel reads ``strict`` itself; the free one a contraction of 0.)
+        # One kernel with and without obstacles (a free rod has no probes and an empty
+        # scene): a second Newton kernel cost every first run 1.6 s of CPU to compile.
         settings = kernels.Settings(float(tol), int(opts.max_iterations),
-                                    float(opts.contraction if strict or contact else 0.0),
-                                    bool(strict), _SWITCHES, bool(predict))
-        if contact:
-            X, Q, lam, nu, gam, r, it, status, energy = contact_kernels.newton_contact(
-                *state[:5], rod.mesh, rod.targets(loads, self.gauge_quat), rod.numbering,
-                self.contact(loads), settings)
-            new = (X, Q, lam, nu, gam)
-        else:
-            X, Q, lam, nu, r, it, status, energy = kernels.newton(
-                *state[:4], rod.mesh, rod.targets(loads, self.gauge_quat), rod.numbering, settings)
-            new = (X, Q, lam, nu, state[4])
+                                    float(opts.contraction), bool(strict), _SWITCHES,
+                                    bool(predict))
+        X, Q, lam, nu, gam, r, it, status, energy = contact_kernels.newton_contact(
+            *state[:5], rod.mesh, rod.targets(loads, self.gauge_quat), rod.numbering,
+            self.contact(loads), settings)
+        new = (X, Q, lam, nu, gam)
         self.iterations += it
         if status == kernels.CONVERGED and not self._axes_agree(new[1], loads):
             status = kernels.NOT_CONTRACTING
@@ -252,7 +258,8 @@ class Run(Routes):
                                rod.iprobe, rod.slot, float(rod.length), float(rod.radius),
                                0.0, 2.0 * rod.radius + 0.05 * rod.length,
                                CONTACT_SCALE * max(1.0, (0.01 / float(rod.h.min())) ** 2),
-                               rod.distance_field.args, ())
+                               _empty_scene() if rod.obstacles is None
+                               else rod.distance_field.args, ())
 
     def step(self, state: State, du: np.ndarray, scale: float) -> State:
         rod = self.rod
