@@ -29,6 +29,35 @@ def test_help_does_not_load_the_solvers():
     assert out.stdout.strip() == "[]"
 
 
+def _flat(text: str) -> str:
+    """Rendered help without its boxes and line breaks, one space between words."""
+    return " ".join(text.translate({ord(c): " " for c in "│╭╮╰╯─"}).split())
+
+
+def test_help_keeps_every_sentence_and_bracketed_name():
+    """``pliant --help`` gives each command its docstring's first paragraph whole (not
+    cut at the source's line breaks), and no help text loses a ``[section]`` name to
+    rich's markup (``run``'s file argument once read "with a" and stopped)."""
+    import re
+
+    import typer
+
+    from pliant.cli.app import app
+
+    top = _flat(cli("--help").stdout)
+    group = typer.main.get_command(app)
+    checked = 0
+    for name, command in group.commands.items():
+        first = " ".join((command.callback.__doc__ or "").split("\n\n")[0].split())
+        assert first.replace("\\[", "[") in top, name
+        page = _flat(cli(name, "--help").stdout)
+        for param in command.params:
+            for section in re.findall(r"\[[a-z_]+\]", getattr(param, "help", "") or ""):
+                assert section in page, (name, param.name, section)
+                checked += 1
+    assert checked >= 2  # run's and evaluate's file arguments at least
+
+
 def test_solve_prints_a_summary(tmp_path):
     out = run("solve", str(EXAMPLES / "paper" / "case3.toml"), "--plot",
               str(tmp_path / "case3.png"))

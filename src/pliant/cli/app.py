@@ -9,6 +9,7 @@ traceback.
 from __future__ import annotations
 
 import importlib
+import inspect
 import os
 import sys
 from pathlib import Path
@@ -266,7 +267,7 @@ def all_equilibria(problem, as_json: bool, elements: int | None = None) -> None:
 
 @app.command()
 def run(
-    file: Annotated[Path, typer.Argument(help="a scene file (TOML, SI units) with a [path]")],
+    file: Annotated[Path, typer.Argument(help="a scene file (TOML, SI units) with a \\[path]")],
     out: Annotated[Path, typer.Option(help="folder for the report (JSON), the plot (PNG) "
                                            "and the final scene (GLB)")] = Path("pliant-out"),
     elements: Annotated[int | None, typer.Option(help="about how many elements "
@@ -336,7 +337,7 @@ def run_scene(file: Path, out: Path, elements: int | None) -> None:
 
 @app.command()
 def evaluate(
-    file: Annotated[Path, typer.Argument(help="a scene file (TOML, SI units): its [path], "
+    file: Annotated[Path, typer.Argument(help="a scene file (TOML, SI units): its \\[path], "
                                               "or its single pose")],
     report: Annotated[Path | None, typer.Option(help="write the self-contained HTML "
                                                      "report here")] = None,
@@ -494,7 +495,7 @@ def study(
 def plan(
     file: Annotated[Path, typer.Argument(help="a scene file (TOML, SI units): its grip's "
                                               "start pose, its ports and obstacles")],
-    goal: Annotated[str | None, typer.Option(help="the [[port]] to seat the part's end in "
+    goal: Annotated[str | None, typer.Option(help="the \\[\\[port]] to seat the part's end in "
                                                   "(default: the file's \\[plan] goal)")]
     = None,
     out: Annotated[Path, typer.Option(help="folder for the planned scene (TOML), its "
@@ -708,6 +709,18 @@ def view(
                    err=True)
     server.run(on_ready=lambda url: typer.echo(f"pliant view: open {url} in a browser "
                                                "(Ctrl+C stops)"))
+
+
+def _summaries() -> None:
+    """Each command's line in ``pliant --help``: its docstring's first paragraph as one
+    line (typer keeps the source's line breaks there, which wrap mid-sentence)."""
+    for info in app.registered_commands:
+        doc = inspect.cleandoc(info.callback.__doc__ or "") if info.callback else ""
+        if info.short_help is None and doc:
+            info.short_help = " ".join(doc.split("\n\n")[0].split())
+
+
+_summaries()
 
 
 def main() -> None:
