@@ -138,6 +138,9 @@ def test_solve_3d_with_plot_and_meshes(tmp_path):
               "--elements", "40")
     assert out.returncode == 0, out.stderr
     assert "3D, 40 elements" in out.stdout and "stability: stable" in out.stdout
+    # An isotropic part free to twist at the hand carries no torque anywhere (m . t is
+    # conserved along it): the solver's round-off there is printed as the 0 it is.
+    assert "max |torque| = 0 N m" in " ".join(out.stdout.split())
     assert (tmp_path / "hose.png").stat().st_size > 20000
     scene = trimesh.load(tmp_path / "hose.glb")
     mesh = next(iter(scene.geometry.values())) if hasattr(scene, "geometry") else scene
@@ -260,6 +263,11 @@ def test_the_path_table_fits_80_columns_with_its_units(tmp_path, monkeypatch):
         assert unit in header
     rows = [line for line in table if line.strip()[:1].isdigit()]
     assert len(rows) >= 2 and all(len(line.split()) >= 7 for line in rows)
+    # The grip moves in the x-z plane: its y, round-off, reads 0.00, never -0.00; with
+    # no obstacle there is no clearance to show (not "inf") and no clearance table.
+    assert all(line.split()[2] == "0.00" for line in rows)
+    assert "inf" not in "\n".join(rows) and all(line.split()[6] == "–" for line in rows)
+    assert "clearance: the scene has no obstacles" in result.output
 
 
 @pytest.mark.parametrize(("argv", "status", "said"), [

@@ -252,7 +252,8 @@ def all_equilibria(problem, as_json: bool, elements: int | None = None) -> None:
         raise PliantError("no equilibrium: no route reached one (see pliant solve for why)")
     first = ("the first is pliant's answer" if problem.dimension == 2 else
              "stable first, then by potential energy")
-    table = Table(title=f"{problem.name or 'problem'}: {len(found)} equilibria found in "
+    count = f"{len(found)} equilibri{'um' if len(found) == 1 else 'a'}"
+    table = Table(title=f"{problem.name or 'problem'}: {count} found in "
                         f"{seconds:.2f} s; {first}",
                   title_justify="left")
     for col in ("#", "potential\n[J]", "elastic\n[J]", "stability", "eigenvalue\n[N m]",

@@ -43,6 +43,12 @@ def timed_solve(problem: Problem, elements: int = 100) -> tuple[Result, float]:
     return eq, time.perf_counter() - start
 
 
+def _fixed(value: float, digits: int) -> str:
+    """``value`` with ``digits`` decimals, a value that rounds to zero as 0 (not -0.00)."""
+    text = f"{value:.{digits}f}"
+    return text[1:] if text.startswith("-") and float(text) == 0.0 else text
+
+
 def _fmt(value: float, unit: str) -> str:
     if math.isinf(value):
         return "inf"
@@ -175,8 +181,10 @@ def _summary_3d(eq: Equilibrium3D, seconds: float, console: Console) -> None:
                       vector_text(load.moment, moments), kind)
     console.print(table)
     moment, at = eq.max_moment()
+    # (A torque nothing applies comes out as round-off: shown as the 0 it is.)
+    torque = clean([float(abs(eq.torque).max())], max(moments, moment))[0]
     console.print(f"max |M| = {_fmt(moment, 'N m')} at s = {at:.4g} m; max |torque| = "
-                  f"{_fmt(float(abs(eq.torque).max()), 'N m')}")
+                  f"{_fmt(torque, 'N m')}")
     console.print(_bend_radius_line(eq))
     _print_stretch(eq, console)
     print_contacts(eq, console)
@@ -227,6 +235,9 @@ def print_contacts(eq: Equilibrium3D, console: Console) -> None:
 def print_interference(report: Any, console: Console | None = None) -> None:
     """The clearance of the part to each obstacle, and what is too close or inside."""
     console = console or Console()
+    if not report.clearances:
+        console.print("clearance: the scene has no obstacles")
+        return
     table = Table(title=f"clearance to the obstacles (margin {report.margin * 1e3:g} mm)",
                   title_justify="left")
     for column in ("obstacle", "smallest clearance [mm]", "at s [m]"):
@@ -268,10 +279,11 @@ def print_path(run: Any, part: Any, console: Console | None = None, rows: int = 
     shown = sorted(set(range(0, len(run.steps), every)) | {len(run.steps) - 1})
     for k in shown:
         r = run.steps[k]
-        table.add_row(str(k), " ".join(f"{x:.2f}" for x in r.grip_position),
-                      f"{r.force_norm:.3g}", f"{r.moment_norm:.3g}",
-                      f"{max(r.clearance, 0.0) * 1e3:.1f}"
-                      if r.clearance > -1e-6 else f"[red]{r.clearance * 1e3:.1f}[/red]",
+        clear = ("–" if not math.isfinite(r.clearance)  # nothing to clear
+                 else f"{max(r.clearance, 0.0) * 1e3:.1f}" if r.clearance > -1e-6
+                 else f"[red]{r.clearance * 1e3:.1f}[/red]")
+        table.add_row(str(k), " ".join(_fixed(x, 2) for x in r.grip_position),
+                      f"{r.force_norm:.3g}", f"{r.moment_norm:.3g}", clear,
                       r.nearest, f"{r.contact_force:.3g}" if r.contacts else "",
                       f"{r.bend_radius * 1e3:.0f}")
     console.print(table)

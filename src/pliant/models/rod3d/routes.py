@@ -15,6 +15,7 @@ import numpy as np
 
 from pliant.core.equilibrium import potential_energy
 from pliant.core.events import BranchTaken, NoStableBranch, Snapped, Status
+from pliant.core.numbers import clean
 from pliant.models import continuation
 from pliant.models.continuation import Candidate, Stalled, first_route, ranked
 from pliant.models.rod3d.lowering import Loads, Rod, State, quat_matrix
@@ -169,8 +170,8 @@ class Routes:
     def _bow_note(self, side: np.ndarray, why: str) -> None:
         self.notes.append(BranchTaken(
             f"{self.branch_note} (a bifurcation: it can buckle to any side); pliant took the "
-            f"branch that bows toward {np.round(side, 3).tolist()}, {why}; other equilibria "
-            "may exist", side=tuple(float(c) for c in side)))
+            f"branch that bows toward ({', '.join(f'{c:.3g}' for c in clean(side))}), {why}; "
+            "other equilibria may exist", side=tuple(float(c) for c in side)))
 
     def through(self, start: Loads, targets: list[Loads], state: State) -> State:
         """Follow the homotopies start -> targets[0] -> targets[1] -> ...
