@@ -245,6 +245,10 @@ def test_the_view_reads_as_an_engineering_view(page):
                                    atol=2e-3)
     assert "N m" in page.inner_text("#colour-bar")
     assert page.inner_text("#status") == "forces and verdict are for this pose"
+    # The hand's force and moment as numbers for people: a component that is round-off
+    # reads 0, never -0.000 (the grip's moment about z here).
+    grips = page.inner_text("#grips")
+    assert "hand moment" in grips and "-0.00" not in grips
     assert page.locator("#VRButton").count() == 0
     assert page.is_hidden("#loading")
 

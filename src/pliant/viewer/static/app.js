@@ -6,7 +6,7 @@
 // protocol.js, made from pliant/viewer/protocol.py, through which every message is sent.
 import * as THREE from 'three';
 import { message } from './protocol.js';
-import { $, esc, fmt, interp, slug } from './util.js';
+import { $, esc, fixed, fmt, interp, slug } from './util.js';
 import {
   FORCE, INSIDE, MOMENT, OBSTACLE, PORT, TOO_CLOSE, arrowGroup, branchGroup, camera,
   contactGroup, drawTriad, envelopeGroup, frameOn, gizmo, gripGroup, label, labels,
@@ -262,7 +262,7 @@ function gripPanel(g) {
     };
   }
   div.querySelector('.mode').onchange = (e) => send({ type: 'mode', grip: g.name, mode: e.target.value });
-  div.querySelector('.pose').textContent = `at (${g.position.map((x) => x.toFixed(3)).join(', ')}) m`;
+  div.querySelector('.pose').textContent = `at (${g.position.map((x) => fixed(x, 3)).join(', ')}) m`;
   return div;
 }
 
@@ -275,7 +275,7 @@ function moved(handle) {
   const pose = { grip: g.name, position: handle.position.toArray(), tangent };
   g.position = pose.position;
   const el = document.querySelector(`#grip-${slug(g.name)} .pose`);
-  if (el) el.textContent = `at (${pose.position.map((x) => x.toFixed(3)).join(', ')}) m`;
+  if (el) el.textContent = `at (${pose.position.map((x) => fixed(x, 3)).join(', ')}) m`;
   // The latest pose of each grip waits its turn (two hands in VR move two grips at once:
   // each is sent in turn, none starved); null when none waits.
   if (!state.queued) state.queued = new Map();
@@ -568,9 +568,9 @@ function drawLoads(msg) {
       const fe = box.querySelector('.force-value'), me = box.querySelector('.moment-value');
       fe.dataset.newton = f; me.dataset.newtonMetre = m;
       const what = pushed ? 'applied' : 'hand';
-      fe.textContent = `${what} force ${f.toFixed(3)} N (${load.force.map((x) => x.toFixed(2)).join(', ')})`;
-      me.textContent = `${what} moment ${m.toFixed(4)} N m (${load.moment.map((x) => x.toFixed(3)).join(', ')})`;
-      box.querySelector('.pose').textContent = `at (${load.position.map((x) => x.toFixed(3)).join(', ')}) m`;
+      fe.textContent = `${what} force ${f.toFixed(3)} N (${load.force.map((x) => fixed(x, 2)).join(', ')})`;
+      me.textContent = `${what} moment ${m.toFixed(4)} N m (${load.moment.map((x) => fixed(x, 3)).join(', ')})`;
+      box.querySelector('.pose').textContent = `at (${load.position.map((x) => fixed(x, 3)).join(', ')}) m`;
     }
   }
 }

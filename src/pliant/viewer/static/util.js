@@ -12,5 +12,7 @@ export function interp(x, xs, ys) {
 }
 export function slug(name) { return name.replace(/[^A-Za-z0-9_-]/g, '_'); }
 export function esc(text) { return String(text).replace(/[&<>"]/g, (c) => ({ '&': '&amp;', '<': '&lt;', '>': '&gt;', '"': '&quot;' }[c])); }
+// x with d decimals; a value that rounds to zero reads 0, not -0.000 (round-off).
+export function fixed(x, d) { const t = x.toFixed(d); return Number(t) === 0 ? t.replace('-', '') : t; }
 export function fmt(x) { return x >= 100 ? x.toFixed(0) : x >= 1 ? x.toFixed(2) : x.toPrecision(2); }
 export function fmtEnergy(x) { return Math.abs(x) >= 1e4 || (Math.abs(x) < 1e-3 && x !== 0) ? x.toExponential(3) : x.toFixed(4); }
