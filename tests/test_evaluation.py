@@ -463,3 +463,31 @@ def test_evaluation_settings_reject_nonsense_naming_the_field():
     with pytest.raises(FileFormatError, match=r"evaluation\.rules.*no such rules file"):
         parse_scene(_arc_scene("wire", 0.19).replace(
             'grips = ["hand"]', 'grips = ["hand"]\nrules = "none.toml"'), "x.toml")
+
+
+def test_twist_rate_is_the_torque_over_gj_and_zero_where_the_part_is_free_to_twist():
+    """A straight part between two clamps, one turned by phi about the axis: pure
+    torsion, the twist rate phi / L (the discrete joint's (2/h) sin(phi h / 2L) is that
+    to O(h^2)). A hose whose hand holds only its end's position carries no torque (m . t
+    is conserved along an isotropic part): its rate is 0, not the solver's round-off,
+    which the report's plot once drew at 1e-8 deg/m as if it were a signal."""
+    import pliant as pl
+    from pliant.assembly.evaluate import twist_rate
+    from pliant.models import rod3d
+
+    gj, phi = 0.04, 0.3
+    part = pl.Part(length=1.0, bending_stiffness=0.05, torsional_stiffness=gj,
+                   axial_stiffness=1e4)
+    turned = pl.Problem(part, (
+        pl.clamp(0.0, position=(0, 0, 0)),
+        pl.clamp(1.0, position=(1, 0, 0), name="end", tangent=(1, 0, 0),
+                 normal=(0, -math.sin(phi), math.cos(phi)))))
+    assert twist_rate(rod3d.solve(turned), gj) == pytest.approx(math.degrees(phi), rel=1e-5)
+    hose = pl.Part(length=1.0, bending_stiffness=0.05, torsional_stiffness=gj,
+                   mass_per_length=0.3)
+    held = pl.Problem(hose, (pl.clamp(0.0, position=(0, 0, 0)),
+                             pl.pin(1.0, position=(0.6, 0.3, 0.2), name="hand")),
+                      gravity=(0, 0, -9.81))
+    eq = rod3d.solve(held)
+    assert eq.max_moment()[0] > 0.1  # it bends: a real moment beside the zero torque
+    assert twist_rate(eq, gj) == 0.0

@@ -87,7 +87,12 @@ def test_a_solved_part_on_a_prop_touches_it_and_nothing_else():
                                 gravity=(0, 0, -9.81), obstacles=(prop, wall)))
     report = interference(eq, margin=0.01)
     by_name = {c.obstacle: c for c in report.clearances}
-    assert abs(by_name["prop"].clearance) < 1e-7 and by_name["prop"].s == pytest.approx(1.0)
+    # Touching at the tip: the smallest clearance is at the contact point itself (the
+    # report samples it), a few tens of micrometres before the tip where the drooping
+    # part's axis passes nearest the prop's round top.
+    assert abs(by_name["prop"].clearance) < 1e-7
+    assert by_name["prop"].s == pytest.approx(1.0, abs=1e-4)
+    assert by_name["prop"].s in eq.contacts.s
     assert by_name["wall"].clearance == pytest.approx(0.1 - r, abs=1e-4)
     assert not report.penetrations
     assert [x.obstacle for x in report.too_close] == ["prop"]
@@ -140,3 +145,23 @@ def test_the_distance_to_a_straight_line_is_the_perpendicular():
                                [0.5, 0.05, 0.5], rtol=1e-14)
     np.testing.assert_allclose(polyline_distance(points, line[:1]),
                                np.linalg.norm(points, axis=1), rtol=1e-14)
+
+
+def test_a_part_resting_on_a_round_prop_reads_touching_where_it_touches():
+    """The part sags onto a round prop between the answer's samples. The report samples
+    the contact point itself: the clearance there is the contact's (nanometres: its
+    compliance), not what the samples beside it read over the prop's curve (3 um), and
+    nothing penetrates."""
+    radius = 0.01
+    prop = Obstacle.cylinder("prop", 0.03, 0.2, (0.55, 0.0, -(radius + 0.03) - 0.004),
+                             [[1, 0, 0], [0, 0, -1], [0, 1, 0]])
+    part = pl.Part(length=1.0, bending_stiffness=0.5, mass_per_length=0.3,
+                   outer_diameter=2 * radius)
+    eq = rod3d.solve(pl.Problem(part, (pl.clamp(0.0, position=(0, 0, 0)),),
+                                gravity=(0, 0, -9.81), obstacles=(prop,)))
+    (where,) = eq.contacts.s
+    assert where not in eq.s  # between samples: the case the samples alone misread
+    report = interference(eq)
+    assert abs(report.smallest.clearance) < 1e-7
+    assert report.smallest.s == where
+    assert not report.penetrations

@@ -544,8 +544,13 @@ def _arrival(port: Any) -> np.ndarray:
 
 
 def twist_rate(eq: Equilibrium3D, torsional_stiffness: float) -> float:
-    """The largest twist rate [deg/m] along a shape: torque / GJ."""
-    return math.degrees(float(np.abs(eq.torque).max()) / torsional_stiffness)
+    """The largest twist rate [deg/m] along a shape: torque / GJ; a torque that is the
+    solver's round-off beside the part's bending moments (a part free to twist carries
+    none) counts as the 0 it is."""
+    part = eq.problem.part
+    scale = max(eq.max_moment()[0], part.bending_stiffness / part.length)
+    torque = clean([float(np.abs(eq.torque).max())], scale)[0]
+    return math.degrees(torque / torsional_stiffness)
 
 
 def bend_limit(part: Any, kind: PartKind | None) -> tuple[float | None, str, str, str]:

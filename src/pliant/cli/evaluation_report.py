@@ -147,8 +147,13 @@ def figures(ev: Any) -> list[tuple[str, str]]:
     _limits(bend, by_rule.get("bend radius"), 1e3)
     bend.set_ylabel("radius [mm]")
     bend.set_title("bend radius (centreline)", fontsize=10)
-    twist.plot(steps, [r["twist rate"] for r in table], color="tab:purple",
-               label="largest twist rate")
+    rates = [r["twist rate"] for r in table]
+    twist.plot(steps, rates, color="tab:purple", label="largest twist rate")
+    # A magnitude from 0 (a part free to twist reads a flat 0, not a band round it),
+    # its line just clear of the axis.
+    top = max(rates, default=0.0)
+    top = 1.1 * top if top > 0.0 else 1.0
+    twist.set_ylim(-0.03 * top, top)
     twist.set_ylabel("twist rate [deg/m]")
     twist.set_title("twist", fontsize=10)
     for k, r in enumerate(table):

@@ -140,7 +140,16 @@ def of_equilibrium(eq: Result, obstacles: tuple[Obstacle, ...] | None = None, *,
     if not isinstance(eq, Equilibrium3D):
         raise InputError("eq", "interference is checked in 3D scenes; this is a 2D answer")
     obstacles = eq.problem.obstacles if obstacles is None else obstacles
-    return of_curve(eq.s, eq.position, eq.problem.part.tube_radius, obstacles,
+    s, points = eq.s, eq.position
+    if eq.contacts is not None and len(eq.contacts):
+        # The touching points themselves (on the neutral line's straight pieces, so the
+        # line is unchanged): where the part touches, its clearance is the contact's 0,
+        # not what samples beside it read over a curved obstacle (a micrometre or two).
+        s = np.concatenate([s, eq.contacts.s])
+        points = np.concatenate([points, eq.contacts.point])
+        order = np.argsort(s, kind="stable")
+        s, points = s[order], points[order]
+    return of_curve(s, points, eq.problem.part.tube_radius, obstacles,
                     margin=margin, tolerance=tolerance, subdivide=subdivide,
                     tubes=fitted_tubes(eq, obstacles))
 
