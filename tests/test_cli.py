@@ -155,10 +155,22 @@ def test_solve_3d_with_plot_and_meshes(tmp_path):
     assert trimesh.load(tmp_path / "hose.stl").is_watertight
 
 
+def test_a_scene_without_a_path_is_evaluated_as_its_one_pose():
+    """No [path]: the pose is solved and judged, and the words say so (not "0 of 0
+    steps solved" and "the path was followed to its end"); counts agree in number."""
+    out = cli("evaluate", str(EXAMPLES / "scenes" / "hose_past_post.toml"))
+    assert out.returncode == 0, out.stderr
+    text = " ".join(out.stdout.split())
+    assert "1 obstacle, one pose (no [path])" in text
+    assert "the pose: the grip's force and moment" in text
+    assert "steps solved" not in text and "followed to its end" not in text
+
+
 def test_plan_writes_the_planned_scene_and_its_evaluation(tmp_path):
     scene = EXAMPLES / "scenes" / "hose_past_post.toml"
     out = cli("plan", str(scene), "--out", str(tmp_path), "--attempts", "1")
     assert out.returncode == 0, out.stderr  # planned, and the evaluation passes
+    assert "(1 obstacle, budget" in " ".join(out.stdout.split())
     assert "found a path in" in out.stdout and "FITS" in out.stdout
     planned = tmp_path / "hose_past_post-planned.toml"
     text = planned.read_text()

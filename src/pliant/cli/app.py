@@ -286,8 +286,11 @@ def _with_progress(console, scene, file: Path, work):
     from rich.progress import Progress  # noqa: PLC0415
 
     problem = scene.problem
+    from pliant.cli.report import count  # noqa: PLC0415
+
     console.print(f"[bold]{problem.name or file.stem}[/bold]: {problem.part.name}, "
-                  f"{len(problem.obstacles)} obstacles, {len(scene.path)} steps")
+                  f"{count(len(problem.obstacles), 'obstacle')}, "
+                  + (count(len(scene.path), "step") if scene.path else "one pose (no \\[path])"))
     _first_run_note(problem.dimension == 3)
     with Progress(console=console, transient=True) as bar:
         task = bar.add_task("solving the path", total=len(scene.path) + 1)
@@ -550,10 +553,12 @@ def _plan_scene(file: Path, goal: str | None, out: Path, budget: float | None,
     if settings.goal is None:
         raise PliantError(f"{file}: which port? give --goal PORT, or [plan] goal in the file "
                           f"(ports: {', '.join(scene.ports) or 'none'})")
+    from pliant.cli.report import count  # noqa: PLC0415
+
     console = Console()
     problem = scene.problem
     console.print(f"[bold]{problem.name or file.stem}[/bold]: planning {problem.part.name} "
-                  f"into {settings.goal!r} ({len(problem.obstacles)} obstacles, budget "
+                  f"into {settings.goal!r} ({count(len(problem.obstacles), 'obstacle')}, budget "
                   f"{settings.budget:g} s, seed {settings.seed}, "
                   + ("contact allowed" if settings.allow_contact
                      else f"margin {scene.margin * 1e3:g} mm") + ")")

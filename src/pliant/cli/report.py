@@ -43,6 +43,11 @@ def timed_solve(problem: Problem, elements: int = 100) -> tuple[Result, float]:
     return eq, time.perf_counter() - start
 
 
+def count(n: int, noun: str, plural: str | None = None) -> str:
+    """'1 obstacle', '3 obstacles'."""
+    return f"{n} {noun if n == 1 else plural or noun + 's'}"
+
+
 def _fixed(value: float, digits: int) -> str:
     """``value`` with ``digits`` decimals, a value that rounds to zero as 0 (not -0.00)."""
     text = f"{value:.{digits}f}"
@@ -265,8 +270,10 @@ def print_path(run: Any, part: Any, console: Console | None = None, rows: int = 
     console = console or Console()
     # 80 columns: light rules, headers on two lines with their units, numbers right-aligned
     # and never wrapped, the obstacle's name cut to fit (the clearance table has it whole).
-    table = Table(title=f"along the path: {len(run.steps) - 1} of {run.planned} steps "
-                        "solved; the grip's force and moment",
+    pose = run.planned == 0  # a scene without a [path]: its one pose
+    table = Table(title="the pose: the grip's force and moment" if pose else
+                  f"along the path: {len(run.steps) - 1} of {count(run.planned, 'step')} "
+                  "solved; the grip's force and moment",
                   title_justify="left", box=box.SIMPLE_HEAD, pad_edge=False,
                   collapse_padding=True)
     for column, width in (("step", 4), (f"{run.grip}\nx y z [m]", 16), ("|F|\n[N]", 4),
@@ -313,7 +320,7 @@ def print_path(run: Any, part: Any, console: Console | None = None, rows: int = 
                       f"{len(run.unstable)} steps, first {run.unstable[0]}")
     if run.stopped:
         console.print(f"[red]stopped[/red]: {run.stopped}")
-    else:
+    elif not pose:
         console.print("the path was followed to its end")
     total = sum(r.seconds for r in run.steps[1:])
     if len(run.steps) > 1:
