@@ -225,6 +225,20 @@ def test_the_summary_ranks_the_parameter_that_drives_the_force(scene_file, tmp_p
     # The final pose's voxels lie inside the path's envelope.
     keys = {tuple(v) for v in swept}
     assert final.shape[0] and all(tuple(v) in keys for v in final)
+    # Printed: every output with its unit (rich once read "[mm]" as markup and dropped
+    # it), the sensitivity's columns named as the outputs are, the workers counted.
+    from io import StringIO
+
+    from rich.console import Console
+
+    from pliant.cli.study_report import print_study
+
+    console = Console(file=StringIO(), width=100)
+    print_study(result, summary, console)
+    text = " ".join(console.file.getvalue().split())
+    for label in ("peak grip force [N]", "smallest clearance [mm]",
+                  "smallest bend radius [mm]", "on this process, no workers"):
+        assert label in text, label
 
 
 def _free_port() -> int:
@@ -253,7 +267,7 @@ def test_pliant_study_runs_on_a_scheduler_and_a_worker_started_here(scene_file, 
                               "--scheduler", address], capture_output=True, text=True,
                              timeout=300, check=False)
         assert out.returncode == 0, out.stderr
-        assert "3 samples (3 computed now on 1 workers" in out.stdout
+        assert "3 samples (3 computed now on 1 worker in" in out.stdout
         summary = json.loads((tmp_path / "remote" / "summary.json").read_text())
         assert summary["evaluated"] == 3
         assert (tmp_path / "remote" / "report.html").stat().st_size > 10000

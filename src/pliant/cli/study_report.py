@@ -14,7 +14,9 @@ from rich.console import Console
 from rich.markup import escape
 from rich.table import Table
 
+from pliant.assembly.study import OUTPUTS
 from pliant.cli.evaluation_report import STYLE, inline_svg, png_data_url
+from pliant.cli.report import count
 from pliant.io.atomic import atomic_write
 
 SCALE = {"N": (1.0, "N"), "N m": (1.0, "N m"), "m": (1e3, "mm")}
@@ -22,9 +24,11 @@ SCALE = {"N": (1.0, "N"), "N m": (1.0, "N m"), "m": (1e3, "mm")}
 
 def print_study(result: Any, summary: dict[str, Any], console: Console | None = None) -> None:
     console = console or Console()
-    console.print(f"[bold]{summary['samples']} samples[/bold] ({summary['computed']} computed "
-                  f"now on {summary['workers'] or 'this process, no'} workers in "
-                  f"{summary['seconds']:.1f} s; {summary['failed']} failed)")
+    workers = summary["workers"]
+    where = count(workers, "worker") if workers else "this process, no workers"
+    console.print(f"[bold]{count(summary['samples'], 'sample')}[/bold] ({summary['computed']} "
+                  f"computed now on {where} in {summary['seconds']:.1f} s; "
+                  f"{summary['failed']} failed)")
     table = Table(title="verdicts", title_justify="left")
     for column in ("verdict", "samples", "probability"):
         table.add_column(column)
@@ -38,14 +42,16 @@ def print_study(result: Any, summary: dict[str, Any], console: Console | None = 
         if not p["count"]:
             continue
         scale, unit = SCALE[p["unit"]]
-        table.add_row(f"{p['title']} [{unit}]",
+        table.add_row(escape(f"{p['title']} [{unit}]"),  # ("[mm]" would read as markup)
                       *(f"{p[k] * scale:.4g}" for k in ("p5", "p50", "p95", "min", "max")))
     console.print(table)
     if summary["sensitivity"]:
         table = Table(title="sensitivity (Spearman's rank correlation)", title_justify="left")
         keys = ("peak_force", "min_clearance", "min_bend_radius", "passes")
-        for column in ("parameter", *keys):
-            table.add_column(column)
+        titles = {key: title for key, title, _ in OUTPUTS} | {"passes": "passes"}
+        for column in ("parameter", *(titles[k] for k in keys)):
+            table.add_column(column, justify="left" if column == "parameter" else "right",
+                             no_wrap=column == "parameter")  # (the headers wrap instead)
         for row in summary["sensitivity"]:
             table.add_row(escape(row["parameter"]), *(f"{row[k]:+.2f}" for k in keys))
         console.print(table)
