@@ -64,6 +64,7 @@ def test_solve_prints_a_summary(tmp_path):
     assert out.returncode == 0, out.stderr
     assert "paper case 3" in out.stdout
     assert "hole" in out.stdout and "reaction" in out.stdout
+    assert "s [m]" in out.stdout  # the unit, not read as markup
     assert "-38.006" in out.stdout and "4.63997" in out.stdout
     assert "smallest bend radius" in out.stdout
     png = (tmp_path / "case3.png").read_bytes()

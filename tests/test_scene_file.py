@@ -246,7 +246,7 @@ def test_demo_follows_the_bundled_scene_and_writes_its_report(tmp_path):
     assert {"exhaust manifold", "engine block"} <= set(glb.geometry)
 
 
-def test_run_writes_its_records_with_their_units(tmp_path):
+def test_run_writes_its_records_with_their_units(tmp_path, capsys):
     from pliant.cli.app import run_scene
 
     text = SMALL.replace('port = "outlet"', 'x = 0.8\ny = 0.0\nz = 0.0')
@@ -258,6 +258,10 @@ def test_run_writes_its_records_with_their_units(tmp_path):
     assert record["units"]["force"] == "N" and record["units"]["clearance"] == "m"
     assert set(record["steps"][0]) - {"snap", "stable", "nearest", "contacts"} <= set(
         record["units"])  # every number has its unit
+    # And on screen (rich once read "[mm]" and "[m]" as markup and dropped them).
+    printed = " ".join(capsys.readouterr().out.split())
+    for header in ("smallest clearance [mm]", "at s [m]", "x y z [m]"):
+        assert header in printed, header
 
 
 def test_run_without_a_path_is_a_one_line_error(tmp_path):

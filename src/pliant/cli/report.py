@@ -88,13 +88,13 @@ def _summary_2d(eq: Equilibrium, seconds: float, console: Console) -> None:
                   f"y = {_fmt(y, 'm')}, angle = {angle:.6g} rad ({math.degrees(angle):.2f} deg)")
     table = Table(title="loads on the part (global frame)", title_justify="left")
     for column in ("condition", "s [m]", "Fx [N]", "Fy [N]", "M [N m]", "kind"):
-        table.add_column(column, justify="left" if column in ("condition", "kind")
+        table.add_column(escape(column), justify="left" if column in ("condition", "kind")
                          else "right")
     for load in eq.loads.values():
         kind = ("reaction" if all(load.prescribed) else
                 "reaction (" + ", ".join(n for n, p in zip(("Fx", "Fy", "M"), load.prescribed)
                                          if p) + ")" if any(load.prescribed) else "applied")
-        table.add_row(load.name, f"{load.s:g}", f"{load.force[0]:.6g}",
+        table.add_row(escape(load.name), f"{load.s:g}", f"{load.force[0]:.6g}",
                       f"{load.force[1]:.6g}", f"{load.moment:.6g}", kind)
     console.print(table)
     moment, at = eq.max_moment()
@@ -177,12 +177,12 @@ def _summary_3d(eq: Equilibrium3D, seconds: float, console: Console) -> None:
                   f"tangent {vector_text(tangent, 1.0)}")
     table = Table(title="loads on the part (global frame)", title_justify="left")
     for column in ("condition", "s [m]", "force [N]", "moment [N m]", "kind"):
-        table.add_column(column)
+        table.add_column(escape(column))
     for load in eq.loads.values():
         names = ("Fx", "Fy", "Fz", "M (axis)", "M (twist)")
         kind = ("applied" if not any(load.prescribed) else "reaction (" + ", ".join(
             n for n, p in zip(names, load.prescribed) if p) + ")")
-        table.add_row(load.name, f"{load.s:g}", vector_text(load.force, forces),
+        table.add_row(escape(load.name), f"{load.s:g}", vector_text(load.force, forces),
                       vector_text(load.moment, moments), kind)
     console.print(table)
     moment, at = eq.max_moment()
@@ -246,13 +246,13 @@ def print_interference(report: Any, console: Console | None = None) -> None:
     table = Table(title=f"clearance to the obstacles (margin {report.margin * 1e3:g} mm)",
                   title_justify="left")
     for column in ("obstacle", "smallest clearance [mm]", "at s [m]"):
-        table.add_column(column)
+        table.add_column(escape(column))  # ("[mm]" and "[m]" would read as markup)
     for c in report.clearances:
         style = "red" if c.clearance < -report.tolerance else (
             "yellow" if c.clearance < report.margin else "")
         text = ("0 (touching)" if abs(c.clearance) <= report.tolerance
                 else f"{c.clearance * 1e3:.2f}")
-        table.add_row(c.obstacle, f"[{style}]{text}[/{style}]" if style else text,
+        table.add_row(escape(c.obstacle), f"[{style}]{text}[/{style}]" if style else text,
                       f"{c.s:.4g}")
     console.print(table)
     for span in report.penetrations:
