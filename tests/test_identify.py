@@ -417,6 +417,9 @@ def test_cli_writes_the_fit_and_a_part_entry_that_a_scene_reads(tmp_path):
     fit = json.loads((tmp_path / "fit.json").read_text())
     assert fit["schema_version"] == 1
     by_name = {e["name"]: e for e in fit["estimates"]}
+    # Each value whole with its unit on an 80-column screen (not "0.021…" and "N m…").
+    for e in fit["estimates"]:
+        assert f"{e['value']:.4g} {e['unit']}" in out.output, e["name"]
     assert by_name["mass_per_length"]["low"] < 0.052 < by_name["mass_per_length"]["high"]
     assert (tmp_path / "fit.png").stat().st_size > 10_000
     scene = (tmp_path / "part.toml").read_text() + (

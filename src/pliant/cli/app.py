@@ -620,8 +620,10 @@ def identify(
 
     test, settings = load_test(file)
     console = Console()
+    from pliant.cli.report import count  # noqa: PLC0415
+
     console.print(f"[bold]{test.name}[/bold]: fitting {', '.join(test.unknowns)} to "
-                  f"{len(test.measured)} measurement(s)")
+                  f"{count(len(test.measured), 'measurement')}")
     _first_run_note(test.problem.dimension == 3)
     solver = None
     if test.problem.dimension == 3:

@@ -7,6 +7,7 @@ from pathlib import Path
 
 import numpy as np
 from rich.console import Console
+from rich.markup import escape
 from rich.table import Table
 
 
@@ -16,13 +17,15 @@ def print_identification(result, console: Console | None = None) -> None:
     test = result.test
     table = Table(title=f"{test.name}: identified ({test.confidence:.0%} intervals)",
                   title_justify="left")
-    for col in ("parameter", "value", "interval", "unit", "±", "first guess"):
-        table.add_column(col, justify="left" if col in ("parameter", "unit") else "right",
+    # The value with its unit, whole at 80 columns (a value column beside a unit column
+    # cut both: "0.021…", "N m…").
+    for col in ("parameter", "value", "interval", "±", "start"):
+        table.add_column(col, justify="left" if col in ("parameter", "value") else "right",
                          no_wrap=True)
     for e in result.estimates:
         half = 0.5 * (e.high - e.low) / e.value
-        table.add_row(e.name, f"{e.value:.4g}", f"{e.low:.4g} to {e.high:.4g}", e.unit,
-                      f"{half:.1%}", f"{e.first_guess:.3g}")
+        table.add_row(escape(e.name), escape(f"{e.value:.4g} {e.unit}"),
+                      f"{e.low:.4g}–{e.high:.4g}", f"{half:.1%}", f"{e.first_guess:.3g}")
     console.print(table)
     fits = Table(title="fit", title_justify="left")
     for col in ("measurement", "kind", "points", "rms residual", "bend radius down to"):
