@@ -570,9 +570,10 @@ def _plan_scene(file: Path, goal: str | None, out: Path, budget: float | None,
     except KeyboardInterrupt:
         typer.echo("interrupted: no path yet, nothing written", err=True)
         raise typer.Exit(130) from None
-    console.print(f"found a path in {found.seconds:.1f} s: {len(found.poses)} waypoints, "
-                  f"{found.solves} accurate solves, {found.motions} motions checked, "
-                  f"{found.trees} tree(s); followed again in {found.steps} steps")
+    console.print(f"found a path in {found.seconds:.1f} s: {count(len(found.poses), 'waypoint')}, "
+                  f"{count(found.solves, 'accurate solve')}, "
+                  f"{count(found.motions, 'motion')} checked, {count(found.trees, 'tree')}; "
+                  f"followed again in {count(found.steps, 'step')}")
     planned = replace(scene, path=found.path, grip=found.grip,
                       evaluation=replace(scene.evaluation, port=settings.goal))
     ev = evaluate_scene(planned, run=found.run, elements=elements)
