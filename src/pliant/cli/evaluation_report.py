@@ -293,7 +293,8 @@ def render_html(ev: Any) -> str:
                f"{0 if v.passes else 1}.</small></div>")
     parts = [head, meta, verdict]
     parts.append("<h2>Operators tried</h2><table><tr><th>operator</th><th>zone</th>"
-                 "<th>what it takes</th><th>accurate solves</th></tr>")
+                 "<th>what it takes</th><th title='accurate solves beyond the path&#39;s own, "
+                 "to find and check the operator&#39;s grips'>extra solves</th></tr>")
     for op in ev.operators:
         parts.append(f"<tr><td>{e(op.operator)}</td><td>{_zone(op.zone.value)}</td>"
                      f"<td>{e(op.summary)}</td><td class=num>{op.solves}</td></tr>")
