@@ -543,13 +543,14 @@ def _arrival(port: Any) -> np.ndarray:
     return -np.asarray(port.axis, float) / np.linalg.norm(port.axis)
 
 
-def twist_rate(eq: Equilibrium3D, torsional_stiffness: float) -> float:
+def twist_rate(eq: Any, torsional_stiffness: float) -> float:
     """The largest twist rate [deg/m] along a shape: torque / GJ; a torque that is the
     solver's round-off beside the part's bending moments (a part free to twist carries
     none) counts as the 0 it is."""
-    part = eq.problem.part
-    scale = max(eq.max_moment()[0], part.bending_stiffness / part.length)
-    torque = clean([float(np.abs(eq.torque).max())], scale)[0]
+    # (An accurate answer or the session's copy of one: |M| along s either way.)
+    bending = eq.bending_magnitude if hasattr(eq, "bending_magnitude") else eq.bending_moment
+    scale = float(np.max(np.abs(bending), initial=0.0))
+    torque = clean([float(np.max(np.abs(eq.torque), initial=0.0))], scale)[0]
     return math.degrees(torque / torsional_stiffness)
 
 
