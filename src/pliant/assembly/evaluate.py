@@ -41,7 +41,7 @@ from pliant.assembly.checks import (
     zone_of,
 )
 from pliant.assembly.path import PathRun, StepRecord, follow_path
-from pliant.core.equilibrium import Equilibrium3D, Result, stretch_summary
+from pliant.core.equilibrium import Result, stretch_summary
 from pliant.core.events import WarmStartLost, has
 from pliant.core.numbers import clean, triple
 from pliant.core.rules import Capacity, EvaluationSettings, PartKind, Rules
