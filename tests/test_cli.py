@@ -165,6 +165,7 @@ def test_a_scene_without_a_path_is_evaluated_as_its_one_pose():
     assert "1 obstacle, one pose (no [path])" in text
     assert "the pose: the grip's force and moment" in text
     assert "steps solved" not in text and "followed to its end" not in text
+    assert "peak force" not in text and "progress" not in text
 
 
 def test_plan_writes_the_planned_scene_and_its_evaluation(tmp_path):

@@ -296,11 +296,15 @@ def print_path(run: Any, part: Any, console: Console | None = None, rows: int = 
     console.print(table)
     force, kf = run.peak("force")
     moment, km = run.peak("moment")
-    console.print(f"peak force at {run.grip}: {force:.3g} N (step {kf}); peak moment: "
-                  f"{moment:.3g} N m (step {km})")
     tightest = min(run.steps, key=lambda r: r.bend_radius)
+    if pose:
+        console.print(f"force at {run.grip}: {force:.3g} N; moment: {moment:.3g} N m")
+    else:
+        console.print(f"peak force at {run.grip}: {force:.3g} N (step {kf}); peak moment: "
+                      f"{moment:.3g} N m (step {km})")
     line = (f"tightest bend: radius {tightest.bend_radius * 1e3:.1f} mm at s = "
-            f"{tightest.bend_at:.3g} m (progress {tightest.progress:.0%})")
+            f"{tightest.bend_at:.3g} m" + ("" if pose else
+                                           f" (progress {tightest.progress:.0%})"))
     if part.min_bend_radius is not None:
         line += (" [red]below[/red]" if tightest.bend_radius < part.min_bend_radius
                  else " above") + f" the part's minimum {part.min_bend_radius * 1e3:g} mm"
