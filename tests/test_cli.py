@@ -153,6 +153,10 @@ def test_solve_3d_with_plot_and_meshes(tmp_path):
     assert out.returncode == 0, out.stderr
     data = json.loads(out.stdout)
     assert data["dimension"] == 3 and data["stable"] is True
+    # The hand holds the end's axis, (0, 1, 0), and lets it twist: its moment about that
+    # axis is 0, written as 0 (not the solver's 1e-16), the other two as they are.
+    hand = data["loads"]["hand"]["moment"]
+    assert hand[1] == 0.0 and abs(hand[0]) > 0.1 and data["tip"][1] == [0.0, 1.0, 0.0]
     assert trimesh.load(tmp_path / "hose.stl").is_watertight
 
 

@@ -20,6 +20,7 @@ import numpy as np
 
 from pliant.core.events import Event, Status
 from pliant.core.events import events as as_events
+from pliant.core.numbers import clean
 from pliant.core.problem import Problem
 
 # The note of an answer whose warm start could not be followed to its problem: the part
@@ -194,9 +195,10 @@ class StationLoad:
         return any(self.prescribed)
 
     def to_dict(self) -> dict[str, Any]:
-        moment = (float(self.moment) if np.ndim(self.moment) == 0
-                  else [float(m) for m in self.moment])
-        return {"name": self.name, "s": self.s, "force": [float(f) for f in self.force],
+        """As written to JSON: a component that is round-off beside its vector's size
+        (``numbers.clean``) as the 0 it is."""
+        moment = (float(self.moment) if np.ndim(self.moment) == 0 else clean(self.moment))
+        return {"name": self.name, "s": self.s, "force": clean(self.force),
                 "moment": moment, "prescribed": list(self.prescribed)}
 
 
@@ -634,7 +636,7 @@ class Equilibrium3D:
             "internal_moment": self.internal_moment.tolist(),
             "loads": {k: v.to_dict() for k, v in self.loads.items()},
             "contacts": self.contacts.to_dict(),
-            "tip": [self.tip[0].tolist(), self.tip[1].tolist()],
+            "tip": [clean(self.tip[0]), clean(self.tip[1])],
             "energy": self.energy,
             "max_moment": list(self.max_moment()),
             "min_bend_radius": list(self.min_bend_radius()),
