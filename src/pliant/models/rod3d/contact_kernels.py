@@ -209,10 +209,11 @@ def _slide(X, k, e, con, dist, normals, found, points, where):
         # point on the surface about which the element turns, whose gap then changes
         # with the turn only to second order (no force could hold it).
         return ANCHORED
-    D = np.empty(3)  # d p / d a [m]
-    for c in range(3):
-        D[c] = (X[e + 1, c] - X[e, c]) * L
-    size = math.sqrt(D[0] * D[0] + D[1] * D[1] + D[2] * D[2])
+    # d p / d a [m], in scalars: an array here was an allocation per element per residual
+    D0 = (X[e + 1, 0] - X[e, 0]) * L
+    D1 = (X[e + 1, 1] - X[e, 1]) * L
+    D2 = (X[e + 1, 2] - X[e, 2]) * L
+    size = math.sqrt(D0 * D0 + D1 * D1 + D2 * D2)
     a, d, o = where[k], dist[k], found[k]
     if not (d - radius) + con.offset * L < size:  # no part of it can touch
         return ANCHORED
@@ -229,13 +230,12 @@ def _slide(X, k, e, con, dist, normals, found, points, where):
         if o < 0 or d <= 0.0:
             break
         H = hessian_point(p, o, field)
-        fp = n0 * D[0] + n1 * D[1] + n2 * D[2]
-        fpp = 0.0
-        bend = 0.0
-        for i in range(3):
-            hd = H[i, 0] * D[0] + H[i, 1] * D[1] + H[i, 2] * D[2]
-            fpp += D[i] * hd
-            bend += hd * hd
+        fp = n0 * D0 + n1 * D1 + n2 * D2
+        h0 = H[0, 0] * D0 + H[0, 1] * D1 + H[0, 2] * D2
+        h1 = H[1, 0] * D0 + H[1, 1] * D1 + H[1, 2] * D2
+        h2 = H[2, 0] * D0 + H[2, 1] * D1 + H[2, 2] * D2
+        fpp = D0 * h0 + D1 * h1 + D2 * h2
+        bend = h0 * h0 + h1 * h1 + h2 * h2
         if math.sqrt(bend) > SLIDE_TURN:
             turns = True
         if fp > 0.0:
