@@ -27,6 +27,8 @@ from typing import Any
 
 import numpy as np
 
+from pliant.core.numbers import clean
+
 
 class Zone(str, Enum):  # noqa: UP042 (str() and format() stay as they print now)
     """A check's result: green (acceptable), yellow (acceptable with reservations: a
@@ -140,6 +142,15 @@ def brazier_kink_curvature(mean_radius: float, wall: float, poisson_ratio: float
     """kappa_B [1/m] = (sqrt 2 / 3) t / (a^2 sqrt(1 - nu^2)), where the bending moment of
     an ovalising tube peaks and it kinks (zeta = 2/9)."""
     return math.sqrt(2.0) / 3.0 * wall / (mean_radius**2 * math.sqrt(1.0 - poisson_ratio**2))
+
+
+def max_torque(eq: Any) -> float:
+    """The largest twisting moment [N m] along a 3D answer (an ``Equilibrium3D`` or the
+    session's ``AccurateResult``); one that is the solver's round-off beside the part's
+    bending moments (a part free to twist carries none) is the 0 it is."""
+    bending = eq.bending_magnitude if hasattr(eq, "bending_magnitude") else eq.bending_moment
+    scale = float(np.max(np.abs(bending), initial=0.0))
+    return clean([float(np.max(np.abs(eq.torque), initial=0.0))], scale)[0]
 
 
 def twist_angle(s: np.ndarray, torque: np.ndarray, torsional_stiffness: float,

@@ -34,6 +34,7 @@ from pliant.assembly.checks import (
     brazier_flattening,
     brazier_kink_curvature,
     centreline_min_radius,
+    max_torque,
     split_wrench,
     tight_near,
     tube_section,
@@ -544,14 +545,9 @@ def _arrival(port: Any) -> np.ndarray:
 
 
 def twist_rate(eq: Any, torsional_stiffness: float) -> float:
-    """The largest twist rate [deg/m] along a shape: torque / GJ; a torque that is the
-    solver's round-off beside the part's bending moments (a part free to twist carries
-    none) counts as the 0 it is."""
-    # (An accurate answer or the session's copy of one: |M| along s either way.)
-    bending = eq.bending_magnitude if hasattr(eq, "bending_magnitude") else eq.bending_moment
-    scale = float(np.max(np.abs(bending), initial=0.0))
-    torque = clean([float(np.max(np.abs(eq.torque), initial=0.0))], scale)[0]
-    return math.degrees(torque / torsional_stiffness)
+    """The largest twist rate [deg/m] along a shape: torque / GJ (``checks.max_torque``:
+    round-off counts as 0)."""
+    return math.degrees(max_torque(eq) / torsional_stiffness)
 
 
 def bend_limit(part: Any, kind: PartKind | None) -> tuple[float | None, str, str, str]:

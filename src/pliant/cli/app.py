@@ -248,12 +248,14 @@ def all_equilibria(problem, as_json: bool, elements: int | None = None) -> None:
     from rich.console import Console  # noqa: PLC0415
     from rich.table import Table  # noqa: PLC0415
 
+    from pliant.cli.report import count  # noqa: PLC0415
+
     if not found:
         raise PliantError("no equilibrium: no route reached one (see pliant solve for why)")
     first = ("the first is pliant's answer" if problem.dimension == 2 else
              "stable first, then by potential energy")
-    count = f"{len(found)} equilibri{'um' if len(found) == 1 else 'a'}"
-    table = Table(title=f"{problem.name or 'problem'}: {count} found in "
+    table = Table(title=f"{problem.name or 'problem'}: "
+                        f"{count(len(found), 'equilibrium', 'equilibria')} found in "
                         f"{seconds:.2f} s; {first}",
                   title_justify="left")
     for col in ("#", "potential\n[J]", "elastic\n[J]", "stability", "eigenvalue\n[N m]",
@@ -285,9 +287,9 @@ def _with_progress(console, scene, file: Path, work):
     path's steps; its result."""
     from rich.progress import Progress  # noqa: PLC0415
 
-    problem = scene.problem
     from pliant.cli.report import count  # noqa: PLC0415
 
+    problem = scene.problem
     console.print(f"[bold]{problem.name or file.stem}[/bold]: {problem.part.name}, "
                   f"{count(len(problem.obstacles), 'obstacle')}, "
                   + (count(len(scene.path), "step") if scene.path else "one pose (no \\[path])"))

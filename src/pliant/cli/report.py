@@ -13,7 +13,7 @@ from rich.console import Console
 from rich.markup import escape
 from rich.table import Table
 
-from pliant.assembly.checks import shape_warnings
+from pliant.assembly.checks import max_torque, shape_warnings
 from pliant.core.equilibrium import Equilibrium, Equilibrium3D, Result, stretch_summary
 from pliant.core.events import SolvedTogether, has
 from pliant.core.numbers import clean
@@ -186,10 +186,8 @@ def _summary_3d(eq: Equilibrium3D, seconds: float, console: Console) -> None:
                       vector_text(load.moment, moments), kind)
     console.print(table)
     moment, at = eq.max_moment()
-    # (A torque nothing applies comes out as round-off: shown as the 0 it is.)
-    torque = clean([float(abs(eq.torque).max())], max(moments, moment))[0]
     console.print(f"max |M| = {_fmt(moment, 'N m')} at s = {at:.4g} m; max |torque| = "
-                  f"{_fmt(torque, 'N m')}")
+                  f"{_fmt(max_torque(eq), 'N m')}")
     console.print(_bend_radius_line(eq))
     _print_stretch(eq, console)
     print_contacts(eq, console)
