@@ -96,7 +96,7 @@ class ShootingSolver:
         ten times slower; for checking one against the other
     lowest : in a cold solve with positions held at two stations or more, also minimise
         the energy from a few starting shapes and answer with the stable equilibrium of
-        lowest energy found (about 10 ms more); False answers with the route's (as fast
+        lowest energy found (a few ms more); False answers with the route's (as fast
         as the shooting, but it may be a higher or unstable branch)
     """
 
