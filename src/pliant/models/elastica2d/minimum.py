@@ -572,11 +572,11 @@ def kkt_step(diag, off, jac, g, c, shift):
 
 
 @njit(cache=True)
-def _multipliers(jac, g):
-    """lam with grad E = J^T lam in the least-squares sense: J^T = Q R by modified
-    Gram-Schmidt (J has a few rows), lam = R^-1 Q^T g; a dependent row gets 0."""
+def _row_basis(jac):
+    """J^T = Q R by modified Gram-Schmidt (J has a few rows): (q, r), the rows of q
+    orthonormal, r upper triangular; a dependent row of J gets a zero row in q."""
     m, n = jac.shape
-    q = jac.copy()  # rows become orthonormal
+    q = jac.copy()
     r = np.zeros((m, m))
     for a in range(m):
         for b in range(a):
@@ -592,6 +592,14 @@ def _multipliers(jac, g):
             q[a] /= norm
         else:
             q[a] = 0.0
+    return q, r
+
+
+@njit(cache=True)
+def _multipliers(q, r, g):
+    """lam with grad E = J^T lam in the least-squares sense (``_row_basis``'s q, r of
+    J): lam = R^-1 Q^T g; a dependent row gets 0."""
+    m = q.shape[0]
     lam = np.zeros(m)
     for a in range(m - 1, -1, -1):
         acc = np.sum(q[a] * g)
@@ -602,23 +610,21 @@ def _multipliers(jac, g):
 
 
 @njit(cache=True)
-def _back_onto(jac, c):
+def _back_onto(q, r, c):
     """The least move (minimum norm) that cancels the constraints' values c to first
-    order: -J^T (J J^T)^-1 c; zero where J J^T is singular (dependent constraints)."""
-    m, n = jac.shape
-    gram = np.empty((m, m))
-    for r in range(m):
-        for q in range(m):
-            acc = 0.0
-            for j in range(n):
-                acc += jac[r, j] * jac[q, j]
-            gram[r, q] = acc
-    y, ok = lu_solve(gram, c)
-    out = np.zeros(n)
-    if ok:
-        for r in range(m):
-            for j in range(n):
-                out[j] -= jac[r, j] * y[r]
+    order, J d = -c, with ``_row_basis``'s q, r of J: d = Q^T y, R^T y = -c (a
+    dependent row is left out)."""
+    m = q.shape[0]
+    y = np.zeros(m)
+    for a in range(m):
+        if np.any(q[a]):
+            acc = -c[a]
+            for b in range(a):
+                acc -= r[b, a] * y[b]
+            y[a] = acc / r[a, a]
+    out = np.zeros(q.shape[1])
+    for a in range(m):
+        out += y[a] * q[a]
     return out
 
 
@@ -637,16 +643,18 @@ def _sqp_kernel(u, a, iterations, tolerance, max_turn):
     (Levenberg's rule), which a full step lowers again. (u, converged)."""
     m = a.pos_k.shape[0] + a.ang_k.shape[0]
     lam = np.zeros(m)
+    q, r = np.zeros((m, u.shape[0])), np.zeros((m, m))  # J's row basis (``_row_basis``)
     damping = 0.0
     shift = 0.0
     for _ in range(iterations):
         e, g = _energy(u, a)
         c, jac = _constraints(u, a), _jacobian(u, a)
         if m:
-            lam = _multipliers(jac, g)
+            q, r = _row_basis(jac)
+            lam = _multipliers(q, r, g)
         station = g.copy()  # grad E - J^T lam
-        for r in range(m):
-            station -= lam[r] * jac[r]
+        for row in range(m):
+            station -= lam[row] * jac[row]
         if (np.abs(station).max() < tolerance * (1.0 + np.abs(g).max())
                 and (m == 0 or np.abs(c).max() < tolerance)):
             return u, True
@@ -670,7 +678,7 @@ def _sqp_kernel(u, a, iterations, tolerance, max_turn):
             # the Maratos effect: case 3's starts took 43 and 26 steps, with it 16 and 12).
             alpha = 0.5
             if m:
-                corrected = trial + _back_onto(jac, _constraints(trial, a))
+                corrected = trial + _back_onto(q, r, _constraints(trial, a))
                 if _merit(corrected, a, rho) <= enough:
                     trial = corrected
                     alpha = 1.0
@@ -680,7 +688,7 @@ def _sqp_kernel(u, a, iterations, tolerance, max_turn):
             if _merit(trial, a, rho) <= enough:
                 break
             if m:  # the shorter step with its correction too (a curvilinear search)
-                trial += _back_onto(jac, _constraints(trial, a))
+                trial += _back_onto(q, r, _constraints(trial, a))
                 if _merit(trial, a, rho) <= enough:
                     break
             alpha *= 0.5
