@@ -7,6 +7,8 @@ import math
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 import pliant as pl
 from pliant.models.elastica2d import stability as planar
@@ -145,10 +147,11 @@ def test_equilibria_lists_what_the_routes_reach_the_answer_first(capsys):
     assert listed[0]["potential_energy"] == pytest.approx(answer.energy, rel=1e-9)
 
 
-def test_the_sparse_eigensolver_agrees_with_the_dense_one(monkeypatch):
-    """The planar verdict's smallest eigenvalue by shift-invert Lanczos on the sparse
-    bordered system (milliseconds) against the dense null space and eigensolver, on a
-    held tip (case 3's target), a heavy pinned part and a stretching cable: to 1e-9."""
+def test_the_sparse_eigensolvers_agree_with_the_dense_one(monkeypatch):
+    """The planar verdict's smallest eigenvalue by the Sturm count's bisection (an
+    inextensible part) and by shift-invert Lanczos on the sparse bordered system
+    (milliseconds) against the dense null space and eigensolver, on a held tip (case 3's
+    target), a heavy pinned part and a stretching cable (the Lanczos only): to 1e-9."""
     part = pl.Part(1.0, 1.0)
     heavy = pl.Part(1.2, 0.5, mass_per_length=0.3, rest_curvature=0.8)
     cable = pl.Part(1.0, 1.0, axial_stiffness=2e4)
@@ -161,14 +164,56 @@ def test_the_sparse_eigensolver_agrees_with_the_dense_one(monkeypatch):
     ]
     for problem in problems:
         eq = pl.solve(problem)
-        sparse = planar.smallest_eigenvalue(eq, 120)
+        default = planar.smallest_eigenvalue(eq, 120)
+        monkeypatch.setattr(planar, "_smallest_sturm", lambda *args: None)
+        lanczos = planar.smallest_eigenvalue(eq, 120)
         monkeypatch.setattr(planar, "_smallest_sparse", lambda *args: None)
         dense = planar.smallest_eigenvalue(eq, 120)
         monkeypatch.undo()
-        assert sparse == pytest.approx(dense, rel=1e-9, abs=1e-9)
+        assert default == pytest.approx(dense, rel=1e-9, abs=1e-9)
+        assert lanczos == pytest.approx(dense, rel=1e-9, abs=1e-9)
         # The solver's quick verdicts (60 elements) take the dense path; forced through
-        # the Lanczos instead, the same eigenvalue.
+        # the others instead, the same eigenvalue.
         quick = planar.smallest_eigenvalue(eq, 60)
         monkeypatch.setattr(planar, "DENSE_UP_TO", 0)
         assert planar.smallest_eigenvalue(eq, 60) == pytest.approx(quick, rel=1e-9, abs=1e-9)
         monkeypatch.undo()
+
+
+@settings(max_examples=40, deadline=None, derandomize=True)
+@given(st.integers(0, 2**31), st.integers(6, 80), st.integers(2, 5))
+def test_the_sturm_count_finds_the_constrained_pencils_smallest_eigenvalue(seed, n, m):
+    """``bordered.smallest_constrained`` against scipy's dense generalised eigensolver on
+    the constraints' null space, for random second variations of the verdict's shape
+    (zero on two translations; on n element angles of random lengths h, bending EI / h
+    between neighbours, clamped ends or not, and a random axial force's h N on the
+    diagonal, tension or compression up to 50 EI / L^2; the weight h) under m random
+    constraints whose first two hold the translations; and ``kkt_negatives`` against
+    numpy's count of the whole KKT matrix's negative eigenvalues."""
+    from scipy.linalg import eigh, null_space
+
+    from pliant.models.elastica2d import bordered
+
+    rng = np.random.default_rng(seed)
+    h = rng.uniform(0.5, 1.5, size=n)
+    h /= h.sum()
+    k = 1.0 / (0.5 * (h[:-1] + h[1:]))
+    diag = h * rng.uniform(-50.0, 50.0, size=n)
+    diag[:-1] += k
+    diag[1:] += k
+    diag[[0, -1]] += rng.choice([0.0, 1.0], size=2) * 2.0 / h[[0, -1]]
+    off, weight = -k, h
+    jac = rng.normal(size=(m, n + 2))
+    jac[:, :2] = 0.0
+    jac[0, 0] = jac[1, 1] = 1.0
+    H = np.zeros((n + 2, n + 2))
+    H[2:, 2:] = np.diag(diag) + np.diag(off, 1) + np.diag(off, -1)
+    W = np.zeros((n + 2, n + 2))
+    W[2:, 2:] = np.diag(weight)
+    kkt = np.block([[H, jac.T], [jac, np.zeros((m, m))]])
+    assert bordered.kkt_negatives(diag, off, jac, 0.0) == np.sum(np.linalg.eigvalsh(kkt) < 0)
+    Z = null_space(jac)
+    exact = eigh(Z.T @ H @ Z, Z.T @ W @ Z, eigvals_only=True)[0]
+    bound = 1.0 + 50.0  # EI / L plus L |N|, below every eigenvalue (as the verdict's)
+    value = bordered.smallest_constrained(diag, off, jac, weight, -2.0 * bound, bound)
+    assert value == pytest.approx(exact, abs=1e-9 * bound)

@@ -34,6 +34,7 @@ from numba import njit
 
 from pliant.core.problem import Problem
 from pliant.models import clock
+from pliant.models.elastica2d.bordered import condensed, kkt_negatives
 from pliant.models.elastica2d.kernels import lu_solve
 
 ELEMENTS = 48  # elements of the discrete part: a start for Newton, not an answer
@@ -365,111 +366,11 @@ def _hessian(u, lam, a):
 
 
 @njit(cache=True)
-def _tridiagonal_solve(diag, off, rhs):
-    """Solve T X = rhs in place (rhs (n, k)) for the symmetric tridiagonal T by Gaussian
-    elimination with partial pivoting (as LAPACK's gtsv: a row swap fills a second
-    superdiagonal); False where a pivot vanishes against T's scale."""
-    n, k = rhs.shape
-    d = diag.copy()
-    up = off.copy()  # the first superdiagonal of U
-    low = off.copy()  # the subdiagonal, then U's second superdiagonal
-    scale = 0.0
-    for i in range(n):
-        scale = max(scale, abs(diag[i]) + (abs(off[i]) if i < n - 1 else 0.0)
-                    + (abs(off[i - 1]) if i > 0 else 0.0))
-    tiny = 1e-14 * scale
-    for i in range(n - 1):
-        if abs(d[i]) >= abs(low[i]):
-            if abs(d[i]) <= tiny:
-                return False
-            f = low[i] / d[i]
-            d[i + 1] -= f * up[i]
-            for c in range(k):
-                rhs[i + 1, c] -= f * rhs[i, c]
-            low[i] = 0.0
-        else:  # swap rows i and i + 1
-            f = d[i] / low[i]
-            d[i] = low[i]
-            below = d[i + 1]
-            d[i + 1] = up[i] - f * below
-            if i < n - 2:
-                low[i] = up[i + 1]
-                up[i + 1] = -f * low[i]
-            else:
-                low[i] = 0.0
-            up[i] = below
-            for c in range(k):
-                top = rhs[i, c]
-                rhs[i, c] = rhs[i + 1, c]
-                rhs[i + 1, c] = top - f * rhs[i + 1, c]
-    if abs(d[n - 1]) <= tiny:
-        return False
-    for c in range(k):
-        rhs[n - 1, c] /= d[n - 1]
-        if n > 1:
-            rhs[n - 2, c] = (rhs[n - 2, c] - up[n - 2] * rhs[n - 1, c]) / d[n - 2]
-        for i in range(n - 3, -1, -1):
-            rhs[i, c] = (rhs[i, c] - up[i] * rhs[i + 1, c] - low[i] * rhs[i + 2, c]) / d[i]
-    return True
-
-
-@njit(cache=True)
-def _condensed(diag, off, jac, shift, reg, extra):
-    """The KKT matrix [[H + shift I, J^T], [J, -reg I]] (H = 0 on the translations,
-    tridiagonal on the angles) condensed onto the translations and multipliers: the
-    angles' block T eliminated. (S, X, ok): S the (2 + m)-square Schur complement, X the
-    solves T X = [extra | J_theta^T] (the angles' columns of J), ok False where T is
-    singular. Costs n m, not the dense (n + m)^3."""
-    n, m = diag.shape[0], jac.shape[0]
-    X = np.empty((n, m + 1))
-    for j in range(n):
-        X[j, 0] = extra[j]
-        for r in range(m):
-            X[j, 1 + r] = jac[r, 2 + j]
-    ok = _tridiagonal_solve(diag + shift, off, X)
-    S = np.zeros((2 + m, 2 + m))
-    S[0, 0] = shift
-    S[1, 1] = shift
-    for r in range(m):
-        S[0, 2 + r] = S[2 + r, 0] = jac[r, 0]
-        S[1, 2 + r] = S[2 + r, 1] = jac[r, 1]
-        for q in range(m):
-            acc = 0.0
-            for j in range(n):
-                acc += jac[r, 2 + j] * X[j, 1 + q]
-            S[2 + r, 2 + q] = -acc
-        S[2 + r, 2 + r] -= reg
-    return S, X, ok
-
-
-@njit(cache=True)
 def _tangent_positive(diag, off, jac, shift):
     """Whether H + shift I is positive definite on the null space of J (of full rank):
-    exactly when the KKT matrix has m negative eigenvalues and none zero (Gould), counted
-    by Sylvester's law as the angles' tridiagonal block's (a Sturm sequence) and its
-    Schur complement's."""
-    n, m = diag.shape[0], jac.shape[0]
-    negative = 0
-    pivot = 1.0
-    for j in range(n):
-        pivot = diag[j] + shift - (off[j - 1] * off[j - 1] / pivot if j > 0 else 0.0)
-        if pivot == 0.0:
-            return False
-        if pivot < 0.0:
-            negative += 1
-        if negative > m:
-            return False
-    S, _, ok = _condensed(diag, off, jac, shift, 0.0, np.zeros(n))
-    if not ok:
-        return False
-    values = np.linalg.eigvalsh(S)
-    size = max(1.0, np.abs(values).max())
-    for v in values:
-        if abs(v) <= 1e-13 * size:
-            return False
-        if v < 0.0:
-            negative += 1
-    return negative == m
+    exactly when the KKT matrix has m negative eigenvalues and none zero (Gould;
+    ``bordered.kkt_negatives``)."""
+    return kkt_negatives(diag + shift, off, jac, shift) == jac.shape[0]
 
 
 @njit(cache=True)
@@ -515,12 +416,13 @@ def tangent_shift(diag, off, jac, guess):
 @njit(cache=True)
 def kkt_step(diag, off, jac, g, c, shift):
     """The SQP step (du, new multipliers) from the KKT system with the Hessian shifted by
-    ``shift``, condensed (``_condensed``), with one step of iterative refinement where
+    ``shift``, condensed (``bordered.condensed``), with one step of iterative refinement where
     its residual is not at round-off (the angles' block alone may be near singular).
     Where the constraints are dependent (a straight part whose chord must shorten) the
     multipliers' block takes -1e-8 on its diagonal, so that a step still comes, which
     bends the part; a system singular even so gives a step of NaN (refused)."""
     n, m = diag.shape[0], jac.shape[0]
+    shifted = diag + shift
     du = np.zeros(n + 2)
     y = np.zeros(m)
     ok = False
@@ -530,7 +432,7 @@ def kkt_step(diag, off, jac, g, c, shift):
         r_u = -g.copy()
         r_c = -c.copy()
         for _ in range(2):  # a solve, then a correction from its residual
-            S, X, ok = _condensed(diag, off, jac, shift, reg, r_u[2:])
+            S, X, ok = condensed(shifted, off, jac, shift, reg, r_u[2:])
             if not ok:
                 break
             rhs = np.empty(2 + m)

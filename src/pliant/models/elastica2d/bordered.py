@@ -1,0 +1,172 @@
+"""Symmetric KKT systems whose Hessian is tridiagonal but for a small border, in n m
+operations: the 2D discrete part's (``minimum``: zero on two translations, tridiagonal on
+the element angles) and the second variation's (``stability``: on the element angles,
+with the first end's shift).
+
+The angles' tridiagonal block is eliminated (``condensed``), which leaves a Schur
+complement of the border and the constraints' multipliers; its inertia plus the block's
+(a Sturm sequence) is the whole matrix's by Sylvester's law (``kkt_negatives``). A
+constrained Hessian is positive definite on the constraints' null space exactly when the
+KKT matrix has as many negative eigenvalues as constraints (Gould), and the number of a
+constrained pencil's eigenvalues below lambda is that count at H - lambda W less the
+constraints (``smallest_constrained``).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import njit
+
+
+@njit(cache=True)
+def _tridiagonal_solve(diag, off, rhs):
+    """Solve T X = rhs in place (rhs (n, k)) for the symmetric tridiagonal T by Gaussian
+    elimination with partial pivoting (as LAPACK's gtsv: a row swap fills a second
+    superdiagonal); False where a pivot vanishes against T's scale."""
+    n, k = rhs.shape
+    d = diag.copy()
+    up = off.copy()  # the first superdiagonal of U
+    low = off.copy()  # the subdiagonal, then U's second superdiagonal
+    scale = 0.0
+    for i in range(n):
+        scale = max(scale, abs(diag[i]) + (abs(off[i]) if i < n - 1 else 0.0)
+                    + (abs(off[i - 1]) if i > 0 else 0.0))
+    tiny = 1e-14 * scale
+    for i in range(n - 1):
+        if abs(d[i]) >= abs(low[i]):
+            if abs(d[i]) <= tiny:
+                return False
+            f = low[i] / d[i]
+            d[i + 1] -= f * up[i]
+            for c in range(k):
+                rhs[i + 1, c] -= f * rhs[i, c]
+            low[i] = 0.0
+        else:  # swap rows i and i + 1
+            f = d[i] / low[i]
+            d[i] = low[i]
+            below = d[i + 1]
+            d[i + 1] = up[i] - f * below
+            if i < n - 2:
+                low[i] = up[i + 1]
+                up[i + 1] = -f * low[i]
+            else:
+                low[i] = 0.0
+            up[i] = below
+            for c in range(k):
+                top = rhs[i, c]
+                rhs[i, c] = rhs[i + 1, c]
+                rhs[i + 1, c] = top - f * rhs[i + 1, c]
+    if abs(d[n - 1]) <= tiny:
+        return False
+    for c in range(k):
+        rhs[n - 1, c] /= d[n - 1]
+        if n > 1:
+            rhs[n - 2, c] = (rhs[n - 2, c] - up[n - 2] * rhs[n - 1, c]) / d[n - 2]
+        for i in range(n - 3, -1, -1):
+            rhs[i, c] = (rhs[i, c] - up[i] * rhs[i + 1, c] - low[i] * rhs[i + 2, c]) / d[i]
+    return True
+
+
+@njit(cache=True)
+def condensed(diag, off, jac, corner, reg, extra):
+    """The KKT matrix [[H, J^T], [J, -reg I]], H = corner I on the two translations and
+    T = tridiag(diag, off) on the n angles, condensed onto the translations and the m
+    multipliers: T eliminated. (S, X, ok): S the (2 + m)-square Schur complement, X the
+    solves T X = [extra | J_theta^T] (the angles' columns of J), ok False where T is
+    singular. Costs n m, not the dense (n + m)^3."""
+    n, m = diag.shape[0], jac.shape[0]
+    X = np.empty((n, m + 1))
+    for j in range(n):
+        X[j, 0] = extra[j]
+        for r in range(m):
+            X[j, 1 + r] = jac[r, 2 + j]
+    ok = _tridiagonal_solve(diag, off, X)
+    S = np.zeros((2 + m, 2 + m))
+    S[0, 0] = corner
+    S[1, 1] = corner
+    for r in range(m):
+        S[0, 2 + r] = S[2 + r, 0] = jac[r, 0]
+        S[1, 2 + r] = S[2 + r, 1] = jac[r, 1]
+        for q in range(m):
+            acc = 0.0
+            for j in range(n):
+                acc += jac[r, 2 + j] * X[j, 1 + q]
+            S[2 + r, 2 + q] = -acc
+        S[2 + r, 2 + r] -= reg
+    return S, X, ok
+
+
+@njit(cache=True)
+def kkt_negatives(diag, off, jac, corner):
+    """The number of negative eigenvalues of [[H, J^T], [J, 0]] (H as in ``condensed``);
+    -1 where the angles' block is singular to round-off, -2 where the Schur complement is
+    singular (the whole matrix: for a pencil, lambda is an eigenvalue)."""
+    n = diag.shape[0]
+    negative = 0
+    pivot = 1.0
+    for j in range(n):  # the tridiagonal block's LDL^T pivots (a Sturm sequence)
+        pivot = diag[j] - (off[j - 1] * off[j - 1] / pivot if j > 0 else 0.0)
+        if pivot == 0.0:
+            return -1
+        if pivot < 0.0:
+            negative += 1
+    S, _, ok = condensed(diag, off, jac, corner, 0.0, np.zeros(n))
+    if not ok:
+        return -1
+    # The signs as computed: a tolerance on S's small eigenvalues would be relative to
+    # its largest, which grows without bound where the angles' block nears a singular
+    # point (a pencil's eigenvalue that the constraints leave free), and would blur the
+    # count over a band round it.
+    for v in np.linalg.eigvalsh(S):
+        if v == 0.0:
+            return -2
+        if v < 0.0:
+            negative += 1
+    return negative
+
+
+@njit(cache=True)
+def _below(diag, off, jac, weight, lam, scale):
+    """How many eigenvalues of the pencil (H, W) on J v = 0 lie below lam (H tridiagonal
+    on the angles, zero on the translations, W = diag(weight) on the angles); -2 where
+    lam is one (to round-off), -1 where the angles' block stays singular with lam nudged
+    by 1e-13 of ``scale`` (a few times)."""
+    for attempt in range(4):
+        at = lam + attempt * 1e-13 * scale
+        count = kkt_negatives(diag - at * weight, off, jac, 0.0)
+        if count == -2:
+            return -2
+        if count >= 0:
+            return count - jac.shape[0]
+    return -1
+
+
+@njit(cache=True)
+def smallest_constrained(diag, off, jac, weight, lo, scale):
+    """The smallest eigenvalue of the pencil (H, W) on J v = 0 (``_below``), by bisection
+    to 1e-12 of ``scale`` from lo (below every eigenvalue); NaN where a count fails or
+    lo is not below them (the caller then asks a dense eigensolver). A lambda that is an
+    eigenvalue itself (``_below`` -2) is at or above the smallest."""
+    if _below(diag, off, jac, weight, lo, scale) != 0:
+        return np.nan
+    hi = lo + scale
+    count = 0
+    for _ in range(80):  # up until one lies below
+        count = _below(diag, off, jac, weight, hi, scale)
+        if count != 0:
+            break
+        step = 2.0 * (hi - lo)
+        lo = hi
+        hi += step
+    if count == -1 or count == 0:
+        return np.nan
+    while hi - lo > 1e-12 * scale:
+        mid = 0.5 * (lo + hi)
+        count = _below(diag, off, jac, weight, mid, scale)
+        if count == -1:
+            return np.nan
+        if count == -2 or count >= 1:
+            hi = mid
+        else:
+            lo = mid
+    return 0.5 * (lo + hi)
