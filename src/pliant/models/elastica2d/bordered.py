@@ -19,6 +19,15 @@ from numba import njit
 
 
 @njit(cache=True)
+def tridiagonal_times(diag, off, x):
+    """T x for T = tridiag(diag, off)."""
+    out = diag * x
+    out[1:] += off * x[:-1]
+    out[:-1] += off * x[1:]
+    return out
+
+
+@njit(cache=True)
 def _tridiagonal_solve(diag, off, rhs):
     """Solve T X = rhs in place (rhs (n, k)) for the symmetric tridiagonal T by Gaussian
     elimination with partial pivoting (as LAPACK's gtsv: a row swap fills a second

@@ -34,7 +34,7 @@ from numba import njit
 
 from pliant.core.problem import Problem
 from pliant.models import clock
-from pliant.models.elastica2d.bordered import condensed, kkt_negatives
+from pliant.models.elastica2d.bordered import condensed, kkt_negatives, tridiagonal_times
 from pliant.models.elastica2d.kernels import lu_solve
 
 ELEMENTS = 48  # elements of the discrete part: a start for Newton, not an answer
@@ -375,13 +375,12 @@ def _tangent_positive(diag, off, jac, shift):
 
 @njit(cache=True)
 def tangent_shift(diag, off, jac, guess):
-    """The least shift (plus 1e-6) that makes the Hessian positive definite on
-    the null space of the constraints' Jacobian, 0 where it already is: bracketed by
+    """The least shift (plus 1e-6) that makes the Hessian positive definite on the null
+    space of the constraints' Jacobian, 0 where it already is: bracketed by
     ``_tangent_positive`` in growing steps from ``guess`` (the last iteration's, as it
     moves slowly: two tests where it moved less than 1 %), bisected to 1 % and refined
-    (``_refined_shift``). The least that
-    works: a larger shift, as interior-point codes raise it tenfold, was seen to steer
-    the steps toward a saddle's basin."""
+    (``_refined_shift``). The least that works: a larger shift, as interior-point codes
+    raise it tenfold, was seen to steer the steps toward a saddle's basin."""
     if _tangent_positive(diag, off, jac, 0.0):
         return 0.0
     bound = 1e-6  # Gershgorin's: past it the whole Hessian is positive definite
@@ -431,14 +430,8 @@ def _refined_shift(diag, off, jac, lo, hi):
         if not size > 0.0 or not math.isfinite(size):
             return hi
         v = w / size
-        quotient = 0.0  # v . H v (H zero on the translations)
-        for j in range(n):
-            hv = diag[j] * v[2 + j]
-            if j > 0:
-                hv += off[j - 1] * v[1 + j]
-            if j < n - 1:
-                hv += off[j] * v[3 + j]
-            quotient += v[2 + j] * hv
+        # v . H v (H zero on the translations)
+        quotient = np.sum(v[2:] * tridiagonal_times(diag, off, v[2:]))
         change = abs(-quotient - least)
         least = -quotient
         if change <= 1e-14 * abs(least):
@@ -492,9 +485,7 @@ def kkt_step(diag, off, jac, g, c, shift):
             y += sol[2:]
             # The residual of the whole system at (du, y).
             r_u = -g - shift * du
-            r_u[2:] -= diag * du[2:]
-            r_u[2:-1] -= off * du[3:]
-            r_u[3:] -= off * du[2:-1]
+            r_u[2:] -= tridiagonal_times(diag, off, du[2:])
             r_c = -c + reg * y
             for r in range(m):
                 for j in range(n + 2):
