@@ -23,9 +23,10 @@ from pliant.core.problem import (
 )
 from pliant.errors import ConvergenceError, FileFormatError
 from pliant.models import rod3d
-from pliant.models.rod3d import coupled, coupled_results
+from pliant.models.rod3d import coupled, coupled_results, coupled_stability
 from pliant.models.rod3d.lowering import lower
 from pliant.models.rod3d.solver import Run
+from pliant.models.rod3d.stability import metric, stability_of
 from pliant.scene.interference import of_equilibrium
 
 EXAMPLES = Path(__file__).resolve().parents[1] / "examples"
@@ -91,10 +92,94 @@ def test_symmetric_and_as_a_single_cantilever_under_that_load(pressed):
     assert np.abs(single.position - a.position).max() < 1e-8
 
 
-def test_stability_is_not_claimed_for_parts_solved_together(pressed):
-    a, _ = pressed
-    assert a.stability == (None, None)
-    assert any("solved together" in n for n in a.notes)
+def _pressed_at(tilt: float, elements: int = 40):
+    """The two cantilevers turned in by ``tilt``: (coupling, states, mus)."""
+    solver = rod3d.RodSolver(elements=elements)
+    runs = [Run(lower(p, elements=elements), solver) for p in cantilevers(tilt)]
+    starts = [Run(r.rod.retarget(p, elements), solver) for r, p in zip(runs, cantilevers(0.0))]
+    return coupled.solve_coupled(runs, [r.cold() for r in starts], solver=solver,
+                                 start=[r.rod.target for r in starts], held_first=False)
+
+
+def test_tubes_pressed_tip_to_tip_slide_off_past_the_two_spring_threshold():
+    """Two round tips pressed together by f are a spring each (a cantilever's tip across
+    its plane, k = 3 EI / L^3) joined by the contact, whose force turns with the line
+    between the centrelines: a stiffness -f / d for their slip across it (d the
+    centrelines' distance). They slide off each other (the coupled system's smallest
+    eigenvalue crosses zero) where k - 2 f / d = 0: f = 3 EI d / (2 L^3), 0.12 N here.
+    The force where the eigenvalue, interpolated between two tilts either side, crosses
+    zero must be that one."""
+    points = []
+    for tilt in (0.1, 0.11):
+        coupling, states, mus = _pressed_at(tilt)
+        a, b = coupled_results.equilibria(coupling, states, mus, ["A", "B"])
+        force = float(np.linalg.norm(a.contacts.force.sum(axis=0)))
+        assert a.stability == b.stability  # one system, one verdict
+        points.append((force, a.stability[1]))
+    (f0, l0), (f1, l1) = points
+    assert l0 > 0.0 > l1  # stable below the threshold, unstable past it
+    crossing = f0 + l0 / (l0 - l1) * (f1 - f0)
+    d = 0.01 - WALL_COMPLIANCE * crossing  # the tubes' diameters, less the walls' give
+    assert crossing == pytest.approx(3.0 * PART.bending_stiffness * d / (2.0 * L**3),
+                                     rel=0.02)
+
+
+def test_pressed_hard_the_tips_are_unstable_and_the_note_says_whose_verdict(pressed):
+    a, b = pressed
+    assert a.verdict == "unstable" and a.stability == b.stability
+    assert any("the verdict is the coupled system's" in n for n in a.notes)
+
+
+def test_parts_apart_have_each_ones_own_stability():
+    """Not touching, the coupled system's smallest eigenvalue is the smaller of the two
+    parts' own (``stability_of``): the same metric, in the same units."""
+    coupling, states, mus = _pressed_at(0.0)
+    assert not np.any(mus[0])
+    stable, value = coupled_stability.coupled_stability(coupling, states, mus)
+    alone = min(stability_of(run, state)[1] for run, state in zip(coupling.runs, states))
+    assert stable and value == pytest.approx(alone, rel=1e-9)
+
+
+def test_the_coupled_eigenvalue_is_that_of_a_finite_difference_jacobian():
+    """The shift-invert on the condensed system against the dense pencil J v = lambda M v,
+    J by central differences of the coupled residual (each part stepped by its own
+    ``step``, the forces between the parts as they are), M each part's metric by its
+    EI / L: the smallest finite eigenvalue (QZ) is the same."""
+    from scipy.linalg import eig
+
+    coupling, states, mus = _pressed_at(0.2, elements=6)
+    _, value = coupled_stability.coupled_stability(coupling, states, mus)
+    loads = [run.rod.target for run in coupling.runs]
+    near = [coupling.near(p, states, mu) for p, mu in zip(coupling.pairs, mus)]
+    fixed = coupling.touching(coupling.evaluate(states, mus, loads, 1.0, near, False), mus)
+
+    def residual(states, mus):
+        ev = coupling.evaluate(states, mus, loads, 1.0, near, False, fixed)
+        return np.concatenate([*ev.R, *ev.Rmu])
+
+    columns, eps = [], 1e-6
+    for i, run in enumerate(coupling.runs):
+        for k in range(run.rod.n):
+            du = np.zeros(run.rod.n)
+            du[k] = eps
+            ahead, behind = list(states), list(states)
+            ahead[i], behind[i] = run.step(states[i], du, 1.0), run.step(states[i], -du, 1.0)
+            columns.append((residual(ahead, mus) - residual(behind, mus)) / (2 * eps))
+    for p, mu in enumerate(mus):
+        for k in range(mu.shape[0]):
+            ahead, behind = [m.copy() for m in mus], [m.copy() for m in mus]
+            ahead[p][k] += eps
+            behind[p][k] -= eps
+            columns.append((residual(states, ahead) - residual(states, behind)) / (2 * eps))
+    J = np.array(columns).T
+    mass = np.concatenate([np.where(metric(run.rod)[0], metric(run.rod)[1], 0.0)
+                           / run.rod.moment_scale for run in coupling.runs]
+                          + [np.zeros(mu.shape[0]) for mu in mus])
+    lam = eig(J, np.diag(mass), right=False)
+    lam = lam[np.isfinite(lam) & (np.abs(lam) < 1e6)]
+    assert np.abs(lam.imag).max() < 1e-6
+    assert value < 0.0  # pressed hard: unstable (the test above)
+    assert value == pytest.approx(float(lam.real.min()), rel=1e-6)
 
 
 @pytest.fixture(scope="module")
@@ -344,6 +429,16 @@ def test_a_part_cut_in_two_and_joined_again_is_the_part():
          clamp_at(1.0, 0.95, "right")), gravity=DOWN), solver=rod3d.RodSolver(elements=80))
     joined = np.concatenate([eq.position, other.position[1:]])
     assert np.abs(joined - whole.position).max() < 1e-9
+    # Its stability too: the halves together, in the whole's metric (a part 1 m long),
+    # have the whole's smallest eigenvalue (the junction's rows and the metric's scales).
+    state, solver = eq.state, rod3d.RodSolver(elements=40)
+    runs = [Run(rod, solver, gauge_quat=g) for rod, g in zip(state.rods, state.gauges)]
+    coupling = coupled.Coupling(runs, list(state.pairs), solver, list(state.sliders),
+                                list(state.joints), list(state.pivots))
+    together = coupled_stability.coupled_stability(coupling, list(state.states),
+                                                   list(state.mus), length=1.0)
+    assert together[0] and together[1] == pytest.approx(whole.stability[1], rel=1e-9)
+    assert eq.stability == other.stability  # (in the first half's metric)
     for name, part in (("left", eq), ("right", other)):
         np.testing.assert_allclose(part.loads[name].force, whole.loads[name].force,
                                    atol=1e-7)
@@ -501,6 +596,9 @@ def test_friction_between_parts_obeys_coulomb_and_balances():
     assert not any("could not" in n for n in eq.notes)
     c = eq.contacts
     on = [i for i, name in enumerate(c.obstacle) if name == "coolant hose"]
+    # Friction acts: a static test does not decide stability, and the note says why.
+    assert eq.verdict == "undecided"
+    assert any("not assessed (friction between the parts acting)" in n for n in eq.notes)
     along = np.linalg.norm(c.friction[on], axis=1)
     across = np.linalg.norm(c.force[on] - c.friction[on], axis=1)
     assert along.max() > 0.1  # friction acts

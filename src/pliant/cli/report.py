@@ -15,7 +15,7 @@ from rich.table import Table
 
 from pliant.assembly.checks import max_torque, shape_warnings
 from pliant.core.equilibrium import Equilibrium, Equilibrium3D, Result, stretch_summary
-from pliant.core.events import SolvedTogether, has
+from pliant.core.events import SolvedTogether
 from pliant.core.numbers import clean
 from pliant.core.problem import Problem
 from pliant.io.jsontext import finite
@@ -110,10 +110,12 @@ def _summary_2d(eq: Equilibrium, seconds: float, console: Console) -> None:
 def _stability_line(eq: Result) -> str:
     """The stability verdict in words, with the smallest eigenvalue."""
     verdict = eq.verdict
-    if verdict == "undecided" and (has(eq.notes, SolvedTogether) or (
+    together = [n for n in eq.notes if isinstance(n, SolvedTogether)]
+    if verdict == "undecided" and (together or (
             isinstance(eq, Equilibrium3D) and (eq.fitted or eq.branches))):
-        return ("stability: not assessed (solved together with other parts or sliding "
-                "clips; see the note)")
+        why = ("the eigenvalue did not converge" if together and together[0].assessed
+               else "friction or non-conservative loads between parts solved together")
+        return f"stability: not assessed ({why}; see the note)"
     if verdict == "undecided":
         why = ("follower loads" if eq.problem.dimension == 2
                else "follower loads or dead moments")

@@ -169,10 +169,12 @@ class PlanarRoute(Event):
 
 class SolvedTogether(Event):
     """The part was solved together with others (parts in contact, sliding clips, a
-    harness's junctions): its stability is not assessed, since that of one part with the
-    others' forces held as loads is not the coupled system's."""
+    harness's junctions): its stability verdict is the coupled system's (``assessed``),
+    or not assessed where friction or non-conservative loads act (that of one part with
+    the others' forces held as loads would not be the coupled system's)."""
 
     kind = "solved_together"
+    assessed: bool = False
 
 
 def has(notes, kind: type[Event]) -> bool:

@@ -34,6 +34,7 @@ EI / L^2); gaps are by the first part's length and contact forces by its force s
 from __future__ import annotations
 
 import math
+import warnings
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 
@@ -361,83 +362,37 @@ class Coupling(LinkTerms):
                     np.add.at(R[side], ix[node] + c, value[:, base + 3 * j + c])
 
     # -- the Newton direction ---------------------------------------------------------
-    def direction(self, ev: _Eval, mus: Sequence[np.ndarray], weight: float):
-        """The Newton step (per part du, per pair or clip d mu) or None where singular."""
-        P = len(self.runs)
-        blocks = self._contact_blocks(ev, mus, weight) + [
+    def blocks(self, ev: _Eval, mus: Sequence[np.ndarray], weight: float) -> list[_Block]:
+        """Every border block of the system at ``ev``: the contacts, the clips, the
+        junctions, the pivots and the friction between parts."""
+        return self._contact_blocks(ev, mus, weight) + [
             self._slider_terms(k, ev.states, mus, weight, want_jac=True)[3]
             for k in range(len(self.sliders))] + [
             self._joint_terms(k, ev.states, mus, weight, want_jac=True)[2]
             for k in range(len(self.joints))] + [
             self._pivot_terms(k, ev.states, mus, weight, want_jac=True)[2]
             for k in range(len(self.pivots))] + self._friction_blocks(ev, mus, weight)
-        # The coupling coordinates: x of every node a block touches, part by part.
-        slot: list[dict[int, int]] = [{} for _ in range(P)]
-        coords: list[list[int]] = [[] for _ in range(P)]
-        for b in blocks:
-            for part, first in b.coords:
-                if first not in slot[part]:
-                    slot[part][first] = len(coords[part])
-                    coords[part].append(first)
-        offset = np.concatenate([[0], np.cumsum([3 * len(c) for c in coords])]).astype(int)
-        nc = int(offset[-1])
-        rows = [-ev.Rmu[b.target[0]][b.target[1]] for b in blocks]  # right-hand sides
-        m = sum(r.shape[0] for r in rows)
-        # Each part: its band factorised, solved for -R and the unit loads.
-        base, W = [], []
-        Z = np.zeros((nc, nc))
-        z = np.zeros(nc)
-        for i, run in enumerate(self.runs):
-            ab = ev.ab[i]
-            assert ab is not None  # evaluated with its Jacobian
-            fac = _factor(run, ab)
-            if fac is None:
-                return None
-            base.append(_solve(fac, -ev.R[i]))
-            cols = np.array([first + c for first in coords[i] for c in range(3)],
-                            dtype=np.int64)
-            Wi = np.empty((run.rod.n, cols.shape[0]))
-            for k, col in enumerate(cols):
-                unit = np.zeros(run.rod.n)
-                unit[col] = 1.0
-                Wi[:, k] = _solve(fac, unit)
-            W.append(Wi)
-            sl = slice(offset[i], offset[i + 1])
-            Z[sl, sl] = Wi[cols]
-            z[sl] = base[i][cols]
-        # The blocks' terms on those coordinates.
-        Kc = np.zeros((nc, nc))
-        E = np.zeros((nc, m))
-        Fm = np.zeros((m, nc))
-        D = np.zeros((m, m))
-        at = 0
-        for b, r in zip(blocks, rows):
-            idx = np.array([offset[part] + 3 * slot[part][first] + c
-                            for part, first in b.coords for c in range(3)])
-            nb = r.shape[0]
-            block = slice(at, at + nb)
-            np.add.at(E, (idx[:, None], np.arange(at, at + nb)[None, :]), b.E)
-            np.add.at(Fm, (np.arange(at, at + nb)[:, None], idx[None, :]), b.F)
-            np.add.at(Kc, (idx[:, None], idx[None, :]), b.K)
-            D[block, block] = b.D
-            at += nb
-        A = np.block([[np.eye(nc) + Z @ Kc, Z @ E], [Fm, D]])
-        try:
-            sol = np.linalg.solve(A, np.concatenate([z, *rows]))
-        except np.linalg.LinAlgError:
+
+    def direction(self, ev: _Eval, mus: Sequence[np.ndarray], weight: float):
+        """The Newton step (per part du, per pair or clip d mu) or None where singular."""
+        blocks = self.blocks(ev, mus, weight)
+        bands = [a for a in ev.ab if a is not None]
+        assert len(bands) == len(self.runs)  # evaluated with its Jacobian
+        system = Condensed.of(self.runs, bands, blocks)
+        if system is None:
             return None
-        if not np.all(np.isfinite(sol)):
+        out = system.solve([-r for r in ev.R],
+                           [-ev.Rmu[b.target[0]][b.target[1]] for b in blocks])
+        if out is None:
             return None
-        dv, dw = sol[:nc], sol[nc:]
-        push = Kc @ dv + E @ dw
-        du = [base[i] - W[i] @ push[offset[i]:offset[i + 1]] for i in range(P)]
+        du, dw = out
         dmus = [np.zeros_like(mu) for mu in mus]
         at = 0
-        for b, r in zip(blocks, rows):
-            dmus[b.target[0]][b.target[1]] = dw[at:at + r.shape[0]]
-            at += r.shape[0]
+        for b in blocks:
+            nb = b.D.shape[0]
+            dmus[b.target[0]][b.target[1]] = dw[at:at + nb]
+            at += nb
         return du, dmus
-
 
     # -- friction between parts -----------------------------------------------------------
     def _friction_modes(self, p: int, active: np.ndarray | None, only: np.ndarray):
@@ -672,6 +627,10 @@ class Coupling(LinkTerms):
                 out[k] = 0 if moved * mode < 0.0 else mode
         return out
 
+    def touching(self, ev: _Eval, mus: Sequence[np.ndarray]) -> list[np.ndarray]:
+        """The touching set at ``ev``, from scratch (per pair, a flag per probe)."""
+        return self._touching(ev, mus, None)
+
     def _touching(self, ev: _Eval, mus: Sequence[np.ndarray],
                   fixed: list[np.ndarray] | None) -> list[np.ndarray]:
         """The touching set at ``ev``: from scratch, the probes whose force beats their
@@ -823,6 +782,107 @@ class _Leg:
     def at(self, t: float) -> tuple[list[Loads], float]:
         return ([m.start.lerp(m.end, t) for m in self.members],
                 self.w0 + t * (self.w1 - self.w0))
+
+
+@dataclass
+class Condensed:
+    """The coupled Newton system (each part's band and the border blocks), factorised
+    once and solved for any right-hand side by static condensation: each band is solved
+    for its part's right side and for a unit load at each coordinate a block touches
+    (its compliance there), and a dense system on those coordinates and the blocks'
+    unknowns joins them (its size a few times the number of blocks, not the parts'
+    unknowns). The Newton step's solve (``Coupling.direction``) and the coupled
+    stability's shift-invert (``coupled_stability``) share it."""
+
+    factors: list
+    coords: list[list[int]]  # per part, the first unknown of each coupling coordinate
+    offset: np.ndarray  # where each part's coordinates start among them
+    W: list[np.ndarray]  # per part, its band's solution for each unit load
+    Kc: np.ndarray
+    E: np.ndarray
+    lu: tuple  # the dense system's LU (scipy.linalg.lu_factor)
+    sizes: list[int]  # each block's unknowns
+
+    @classmethod
+    def of(cls, runs: Sequence[Run], bands: Sequence[np.ndarray],
+           blocks: Sequence[_Block]) -> Condensed | None:
+        """Factorise the parts' bands (``bands``, overwritten) and the blocks; None where
+        a band or the joined system is singular."""
+        from scipy.linalg import lu_factor  # noqa: PLC0415 (scipy.linalg: loaded by now)
+
+        P = len(runs)
+        slot: list[dict[int, int]] = [{} for _ in range(P)]
+        coords: list[list[int]] = [[] for _ in range(P)]
+        for b in blocks:
+            for part, first in b.coords:
+                if first not in slot[part]:
+                    slot[part][first] = len(coords[part])
+                    coords[part].append(first)
+        offset = np.concatenate([[0], np.cumsum([3 * len(c) for c in coords])]).astype(int)
+        nc = int(offset[-1])
+        sizes = [b.D.shape[0] for b in blocks]
+        m = sum(sizes)
+        factors, W = [], []
+        Z = np.zeros((nc, nc))
+        for i, run in enumerate(runs):
+            fac = _factor(run, bands[i])
+            if fac is None:
+                return None
+            factors.append(fac)
+            cols = np.array([first + c for first in coords[i] for c in range(3)],
+                            dtype=np.int64)
+            Wi = np.empty((run.rod.n, cols.shape[0]))
+            for k, col in enumerate(cols):
+                unit = np.zeros(run.rod.n)
+                unit[col] = 1.0
+                Wi[:, k] = _solve(fac, unit)
+            W.append(Wi)
+            sl = slice(offset[i], offset[i + 1])
+            Z[sl, sl] = Wi[cols]
+        # The blocks' terms on those coordinates.
+        Kc = np.zeros((nc, nc))
+        E = np.zeros((nc, m))
+        Fm = np.zeros((m, nc))
+        D = np.zeros((m, m))
+        at = 0
+        for b, nb in zip(blocks, sizes):
+            idx = np.array([offset[part] + 3 * slot[part][first] + c
+                            for part, first in b.coords for c in range(3)])
+            block = slice(at, at + nb)
+            np.add.at(E, (idx[:, None], np.arange(at, at + nb)[None, :]), b.E)
+            np.add.at(Fm, (np.arange(at, at + nb)[:, None], idx[None, :]), b.F)
+            np.add.at(Kc, (idx[:, None], idx[None, :]), b.K)
+            D[block, block] = b.D
+            at += nb
+        A = np.block([[np.eye(nc) + Z @ Kc, Z @ E], [Fm, D]])
+        if not np.all(np.isfinite(A)):
+            return None
+        with warnings.catch_warnings():  # (singular: said by its zero pivot, below)
+            warnings.simplefilter("ignore")
+            lu = lu_factor(A, check_finite=False)
+        if not np.all(np.isfinite(lu[0])) or np.any(np.diag(lu[0]) == 0.0):
+            return None
+        return cls(factors, coords, offset, W, Kc, E, lu, sizes)
+
+    def solve(self, rhs: Sequence[np.ndarray], rows: Sequence[np.ndarray]
+              ) -> tuple[list[np.ndarray], np.ndarray] | None:
+        """(du per part, the blocks' unknowns) for the parts' right sides ``rhs`` and the
+        blocks' ``rows``; None where not finite."""
+        from scipy.linalg import lu_solve  # noqa: PLC0415
+
+        base = [_solve(fac, r) for fac, r in zip(self.factors, rhs)]
+        z = np.concatenate([base[i][np.array([f + c for f in self.coords[i]
+                                              for c in range(3)], dtype=np.int64)]
+                            for i in range(len(base))] + [np.zeros(0)])
+        sol = lu_solve(self.lu, np.concatenate([z, *rows]), check_finite=False)
+        if not np.all(np.isfinite(sol)):
+            return None
+        nc = int(self.offset[-1])
+        dv, dw = sol[:nc], sol[nc:]
+        push = self.Kc @ dv + self.E @ dw
+        du = [base[i] - self.W[i] @ push[self.offset[i]:self.offset[i + 1]]
+              for i in range(len(base))]
+        return du, dw
 
 
 def _factor(run: Run, ab: np.ndarray):

@@ -4,6 +4,7 @@ state."""
 
 from __future__ import annotations
 
+import functools
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field, replace
 from typing import TYPE_CHECKING
@@ -12,6 +13,7 @@ import numpy as np
 
 from pliant.core.equilibrium import Contacts, Equilibrium3D, Samples3D, StationLoad
 from pliant.core.events import SolvedTogether
+from pliant.models.rod3d import coupled_stability
 from pliant.models.rod3d.lowering import State, quat_matrix
 from pliant.models.rod3d.results import build
 
@@ -106,9 +108,17 @@ def slider_loads(coupling: Coupling, states: Sequence[State], mus: Sequence[np.n
     return out
 
 
-STABILITY_NOTE = SolvedTogether(
-    "solved together (parts in contact or a sliding clip): stability is not assessed; that "
-    "of each part with the others' forces held as loads would not be the coupled system's")
+def stability_note(why: str | None) -> SolvedTogether:
+    """What a part solved together says of its stability: the coupled system's verdict,
+    or why a static test would not decide it (``coupled_stability.not_assessed``)."""
+    if why is None:
+        return SolvedTogether(
+            "solved together (parts in contact, joined or in a sliding clip): the verdict "
+            "is the coupled system's, every part with its contacts, junctions and clips at "
+            "once",
+            assessed=True)
+    return SolvedTogether(f"solved together: stability is not assessed ({why})",
+                          assessed=False)
 
 
 def equilibria(coupling: Coupling, states: Sequence[State], mus: Sequence[np.ndarray],
@@ -129,15 +139,20 @@ def equilibria(coupling: Coupling, states: Sequence[State], mus: Sequence[np.nda
     for k, pv in enumerate(coupling.pivots):
         _, torque, _ = coupling._pivot_terms(k, states, mus, 1.0)
         pins[pv.clip.name] = quat_matrix(states[0][1][pv.frame]) @ (-torque) * rod.moment_scale
+    why = coupled_stability.not_assessed(coupling, states, mus)
+    verdict = functools.cache(lambda: coupled_stability.coupled_stability(coupling, states,
+                                                                           mus))
     out = []
     for i, (run, state, extra, mine) in enumerate(zip(coupling.runs, states, contacts, held)):
         eq = build(run, state)
         coupled = len(extra) > 0 or bool(mine) or (i == 0 and bool(pins))
+        # One system, one verdict (computed once, when first asked, for every part).
+        check = (None if why is not None else verdict) if coupled else eq.stability_check
         out.append(replace(eq, residual=residual,
                            sampler=_WithContacts(eq.sampler, extra, mine,
                                                  pins if i == 0 else {}),
-                           notes=eq.notes + ((STABILITY_NOTE,) if coupled else ()),
-                           stability_check=None if coupled else eq.stability_check))
+                           notes=eq.notes + ((stability_note(why),) if coupled else ()),
+                           stability_check=check))
     return out
 
 
