@@ -1,5 +1,6 @@
 """Benchmark of parts solved together (issue 16): a warm step with a fitted part flexible
-and touched, against the same step with it rigid.
+and touched, against the same step with it rigid; and the two answers' stability
+verdicts (the coupled system's, stop 43, against the line's alone on the rigid tube).
 
     .venv/bin/python benchmarks/coupled.py
 
@@ -66,6 +67,24 @@ def main() -> None:
     total = sum(v.force for v in hose.loads.values())
     print(f"  the hose's clamps together ({rest.name}): {np.round(total, 2)} N "
           "(its weight and the line's push)")
+    # The stability verdict of each answer, computed afresh each time (it is cached on
+    # an answer): the coupled system's against the line's alone on the rigid tube.
+    verdicts = {}
+    for name, flexible_hose in (("flexible", True), ("rigid", False)):
+        times, value = [], None
+        for _ in range(7):
+            answer = last_step(flexible_hose, repeat=1)[1]
+            start = time.perf_counter()
+            value = answer.stability[1]
+            times.append(time.perf_counter() - start)
+        verdicts[name] = (statistics.median(times), value)
+    (tf, vf), (tr, vr) = verdicts["flexible"], verdicts["rigid"]
+    print("stability verdict of the last step, median of 7:")
+    print(f"  parts together (coupled_stability): {tf * 1e3:8.1f} ms   smallest "
+          f"eigenvalue {vf:.4g} N m")
+    print(f"  the line alone on the rigid tube:   {tr * 1e3:8.1f} ms   smallest "
+          f"eigenvalue {vr:.4g} N m")
+    print(f"  ratio: {tf / tr:.2f}")
 
 
 if __name__ == "__main__":

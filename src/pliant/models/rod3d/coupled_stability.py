@@ -27,10 +27,9 @@ from collections.abc import Sequence
 import numpy as np
 
 from pliant.core.equilibrium import NEUTRAL
-from pliant.models.rod3d import kernels
 from pliant.models.rod3d.coupled import Condensed, Coupling
 from pliant.models.rod3d.lowering import State
-from pliant.models.rod3d.stability import conservative, metric
+from pliant.models.rod3d.stability import conservative, metric, shift_bound
 
 _EIGENVALUES = 3  # the few nearest the shift: the smallest among them
 _RAISES = 4  # times the shift may be raised (fourfold each) before giving up
@@ -54,17 +53,9 @@ def not_assessed(coupling: Coupling, states: Sequence[State],
 
 def _shift(coupling: Coupling, states: Sequence[State]) -> float:
     """A bound [N m] on the most negative eigenvalue any part's internal forces can
-    give (``stability.stability_of``'s, in N m), the largest over the parts."""
-    out = 0.0
-    for run, state in zip(coupling.runs, states):
-        rod = run.rod
-        _, moments = kernels.node_outputs(state[1], rod.elem_frame, rod.joint_hh,
-                                          rod.target.joint_k0, rod.K, rod.node_frame)
-        force = float(np.abs(state[2]).max(initial=0.0))
-        moment = float(np.abs(moments).max(initial=0.0))
-        c = 2.0 * (1.0 + force + moment**2 / (2.0 * float(rod.K[:3].min())))
-        out = max(out, c * rod.moment_scale)
-    return out
+    give (``stability.shift_bound``, in N m), the largest over the parts."""
+    return max(shift_bound(run.rod, state) * run.rod.moment_scale
+               for run, state in zip(coupling.runs, states))
 
 
 def _contact_shift(coupling: Coupling, ev, mus: Sequence[np.ndarray], length: float) -> float:

@@ -56,6 +56,17 @@ def metric(rod: Rod) -> tuple[np.ndarray, np.ndarray]:
 
 
 
+def shift_bound(rod: Rod, state: State) -> float:
+    """Twice a bound (in EI / L) on how negative the Hessian's geometric terms can make
+    an eigenvalue: by Young's inequality, |n| + |m|^2 / 2 min(EI, GJ) in these units,
+    n and m the largest internal force and moment; a shift below every eigenvalue."""
+    _, moments = kernels.node_outputs(state[1], rod.elem_frame, rod.joint_hh,
+                                      rod.target.joint_k0, rod.K, rod.node_frame)
+    force = float(np.abs(state[2]).max(initial=0.0))
+    moment = float(np.abs(moments).max(initial=0.0))
+    return 2.0 * (1.0 + force + moment**2 / (2.0 * float(rod.K[:3].min())))
+
+
 def stability_of(run: Run, state: State, seed: np.ndarray | None = None,
                found: list | None = None, loads: Loads | None = None) -> tuple[bool, float]:
     """(stable, smallest eigenvalue [N m]) of the Hessian of the Lagrangian on the
@@ -79,12 +90,7 @@ def stability_of(run: Run, state: State, seed: np.ndarray | None = None,
     from pliant.models.lanczos import softest_mode  # noqa: PLC0415 (its own kernels)
 
     rod = run.rod
-    _X, Q, lam = state[:3]
-    _, moments = kernels.node_outputs(Q, rod.elem_frame, rod.joint_hh, rod.target.joint_k0,
-                                      rod.K, rod.node_frame)
-    force = float(np.abs(lam).max(initial=0.0))
-    moment = float(np.abs(moments).max(initial=0.0))
-    c = 2.0 * (1.0 + force + moment**2 / (2.0 * float(rod.K[:3].min())))
+    c = shift_bound(rod, state)
     primal, weight = metric(rod)
     _, ab, _ = run.residual(state, rod.target if loads is None else loads, want_jac=True)
     kl, ku = rod.kl, rod.ku
