@@ -610,3 +610,16 @@ def test_friction_between_parts_obeys_coulomb_and_balances():
         hose.problem.gravity)
     np.testing.assert_allclose(sum(v.force for v in hose.loads.values()) + weight + push,
                                0.0, atol=1e-8)
+
+
+def test_the_evaluation_decides_the_stability_of_steps_solved_together():
+    """Every step of the clip scene is solved together (the cable slides through its
+    clip): each now has the coupled system's verdict, where the evaluation listed all 31
+    as "stability not decided" (unchecked), blaming follower loads or friction."""
+    from pliant.assembly.evaluate import evaluate
+
+    ev = evaluate(load_scene(EXAMPLES / "scenes" / "cable_through_clip.toml"))
+    assert len(ev.run.steps) == 31
+    assert all(step.stable is True for step in ev.run.steps)
+    (check,) = [c for c in ev.checks if c.rule == "stability"]
+    assert check.zone.value == "green" and check.value == 0.0
