@@ -795,13 +795,12 @@ class Condensed:
     stability's shift-invert (``coupled_stability``) share it."""
 
     factors: list
-    coords: list[list[int]]  # per part, the first unknown of each coupling coordinate
+    cols: list[np.ndarray]  # per part, its unknowns that are coupling coordinates
     offset: np.ndarray  # where each part's coordinates start among them
     W: list[np.ndarray]  # per part, its band's solution for each unit load
     Kc: np.ndarray
     E: np.ndarray
     lu: tuple  # the dense system's LU (scipy.linalg.lu_factor)
-    sizes: list[int]  # each block's unknowns
 
     @classmethod
     def of(cls, runs: Sequence[Run], bands: Sequence[np.ndarray],
@@ -823,22 +822,22 @@ class Condensed:
         sizes = [b.D.shape[0] for b in blocks]
         m = sum(sizes)
         factors, W = [], []
+        cols = [np.array([first + c for first in coords[i] for c in range(3)], dtype=np.int64)
+                for i in range(P)]
         Z = np.zeros((nc, nc))
         for i, run in enumerate(runs):
             fac = _factor(run, bands[i])
             if fac is None:
                 return None
             factors.append(fac)
-            cols = np.array([first + c for first in coords[i] for c in range(3)],
-                            dtype=np.int64)
-            Wi = np.empty((run.rod.n, cols.shape[0]))
-            for k, col in enumerate(cols):
+            Wi = np.empty((run.rod.n, cols[i].shape[0]))
+            for k, col in enumerate(cols[i]):
                 unit = np.zeros(run.rod.n)
                 unit[col] = 1.0
                 Wi[:, k] = _solve(fac, unit)
             W.append(Wi)
             sl = slice(offset[i], offset[i + 1])
-            Z[sl, sl] = Wi[cols]
+            Z[sl, sl] = Wi[cols[i]]
         # The blocks' terms on those coordinates.
         Kc = np.zeros((nc, nc))
         E = np.zeros((nc, m))
@@ -862,7 +861,7 @@ class Condensed:
             lu = lu_factor(A, check_finite=False)
         if not np.all(np.isfinite(lu[0])) or np.any(np.diag(lu[0]) == 0.0):
             return None
-        return cls(factors, coords, offset, W, Kc, E, lu, sizes)
+        return cls(factors, cols, offset, W, Kc, E, lu)
 
     def solve(self, rhs: Sequence[np.ndarray], rows: Sequence[np.ndarray]
               ) -> tuple[list[np.ndarray], np.ndarray] | None:
@@ -871,9 +870,7 @@ class Condensed:
         from scipy.linalg import lu_solve  # noqa: PLC0415
 
         base = [_solve(fac, r) for fac, r in zip(self.factors, rhs)]
-        z = np.concatenate([base[i][np.array([f + c for f in self.coords[i]
-                                              for c in range(3)], dtype=np.int64)]
-                            for i in range(len(base))] + [np.zeros(0)])
+        z = np.concatenate([b[c] for b, c in zip(base, self.cols)] + [np.zeros(0)])
         sol = lu_solve(self.lu, np.concatenate([z, *rows]), check_finite=False)
         if not np.all(np.isfinite(sol)):
             return None
