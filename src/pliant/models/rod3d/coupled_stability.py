@@ -31,7 +31,10 @@ from pliant.models.rod3d.coupled import Condensed, Coupling
 from pliant.models.rod3d.lowering import State
 from pliant.models.rod3d.stability import conservative, metric, shift_bound
 
-_EIGENVALUES = 3  # the few nearest the shift: the smallest among them
+# The eigenvalue nearest the shift: three took 70 Arnoldi steps a verdict on the clip
+# scene's path, one 41, to the same eigenvalue (a lower one near the shift shows itself
+# by its size, and raises the shift, below).
+_EIGENVALUES = 1
 _RAISES = 4  # times the shift may be raised (fourfold each) before giving up
 
 
