@@ -10,6 +10,8 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
 
 import pliant as pl
 from pliant.assembly.scenes import load_scene
@@ -122,6 +124,57 @@ def test_tubes_pressed_tip_to_tip_slide_off_past_the_two_spring_threshold():
     d = 0.01 - WALL_COMPLIANCE * crossing  # the tubes' diameters, less the walls' give
     assert crossing == pytest.approx(3.0 * PART.bending_stiffness * d / (2.0 * L**3),
                                      rel=0.02)
+
+
+PRESSED: list[bool] = []  # each random pair below: solved (True) or a typed error
+
+
+@settings(max_examples=10, deadline=None, derandomize=True,
+          suppress_health_check=[HealthCheck.too_slow])
+@given(st.floats(0.4, 0.6), st.floats(0.5, 2.0), st.floats(0.5, 2.0),
+       st.one_of(st.floats(0.5, 0.85), st.floats(1.15, 2.0)))
+def test_random_pairs_pressed_tip_to_tip_follow_the_two_spring_threshold(length, ei_a,
+                                                                         ei_b, ratio):
+    """Two cantilevers of one length and different stiffnesses, turned in until their
+    tips press with ``ratio`` times the force at which two springs (their tips, k = 3 EI
+    / L^3) joined by the contact's -f / d lose stability, f* = d k_a k_b / (k_a + k_b).
+    The tips overlap by (ratio - 1) d past touching, which sets that force whatever the
+    stiffnesses. Below f* (by 15 % or more) the coupled verdict is stable, past it
+    unstable; the force is the one aimed at."""
+    d, elements = 0.01, 24
+    tilt = math.asin((GAP - d + ratio * d) / (2.0 * length))
+
+    def problems(turn: float) -> list[Problem]:
+        return [Problem(pl.Part(length=length, bending_stiffness=ei, outer_diameter=d),
+                        (pl.clamp(0.0, (0.0, y, 0.0),
+                                  tangent=(math.cos(turn), sign * math.sin(turn), 0.0),
+                                  normal=(0.0, 0.0, 1.0), name=f"{name} clamp"),),
+                        name=name)
+                for name, y, sign, ei in (("A", 0.0, 1.0, ei_a), ("B", GAP, -1.0, ei_b))]
+
+    solver = rod3d.RodSolver(elements=elements)
+    runs = [Run(lower(p, elements=elements), solver) for p in problems(tilt)]
+    starts = [Run(r.rod.retarget(p, elements), solver) for r, p in zip(runs, problems(0.0))]
+    try:
+        coupling, states, mus = coupled.solve_coupled(
+            runs, [r.cold() for r in starts], solver=solver,
+            start=[r.rod.target for r in starts], held_first=False)
+    except ConvergenceError:
+        PRESSED.append(False)
+        return
+    PRESSED.append(True)
+    k_a, k_b = 3.0 * ei_a / length**3, 3.0 * ei_b / length**3
+    threshold = d * k_a * k_b / (k_a + k_b)
+    force = float(mus[0].sum()) * coupling.F_ref
+    assert force == pytest.approx(ratio * threshold, rel=0.03)
+    stable, _ = coupled_stability.coupled_stability(coupling, states, mus)
+    assert stable is (ratio < 1.0)
+
+
+def test_random_pressed_pairs_are_solved_at_least_nine_times_in_ten():
+    """The floor of the property above (it runs first: tests keep their file order)."""
+    assert len(PRESSED) >= 8
+    assert sum(PRESSED) >= 0.9 * len(PRESSED)
 
 
 def test_pressed_hard_the_tips_are_unstable_and_the_note_says_whose_verdict(pressed):
