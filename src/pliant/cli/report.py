@@ -125,7 +125,9 @@ def _stability_line(eq: Result) -> str:
             "neutral": "[yellow]neutral[/yellow] (a mode that costs no energy: the part "
                        "can drift along a family of equilibria)"}[verdict]
     what = "Hessian" if eq.problem.dimension == 3 else "second variation"
-    if verdict == "neutral" and isinstance(eq, Equilibrium3D):
+    if together:  # (assessed: the verdict of every part solved together at once)
+        what += " of the parts together"
+    elif verdict == "neutral" and isinstance(eq, Equilibrium3D):
         from pliant.models.rod3d.results import describe_mode  # noqa: PLC0415
 
         word += f"; its free mode: {describe_mode(eq)}"
