@@ -193,15 +193,14 @@ def test_parts_apart_have_each_ones_own_stability():
     assert stable and value == pytest.approx(alone, rel=1e-9)
 
 
-def test_the_coupled_eigenvalue_is_that_of_a_finite_difference_jacobian():
-    """The shift-invert on the condensed system against the dense pencil J v = lambda M v,
-    J by central differences of the coupled residual (each part stepped by its own
-    ``step``, the forces between the parts as they are), M each part's metric by its
-    EI / L: the smallest finite eigenvalue (QZ) is the same."""
+def _finite_difference_smallest(coupling, states, mus) -> float:
+    """The smallest finite eigenvalue (QZ) of the dense pencil J v = lambda M v: J by
+    central differences of the coupled residual (each part stepped by its own ``step``,
+    the forces between the parts as they are, the touching set held), M each part's
+    metric (``stability.metric``) in the first part's length (positions by the lengths'
+    ratio cubed, rotations by the ratio) over its EI / L."""
     from scipy.linalg import eig
 
-    coupling, states, mus = _pressed_at(0.2, elements=6)
-    _, value = coupled_stability.coupled_stability(coupling, states, mus)
     loads = [run.rod.target for run in coupling.runs]
     near = [coupling.near(p, states, mu) for p, mu in zip(coupling.pairs, mus)]
     fixed = coupling.touching(coupling.evaluate(states, mus, loads, 1.0, near, False), mus)
@@ -225,14 +224,51 @@ def test_the_coupled_eigenvalue_is_that_of_a_finite_difference_jacobian():
             behind[p][k] -= eps
             columns.append((residual(states, ahead) - residual(states, behind)) / (2 * eps))
     J = np.array(columns).T
-    mass = np.concatenate([np.where(metric(run.rod)[0], metric(run.rod)[1], 0.0)
-                           / run.rod.moment_scale for run in coupling.runs]
-                          + [np.zeros(mu.shape[0]) for mu in mus])
+    masses = []
+    for run in coupling.runs:
+        rod = run.rod
+        primal, weight = metric(rod)
+        ratio = rod.length / coupling.runs[0].rod.length
+        position = np.isin(np.arange(rod.n), rod.ix[:, None] + np.arange(3))
+        masses.append(np.where(primal, weight, 0.0) * np.where(position, ratio**3, ratio)
+                      / rod.moment_scale)
+    mass = np.concatenate(masses + [np.zeros(mu.shape[0]) for mu in mus])
     lam = eig(J, np.diag(mass), right=False)
     lam = lam[np.isfinite(lam) & (np.abs(lam) < 1e6)]
     assert np.abs(lam.imag).max() < 1e-6
+    return float(lam.real.min())
+
+
+def test_the_coupled_eigenvalue_is_that_of_a_finite_difference_jacobian():
+    """The shift-invert on the condensed system against the dense pencil of a
+    finite-difference Jacobian: the pressed tips (unstable), and the example's line on
+    the fitted hose (12 elements each: parts of different stiffnesses and radii, the
+    contact along the hose's curve, stable)."""
+    coupling, states, mus = _pressed_at(0.2, elements=6)
+    _, value = coupled_stability.coupled_stability(coupling, states, mus)
     assert value < 0.0  # pressed hard: unstable (the test above)
-    assert value == pytest.approx(float(lam.real.min()), rel=1e-6)
+    assert value == pytest.approx(_finite_difference_smallest(coupling, states, mus),
+                                  rel=1e-6)
+    from pliant.assembly.scenes import parse_scene
+
+    path = EXAMPLES / "scenes" / "line_over_hose.toml"
+    text = path.read_text(encoding="utf-8").replace(
+        'file = "coolant_hose.toml"', 'file = "coolant_hose.toml"\nelements = 12')
+    scene = parse_scene(text, str(path), path.parent)
+    solver = rod3d.RodSolver(elements=12)
+    eq = None
+    for problem in [scene.problem, *scene.path]:
+        eq = rod3d.solve(problem, warm_start=eq, solver=solver)
+    state = eq.state
+    runs = [Run(rod, solver, gauge_quat=g) for rod, g in zip(state.rods, state.gauges)]
+    assert runs[0].rod.moment_scale != runs[1].rod.moment_scale  # (different EI / L)
+    coupling = coupled.Coupling(runs, list(state.pairs), solver)
+    stable, value = coupled_stability.coupled_stability(coupling, list(state.states),
+                                                        list(state.mus))
+    assert stable and value == pytest.approx(eq.stability[1], rel=1e-12)
+    assert value == pytest.approx(
+        _finite_difference_smallest(coupling, list(state.states), list(state.mus)),
+        rel=1e-6)
 
 
 @pytest.fixture(scope="module")
