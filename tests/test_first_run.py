@@ -24,6 +24,7 @@ from numba.core import event
 from pliant.models import clock, first_run
 kind, job = sys.argv[2], sys.argv[3:]
 cold = first_run.cold(kind)
+first_run.spawn(kind)  # as the CLI does: the helper started before the signatures are read
 helped = first_run.compile_ahead(cores=2, kind=kind)
 ahead = clock.compiling()
 late = []  # the kernels the job compiles itself, named in the failure
@@ -107,3 +108,31 @@ def test_an_unreadable_signature_file_leaves_the_kernels_to_compile_lazily(tmp_p
     assert first_run.recorded() == {}
     assert first_run.compile_kernels([("pliant.models.banded", "band_lu")]) == 0
     assert first_run.compile_ahead(cores=1) is False
+
+
+def test_a_helper_started_ahead_is_taken_once_and_ended_where_it_is_not_wanted(tmp_path,
+                                                                              monkeypatch):
+    """``spawn`` starts the helper once (a second call keeps the first); ``compile_ahead``
+    takes it instead of starting another, and ends it where it cannot use it (here: no
+    signatures to read), so that no process is left behind."""
+    started = []
+
+    def start(kind):
+        proc = subprocess.Popen([sys.executable, "-c", "import time; time.sleep(60)"],
+                                stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True)
+        started.append(proc)
+        return proc
+
+    monkeypatch.setattr("pliant.models.first_run._start_helper", start)
+    monkeypatch.setattr(first_run.os, "cpu_count", lambda: 2)
+    bad = tmp_path / "kernel_signatures.pkl"
+    bad.write_bytes(b"not a pickle")
+    monkeypatch.setitem(first_run.KINDS, "3d", (bad, "rod3d"))
+    first_run.spawn("3d")
+    first_run.spawn("3d")
+    assert len(started) == 1
+    assert first_run.compile_ahead(cores=2) is False
+    assert len(started) == 1  # taken, not started again
+    assert started[0].wait(timeout=30) != 0  # killed: it would have slept a minute
+    for stream in (started[0].stdin, started[0].stdout):
+        stream.close()

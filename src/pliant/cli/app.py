@@ -56,6 +56,7 @@ def _first_run_note(three_d: bool = True) -> None:
     kind = "3d" if three_d else "2d"
     if not first_run.cold(kind):
         return
+    first_run.spawn(kind)  # its start overlaps the signatures' reading (numba's import)
     cores = min(os.cpu_count() or 1, 2)
     seconds = max(5, 5 * round(first_run.estimate(kind, cores) / 5))
     typer.echo(f"compiling the {kind.upper()} solvers (first run only, on {cores} "
