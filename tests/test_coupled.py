@@ -193,6 +193,22 @@ def test_parts_apart_have_each_ones_own_stability():
     assert stable and value == pytest.approx(alone, rel=1e-9)
 
 
+def _line_over_hose(entry: str, elements: int):
+    """The example's line carried along its path onto the fitted hose, with ``entry``
+    added to the hose's ``[[assembled]]`` table: (the last answer, the solver)."""
+    from pliant.assembly.scenes import parse_scene
+
+    path = EXAMPLES / "scenes" / "line_over_hose.toml"
+    text = path.read_text(encoding="utf-8").replace(
+        'file = "coolant_hose.toml"', f'file = "coolant_hose.toml"\n{entry}')
+    scene = parse_scene(text, str(path), path.parent)
+    solver = rod3d.RodSolver(elements=elements)
+    eq = None
+    for problem in [scene.problem, *scene.path]:
+        eq = rod3d.solve(problem, warm_start=eq, solver=solver)
+    return eq, solver
+
+
 def _finite_difference_smallest(coupling, states, mus) -> float:
     """The smallest finite eigenvalue (QZ) of the dense pencil J v = lambda M v: J by
     central differences of the coupled residual (each part stepped by its own ``step``,
@@ -249,16 +265,7 @@ def test_the_coupled_eigenvalue_is_that_of_a_finite_difference_jacobian():
     assert value < 0.0  # pressed hard: unstable (the test above)
     assert value == pytest.approx(_finite_difference_smallest(coupling, states, mus),
                                   rel=1e-6)
-    from pliant.assembly.scenes import parse_scene
-
-    path = EXAMPLES / "scenes" / "line_over_hose.toml"
-    text = path.read_text(encoding="utf-8").replace(
-        'file = "coolant_hose.toml"', 'file = "coolant_hose.toml"\nelements = 12')
-    scene = parse_scene(text, str(path), path.parent)
-    solver = rod3d.RodSolver(elements=12)
-    eq = None
-    for problem in [scene.problem, *scene.path]:
-        eq = rod3d.solve(problem, warm_start=eq, solver=solver)
+    eq, solver = _line_over_hose("elements = 12", elements=12)
     state = eq.state
     runs = [Run(rod, solver, gauge_quat=g) for rod, g in zip(state.rods, state.gauges)]
     assert runs[0].rod.moment_scale != runs[1].rod.moment_scale  # (different EI / L)
@@ -672,16 +679,7 @@ def test_friction_between_parts_obeys_coulomb_and_balances():
     contact the force along the surfaces is at most 0.5 times the force across (at the
     limit where it slides), the hose balances with its clamps, its weight and the line's
     push friction included, and the line feels the opposite."""
-    from pliant.assembly.scenes import parse_scene
-
-    path = EXAMPLES / "scenes" / "line_over_hose.toml"
-    text = path.read_text(encoding="utf-8").replace(
-        'file = "coolant_hose.toml"', 'file = "coolant_hose.toml"\nfriction = 0.5')
-    scene = parse_scene(text, str(path), path.parent)
-    solver = rod3d.RodSolver(elements=60)
-    eq = None
-    for problem in [scene.problem, *scene.path]:
-        eq = rod3d.solve(problem, warm_start=eq, solver=solver)
+    eq, _ = _line_over_hose("friction = 0.5", elements=60)
     assert not any("could not" in n for n in eq.notes)
     c = eq.contacts
     on = [i for i, name in enumerate(c.obstacle) if name == "coolant hose"]
