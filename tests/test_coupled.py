@@ -183,6 +183,19 @@ def test_pressed_hard_the_tips_are_unstable_and_the_note_says_whose_verdict(pres
     assert any("the verdict is the coupled system's" in n for n in a.notes)
 
 
+def test_an_eigenvalue_far_below_the_shift_is_still_found(monkeypatch):
+    """The shift is an estimate, not a bound: without the contacts' share of it (the
+    parts' bound alone, 5.6 N m for the pressed tips) the tips' -42.6 N m lies far below
+    it, and the check at a shift four times as large still finds it, the same value."""
+    coupling, states, mus = _pressed_at(0.2)
+    expected = coupled_stability.coupled_stability(coupling, states, mus)
+    monkeypatch.setattr("pliant.models.rod3d.coupled_stability._contact_shift",
+                        lambda *args: 0.0)
+    stable, value = coupled_stability.coupled_stability(coupling, states, mus)
+    assert not stable and expected[1] < -40.0
+    assert value == pytest.approx(expected[1], rel=1e-9)
+
+
 def test_parts_apart_have_each_ones_own_stability():
     """Not touching, the coupled system's smallest eigenvalue is the smaller of the two
     parts' own (``stability_of``): the same metric, in the same units."""
