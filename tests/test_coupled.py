@@ -37,26 +37,34 @@ PART = pl.Part(length=L, bending_stiffness=1.0, outer_diameter=0.01)
 SOLVER = rod3d.RodSolver(elements=40)
 
 
-def cantilevers(tilt: float) -> list[Problem]:
+def cantilevers(tilt: float, parts: tuple[pl.Part, pl.Part] = (PART, PART)) -> list[Problem]:
     """A along +x from the origin and B from (0, GAP, 0), each turned ``tilt`` toward
     the other: past about 0.1 rad their tips meet."""
     out = []
-    for name, y, sign in (("A", 0.0, 1.0), ("B", GAP, -1.0)):
+    for name, y, sign, part in (("A", 0.0, 1.0, parts[0]), ("B", GAP, -1.0, parts[1])):
         tangent = (math.cos(tilt), sign * math.sin(tilt), 0.0)
-        out.append(Problem(PART, (pl.clamp(0.0, (0.0, y, 0.0), tangent=tangent,
+        out.append(Problem(part, (pl.clamp(0.0, (0.0, y, 0.0), tangent=tangent,
                                            normal=(0.0, 0.0, 1.0), name=f"{name} clamp"),),
                            name=name))
     return out
 
 
+def _pressed_at(tilt: float, elements: int = 40,
+                parts: tuple[pl.Part, pl.Part] = (PART, PART)):
+    """The two cantilevers turned in from parallel by ``tilt`` (their tips pressing past
+    about 0.1 rad), solved together: (coupling, states, mus)."""
+    solver = rod3d.RodSolver(elements=elements)
+    runs = [Run(lower(p, elements=elements), solver) for p in cantilevers(tilt, parts)]
+    starts = [Run(r.rod.retarget(p, elements), solver)
+              for r, p in zip(runs, cantilevers(0.0, parts))]
+    return coupled.solve_coupled(runs, [r.cold() for r in starts], solver=solver,
+                                 start=[r.rod.target for r in starts], held_first=False)
+
+
 @pytest.fixture(scope="module")
 def pressed():
     """The two cantilevers turned in from parallel until they press tip to tip."""
-    runs = [Run(lower(p, elements=40), SOLVER) for p in cantilevers(TILT)]
-    starts = [Run(r.rod.retarget(p, 40), SOLVER) for r, p in zip(runs, cantilevers(0.0))]
-    states = [r.cold() for r in starts]
-    coupling, states, mus = coupled.solve_coupled(
-        runs, states, solver=SOLVER, start=[r.rod.target for r in starts], held_first=False)
+    coupling, states, mus = _pressed_at(TILT)
     return coupled_results.equilibria(coupling, states, mus, ["A", "B"])
 
 
@@ -92,15 +100,6 @@ def test_symmetric_and_as_a_single_cantilever_under_that_load(pressed):
                                                 name="push")), name="single"),
                          solver=SOLVER)
     assert np.abs(single.position - a.position).max() < 1e-8
-
-
-def _pressed_at(tilt: float, elements: int = 40):
-    """The two cantilevers turned in by ``tilt``: (coupling, states, mus)."""
-    solver = rod3d.RodSolver(elements=elements)
-    runs = [Run(lower(p, elements=elements), solver) for p in cantilevers(tilt)]
-    starts = [Run(r.rod.retarget(p, elements), solver) for r, p in zip(runs, cantilevers(0.0))]
-    return coupled.solve_coupled(runs, [r.cold() for r in starts], solver=solver,
-                                 start=[r.rod.target for r in starts], held_first=False)
 
 
 def test_tubes_pressed_tip_to_tip_slide_off_past_the_two_spring_threshold():
@@ -141,24 +140,12 @@ def test_random_pairs_pressed_tip_to_tip_follow_the_two_spring_threshold(length,
     The tips overlap by (ratio - 1) d past touching, which sets that force whatever the
     stiffnesses. Below f* (by 15 % or more) the coupled verdict is stable, past it
     unstable; the force is the one aimed at."""
-    d, elements = 0.01, 24
+    d = 0.01
     tilt = math.asin((GAP - d + ratio * d) / (2.0 * length))
-
-    def problems(turn: float) -> list[Problem]:
-        return [Problem(pl.Part(length=length, bending_stiffness=ei, outer_diameter=d),
-                        (pl.clamp(0.0, (0.0, y, 0.0),
-                                  tangent=(math.cos(turn), sign * math.sin(turn), 0.0),
-                                  normal=(0.0, 0.0, 1.0), name=f"{name} clamp"),),
-                        name=name)
-                for name, y, sign, ei in (("A", 0.0, 1.0, ei_a), ("B", GAP, -1.0, ei_b))]
-
-    solver = rod3d.RodSolver(elements=elements)
-    runs = [Run(lower(p, elements=elements), solver) for p in problems(tilt)]
-    starts = [Run(r.rod.retarget(p, elements), solver) for r, p in zip(runs, problems(0.0))]
+    parts = tuple(pl.Part(length=length, bending_stiffness=ei, outer_diameter=d)
+                  for ei in (ei_a, ei_b))
     try:
-        coupling, states, mus = coupled.solve_coupled(
-            runs, [r.cold() for r in starts], solver=solver,
-            start=[r.rod.target for r in starts], held_first=False)
+        coupling, states, mus = _pressed_at(tilt, elements=24, parts=parts)
     except ConvergenceError:
         PRESSED.append(False)
         return

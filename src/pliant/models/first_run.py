@@ -279,14 +279,12 @@ def compile_ahead(on_kernel: Callable[[str], None] | None = None,
     cores = (os.cpu_count() or 1) if cores is None else cores
     helper = _SPAWNED.pop(kind, None)  # (started ahead by ``spawn``)
     data = recorded(kind)
-    if not data or cores < 2:
-        if helper is not None:  # (it finds no data either, or is not wanted)
-            helper.kill()
-            threading.Thread(target=helper.wait, daemon=True).start()
-            helper = None
-        if not data:
-            return False
-    elif helper is None:
+    if helper is not None and (not data or cores < 2):  # (no data for it, or not wanted)
+        _let_go(helper, kill=True)
+        helper = None
+    if not data:
+        return False
+    if helper is None and cores >= 2:
         helper = _start_helper(kind)
     if helper is None:  # one process: the one-worker schedule, callees first
         compile_kernels(_schedule(data, 1)[0], on_kernel, data["signatures"])
@@ -301,12 +299,17 @@ def compile_ahead(on_kernel: Callable[[str], None] | None = None,
         helper.stdin.close()  # type: ignore[union-attr]
     except OSError:
         pass
-    if not all(peer.done[peer.index[k]].is_set() for k in theirs):  # hung: past the timeout
-        helper.kill()
     # Its kernels are all in the cache (each is written before it is signalled): the job
-    # goes on while it exits; a thread reaps it.
-    threading.Thread(target=helper.wait, daemon=True).start()
+    # goes on while it exits (killed where it hung: past the timeout).
+    _let_go(helper, kill=not all(peer.done[peer.index[k]].is_set() for k in theirs))
     return True
+
+
+def _let_go(helper: subprocess.Popen, kill: bool) -> None:
+    """Leave the helper to exit (killed first where ``kill``), reaped by a thread."""
+    if kill:
+        helper.kill()
+    threading.Thread(target=helper.wait, daemon=True).start()
 
 
 def _helper(parent: int, kind: str = "3d") -> None:
