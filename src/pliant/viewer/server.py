@@ -44,7 +44,8 @@ def node_modules() -> Path:
         path = Path(__file__).resolve().parents[3] / "web" / "node_modules"
     if not (path / "three" / "build" / "three.module.js").is_file():
         raise PliantError(f"three.js is not installed in {path}: run `npm ci --prefix web` "
-                          "in the repository (the README's first command does)")
+                          "in the repository (the README's second command does), or "
+                          "install pliant's wheel, which carries it")
     return path
 
 
