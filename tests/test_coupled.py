@@ -5,6 +5,7 @@ clamps taking the push."""
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from pathlib import Path
 
@@ -15,6 +16,7 @@ from hypothesis import strategies as st
 
 import pliant as pl
 from pliant.assembly.scenes import load_scene
+from pliant.core.equilibrium import potential_energy
 from pliant.core.problem import (
     PROBE_SAG,
     WALL_COMPLIANCE,
@@ -710,3 +712,60 @@ def test_the_evaluation_decides_the_stability_of_steps_solved_together():
     assert all(step.stable is True for step in ev.run.steps)
     (check,) = [c for c in ev.checks if c.rule == "stability"]
     assert check.zone.value == "green" and check.value == 0.0
+
+
+def test_the_equilibria_of_parts_solved_together_are_ranked_by_all_their_energy(
+        tmp_path, monkeypatch):
+    """``examples/scenes/cable_on_fitted_hose.toml``: a cable 0.55 m long clamped at both
+    ends 0.5 m apart must bow: down, where it rests on a fitted hose across below it
+    (solved together: the hose gives way), or up, free, an arch that gravity would turn
+    over (unstable). Both are listed, the one on
+    the hose first, and it is the cold solve's answer. The energy that ranks them is
+    both parts': the hose's share is its change from untouched, which for a linear
+    structure pushed by f from its equilibrium is the work f . delta / 2 (Clapeyron),
+    delta the point's own displacement; here within 1e-3 of it."""
+    monkeypatch.setenv("PLIANT_CACHE", str(tmp_path / "cache"))
+    problem = load_scene(EXAMPLES / "scenes" / "cable_on_fitted_hose.toml").problem
+    solver = rod3d.RodSolver(elements=40)
+    found = rod3d.equilibria(problem, solver=solver)
+    assert len(found) >= 2
+    resting, arch = found[0], next(e for e in found[1:] if e.position[20, 2] > 0.05)
+    assert resting.position[20, 2] < -0.05 and set(resting.contacts.obstacle) == {"hose"}
+    assert resting.verdict == "stable" and arch.verdict == "unstable"
+    energies = [potential_energy(e) for e in found]
+    assert energies[0] < potential_energy(arch)
+    assert "then solved together with hose" in str(resting.notes[0])
+    # The cold solve answers with the same equilibrium.
+    cold = rod3d.solve(problem, solver=solver)
+    assert np.abs(cold.position - resting.position).max() < 1e-8
+    # The hose gave way, balances, and its share of the energy is the contact's work.
+    (hose,) = resting.fitted
+    rest = rod3d.solved_alone(problem.obstacles[0].fitted)
+    assert hose.position[:, 2].min() < rest.position[:, 2].min() - 1e-5
+    weight = 0.2 * 0.5 * np.array([0.0, 0.0, -9.81])
+    np.testing.assert_allclose(hose.loads["hose clamp"].force + weight
+                               + hose.contacts.force.sum(axis=0), 0.0, atol=1e-8)
+    work = 0.0
+    for s, f in zip(hose.contacts.s, hose.contacts.force):
+        moved = [np.interp(s, hose.s, hose.position[:, k])
+                 - np.interp(s, rest.s, rest.position[:, k]) for k in range(3)]
+        work += 0.5 * float(f @ moved)
+    share = potential_energy(resting) - potential_energy(
+        dataclasses.replace(resting, fitted=()))
+    assert work > 1e-5 and share == pytest.approx(work, rel=1e-3)
+
+
+def test_a_harness_s_energy_is_its_branches_too():
+    """The beam cut in two and joined (above): the potential energy of the halves solved
+    together is the whole beam's, and ``equilibria`` lists that equilibrium."""
+    right = Problem(HALF, (clamp_at(0.5, 0.95, "right"),), gravity=DOWN, name="right half")
+    joint = Junction("cut", 0.5, (Branch("right half", right, 0, (0.0, 0.0, 1.0), 40),))
+    left = Problem(HALF, (clamp_at(0.0, 0.0, "left"),), gravity=DOWN, name="left half",
+                   junctions=(joint,))
+    whole = rod3d.solve(Problem(
+        pl.Part(length=1.0, bending_stiffness=1.0, mass_per_length=2.0),
+        (clamp_at(0.0, 0.0, "left"), pl.Condition(s=0.5, name="cut"),
+         clamp_at(1.0, 0.95, "right")), gravity=DOWN), solver=rod3d.RodSolver(elements=80))
+    (eq,) = rod3d.equilibria(left, solver=rod3d.RodSolver(elements=40))
+    assert potential_energy(eq) == pytest.approx(potential_energy(whole), rel=1e-9)
+    assert "solved together with junction cut" in str(eq.notes[0])

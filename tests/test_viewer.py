@@ -262,6 +262,24 @@ def test_the_page_lists_the_poses_equilibria_and_takes_the_one_chosen(state):
         msg(type="equilibria", budget=1e9)
 
 
+def test_the_page_lists_the_equilibria_of_parts_solved_together(tmp_path, monkeypatch):
+    """A scene whose part rests on a fitted hose: *Other shapes* lists the cable on the
+    hose (solved together, stable) and the free arch (unstable), ranked by the energy of
+    both parts, and *Use* takes the arch, fitted part and all."""
+    monkeypatch.setenv("PLIANT_CACHE", str(tmp_path / "cache"))
+    examples = Path(__file__).resolve().parents[1] / "examples" / "scenes"
+    viewer = ViewerState(Path("cable_on_fitted_hose.toml"), examples, live=False)
+    try:
+        (found,) = by_type(viewer.handle(msg(type="equilibria", budget=20.0)), "equilibria")
+        assert found.ok and [o.verdict for o in found.options][:2] == ["stable", "unstable"]
+        assert found.options[0].potential_energy < found.options[1].potential_energy
+        assert any("solved together with hose" in n for n in found.options[0].notes)
+        (accurate,) = by_type(viewer.handle(msg(type="choose", option=1)), "accurate")
+        assert accurate.ok and np.array(accurate.position)[20, 2] > 0.05  # the arch
+    finally:
+        viewer.close()
+
+
 def test_sessions_are_saved_atomically_and_loaded_back(state, folder):
     state.handle(msg(type="hello"))
     target = [0.5, 0.4, 0.25]

@@ -254,7 +254,8 @@ def all_equilibria(problem, as_json: bool, elements: int | None = None) -> None:
     if not found:
         raise PliantError("no equilibrium: no route reached one (see pliant solve for why)")
     first = ("the first is pliant's answer" if problem.dimension == 2 else
-             "stable first, then by potential energy")
+             "stable first, then by potential energy"
+             + (" (of all the parts solved together)" if problem.solved_together else ""))
     table = Table(title=f"{problem.name or 'problem'}: "
                         f"{count(len(found), 'equilibrium', 'equilibria')} found in "
                         f"{seconds:.2f} s; {first}",

@@ -126,7 +126,31 @@ def potential_energy(eq) -> float:
     the applied forces (and, in 2D, the applied couples, -M theta). Of two stable
     equilibria of one problem, the lower is where a real part is likelier to settle; a
     held component's reaction does no work (its position is fixed), so the same targets
-    add the same constant to every branch. Meaningless with follower loads."""
+    add the same constant to every branch. Meaningless with follower loads.
+
+    For parts solved together (a 3D answer with harness branches or fitted parts it
+    touched), the whole system's, so that two answers of one problem compare: the part's
+    and each branch's, and each touched fitted part's change from its own untouched
+    equilibrium (``FittedPart.solved``; the fitted parts not touched are as they were).
+    Junctions, clips and contacts between the parts are internal: they add no work. Left
+    out: the contacts' own spring energy (their compliance times f^2 / 2, 5e-4 J at 10 N
+    against the wall compliance's 1e-5 m/N)."""
+    total = _own_potential_energy(eq)
+    for branch in getattr(eq, "branches", ()):
+        total += _own_potential_energy(branch)
+    touched = getattr(eq, "fitted", ())
+    if touched:
+        alone = {id(o.fitted.problem): o.fitted.solved for o in eq.problem.obstacles
+                 if getattr(o, "fitted", None) is not None}
+        for part in touched:
+            rest = alone.get(id(part.problem))
+            if rest is not None:
+                total += _own_potential_energy(part) - _own_potential_energy(rest)
+    return total
+
+
+def _own_potential_energy(eq) -> float:
+    """``potential_energy`` of one part: its elastic energy and its dead loads'."""
     problem = eq.problem
     s = np.asarray(eq.s)
     r = np.asarray(eq.position)

@@ -477,16 +477,25 @@ def equilibria(problem: Problem, *, solver: RodSolver | None = None,
     targets first then loads, a swing round the first support, loads first) and, from a
     singular start, each bow side (toward the push, away from it, and the two across).
     Stable and neutral ones first, then unstable, each group by potential energy; each
-    carries a note saying how it was reached. Problems solved together (fitted parts,
-    clips that slide, junctions) are not enumerated: ``solve`` answers those."""
+    carries a note saying how it was reached. A problem solved together (fitted parts,
+    clips that slide or pivot, junctions) gets each of those routes' answers solved
+    together from there (``together.equilibria``), ranked by the energy of all its
+    parts."""
     if problem.dimension != 3:
         raise IllPosedProblemError("rod3d.equilibria enumerates 3D problems; this one is 2D")
-    if problem.solved_together:
-        raise IllPosedProblemError(
-            "equilibria: a problem solved together with other parts or clips that slide "
-            "is not enumerated; solve it (its note says which branch it took)")
     solver = solver or RodSolver()
-    deadline = clock.now() + budget
+    if problem.solved_together:
+        from pliant.models.rod3d import together  # noqa: PLC0415 (it imports this module)
+
+        return together.equilibria(problem, solver, budget)
+    return continuation.best_first(reached(problem, solver, clock.now() + budget),
+                                   problem.part)
+
+
+def reached(problem: Problem, solver: RodSolver, deadline: float) -> list[Equilibrium3D]:
+    """The distinct equilibria every route of a cold solve reaches before ``deadline``
+    (``equilibria``'s, unranked, in the order reached), each with its ``ReachedBy`` note.
+    Flexible parts already fitted count as rigid tubes here."""
     found: list[Equilibrium3D] = []
     rod = lower(problem, elements=solver.elements)
     for name in ("straight", "two_stage", "swing", "loads_first"):
@@ -512,7 +521,7 @@ def equilibria(problem: Problem, *, solver: RodSolver | None = None,
                                               route=route, how=how),))
             if not any(same_shape(eq, other) for other in found):
                 found.append(eq)
-    return continuation.best_first(found, problem.part)
+    return found
 
 
 def same_shape(a: Equilibrium3D, b: Equilibrium3D) -> bool:

@@ -18,14 +18,16 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from pliant.core.equilibrium import Equilibrium3D
+from pliant.core.events import ReachedBy
 from pliant.errors import ConvergenceError
+from pliant.models import clock, continuation
 from pliant.models.rod3d import coupled
 from pliant.models.rod3d.coupled import Coupling, close_pairs, no_contact_forces
-from pliant.models.rod3d.coupled_results import equilibria
+from pliant.models.rod3d.coupled_results import equilibria as parts_equilibria
 from pliant.models.rod3d.links import Joint, Pivot, Slider
 from pliant.models.rod3d.lowering import Rod, State, qconj, qmul, quat_matrix
 from pliant.models.rod3d.results import WarmState
-from pliant.models.rod3d.solver import RodSolver, Run, solve
+from pliant.models.rod3d.solver import RodSolver, Run, reached, same_shape, solve
 
 
 @dataclass(frozen=True, eq=False)
@@ -133,6 +135,46 @@ def solve_fitted(problem, warm_start, solver: RodSolver, follow_only: bool) -> E
                 "here: fitted parts at rest (their deformation and their clamps' share of "
                 "the contact not computed), sliding clips where they start")
         return replace(rigid, problem=problem, notes=rigid.notes + (note,))
+
+
+def equilibria(problem, solver: RodSolver, budget: float) -> list[Equilibrium3D]:
+    """The distinct equilibria of a problem solved together that pliant's routes reach
+    within ``budget`` seconds: every route's equilibrium of the part with the fitted
+    parts as rigid tubes, its sliding clips held where they start and its branches apart
+    (``solver.reached``), each solved together from there as ``solve_fitted`` does (one
+    that touches no fitted part, in a problem with nothing else to solve together, as it
+    is). Stable and neutral ones first, then by the potential energy of all the parts
+    (``potential_energy``: the touched fitted parts' change included), each with a note
+    saying how it was reached; one the parts cannot be solved together from is left
+    out."""
+    deadline = clock.now() + budget
+    fitted = fitted_of(problem)
+    alone = not (problem.sliders or problem.junctions or problem.pivots)
+    found: list[Equilibrium3D] = []
+    for rigid in reached(_held_problem(problem), solver, deadline):
+        left = deadline - clock.now()
+        if left <= 0.0:
+            break
+        touched = sorted(set(rigid.contacts.obstacle) & {o.name for o in fitted})
+        how = next(n for n in rigid.notes if isinstance(n, ReachedBy))
+        if alone and not touched:
+            eq = rigid
+        else:
+            parts = [o.fitted for o in fitted if o.name in touched]
+            try:
+                eq = _start_together(problem, _own_problem(problem, parts), rigid, parts,
+                                     replace(solver, time_budget=left))
+            except ConvergenceError:
+                continue
+            with_whom = ", ".join(touched + [f"clip {c.name}" for c in problem.sliders]
+                                  + [f"junction {j.name}" for j in problem.junctions]
+                                  + [f"clip {c.name}" for c in problem.pivots])
+            how = ReachedBy(f"{how}, then solved together with {with_whom}",
+                            route=how.route, how=f"{how.how}, solved together")
+        eq = replace(eq, notes=(how, *(n for n in eq.notes if not isinstance(n, ReachedBy))))
+        if not any(same_shape(eq, other) for other in found):
+            found.append(eq)
+    return continuation.best_first(found, problem.part)
 
 
 def _start_together(problem, own, rigid: Equilibrium3D, parts: list, solver: RodSolver):
@@ -296,7 +338,7 @@ def _result(problem, coupling: Coupling, states, mus, parts, iterations: int,
     branches = [b for jn in problem.junctions for b in jn.branches]
     names = ([problem.name or problem.part.name] + [b.name for b in branches]
              + [p.name for p in parts])
-    eqs = equilibria(coupling, states, mus, names)
+    eqs = parts_equilibria(coupling, states, mus, names)
     nb = len(branches)
     first = replace(eqs[0], problem=problem,
                     iterations=eqs[0].iterations + iterations + coupling.iterations,
