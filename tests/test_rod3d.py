@@ -11,6 +11,7 @@ from scipy.special import ellipe, ellipk
 
 import pliant as pl
 from pliant.core.equilibrium import WARM_START_LOST
+from pliant.core.events import Snapped
 from pliant.errors import (
     ConvergenceError,
     IllPosedProblemError,
@@ -24,6 +25,7 @@ from pliant.models.rod3d import kernels
 from pliant.models.rod3d.lowering import lower, slerp_vectors
 from pliant.models.rod3d.solver import Run, Stalled
 from pliant.models.rod3d.stability import stability_dense, stability_of
+from pliant.scene.distance import Obstacle
 
 from .helpers import EXAMPLES, precurved_3d, zoo
 
@@ -523,6 +525,67 @@ def test_past_a_fold_the_part_snaps_and_settles():
     assert "bows toward (0, 0, -1)" in cold.notes[0]
     assert np.allclose(state[0], cold.position, atol=1e-9)
     assert cold.stable
+
+
+def _fuzz_problem(length, ei, mass, knots, target, tangent, ball=None) -> pl.Problem:
+    """A problem of ``benchmarks/fuzz.py``'s 3D family: a pre-curved part clamped at the
+    origin along +x, its end held at ``target`` along ``tangent``, under its weight,
+    with a ball of a tenth of its length to keep out of at ``ball``."""
+    part = pl.Part(length=length, bending_stiffness=ei, mass_per_length=mass,
+                   outer_diameter=0.01 * length, rest_curvature=knots)
+    obstacles = () if ball is None else (Obstacle.sphere("ball", 0.1 * length, ball),)
+    return pl.Problem(part, (pl.clamp(0.0, (0.0, 0.0, 0.0), tangent=(1.0, 0.0, 0.0),
+                                      normal=(0.0, 0.0, 1.0)),
+                             pl.grip(length, target, tangent=tangent, name="hand")),
+                      gravity=(0.0, 0.0, -9.81), obstacles=obstacles)
+
+
+@pytest.mark.parametrize("problem", [
+    _fuzz_problem(0.91625463492671, 6.658170852028013, 0.0,
+                  ((0.020089965002235415, 0.17909266863032702),
+                   (0.14624820062209049, -1.0016251613763394)),
+                  (-0.359262356515175, -0.0003208573173109873, -0.5723419327696949),
+                  (-0.406196166863604, 0.8944169273856076, 0.18714442025185685)),
+    _fuzz_problem(1.2013496710344482, 9.234212459654675, 0.8098917838892592,
+                  ((0.057045960152569686, 0.9062392327834036),
+                   (0.7867511748669143, 1.1592648553842146)),
+                  (-0.2741060883212553, -0.6055202597937301, -0.25814180432074),
+                  (0.891288887322495, -0.16789459919558, 0.42120722085024187),
+                  ball=(-0.73132389, -0.58871638, -0.22403541))],
+    ids=["free", "with a ball"])
+def test_past_a_fold_that_it_cannot_follow_the_part_settles_as_the_hand_moves_on(problem):
+    """Two of the fuzz's problems (numbers 246 and 893 of 2,000, seed 1) where every
+    route meets a fold and the part will not settle just past it (the relaxation creeps
+    along a nearly neutral mode): from the last state before the fold the targets move
+    on in stages, the part settling at each. The answer is checked independently of the
+    solver's residual: global balance of the clamp, the hand, the weight (lumped at the
+    nodes, as the model applies it) and the ball's push; the hand's position and axis;
+    each element's length; stable."""
+    eq = rod3d.solve(problem, solver=rod3d.RodSolver(elements=40))
+    assert any("stages" in str(n) for n in eq.notes if isinstance(n, Snapped))
+    assert eq.verdict == "stable"
+    weight = problem.part.mass_per_length * np.asarray(problem.gravity)
+    h = np.diff(eq.s)
+    lumped = np.zeros((len(eq.s), 3))
+    lumped[:-1] += 0.5 * h[:, None] * weight
+    lumped[1:] += 0.5 * h[:, None] * weight
+    c = eq.contacts
+    force = lumped.sum(axis=0) + sum(ld.force for ld in eq.loads.values())
+    moment = np.cross(eq.position, lumped).sum(axis=0)
+    for ld in eq.loads.values():
+        i = int(np.argmin(np.abs(eq.s - ld.s)))
+        moment += np.cross(eq.position[i], ld.force) + ld.moment
+    if len(c):
+        force += c.force.sum(axis=0)
+        moment += np.cross(c.point, c.force).sum(axis=0)
+    scale = problem.part.bending_stiffness / problem.part.length
+    assert np.abs(force).max() < 1e-8 * scale / problem.part.length
+    assert np.abs(moment).max() < 1e-8 * scale
+    hand = problem.condition("hand")
+    np.testing.assert_allclose(eq.position[-1], hand.position, atol=1e-10)
+    np.testing.assert_allclose(eq.tangent[-1], hand.tangent, atol=1e-8)
+    np.testing.assert_allclose(np.linalg.norm(np.diff(eq.position, axis=0), axis=1), h,
+                               atol=1e-10)
 
 
 @pytest.mark.parametrize(("factor", "side", "weight", "stable"),
