@@ -277,3 +277,25 @@ def test_targets_the_2d_routes_missed_are_reached_and_the_3d_model_agrees(hand, 
     other = pl.solve(problem, warm_start=planar_start(problem))
     assert equilibrium_error(other) < 1e-8
     np.testing.assert_allclose(other.position, eq.position, atol=1e-7)
+
+
+def test_a_hairpin_is_reached_from_the_3d_models_planar_answer():
+    """The fuzz's problem 1645 (of 3,000, seed 1): a part 0.41 m long clamped along +x
+    and its end held 0.39 m behind the clamp pointing on, a hairpin. The 2D routes meet
+    folds; the 3D model's planar answer is a start, but its forces are too large for the
+    shooting's default intervals: with 16 times the restart nodes the 2D Newton takes
+    it. Checked by integrating the ODE again (solve_ivp) and by the conditions."""
+    from pliant.core.events import WarmStartLost, has
+    from pliant.models.dispatch import planar_start
+    from pliant.models.elastica2d.reference import equilibrium_error
+
+    L = 0.41151760493023815
+    hand = pl.grip(L, position=(-0.3888529390134358, -0.020049302669242285),
+                   angle=-0.013695720083418017, name="hand")
+    problem = pl.Problem(pl.Part(L, 0.7377914023913281, mass_per_length=0.020010551440918734),
+                         (pl.clamp(0.0), hand), gravity=(0.0, -9.81))
+    eq = pl.solve(problem, warm_start=planar_start(problem))
+    assert not has(eq.notes, WarmStartLost)
+    assert equilibrium_error(eq) < 1e-8
+    assert eq.verdict == "stable"
+    np.testing.assert_allclose(eq.position[-1], hand.position, atol=1e-9)

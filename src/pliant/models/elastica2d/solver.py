@@ -700,13 +700,23 @@ class Run:
             self.steps += 1
             return self.polish(_Point(z, jac, mesh, stats, r))
         if not same:
-            # A different structure (a grip switched to force control): no path between
-            # the two problems, so let a damped Newton find the nearby equilibrium.
-            z, r, status, jac, stats = self.newton(z0, low.target, mesh, strict=False,
-                                                   tol=opts.tolerance)
-            if status == kernels.CONVERGED:
-                self.steps += 1
-                return self.polish(_Point(z, jac, mesh, stats, r))
+            # A different structure (a grip switched to force control, the 3D model's
+            # planar answer): no path between the two problems, so let a damped Newton
+            # find the nearby equilibrium, with 4 and 16 times the restart nodes where
+            # the intervals are too long for its forces (a hairpin's: as ``minima``).
+            base = len(low.nodes) + 1
+            for count in (1, 4, 16):
+                if count > 1:
+                    self.low = low = lower(low.problem, nodes=count * base)
+                    z0 = low.unknowns_from(warm)
+                    mesh = low.mesh(mesh.density)
+                z, r, status, jac, stats = self.newton(z0, low.target, mesh, strict=False,
+                                                       tol=opts.tolerance)
+                if status == kernels.CONVERGED:
+                    self.steps += 1
+                    return self.polish(_Point(z, jac, mesh, stats, r))
+                if clock.now() > self.deadline:
+                    break
             return None
         assert old is not None
         try:
