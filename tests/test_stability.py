@@ -11,6 +11,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 import pliant as pl
+from pliant.models.elastica2d import equilibria
 from pliant.models.elastica2d import stability as planar
 
 
@@ -117,7 +118,6 @@ def test_a_singular_start_returns_the_lower_of_the_two_bow_sides():
 def test_equilibria_lists_what_the_routes_reach_the_answer_first(capsys):
     from pliant.cli.app import all_equilibria
     from pliant.core.equilibrium import potential_energy
-    from pliant.models.elastica2d import equilibria
 
     problem = pl.Problem(pl.Part(1.0, 1.0), (pl.clamp(0.0),
                                              pl.grip(1.0, (0.333, -0.002), angle=-1.106,
@@ -217,3 +217,34 @@ def test_the_sturm_count_finds_the_constrained_pencils_smallest_eigenvalue(seed,
     bound = 1.0 + 50.0  # EI / L plus L |N|, below every eigenvalue (as the verdict's)
     value = bordered.smallest_constrained(diag, off, jac, weight, -2.0 * bound, bound)
     assert value == pytest.approx(exact, abs=1e-9 * bound)
+
+
+@pytest.mark.parametrize(("end", "k"), [("free", math.pi / 2), ("pinned", math.pi)])
+def test_the_sign_by_one_sturm_count_is_the_eigenvalues(end, k):
+    """``stable_sign`` (one count of the eigenvalues below the neutral band, what the
+    solver's choice among equilibria asks) against ``stability`` (the eigenvalue itself):
+    Euler's columns followed on their straight branch to either side of the critical
+    load."""
+    eq = None
+    for fraction in (0.5, 0.99, 1.01, 1.5):
+        eq = pl.solve(column(fraction * k * k, end), warm_start=eq)
+        assert planar.stable_sign(eq, 60) is (fraction < 1.0)
+        assert planar.stable_sign(eq, 60) is planar.stability(eq, 60)[0]
+
+
+def test_the_sign_by_one_sturm_count_is_the_eigenvalues_at_random_targets():
+    """The same, on every equilibrium found for a hand at random targets (a part under
+    its weight, clamped, its end held by position and angle)."""
+    rng = np.random.default_rng(7)
+    checked = 0
+    for _ in range(12):
+        r = math.sqrt(rng.uniform(0.05, 0.9))
+        a, angle = rng.uniform(-math.pi, math.pi, 2)
+        problem = pl.Problem(pl.Part(1.0, 1.0, mass_per_length=float(rng.uniform(0, 1))),
+                             (pl.clamp(0.0), pl.grip(1.0, (r * math.cos(a), r * math.sin(a)),
+                                                     angle=float(angle), name="hand")),
+                             gravity=(0.0, -9.81))
+        for eq in equilibria(problem, budget=2.0):
+            assert planar.stable_sign(eq, 60) is planar.stability(eq, 60)[0]
+            checked += 1
+    assert checked >= 12

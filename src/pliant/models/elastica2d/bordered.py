@@ -135,7 +135,7 @@ def kkt_negatives(diag, off, jac, corner):
 
 
 @njit(cache=True)
-def _below(diag, off, jac, weight, lam, scale):
+def below(diag, off, jac, weight, lam, scale):
     """How many eigenvalues of the pencil (H, W) on J v = 0 lie below lam (H tridiagonal
     on the angles, zero on the translations, W = diag(weight) on the angles); -2 where
     lam is one (to round-off), -1 where the angles' block stays singular with lam nudged
@@ -152,16 +152,16 @@ def _below(diag, off, jac, weight, lam, scale):
 
 @njit(cache=True)
 def smallest_constrained(diag, off, jac, weight, lo, scale):
-    """The smallest eigenvalue of the pencil (H, W) on J v = 0 (``_below``), by bisection
+    """The smallest eigenvalue of the pencil (H, W) on J v = 0 (``below``), by bisection
     to 1e-12 of ``scale`` from lo (below every eigenvalue); NaN where a count fails or
     lo is not below them (the caller then asks a dense eigensolver). A lambda that is an
-    eigenvalue itself (``_below`` -2) is at or above the smallest."""
-    if _below(diag, off, jac, weight, lo, scale) != 0:
+    eigenvalue itself (``below`` -2) is at or above the smallest."""
+    if below(diag, off, jac, weight, lo, scale) != 0:
         return np.nan
     hi = lo + scale
     count = 0
     for _ in range(80):  # up until one lies below
-        count = _below(diag, off, jac, weight, hi, scale)
+        count = below(diag, off, jac, weight, hi, scale)
         if count != 0:
             break
         step = 2.0 * (hi - lo)
@@ -171,7 +171,7 @@ def smallest_constrained(diag, off, jac, weight, lo, scale):
         return np.nan
     while hi - lo > 1e-12 * scale:
         mid = 0.5 * (lo + hi)
-        count = _below(diag, off, jac, weight, mid, scale)
+        count = below(diag, off, jac, weight, mid, scale)
         if count == -1:
             return np.nan
         if count == -2 or count >= 1:

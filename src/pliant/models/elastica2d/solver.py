@@ -64,7 +64,7 @@ from pliant.models.elastica2d.lowering import (
     load_wavenumber,
     lower,
 )
-from pliant.models.elastica2d.stability import stability
+from pliant.models.elastica2d.stability import stability, stable_sign
 from pliant.models.settings import check
 
 
@@ -464,7 +464,7 @@ class Run:
     def stable(self, point: _Point) -> bool | None:
         """Whether a point reached is stable, on a coarse grid (the sign is what counts;
         the answer's own verdict is computed finely when asked for)."""
-        return stability(self._equilibrium(point), JUDGE_ELEMENTS)[0]
+        return stable_sign(self._equilibrium(point), JUDGE_ELEMENTS)
 
     def through(self, start: Arrays, targets: list[Arrays], z: np.ndarray,
                 mesh: Mesh) -> _Point:

@@ -64,6 +64,55 @@ def smallest_eigenvalue(eq, elements: int | None = None) -> float | None:
     dense algebra costs their cube)."""
     from scipy.linalg import eigh, null_space  # noqa: PLC0415 (heavy; on demand)
 
+    form = _second_variation(eq, elements)
+    if form is None:
+        return None
+    Q, A, metric, diagonal, k, weight, bound, w = form
+    n = Q.shape[0]
+    value = None
+    if n > DENSE_UP_TO:
+        value = _smallest_sturm(diagonal, k, A, weight, bound) if not w else None
+        if value is None:
+            value = _smallest_sparse(Q, A, metric, -2.0 * bound)
+    if value is not None:
+        return value
+    Z = null_space(A) if A.shape[0] else np.eye(n)
+    reduced = Z.T @ Q @ Z
+    mass = Z.T @ (metric[:, None] * Z)
+    return float(eigh(0.5 * (reduced + reduced.T), 0.5 * (mass + mass.T),
+                      eigvals_only=True, subset_by_index=(0, 0))[0])
+
+
+def stable_sign(eq, elements: int | None = None) -> bool | None:
+    """``stability(eq, elements)[0]`` without the eigenvalue: whether none lies below
+    the neutral band (-``NEUTRAL`` EI / L), by one Sturm count of the constrained
+    pencil (``bordered``: n m operations, where the dense eigensolver costs n^3). For
+    choosing among equilibria, where only the sign counts. The eigensolvers answer where
+    the count cannot (an extensible part, dependent constraints, a singular count)."""
+    form = _second_variation(eq, elements)
+    if form is None:
+        return None
+    _, A, _, diagonal, k, weight, _, w = form
+    part = eq.problem.part
+    scale = part.bending_stiffness / part.length
+    if not w and not (A.shape[0] and np.linalg.matrix_rank(A) < A.shape[0]):
+        from pliant.models.elastica2d.bordered import below  # noqa: PLC0415
+
+        jac = np.ascontiguousarray(np.hstack([A[:, -2:], A[:, :-2]]))  # the shift first
+        count = below(np.ascontiguousarray(diagonal, dtype=float),
+                      np.ascontiguousarray(-k, dtype=float), jac,
+                      np.ascontiguousarray(weight, dtype=float), -NEUTRAL * scale, scale)
+        if count >= 0:
+            return count == 0
+    return stability(eq, elements)[0]
+
+
+def _second_variation(eq, elements: int | None):
+    """The discretised second variation (see the module): (Q, A, metric, diagonal, k,
+    weight, bound, w) with Q the form on the element angles (then the stretches, then
+    the first end's shift), A the constraints' rows, the metric, the angles' tridiagonal
+    block (diagonal, -k), their weight h / L, a bound below every eigenvalue [N m] and
+    the number of stretch unknowns; None with follower loads."""
     problem = eq.problem
     if any(st.follower_load != (0.0, 0.0) for st in problem.stations) or any(
             ld.follower for ld in problem.distributed):
@@ -110,6 +159,7 @@ def smallest_eigenvalue(eq, elements: int | None = None) -> float | None:
     Q[idx, idx] = diagonal
     Q[idx[:-1], idx[1:]] = -k
     Q[idx[1:], idx[:-1]] = -k
+    shear = np.zeros(m)
     if w:
         shear = np.einsum("ij,ij->i", force, normal)
         Q[m + idx, m + idx] = h * ea
@@ -133,18 +183,7 @@ def smallest_eigenvalue(eq, elements: int | None = None) -> float | None:
     bound = EI / L + L * float(np.abs(axial * stretch).max(initial=0.0))
     if w:
         bound += L * float(np.max(shear**2, initial=0.0)) / ea
-    value = None
-    if n > DENSE_UP_TO:
-        value = _smallest_sturm(diagonal, k, A, h / L, bound) if not w else None
-        if value is None:
-            value = _smallest_sparse(Q, A, metric, -2.0 * bound)
-    if value is not None:
-        return value
-    Z = null_space(A) if rows else np.eye(n)
-    reduced = Z.T @ Q @ Z
-    weight = Z.T @ (metric[:, None] * Z)
-    return float(eigh(0.5 * (reduced + reduced.T), 0.5 * (weight + weight.T),
-                      eigvals_only=True, subset_by_index=(0, 0))[0])
+    return Q, A, metric, diagonal, k, h / L, bound, w
 
 
 def _smallest_sturm(diagonal: np.ndarray, k: np.ndarray, A: np.ndarray,
