@@ -21,6 +21,7 @@ from pathlib import Path
 import numpy as np
 
 from pliant.assembly.scenes import parse_scene
+from pliant.core.equilibrium import potential_energy
 from pliant.models import rod3d
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -85,6 +86,31 @@ def main() -> None:
     print(f"  the line alone on the rigid tube:   {tr * 1e3:8.1f} ms   smallest "
           f"eigenvalue {vr:.4g} N m")
     print(f"  ratio: {tf / tr:.2f}")
+    enumeration()
+
+
+def enumeration(repeat: int = 5) -> None:
+    """``rod3d.equilibria`` on examples/scenes/cable_on_fitted_hose.toml (a cable that
+    bows down onto a fitted hose or up, free), against the same routes with the hose a
+    rigid tube (the part's own equilibria only): what solving each route's answer
+    together costs."""
+    path = ROOT / "examples" / "scenes" / "cable_on_fitted_hose.toml"
+    text = path.read_text(encoding="utf-8")
+    print("equilibria of the cable on the fitted hose (40 elements), median of "
+          f"{repeat}:")
+    for name, changed in (("hose flexible (solved together)", text),
+                          ("hose rigid (16-sided tube)", text.replace(
+                              'file = "hose_across.toml"',
+                              'file = "hose_across.toml"\nflexible = false'))):
+        problem = parse_scene(changed, str(path), path.parent).problem
+        solver = rod3d.RodSolver(elements=40)
+        times, found = [], []
+        for _ in range(repeat):
+            start = time.perf_counter()
+            found = rod3d.equilibria(problem, solver=solver)
+            times.append(time.perf_counter() - start)
+        listed = ", ".join(f"{potential_energy(e):.5g} J {e.verdict}" for e in found)
+        print(f"  {name}: {statistics.median(times) * 1e3:8.1f} ms   {listed}")
 
 
 if __name__ == "__main__":

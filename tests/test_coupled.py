@@ -723,7 +723,8 @@ def test_the_equilibria_of_parts_solved_together_are_ranked_by_all_their_energy(
     the hose first, and it is the cold solve's answer. The energy that ranks them is
     both parts': the hose's share is its change from untouched, which for a linear
     structure pushed by f from its equilibrium is the work f . delta / 2 (Clapeyron),
-    delta the point's own displacement; here within 1e-3 of it."""
+    delta the point's own displacement; here within 1e-3 of it. With the hose held
+    rigid (the same system constrained) the minimum lies higher."""
     monkeypatch.setenv("PLIANT_CACHE", str(tmp_path / "cache"))
     problem = load_scene(EXAMPLES / "scenes" / "cable_on_fitted_hose.toml").problem
     solver = rod3d.RodSolver(elements=40)
@@ -753,6 +754,14 @@ def test_the_equilibria_of_parts_solved_together_are_ranked_by_all_their_energy(
     share = potential_energy(resting) - potential_energy(
         dataclasses.replace(resting, fitted=()))
     assert work > 1e-5 and share == pytest.approx(work, rel=1e-3)
+    # The hose held rigid is the same system constrained: its minimum lies higher.
+    from pliant.assembly.scenes import parse_scene
+
+    path = EXAMPLES / "scenes" / "cable_on_fitted_hose.toml"
+    text = path.read_text(encoding="utf-8").replace(
+        'file = "hose_across.toml"', 'file = "hose_across.toml"\nflexible = false')
+    rigid = rod3d.solve(parse_scene(text, str(path), path.parent).problem, solver=solver)
+    assert potential_energy(rigid) > potential_energy(resting) + 1e-5
 
 
 def test_a_harness_s_energy_is_its_branches_too():
