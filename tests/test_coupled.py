@@ -764,6 +764,35 @@ def test_the_equilibria_of_parts_solved_together_are_ranked_by_all_their_energy(
     assert potential_energy(rigid) > potential_energy(resting) + 1e-5
 
 
+def test_a_cold_solve_whose_first_route_cannot_be_solved_together_tries_the_others(
+        tmp_path, monkeypatch):
+    """Where the first route's answer cannot be solved together (here refused once, for
+    the test), a cold solve does not fall back to holding the fitted part rigid while
+    another route's answer can be: it answers with the best of those, solved together,
+    and says why. Here that is the same cable resting on the hose (the straight route
+    reaches it again), to 1e-9 m."""
+    monkeypatch.setenv("PLIANT_CACHE", str(tmp_path / "cache"))
+    problem = load_scene(EXAMPLES / "scenes" / "cable_on_fitted_hose.toml").problem
+    solver = rod3d.RodSolver(elements=40)
+    plain = rod3d.solve(problem, solver=solver)
+    real = coupled.solve_coupled
+    calls = []
+
+    def refuse_once(*args, **kwargs):
+        calls.append(1)
+        if len(calls) == 1:
+            raise ConvergenceError("refused for the test", residual=1.0)
+        return real(*args, **kwargs)
+
+    monkeypatch.setattr(coupled, "solve_coupled", refuse_once)
+    eq = rod3d.solve(problem, solver=solver)
+    assert eq.fitted and len(calls) >= 2
+    assert any("the first route's answer could not be solved together with hose" in n
+               for n in eq.notes)
+    assert np.abs(eq.position - plain.position).max() < 1e-9
+    assert eq.verdict == "stable"
+
+
 def test_a_harness_s_energy_is_its_branches_too():
     """The beam cut in two and joined (above): the potential energy of the halves solved
     together is the whole beam's, and ``equilibria`` lists that equilibrium."""

@@ -116,6 +116,7 @@ def solve_fitted(problem, warm_start, solver: RodSolver, follow_only: bool) -> E
                 if follow_only:
                     raise
         warm_start = None  # the rigid solve below starts cold
+    cold = warm_start is None
     rigid = _solve(_held_problem(problem), warm_start, solver, follow_only, rigid=True)
     touched = sorted({name for name in rigid.contacts.obstacle}
                      & {o.name for o in fitted})
@@ -128,9 +129,21 @@ def solve_fitted(problem, warm_start, solver: RodSolver, follow_only: bool) -> E
         if follow_only:
             raise
         # Said, not hidden: the answer is the one with those parts held still.
+        held = ", ".join(touched + [c.name for c in problem.sliders])
+        if cold:
+            # Another route's answer may be solved together (the first's may lie past a
+            # fold that letting the fitted parts go crosses): the best of those.
+            found = equilibria(problem, solver, solver.time_budget)
+            if found:
+                best = found[0]
+                note = (f"the first route's answer could not be solved together with "
+                        f"{held} ({err}); this is the best of the equilibria the other "
+                        "routes lead to, solved together from there (stable first, then "
+                        "the least energy of all the parts)")
+                return replace(best, notes=best.notes + (note,))
         if problem.junctions:  # a harness has no answer without its branches
             raise
-        held = ", ".join(touched + [c.name for c in problem.sliders])
+        # Said, not hidden: the answer is the one with those parts held still.
         note = (f"{held} could not be solved together with the part ({err}); held rigid "
                 "here: fitted parts at rest (their deformation and their clamps' share of "
                 "the contact not computed), sliding clips where they start")
