@@ -75,15 +75,18 @@ def strip_turned(turn: float) -> pl.Problem:
 
 def test_a_warm_start_that_cannot_be_followed_is_an_event():
     """From the branch bowed up, turned past its fold: the warm start cannot be followed
-    (the part snaps), so the solve answers from the rest state and says so with a
-    WarmStartLost, the event a path follower counts as a snap; the answer is the cold
-    solve's. A turn short of the fold is followed, with no such event."""
+    (the part snaps), so the solve lets the part settle from the last state before the
+    fold and says so with a WarmStartLost, the event a path follower counts as a snap;
+    here where it settles is the cold solve's answer too (the strip bowed down). A turn
+    short of the fold is followed, with no such event."""
     start = rod3d.solve(strip_turned(-0.01))
     near = rod3d.solve(strip_turned(0.3), warm_start=start)
     assert not has(near.notes, WarmStartLost)
     far = rod3d.solve(strip_turned(0.8), warm_start=start)
     event = next(e for e in far.events if isinstance(e, WarmStartLost))
     assert event.to_dict()["kind"] == "warm_start_lost"
+    assert "snaps through; this is where it settles from there" in event
+    assert far.verdict == "stable"
     cold = rod3d.solve(strip_turned(0.8))
     assert np.allclose(far.position, cold.position, atol=1e-8)
 

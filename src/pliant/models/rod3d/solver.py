@@ -558,7 +558,11 @@ def _solve(problem: Problem, warm_start: Equilibrium3D | None, solver: RodSolver
                 raise run.stall or Stalled(0.0, math.inf, "the warm start could not be "
                                             "followed to this problem")
             else:
-                run.notes.append(WarmStartLost(WARM_START_LOST))
+                # The part snaps where its path meets a fold: where it settles from
+                # there is what a real one does (a cold solve may find another branch).
+                snap = run.snapped(run.stall) if run.stall is not None else None
+                run.notes.append(WarmStartLost(snap[1] if snap else WARM_START_LOST))
+                state = snap[0] if snap else None
         if state is None:
             state = run.cold()
         if run.rod.gauge_frame >= 0 and run.rod.K[0] != run.rod.K[1]:
