@@ -16,7 +16,7 @@ import numpy as np
 from pliant.core.equilibrium import potential_energy
 from pliant.core.events import BranchTaken, NoStableBranch, Snapped, Status
 from pliant.core.numbers import clean
-from pliant.models import continuation
+from pliant.models import clock, continuation
 from pliant.models.continuation import Candidate, Stalled, first_route, ranked
 from pliant.models.rod3d.lowering import Loads, Rod, State, quat_matrix
 from pliant.models.rod3d.results import probe
@@ -296,11 +296,16 @@ class Routes:
         """A warm start whose path to this problem met a fold (the part snaps through
         there, as a real one would): where it settles from the last state before the
         fold (``settled_along``), with the words that say so; None where it does not
-        settle (the solve then starts from the unloaded part)."""
+        settle (the solve then starts from the unloaded part, with at least three
+        quarters of the time left: this may take no more than a quarter)."""
+        deadline = self.deadline
+        self.deadline = min(deadline, clock.now() + 0.25 * max(deadline - clock.now(), 0.0))
         try:
             state, count = self.settled_along(stall)
         except Stalled:
             return None
+        finally:
+            self.deadline = deadline
         return state, (
             f"the warm start could not be followed to this problem: at {stall.t:.3g} of "
             "the way its path meets a fold and the part snaps through; this is where it "
