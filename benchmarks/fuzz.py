@@ -17,7 +17,9 @@ tube outside the ball.
     .venv/bin/python benchmarks/fuzz.py [N2D] [N3D]
 
 It prints, per family: tried, converged and checked right, converged but wrong, typed
-errors, untyped exceptions, and runs slower than the solver's budget.
+errors, untyped exceptions, and runs slower than the solver's budget; and the index of
+each problem refused or wrong in its model's sequence (seed 1: ``problem_2d`` or
+``problem_3d`` called that many times before it), so that one can be looked at again.
 """
 
 from __future__ import annotations
@@ -34,6 +36,7 @@ from pliant.errors import PliantError
 
 BUDGET = 20.0  # s: a solve past this counts as a timeout
 WORST: dict[str, float] = defaultdict(float)  # the largest error of a converged answer
+REFUSED: dict[str, list[int]] = defaultdict(list)  # the indices of typed errors and wrong answers
 
 
 def random_part(rng: np.random.Generator, three: bool) -> pl.Part:
@@ -151,7 +154,7 @@ def run(kind: str, count: int, seed: int, tolerance: float) -> dict[str, Counter
     solver = None
     if kind == "3D":
         solver = pl.RodSolver(elements=40)
-    for _ in range(count):
+    for index in range(count):
         family, problem = problem_2d(rng) if kind == "2D" else problem_3d(rng)
         row = table[family]
         row["tried"] += 1
@@ -161,6 +164,7 @@ def run(kind: str, count: int, seed: int, tolerance: float) -> dict[str, Counter
             error = check_2d(eq) if kind == "2D" else check_3d(eq)
         except PliantError:
             row["typed error"] += 1
+            REFUSED[family].append(index)
             continue
         except Exception:
             row["untyped"] += 1
@@ -170,6 +174,8 @@ def run(kind: str, count: int, seed: int, tolerance: float) -> dict[str, Counter
                 row["timeout"] += 1
         WORST[family] = max(WORST[family], error)
         row["right" if error < tolerance else "wrong"] += 1
+        if error >= tolerance:
+            REFUSED[family].append(index)
     return table
 
 
@@ -185,6 +191,9 @@ def main() -> None:
             print(f"{family:26s} {row['tried']:6d} {row['right']:6d} {row['wrong']:6d} "
                   f"{row['typed error']:6d} {row['untyped']:8d} {row['timeout']:8d}  "
                   f"{done / max(row['tried'], 1):.1%} (worst error {WORST[family]:.1e})")
+            if REFUSED[family]:  # to look at one again: the same seed, the same index
+                print(f"    refused or wrong, by index of the {kind} sequence: "
+                      f"{REFUSED[family]}")
         print(f"  ({kind}: {time.perf_counter() - start:.0f} s)")
 
 
