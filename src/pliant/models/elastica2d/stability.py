@@ -62,11 +62,14 @@ def smallest_eigenvalue(eq, elements: int | None = None) -> float | None:
     """The smallest eigenvalue [N m] (see the module), None with follower loads;
     ``elements`` about how many (default ``ELEMENTS``; fewer for a quick verdict: the
     dense algebra costs their cube)."""
+    form = _second_variation(eq, elements)
+    return None if form is None else _smallest(form)
+
+
+def _smallest(form: tuple) -> float:
+    """``smallest_eigenvalue`` of a second variation already assembled."""
     from scipy.linalg import eigh, null_space  # noqa: PLC0415 (heavy; on demand)
 
-    form = _second_variation(eq, elements)
-    if form is None:
-        return None
     Q, A, metric, diagonal, k, weight, bound, w = form
     n = Q.shape[0]
     value = None
@@ -95,16 +98,29 @@ def stable_sign(eq, elements: int | None = None) -> bool | None:
     _, A, _, diagonal, k, weight, _, w = form
     part = eq.problem.part
     scale = part.bending_stiffness / part.length
-    if not w and not (A.shape[0] and np.linalg.matrix_rank(A) < A.shape[0]):
+    threshold = -NEUTRAL * scale
+    pencil = None if w else _bordered(diagonal, k, A, weight)
+    if pencil is not None:
         from pliant.models.elastica2d.bordered import below  # noqa: PLC0415
 
-        jac = np.ascontiguousarray(np.hstack([A[:, -2:], A[:, :-2]]))  # the shift first
-        count = below(np.ascontiguousarray(diagonal, dtype=float),
-                      np.ascontiguousarray(-k, dtype=float), jac,
-                      np.ascontiguousarray(weight, dtype=float), -NEUTRAL * scale, scale)
+        diag, off, jac, mass = pencil
+        count = below(diag, off, jac, mass, threshold, scale)
         if count >= 0:
             return count == 0
-    return stability(eq, elements)[0]
+    return _smallest(form) > threshold
+
+
+def _bordered(diagonal: np.ndarray, k: np.ndarray, A: np.ndarray, weight: np.ndarray
+              ) -> tuple[np.ndarray, ...] | None:
+    """An inextensible part's pencil as ``bordered``'s counts take it: (the angles'
+    tridiagonal diagonal, off-diagonal, the constraints' rows with the first end's shift
+    first, the angles' weight), contiguous; None where A's rows are dependent (a zero
+    eigenvalue the count cannot tell from the part's)."""
+    if A.shape[0] and np.linalg.matrix_rank(A) < A.shape[0]:
+        return None
+    return (np.ascontiguousarray(diagonal, dtype=float), np.ascontiguousarray(-k, dtype=float),
+            np.ascontiguousarray(np.hstack([A[:, -2:], A[:, :-2]])),
+            np.ascontiguousarray(weight, dtype=float))
 
 
 def _second_variation(eq, elements: int | None):
@@ -198,13 +214,11 @@ def _smallest_sturm(diagonal: np.ndarray, k: np.ndarray, A: np.ndarray,
     then answer."""
     from pliant.models.elastica2d.bordered import smallest_constrained  # noqa: PLC0415
 
-    if A.shape[0] and np.linalg.matrix_rank(A) < A.shape[0]:
+    pencil = _bordered(diagonal, k, A, weight)
+    if pencil is None:
         return None
-    jac = np.ascontiguousarray(np.hstack([A[:, -2:], A[:, :-2]]))  # the shift first
-    value = smallest_constrained(np.ascontiguousarray(diagonal, dtype=float),
-                                 np.ascontiguousarray(-k, dtype=float), jac,
-                                 np.ascontiguousarray(weight, dtype=float), -2.0 * bound,
-                                 bound)
+    diag, off, jac, mass = pencil
+    value = smallest_constrained(diag, off, jac, mass, -2.0 * bound, bound)
     return None if math.isnan(value) else float(value)
 
 
