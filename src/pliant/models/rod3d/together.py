@@ -118,17 +118,12 @@ def solve_fitted(problem, warm_start, solver: RodSolver, follow_only: bool) -> E
         warm_start = None  # the rigid solve below starts cold
     cold = warm_start is None
     rigid = _solve(_held_problem(problem), warm_start, solver, follow_only, rigid=True)
-    touched = sorted({name for name in rigid.contacts.obstacle}
-                     & {o.name for o in fitted})
-    if not (touched or problem.sliders or problem.junctions or problem.pivots):
-        return rigid  # (its problem is this one: its samples, computed above, kept)
-    parts = [o.fitted for o in fitted if o.name in touched]
+    touched = _touched(problem, rigid)
     try:
-        return _start_together(problem, _own_problem(problem, parts), rigid, parts, solver)
+        return _from_rigid(problem, rigid, touched, solver)
     except ConvergenceError as err:
         if follow_only:
             raise
-        # Said, not hidden: the answer is the one with those parts held still.
         held = ", ".join(touched + [c.name for c in problem.sliders])
         if cold:
             # Another route's answer may be solved together (the first's may lie past a
@@ -161,24 +156,18 @@ def equilibria(problem, solver: RodSolver, budget: float) -> list[Equilibrium3D]
     saying how it was reached; one the parts cannot be solved together from is left
     out."""
     deadline = clock.now() + budget
-    fitted = fitted_of(problem)
-    alone = not (problem.sliders or problem.junctions or problem.pivots)
     found: list[Equilibrium3D] = []
     for rigid in reached(_held_problem(problem), solver, deadline):
         left = deadline - clock.now()
         if left <= 0.0:
             break
-        touched = sorted(set(rigid.contacts.obstacle) & {o.name for o in fitted})
+        touched = _touched(problem, rigid)
         how = next(n for n in rigid.notes if isinstance(n, ReachedBy))
-        if alone and not touched:
-            eq = rigid
-        else:
-            parts = [o.fitted for o in fitted if o.name in touched]
-            try:
-                eq = _start_together(problem, _own_problem(problem, parts), rigid, parts,
-                                     replace(solver, time_budget=left))
-            except ConvergenceError:
-                continue
+        try:
+            eq = _from_rigid(problem, rigid, touched, replace(solver, time_budget=left))
+        except ConvergenceError:
+            continue
+        if eq is not rigid:
             with_whom = ", ".join(touched + [f"clip {c.name}" for c in problem.sliders]
                                   + [f"junction {j.name}" for j in problem.junctions]
                                   + [f"clip {c.name}" for c in problem.pivots])
@@ -188,6 +177,23 @@ def equilibria(problem, solver: RodSolver, budget: float) -> list[Equilibrium3D]
         if not any(same_shape(eq, other) for other in found):
             found.append(eq)
     return continuation.best_first(found, problem.part)
+
+
+def _touched(problem, rigid: Equilibrium3D) -> list[str]:
+    """The flexible fitted parts a rigid answer (``_held_problem``'s) touches, by name."""
+    return sorted(set(rigid.contacts.obstacle) & {o.name for o in fitted_of(problem)})
+
+
+def _from_rigid(problem, rigid: Equilibrium3D, touched: list[str],
+                solver: RodSolver) -> Equilibrium3D:
+    """The problem's equilibrium from a rigid answer: that answer itself where it touches
+    no fitted part and nothing else is solved together (its problem is then this one);
+    else the parts solved together from it (``_start_together``: raises
+    ConvergenceError where they cannot be)."""
+    if not (touched or problem.sliders or problem.junctions or problem.pivots):
+        return rigid
+    parts = [o.fitted for o in fitted_of(problem) if o.name in touched]
+    return _start_together(problem, _own_problem(problem, parts), rigid, parts, solver)
 
 
 def _start_together(problem, own, rigid: Equilibrium3D, parts: list, solver: RodSolver):
