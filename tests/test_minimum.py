@@ -83,12 +83,25 @@ def test_the_condensed_sqp_algebra_matches_the_dense_one(seed, n, m):
     rng = np.random.default_rng(seed)
     diag, off, jac, hess = _tangent_system(rng, n, m)
     g, c = rng.normal(size=n + 2), rng.normal(size=m)
-    least = np.linalg.eigvalsh(null_space(jac).T @ hess @ null_space(jac))[0]
-    shift = minimum.tangent_shift(diag, off, jac, 0.0)
+    basis = null_space(jac)
+    values, vectors = np.linalg.eigh(basis.T @ hess @ basis)
+    least = values[0]
+    none = np.zeros(0)
+    shift = minimum.tangent_shift(diag, off, jac, 0.0, none)
     assert shift == (0.0 if least > 1e-9 else pytest.approx(1e-6 - least, rel=1e-9))
-    # A step from the shift found, and from another start of its search (a guess).
-    assert minimum.tangent_shift(diag, off, jac, 7.0 * shift + 0.3) == pytest.approx(
+    # A step from the shift found, and from other starts of its search: a guess; the
+    # softest mode roughly (the Rayleigh quotient iteration's start); a random vector,
+    # from which that iteration may find another mode (then its proof fails and the
+    # bisection answers). Each start leaves the softest mode in ``mode``.
+    assert minimum.tangent_shift(diag, off, jac, 7.0 * shift + 0.3, none) == pytest.approx(
         shift, rel=1e-9)
+    softest = basis @ vectors[:, 0]
+    for mode in (softest + 0.2 * rng.normal(size=n + 2) / np.sqrt(n), rng.normal(size=n + 2)):
+        assert minimum.tangent_shift(diag, off, jac, 0.0, mode) == pytest.approx(
+            shift, rel=1e-9)
+        if shift > 0.0:
+            found = mode / np.linalg.norm(mode)
+            assert abs(found @ softest) == pytest.approx(1.0, abs=1e-6)
     kkt = np.block([[hess + shift * np.eye(n + 2), jac.T], [jac, np.zeros((m, m))]])
     exact = np.linalg.solve(kkt, np.concatenate([-g, -c]))
     du, lam = minimum.kkt_step(diag, off, jac, g, c, shift)

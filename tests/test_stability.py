@@ -219,6 +219,38 @@ def test_the_sturm_count_finds_the_constrained_pencils_smallest_eigenvalue(seed,
     assert value == pytest.approx(exact, abs=1e-9 * bound)
 
 
+@settings(max_examples=200, deadline=None, derandomize=True)
+@given(st.integers(0, 2**31), st.integers(1, 9), st.integers(0, 9))
+def test_the_inertia_of_a_small_symmetric_matrix_is_its_eigenvalues_signs(seed, n, zeros):
+    """``bordered.negatives`` (Bunch-Kaufman) against numpy's eigenvalues: random
+    symmetric matrices, some with a zero diagonal block as a KKT matrix's multipliers
+    have (its 2x2 pivots), some rank-deficient (a column combined from the others: then
+    -1, singular, or a count that takes the round-off eigenvalue either way), and each
+    also with its rows and columns scaled by 1e-3 to 1e3 (D A D: the same inertia by
+    Sylvester's law, as the Schur complements' rows of very different sizes)."""
+    from pliant.models.elastica2d import bordered
+
+    rng = np.random.default_rng(seed)
+    a = rng.normal(size=(n, n))
+    a = a + a.T
+    a[n - min(zeros, n):, n - min(zeros, n):] = 0.0
+    if seed % 4 == 0 and n > 1:  # rank n - 1
+        mix = rng.normal(size=n - 1)
+        a[:, -1] = a[:, :-1] @ mix
+        a[-1, :] = a[:, -1]
+        a[-1, -1] = mix @ a[:-1, :-1] @ mix
+    values = np.linalg.eigvalsh(a)
+    tiny = 1e-9 * np.abs(values).max(initial=0.0)
+    clear, near = np.sum(values < -tiny), np.sum(np.abs(values) <= tiny)
+    scale = 10.0 ** rng.uniform(-3.0, 3.0, size=n)
+    for matrix in (a, scale[:, None] * a * scale[None, :]):
+        count = bordered.negatives(matrix)
+        if near:
+            assert count == -1 or clear <= count <= clear + near
+        else:
+            assert count == clear
+
+
 @pytest.mark.parametrize(("end", "k"), [("free", math.pi / 2), ("pinned", math.pi)])
 def test_the_sign_by_one_sturm_count_is_the_eigenvalues(end, k):
     """``stable_sign`` (one count of the eigenvalues below the neutral band, what the

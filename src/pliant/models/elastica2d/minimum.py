@@ -374,15 +374,23 @@ def _tangent_positive(diag, off, jac, shift):
 
 
 @njit(cache=True)
-def tangent_shift(diag, off, jac, guess):
+def tangent_shift(diag, off, jac, guess, mode):
     """The least shift (plus 1e-6) that makes the Hessian positive definite on the null
-    space of the constraints' Jacobian, 0 where it already is: bracketed by
-    ``_tangent_positive`` in growing steps from ``guess`` (the last iteration's, as it
-    moves slowly: two tests where it moved less than 1 %), bisected to 1 % and refined
-    (``_refined_shift``). The least that works: a larger shift, as interior-point codes
-    raise it tenfold, was seen to steer the steps toward a saddle's basin."""
+    space of the constraints' Jacobian, 0 where it already is. The least that works: a
+    larger shift, as interior-point codes raise it tenfold, was seen to steer the steps
+    toward a saddle's basin.
+
+    First by Rayleigh quotient iteration from ``mode`` (the last SQP iteration's softest
+    mode, which moves slowly; an empty array where there is none), checked by one
+    inertia count (``_rayleigh_shift``); else bracketed by ``_tangent_positive`` in
+    growing steps from ``guess`` (the last iteration's shift), bisected to 1 % and
+    refined (``_refined_shift``). ``mode`` receives the softest mode found."""
     if _tangent_positive(diag, off, jac, 0.0):
         return 0.0
+    if mode.shape[0] == diag.shape[0] + 2:
+        least = _rayleigh_shift(diag, off, jac, mode)
+        if least > 0.0:
+            return least + 1e-6
     bound = 1e-6  # Gershgorin's: past it the whole Hessian is positive definite
     for j in range(diag.shape[0]):
         bound = max(bound, -diag[j] + (abs(off[j]) if j < off.shape[0] else 0.0)
@@ -410,16 +418,58 @@ def tangent_shift(diag, off, jac, guess):
             hi = mid
         else:
             lo = mid
-    return _refined_shift(diag, off, jac, lo, hi) + 1e-6
+    return _refined_shift(diag, off, jac, lo, hi, mode) + 1e-6
 
 
 @njit(cache=True)
-def _refined_shift(diag, off, jac, lo, hi):
+def _rayleigh_shift(diag, off, jac, mode):
+    """The least shift from the softest mode's estimate ``mode`` (updated in place), by
+    Rayleigh quotient iteration on the constraints' null space (each step a KKT solve at
+    minus the last quotient: cubic convergence, three or four solves where the
+    bisection took a dozen inertia counts); 0 where it is not proven least. Proof: the
+    quotient q of a vector of the null space bounds the least eigenvalue there from
+    above (Courant), and an inertia count at -q + 1e-6 that finds H + (1e-6 - q) I
+    positive there bounds it from below, 1e-6 under q."""
+    size = np.sqrt(np.sum(mode * mode))
+    if not size > 0.0 or not math.isfinite(size):
+        return 0.0
+    v = mode / size
+    zero = np.zeros(jac.shape[0])
+    scale = np.abs(diag).max() + (np.abs(off).max() if off.shape[0] else 0.0)
+    quotient = np.sum(v[2:] * tridiagonal_times(diag, off, v[2:]))
+    size_j = np.abs(jac).max()
+    solved = False  # v in the null space: after one solve
+    for _ in range(8):
+        w, _ = kkt_step(diag, off, jac, -v, zero, -quotient)
+        size = np.sqrt(np.sum(w * w))
+        if not size > 0.0 or not math.isfinite(size):
+            break  # singular at the quotient: it is an eigenvalue to round-off
+        if np.abs(jac @ w).max() > 1e-10 * size * size_j:
+            break  # the solve's regularised fallback: off the null space
+        v = w / size
+        solved = True
+        last = quotient
+        quotient = np.sum(v[2:] * tridiagonal_times(diag, off, v[2:]))
+        # (H - q) v = v_old / |w| on the null space: the new quotient is exact to
+        # round-off once |w| is 1e9 times the Hessian's scale's inverse.
+        if size * scale >= 1e9 or abs(quotient - last) <= 1e-14 * scale:
+            break
+    if not solved:
+        return 0.0
+    mode[:] = v
+    if quotient < 0.0 and _tangent_positive(diag, off, jac, 1e-6 - quotient):
+        return -quotient
+    return 0.0
+
+
+@njit(cache=True)
+def _refined_shift(diag, off, jac, lo, hi, mode):
     """The least shift in [lo, hi] (1 % apart) to round-off: minus the Rayleigh quotient
     of the reduced Hessian's softest mode, found by inverse iteration at the shift hi
     (where the softest mode dominates by the 1 % gap). The basin the steps descend into
     depends on it: 1 % more led a heavy cable's starts to another, higher minimum than
-    the exact shift's. hi where the quotient falls outside [lo, hi]."""
+    the exact shift's. hi where the quotient falls outside [lo, hi]. ``mode`` (of the
+    unknowns' size, else left alone) receives the mode."""
     n = diag.shape[0]
     v = np.ones(n + 2)
     zero = np.zeros(jac.shape[0])
@@ -436,6 +486,8 @@ def _refined_shift(diag, off, jac, lo, hi):
         least = -quotient
         if change <= 1e-14 * abs(least):
             break
+    if mode.shape[0] == n + 2:
+        mode[:] = v
     # The quotient is the softest mode's eigenvalue from above: the shift from below.
     # Positive definite 1e-6 past it, or the bracket's top.
     if lo <= least <= hi and _tangent_positive(diag, off, jac, least + 1e-6):
@@ -576,6 +628,7 @@ def _sqp_kernel(u, a, iterations, tolerance, max_turn):
     q, r = np.zeros((m, u.shape[0])), np.zeros((m, m))  # J's row basis (``_row_basis``)
     damping = 0.0
     shift = 0.0
+    mode = np.zeros(u.shape[0])  # the softest mode on the constraints' null space
     for _ in range(iterations):
         e, g = _energy(u, a)
         c, jac = _constraints(u, a), _jacobian(u, a)
@@ -589,7 +642,7 @@ def _sqp_kernel(u, a, iterations, tolerance, max_turn):
                 and (m == 0 or np.abs(c).max() < tolerance)):
             return u, True
         diag, off = _tridiagonal(u, lam, a)
-        shift = tangent_shift(diag, off, jac, shift) if m else 0.0
+        shift = tangent_shift(diag, off, jac, shift, mode) if m else 0.0
         du, lam_new = kkt_step(diag, off, jac, g, c, damping + shift)
         if not np.all(np.isfinite(du)):
             return u, False
