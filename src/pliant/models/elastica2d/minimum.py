@@ -84,7 +84,7 @@ class Discrete:
         n, h = elements, self.h
         s = np.linspace(0.0, 1.0, n + 1)
         self.s = s
-        kappa0 = np.array([part.rest_curvature_at(x * L) for x in s]) * L
+        kappa0 = part.rest_darboux_along(s * L)[:, 0] * L
         weight = np.full(n + 1, h)
         weight[[0, -1]] = 0.5 * h
         q = np.asarray(problem.dead_load_per_length, float) * L**3 / EI
@@ -434,13 +434,12 @@ def _rayleigh_shift(diag, off, jac, mode):
     if not size > 0.0 or not math.isfinite(size):
         return 0.0
     v = mode / size
-    zero = np.zeros(jac.shape[0])
     scale = np.abs(diag).max() + (np.abs(off).max() if off.shape[0] else 0.0)
     quotient = np.sum(v[2:] * tridiagonal_times(diag, off, v[2:]))
     size_j = np.abs(jac).max()
     solved = False  # v in the null space: after one solve
     for _ in range(8):
-        w, _ = kkt_step(diag, off, jac, -v, zero, -quotient)
+        w = _null_solve(diag, off, jac, v, -quotient)
         size = np.sqrt(np.sum(w * w))
         if not size > 0.0 or not math.isfinite(size):
             break  # singular at the quotient: it is an eigenvalue to round-off
@@ -460,6 +459,36 @@ def _rayleigh_shift(diag, off, jac, mode):
     if quotient < 0.0 and _tangent_positive(diag, off, jac, 1e-6 - quotient):
         return -quotient
     return 0.0
+
+
+@njit(cache=True)
+def _null_solve(diag, off, jac, v, shift):
+    """w with (H + shift I) w + J^T y = v and J w = 0: one pass of the condensed solve
+    (``bordered.condensed``), without ``kkt_step``'s refinement (a Rayleigh quotient
+    iteration's systems are singular by design, and only the solution's direction
+    counts); NaN where a pivot vanishes."""
+    n, m = diag.shape[0], jac.shape[0]
+    w = np.full(n + 2, np.nan)
+    S, X, ok = condensed(diag + shift, off, jac, shift, 0.0, v[2:])
+    if not ok:
+        return w
+    rhs = np.empty(2 + m)
+    rhs[0], rhs[1] = v[0], v[1]
+    for r in range(m):
+        acc = 0.0
+        for j in range(n):
+            acc += jac[r, 2 + j] * X[j, 0]
+        rhs[2 + r] = -acc
+    sol, ok = lu_solve(S, rhs)
+    if not ok:
+        return w
+    w[0], w[1] = sol[0], sol[1]
+    for j in range(n):
+        acc = X[j, 0]
+        for r in range(m):
+            acc -= X[j, 1 + r] * sol[2 + r]
+        w[2 + j] = acc
+    return w
 
 
 @njit(cache=True)
@@ -689,7 +718,7 @@ def _state(disc: Discrete, u: np.ndarray) -> SimpleNamespace:
     L, EI = part.length, part.bending_stiffness
     _, g = disc.energy(u)
     jac = disc.jacobian(u)
-    lam = np.linalg.lstsq(jac.T, g, rcond=None)[0]  # grad E = J^T lambda
+    lam = _multipliers(*_row_basis(jac), g)  # grad E = J^T lambda (least squares)
     force = disc.arrays.f.copy()  # every point load on the part, reactions included
     reactions = {}
     for r, (k, i, _) in enumerate(disc.position):
