@@ -718,7 +718,8 @@ def _state(disc: Discrete, u: np.ndarray) -> SimpleNamespace:
     L, EI = part.length, part.bending_stiffness
     _, g = disc.energy(u)
     jac = disc.jacobian(u)
-    lam = _multipliers(*_row_basis(jac), g)  # grad E = J^T lambda (least squares)
+    q, r = _row_basis(jac)
+    lam = _multipliers(q, r, g)  # grad E = J^T lambda (least squares)
     force = disc.arrays.f.copy()  # every point load on the part, reactions included
     reactions = {}
     for r, (k, i, _) in enumerate(disc.position):

@@ -170,9 +170,18 @@ class Run:
     deadline: float = 0.0
     reached: list = field(default_factory=list)  # every point the last route reached
     sampled: dict = field(default_factory=dict)  # id(point): (point, low, equilibrium)
+    lowered: dict = field(default_factory=dict)  # restart nodes asked: (problem, lowering)
 
     def __post_init__(self) -> None:
         self.deadline = clock.now() + self.solver.time_budget
+
+    def lowering(self, problem: Problem, nodes: int | None = None) -> Lowered:
+        """``lower(problem, nodes=nodes)``, each once a solve (the routes and the energy
+        minima's starts ask for the same few)."""
+        seen = self.lowered.get(nodes)
+        if seen is None or seen[0] is not problem:
+            seen = self.lowered[nodes] = (problem, lower(problem, nodes=nodes))
+        return seen[1]
 
     def newton(self, z0: np.ndarray, arrays: Arrays, mesh: Mesh, *, strict: bool,
                tol: float, jac0: np.ndarray = _EMPTY_JAC):
@@ -316,7 +325,7 @@ class Run:
 
         def attempt(count: int, legs: Callable[[Arrays], list[Arrays]]) -> _Point:
             if count != len(self.low.nodes) + 1:
-                self.low = lower(problem, nodes=count)
+                self.low = self.lowering(problem, count)
             return self.lowest(self.route(legs))
 
         attempts = ((nodes, self.straight), (4 * nodes, self.straight),
@@ -545,13 +554,13 @@ class Run:
         problem = self.low.problem
         if not minimum.applicable(problem):
             return []
-        base = len(lower(problem).nodes) + 1
+        base = len(self.lowering(problem).nodes) + 1
 
         def converged(start) -> tuple[Lowered, _Point] | None:
             for count in (base, 4 * base, 16 * base):
                 if clock.now() > self.deadline:
                     return None
-                self.low = low = lower(problem, nodes=count)
+                self.low = low = self.lowering(problem, count)
                 mesh = self.first_mesh()
                 z, r, status, jac, stats = self.newton(
                     low.unknowns_from(start), low.target, mesh, strict=False,
@@ -657,7 +666,7 @@ class Run:
         """Every path met a fold (the part would snap through): look for an equilibrium
         of the problem itself with a damped Newton, from the last state before the fold,
         then from the rest state. Say so: it lies beyond a snap, on another branch."""
-        low = self.low = lower(self.low.problem)
+        low = self.low = self.lowering(self.low.problem)
         mesh = self.first_mesh()
         _, z_rest = low.rest(mesh)
         starts = [stall.state] if (stall.state is not None
@@ -811,6 +820,8 @@ def _solve(problem: Problem, warm_start: Equilibrium | None, solver: ShootingSol
         low = lower(problem, nodes=len(old.low.nodes) + 1 if isinstance(old, _WarmState)
                     else None)
     run = Run(low, solver)
+    if not isinstance(old, _WarmState):
+        run.lowered[None] = (problem, low)
     point = None
     try:
         if warm_start is not None:
