@@ -191,6 +191,26 @@ def test_a_cold_solve_in_configuration_space_takes_the_lowest_stable_equilibrium
     assert np.abs(moment).max() < 1e-8
 
 
+def test_an_obstacle_the_part_never_touches_leaves_the_cold_answer_alone():
+    """Issue 20 (no silent failure): a box 3 m away made the cold solve of the
+    pre-curved part above answer with its first route's equilibrium (11.47 J) instead of
+    the lowest (9.85 J): the search among the routes was skipped wherever there were
+    obstacles. The answer is now the same shape with the box as without it."""
+    from dataclasses import replace
+
+    from pliant.core.equilibrium import potential_energy
+
+    problem = precurved_3d()
+    solver = rod3d.RodSolver(elements=40)
+    alone = rod3d.solve(problem, solver=solver)
+    far = Obstacle.box("far box", (0.2, 0.2, 0.2), (3.0, 3.0, 3.0))
+    eq = rod3d.solve(replace(problem, obstacles=(far,)), solver=solver)
+    assert len(eq.contacts) == 0
+    assert potential_energy(eq) == pytest.approx(potential_energy(alone), abs=1e-9)
+    assert np.abs(eq.position - alone.position).max() < 1e-9
+    assert any(n.startswith("pliant took the stable equilibrium") for n in eq.notes)
+
+
 def helix(kappa: float, tau: float, twist: float, s: np.ndarray):
     """Centreline, tangent and section axis d1 of a helix about +z (curvature kappa,
     torsion tau) whose material frame twists at the rate ``twist``."""

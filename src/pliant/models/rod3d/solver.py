@@ -98,8 +98,8 @@ class RodSolver:
         discretisation (estimated by Richardson's rule from the same equilibrium on twice
         the elements, ``Equilibrium3D.reaction_error``); above it the answer says so and
         names the element count that meets it
-    lowest : in a cold solve with positions held at two stations or more and no
-        contact, run every route and answer with the stable equilibrium of lowest
+    lowest : in a cold solve with positions held at two stations or more, run every
+        route (with the obstacles) and answer with the stable equilibrium of lowest
         potential energy (about four times the first route's time); False answers with
         the first route's
     """
@@ -585,13 +585,14 @@ def _solve(problem: Problem, warm_start: Equilibrium3D | None, solver: RodSolver
 
 
 def _lowest(run: Run, eq: Equilibrium3D) -> tuple[Equilibrium3D, Run]:
-    """A cold answer in configuration space (positions held at two stations or more,
-    no contact): the stable equilibrium of lowest potential energy among every route's
-    (``equilibria``), not the first route's, which is kept on a tie; the note names the
-    first route's. With the run the answer belongs to."""
+    """A cold answer in configuration space (positions held at two stations or more):
+    the stable equilibrium of lowest potential energy among every route's
+    (``equilibria``, with the obstacles: an obstacle the part never touches changes
+    nothing), not the first route's, which is kept on a tie; the note names the first
+    route's. With the run the answer belongs to."""
     rod = run.rod
     problem = rod.problem
-    if (not run.solver.lowest or rod.iprobe.shape[0] or problem.held_stations < 2
+    if (not run.solver.lowest or problem.held_stations < 2
             or not conservative(run, eq.state.state)):
         return eq, run
     left = run.deadline - clock.now()
