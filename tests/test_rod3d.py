@@ -211,6 +211,66 @@ def test_an_obstacle_the_part_never_touches_leaves_the_cold_answer_alone():
     assert any(n.startswith("pliant took the stable equilibrium") for n in eq.notes)
 
 
+@pytest.mark.parametrize("kind", ["floor in the routes' way", "fitted part far away"])
+def test_the_lowest_equilibrium_clear_of_the_obstacles_is_found_past_them(kind):
+    """The same part with a floor 0.35 m below it, which the routes that reach its
+    lowest equilibrium (9.85 J, 0.1 m above its lowest point) run into on the way, so
+    that with the floor every route gave 11.47 J; and with a flexible part fitted 3 m
+    away (a problem solved together, whose routes ran with the fitted part as a rigid
+    tube and no search among them). The routes run without the obstacles too, and an
+    answer that touches none of them is an equilibrium with them: checked on the
+    problem's own residual (its probes' gaps >= 0 and forces 0), then built on its mesh.
+    The answer is the lowest, the same shape as with nothing around it, in balance."""
+    from dataclasses import replace
+
+    from pliant.assembly.scenes import settle_fitted
+    from pliant.core.equilibrium import potential_energy
+
+    problem = precurved_3d()
+    solver = rod3d.RodSolver(elements=40)
+    alone = rod3d.solve(problem, solver=solver)
+    if kind.startswith("floor"):
+        obstacle = Obstacle.box("floor", (4.0, 4.0, 0.1), (0.0, 0.0, -0.5))
+        # Without the search past the obstacles, the routes' best (the test's premise).
+        first = rod3d.solve(replace(problem, obstacles=(obstacle,)), solver=replace(
+            solver, lowest=False))
+        assert potential_energy(first) == pytest.approx(11.47, abs=0.01)
+    else:
+        other = pl.Problem(pl.Part(0.5, 0.05, outer_diameter=0.02), (
+            pl.clamp(0.0, (3.0, 3.0, 0.0), tangent=(1.0, 0.0, 0.0)),
+            pl.clamp(0.5, (3.45, 3.0, 0.0), tangent=(1.0, 0.0, 0.0), name="far end")))
+        obstacle = settle_fitted("fitted hose", other, 20, True, 0.0)
+    eq = rod3d.solve(replace(problem, obstacles=(obstacle,)), solver=solver)
+    assert eq.verdict == "stable"
+    assert potential_energy(eq) == pytest.approx(potential_energy(alone), abs=1e-9)
+    assert potential_energy(eq) == pytest.approx(9.85, abs=0.01)
+    assert np.abs(eq.position - alone.position).max() < 1e-8
+    assert len(eq.contacts) == 0
+    note = next(n for n in eq.notes if n.startswith("pliant took the stable equilibrium"))
+    assert "without the obstacles, and touches none of them" in note
+    total = sum(ld.force for ld in eq.loads.values())
+    assert np.abs(total).max() < 1e-8
+
+
+def test_an_equilibrium_found_without_the_obstacles_that_passes_through_one_is_left_out():
+    """A ball (r = 30 mm) round the middle of that lowest equilibrium: found without the
+    obstacles, it passes through the ball, and the answer is the routes' best with it
+    (11.47 J, 0.34 m from the ball, untouched), with no note of a lower one."""
+    from dataclasses import replace
+
+    from pliant.core.equilibrium import potential_energy
+
+    problem = precurved_3d()
+    solver = rod3d.RodSolver(elements=40)
+    lowest = rod3d.solve(problem, solver=solver)
+    middle = lowest.position[len(lowest.s) // 2]
+    ball = Obstacle.sphere("ball", 0.03, tuple(middle))
+    eq = rod3d.solve(replace(problem, obstacles=(ball,)), solver=solver)
+    assert potential_energy(eq) == pytest.approx(11.47, abs=0.01)
+    assert np.linalg.norm(eq.position - middle, axis=1).min() > 0.3
+    assert not any(n.startswith("pliant took the stable equilibrium") for n in eq.notes)
+
+
 def helix(kappa: float, tau: float, twist: float, s: np.ndarray):
     """Centreline, tangent and section axis d1 of a helix about +z (curvature kappa,
     torsion tau) whose material frame twists at the rate ``twist``."""
