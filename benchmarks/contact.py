@@ -9,7 +9,8 @@ tree, pseudonormal signs) and its grid answer (far points), against trimesh's
 `proximity.signed_distance` (rtree, the library a user would reach for), with their
 largest disagreement.
 (b) A warm step of the 3D rod at 100 elements with contacts active (a hose's end lowered
-onto a block), against the same steps without the block.
+onto a block), against the same steps without the block: the least disturbed of three
+passes after a first (which also loads the kernels from numba's cache).
 (c) The bundled engine-bay scene: its 100-step manipulation end to end (every step a warm
 accurate solve with contact, its interference and stability checks).
 (d) A real-time frame (50 control points, curve points held out of a drum) against the
@@ -96,21 +97,30 @@ def warm_steps() -> None:
     heights = np.linspace(0.2, -0.15, 101)
     figures = {}
     for label, obstacles in (("with the block", (block,)), ("no obstacles", ())):
-        eq = rod3d.solve(held(heights[0], obstacles))
-        times, touching, iterations = [], [], []
-        for z in heights[1:]:
-            start = time.perf_counter()
-            eq = rod3d.solve(held(z, obstacles), warm_start=eq)
-            times.append(time.perf_counter() - start)
-            touching.append(len(eq.contacts))
-            iterations.append(eq.iterations)
-        on = [t for t, c in zip(times, touching) if c] or times
+        # The first pass in a process also loads each kernel from numba's cache where it
+        # is first called (some milliseconds, in the steps that first touch): the path
+        # runs once first, then three times, and the least disturbed pass counts.
+        passes = []
+        for _ in range(4):
+            eq = rod3d.solve(held(heights[0], obstacles))
+            times, touching, iterations = [], [], []
+            for z in heights[1:]:
+                start = time.perf_counter()
+                eq = rod3d.solve(held(z, obstacles), warm_start=eq)
+                times.append(time.perf_counter() - start)
+                touching.append(len(eq.contacts))
+                iterations.append(eq.iterations)
+            passes.append(([t for t, c in zip(times, touching) if c] or times, touching,
+                           iterations))
+        first = statistics.median(passes[0][0])
+        on, touching, iterations = min(passes[1:], key=lambda p: statistics.median(p[0]))
         figures[label] = statistics.median(on)
         print(f"    {label}: {statistics.median(on) * 1e3:.2f} ms per step (median over "
               f"the {len(on)} steps touching; 90th percentile "
               f"{np.percentile(on, 90) * 1e3:.2f} ms, slowest {max(on) * 1e3:.1f} ms; "
               f"{statistics.median(iterations):.0f} Newton iterations; at most "
-              f"{max(touching)} contact points)")
+              f"{max(touching)} contact points; the first pass, kernels loading: "
+              f"{first * 1e3:.2f} ms)")
     print(f"    contact costs {figures['with the block'] / figures['no obstacles']:.1f}x a "
           "free step")
 
