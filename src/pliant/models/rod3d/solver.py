@@ -495,7 +495,9 @@ def equilibria(problem: Problem, *, solver: RodSolver | None = None,
 def reached(problem: Problem, solver: RodSolver, deadline: float) -> list[Equilibrium3D]:
     """The distinct equilibria every route of a cold solve reaches before ``deadline``
     (``equilibria``'s, unranked, in the order reached), each with its ``ReachedBy`` note.
-    Flexible parts already fitted count as rigid tubes here."""
+    Flexible parts already fitted count as rigid tubes here. With obstacles, also each
+    route's answer without them that touches none of them (``_clear``): so an obstacle
+    in a route's way hides no equilibrium it does not touch."""
     found: list[Equilibrium3D] = []
     rod = lower(problem, elements=solver.elements)
     for name in ("straight", "two_stage", "swing", "loads_first"):
@@ -521,6 +523,9 @@ def reached(problem: Problem, solver: RodSolver, deadline: float) -> list[Equili
                                               route=route, how=how),))
             if not any(same_shape(eq, other) for other in found):
                 found.append(eq)
+    if problem.obstacles:
+        found += [eq for eq in _clear(Run(rod, solver), deadline)
+                  if not any(same_shape(eq, other) for other in found)]
     return found
 
 
@@ -587,39 +592,34 @@ def _solve(problem: Problem, warm_start: Equilibrium3D | None, solver: RodSolver
 
 def _lowest(run: Run, eq: Equilibrium3D) -> tuple[Equilibrium3D, Run]:
     """A cold answer in configuration space (positions held at two stations or more):
-    the stable equilibrium of lowest potential energy among every route's, not the first
+    the stable equilibrium of lowest potential energy among every route's (``reached``:
+    with the obstacles, and without them where that touches none), not the first
     route's, which is kept on a tie; the note names the first route's. With the run the
-    answer belongs to.
-
-    The routes' answers: ``equilibria``'s, with the obstacles (not for the rigid first
-    pass of parts solved together: every route with the fitted parts' contacts cost the
-    demo's start 2.3 s); and, with obstacles, each route's answer without them that
-    touches none of them (``_clear``), which is an equilibrium with them too. So an
-    obstacle the lowest equilibrium does not touch changes nothing, also where it
-    stands in the way of the routes that reach it."""
+    answer belongs to. The rigid first pass of parts solved together takes only the
+    routes' answers without the obstacles (every route with the fitted parts' contacts
+    cost the demo's start 2.3 s): an obstacle the lowest equilibrium does not touch
+    changes nothing."""
     rod = run.rod
     problem = rod.problem
     if (not run.solver.lowest or problem.held_stations < 2
             or not conservative(run, eq.state.state)):
         return eq, run
     deadline = run.deadline
-    if deadline - clock.now() <= 0.0:
+    left = deadline - clock.now()
+    if left <= 0.0:
         return eq, run
     first = potential_energy(eq)
-    found: list[tuple[Equilibrium3D, Run | None]] = []
     if not problem.solved_together:
-        left = deadline - clock.now()
-        found += [(e, None) for e in equilibria(
-            problem, solver=replace(run.solver, time_budget=left), budget=left)]
-    if problem.obstacles:
-        found += _clear(run, deadline)
+        found = equilibria(problem, solver=replace(run.solver, time_budget=left), budget=left)
+    else:
+        found = _clear(run, deadline) if problem.obstacles else []
     scale = problem.part.bending_stiffness / problem.part.length
     stable = eq.verdict != "unstable"
-    better = [(e, r) for e, r in found if e.verdict != "unstable" and (
+    better = [e for e in found if e.verdict != "unstable" and (
         not stable or potential_energy(e) < first - 1e-9 * (abs(first) + scale))]
     if not better:
         return eq, run
-    best, again = min(better, key=lambda item: potential_energy(item[0]))
+    best = min(better, key=potential_energy)
     energy = potential_energy(best)
     kept = [n for n in eq.notes if not isinstance(n, BranchTaken)]
     note = LowestEquilibrium(
@@ -627,18 +627,17 @@ def _lowest(run: Run, eq: Equilibrium3D) -> tuple[Equilibrium3D, Run]:
         f"reach ({energy:.6g} J, {best.notes[0]}); the first route's has {first:.6g} J "
         f"and is {eq.verdict}", energy=energy, route_energy=first)
     chosen = replace(best, notes=(*kept, note), iterations=eq.iterations + best.iterations)
-    if again is None:
-        again = Run(best.state.rod, run.solver)
-        again.gauge_quat = best.state.gauge_quat
+    again = Run(best.state.rod, run.solver)
+    again.gauge_quat = best.state.gauge_quat
     return chosen, again
 
 
-def _clear(run: Run, deadline: float) -> list[tuple[Equilibrium3D, Run]]:
-    """Each route's equilibrium of the problem without its obstacles (``reached``) that
-    touches none of them: with a zero force on every probe it meets the contact
-    conditions (each probe's gap >= 0, its force 0) and the rest of the problem's
-    equations as it did, to the tolerance (checked on ``run``'s own residual, probes
-    and sliders included): an equilibrium of the problem itself, built on its mesh."""
+def _clear(run: Run, deadline: float) -> list[Equilibrium3D]:
+    """Each route's equilibrium of ``run``'s problem without its obstacles that touches
+    none of them: with a zero force on every probe it meets the contact conditions
+    (each probe's gap >= 0, its force 0) and the rest of the problem's equations as it
+    did, to the tolerance (checked on ``run``'s own residual, probes and sliders
+    included): an equilibrium of the problem itself, built on its mesh."""
     rod = run.rod
     alone = replace(rod.problem, obstacles=())
     if alone.solved_together:
@@ -658,10 +657,9 @@ def _clear(run: Run, deadline: float) -> list[tuple[Equilibrium3D, Run]]:
         R, _, _ = there.residual(state, rod.target)
         if contact_kernels.contact_max(R, there.contact(rod.target)) > run.solver.tolerance:
             continue  # it passes through an obstacle (or sits in one)
-        found = replace(build(there, state), notes=tuple(
+        out.append(replace(build(there, state), notes=tuple(
             ReachedBy(f"{n}, without the obstacles, and touches none of them",
-                      route=n.route, how=n.how) for n in eq.notes if isinstance(n, ReachedBy)))
-        out.append((found, there))
+                      route=n.route, how=n.how) for n in eq.notes if isinstance(n, ReachedBy))))
     return out
 
 
