@@ -127,8 +127,11 @@ def solve_fitted(problem, warm_start, solver: RodSolver, follow_only: bool) -> E
         held = ", ".join(touched + [c.name for c in problem.sliders])
         if cold:
             # Another route's answer may be solved together (the first's may lie past a
-            # fold that letting the fitted parts go crosses): the best of those.
-            found = equilibria(problem, solver, solver.time_budget)
+            # fold that letting the fitted parts go crosses): the best of those, where it
+            # is stable (an unstable one, such as a route's answer without the obstacles
+            # that touches none, is no answer a real part settles in: the rigid one is).
+            found = [e for e in equilibria(problem, solver, solver.time_budget)
+                     if e.verdict != "unstable"]
             if found:
                 best = found[0]
                 note = (f"the first route's answer could not be solved together with "
