@@ -115,8 +115,9 @@ def warm_steps() -> None:
         first = statistics.median(passes[0][0])
         on, touching, iterations = min(passes[1:], key=lambda p: statistics.median(p[0]))
         figures[label] = statistics.median(on)
+        over = f"the {len(on)} steps touching" if obstacles else f"all {len(on)} steps"
         print(f"    {label}: {statistics.median(on) * 1e3:.2f} ms per step (median over "
-              f"the {len(on)} steps touching; 90th percentile "
+              f"{over}; 90th percentile "
               f"{np.percentile(on, 90) * 1e3:.2f} ms, slowest {max(on) * 1e3:.1f} ms; "
               f"{statistics.median(iterations):.0f} Newton iterations; at most "
               f"{max(touching)} contact points; the first pass, kernels loading: "

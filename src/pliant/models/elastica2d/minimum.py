@@ -464,31 +464,45 @@ def _rayleigh_shift(diag, off, jac, mode):
 @njit(cache=True)
 def _null_solve(diag, off, jac, v, shift):
     """w with (H + shift I) w + J^T y = v and J w = 0: one pass of the condensed solve
-    (``bordered.condensed``), without ``kkt_step``'s refinement (a Rayleigh quotient
+    (``_condensed_pass``), without ``kkt_step``'s refinement (a Rayleigh quotient
     iteration's systems are singular by design, and only the solution's direction
     counts); NaN where a pivot vanishes."""
-    n, m = diag.shape[0], jac.shape[0]
-    w = np.full(n + 2, np.nan)
-    S, X, ok = condensed(diag + shift, off, jac, shift, 0.0, v[2:])
+    w, _, ok = _condensed_pass(diag + shift, off, jac, shift, 0.0, v,
+                               np.zeros(jac.shape[0]))
     if not ok:
-        return w
+        w[:] = np.nan
+    return w
+
+
+@njit(cache=True)
+def _condensed_pass(shifted, off, jac, corner, reg, r_u, r_c):
+    """One solve of [[H, J^T], [J, -reg I]] (dx, dy) = (r_u, r_c), H = corner I on the
+    translations and tridiag(shifted, off) on the angles, by its condensed form
+    (``bordered.condensed``): (dx, dy, ok)."""
+    n, m = shifted.shape[0], jac.shape[0]
+    dx = np.zeros(n + 2)
+    dy = np.zeros(m)
+    S, X, ok = condensed(shifted, off, jac, corner, reg, r_u[2:])
+    if not ok:
+        return dx, dy, False
     rhs = np.empty(2 + m)
-    rhs[0], rhs[1] = v[0], v[1]
+    rhs[0], rhs[1] = r_u[0], r_u[1]
     for r in range(m):
         acc = 0.0
         for j in range(n):
             acc += jac[r, 2 + j] * X[j, 0]
-        rhs[2 + r] = -acc
+        rhs[2 + r] = r_c[r] - acc
     sol, ok = lu_solve(S, rhs)
     if not ok:
-        return w
-    w[0], w[1] = sol[0], sol[1]
+        return dx, dy, False
+    dx[0], dx[1] = sol[0], sol[1]
     for j in range(n):
         acc = X[j, 0]
         for r in range(m):
             acc -= X[j, 1 + r] * sol[2 + r]
-        w[2 + j] = acc
-    return w
+        dx[2 + j] = acc
+    dy[:] = sol[2:]
+    return dx, dy, True
 
 
 @njit(cache=True)
@@ -543,27 +557,11 @@ def kkt_step(diag, off, jac, g, c, shift):
         r_u = -g.copy()
         r_c = -c.copy()
         for _ in range(2):  # a solve, then a correction from its residual
-            S, X, ok = condensed(shifted, off, jac, shift, reg, r_u[2:])
+            dx, dy, ok = _condensed_pass(shifted, off, jac, shift, reg, r_u, r_c)
             if not ok:
                 break
-            rhs = np.empty(2 + m)
-            rhs[0], rhs[1] = r_u[0], r_u[1]
-            for r in range(m):
-                acc = 0.0
-                for j in range(n):
-                    acc += jac[r, 2 + j] * X[j, 0]
-                rhs[2 + r] = r_c[r] - acc
-            sol, ok = lu_solve(S, rhs)
-            if not ok:
-                break
-            du[0] += sol[0]
-            du[1] += sol[1]
-            for j in range(n):
-                acc = X[j, 0]
-                for r in range(m):
-                    acc -= X[j, 1 + r] * sol[2 + r]
-                du[2 + j] += acc
-            y += sol[2:]
+            du += dx
+            y += dy
             # The residual of the whole system at (du, y).
             r_u = -g - shift * du
             r_u[2:] -= tridiagonal_times(diag, off, du[2:])
