@@ -434,14 +434,18 @@ def _rayleigh_shift(diag, off, jac, mode):
     if not size > 0.0 or not math.isfinite(size):
         return 0.0
     v = mode / size
+    zero = np.zeros(jac.shape[0])
     scale = np.abs(diag).max() + (np.abs(off).max() if off.shape[0] else 0.0)
     quotient = np.sum(v[2:] * tridiagonal_times(diag, off, v[2:]))
     size_j = np.abs(jac).max()
     solved = False  # v in the null space: after one solve
     for _ in range(8):
-        w = _null_solve(diag, off, jac, v, -quotient)
+        # (H - q I) w + J^T y = v, J w = 0: one pass of the condensed solve, without
+        # ``kkt_step``'s refinement (these systems are singular by design, and only the
+        # solution's direction counts)
+        w, _, ok = _condensed_pass(diag - quotient, off, jac, -quotient, 0.0, v, zero)
         size = np.sqrt(np.sum(w * w))
-        if not size > 0.0 or not math.isfinite(size):
+        if not ok or not size > 0.0 or not math.isfinite(size):
             break  # singular at the quotient: it is an eigenvalue to round-off
         if np.abs(jac @ w).max() > 1e-10 * size * size_j:
             break  # the solve's regularised fallback: off the null space
@@ -459,19 +463,6 @@ def _rayleigh_shift(diag, off, jac, mode):
     if quotient < 0.0 and _tangent_positive(diag, off, jac, 1e-6 - quotient):
         return -quotient
     return 0.0
-
-
-@njit(cache=True)
-def _null_solve(diag, off, jac, v, shift):
-    """w with (H + shift I) w + J^T y = v and J w = 0: one pass of the condensed solve
-    (``_condensed_pass``), without ``kkt_step``'s refinement (a Rayleigh quotient
-    iteration's systems are singular by design, and only the solution's direction
-    counts); NaN where a pivot vanishes."""
-    w, _, ok = _condensed_pass(diag + shift, off, jac, shift, 0.0, v,
-                               np.zeros(jac.shape[0]))
-    if not ok:
-        w[:] = np.nan
-    return w
 
 
 @njit(cache=True)
