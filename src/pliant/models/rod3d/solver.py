@@ -99,9 +99,9 @@ class RodSolver:
         the elements, ``Equilibrium3D.reaction_error``); above it the answer says so and
         names the element count that meets it
     lowest : in a cold solve with positions held at two stations or more, run every
-        route (with the obstacles) and answer with the stable equilibrium of lowest
-        potential energy (about four times the first route's time); False answers with
-        the first route's
+        route (with obstacles, without them, keeping the answers that touch none of
+        them) and answer with the stable equilibrium of lowest potential energy (about
+        four times the first route's time); False answers with the first route's
     """
 
     elements: int = 100
@@ -655,7 +655,7 @@ def _clear(run: Run, deadline: float) -> list[Equilibrium3D]:
         if (X.shape != (rod.s_node.shape[0], 3) or Q.shape[0] != rod.frame_s.shape[0]
                 or nu.shape[0] != rod.m or not np.allclose(old.rod.s_node, rod.s_node)
                 or not np.allclose(old.rod.frame_s, rod.frame_s)):
-            continue  # (another mesh: the obstacles refine it)
+            continue  # (another mesh, where the two lowerings ever differ: a guard)
         state = (X, Q, lam, nu, np.zeros(rod.islot.shape[0]))
         there = Run(rod, run.solver)
         there.gauge_quat = old.gauge_quat
