@@ -448,7 +448,7 @@ def _rayleigh_shift(diag, off, jac, mode):
         if not ok or not size > 0.0 or not math.isfinite(size):
             break  # singular at the quotient: it is an eigenvalue to round-off
         if np.abs(jac @ w).max() > 1e-10 * size * size_j:
-            break  # the solve's regularised fallback: off the null space
+            break  # off the null space beyond round-off: an ill-conditioned solve
         v = w / size
         solved = True
         last = quotient
