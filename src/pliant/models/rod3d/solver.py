@@ -660,8 +660,10 @@ def _clear(run: Run, deadline: float) -> list[Equilibrium3D]:
         there = Run(rod, run.solver)
         there.gauge_quat = old.gauge_quat
         R, _, _ = there.residual(state, rod.target)
-        if contact_kernels.contact_max(R, there.contact(rod.target)) > run.solver.tolerance:
+        r = contact_kernels.contact_max(R, there.contact(rod.target))
+        if r > run.solver.tolerance:
             continue  # it passes through an obstacle (or sits in one)
+        there.converged = (state, rod.target, r)  # (``build`` takes this residual)
         out.append(replace(build(there, state), notes=tuple(
             ReachedBy(f"{n}, without the obstacles, and touches none of them",
                       route=n.route, how=n.how) for n in eq.notes if isinstance(n, ReachedBy))))
