@@ -20,10 +20,18 @@ from numba import njit
 
 @njit(cache=True)
 def tridiagonal_times(diag, off, x):
-    """T x for T = tridiag(diag, off)."""
-    out = diag * x
-    out[1:] += off * x[:-1]
-    out[:-1] += off * x[1:]
+    """T x for T = tridiag(diag, off). In loops: an array assigned to a slice makes numba
+    link a shape check whose message pulls its unicode code into every caller (a
+    megabyte of IR that each compiled caller optimises again)."""
+    n = diag.shape[0]
+    out = np.empty(n)
+    for j in range(n):
+        acc = diag[j] * x[j]
+        if j > 0:
+            acc += off[j - 1] * x[j - 1]
+        if j < n - 1:
+            acc += off[j] * x[j + 1]
+        out[j] = acc
     return out
 
 
@@ -212,7 +220,10 @@ def below(diag, off, jac, weight, lam, scale):
     by 1e-13 of ``scale`` (a few times)."""
     for attempt in range(4):
         at = lam + attempt * 1e-13 * scale
-        count = kkt_negatives(diag - at * weight, off, jac, 0.0)
+        shifted = np.empty(diag.shape[0])  # (a loop: see ``tridiagonal_times``)
+        for j in range(diag.shape[0]):
+            shifted[j] = diag[j] - at * weight[j]
+        count = kkt_negatives(shifted, off, jac, 0.0)
         if count == -2:
             return -2
         if count >= 0:

@@ -35,7 +35,7 @@ from numba import njit
 from pliant.core.problem import Problem
 from pliant.models import clock
 from pliant.models.elastica2d.bordered import condensed, kkt_negatives, tridiagonal_times
-from pliant.models.elastica2d.kernels import lu_solve
+from pliant.models.elastica2d.kernels import lu_solve, max_abs
 
 ELEMENTS = 48  # elements of the discrete part: a start for Newton, not an answer
 BOWS = (0.0, 1.5, -1.5)  # starting bows [rad]: straight, and to either side
@@ -234,6 +234,77 @@ def _sqp(disc: Discrete, u: np.ndarray, iterations: int = 60,
 
 
 # -- compiled kernels (the discrete elastica and its SQP) --------------------------------
+# The kernels below write their array arithmetic as loops: numba compiles each array
+# expression as a function of its own, and an array assigned to a slice links a shape
+# check whose message pulls in its unicode code, which every caller optimises again (the
+# SQP's kernels took 20 of the 2D model's 33 s of compiling; see docs/first-run.md). The
+# loops do the same operations in the same order as the expressions they replace (the
+# minima came out bit for bit the same on the paper's cases and 25 held tips).
+# ``tangent_shift`` and the two searches it runs are inlined into their one caller: as
+# kernels of their own, each was compiled, then compiled again inside its caller.
+
+
+@njit(cache=True)
+def _dot(a, b):
+    """sum(a * b), summed in order (as numpy's sum in a kernel)."""
+    acc = 0.0
+    for j in range(a.shape[0]):
+        acc += a[j] * b[j]
+    return acc
+
+
+@njit(cache=True)
+def _abs_sum(a):
+    acc = 0.0
+    for j in range(a.shape[0]):
+        acc += abs(a[j])
+    return acc
+
+
+@njit(cache=True)
+def _nonzero(a):
+    """Whether any entry is not zero (numpy's any)."""
+    for j in range(a.shape[0]):
+        if a[j] != 0.0:
+            return True
+    return False
+
+
+@njit(cache=True)
+def _axpy(x, alpha, y):
+    """x + alpha y, a new array."""
+    out = np.empty(x.shape[0])
+    for j in range(x.shape[0]):
+        out[j] = x[j] + alpha * y[j]
+    return out
+
+
+@njit(cache=True)
+def _divided(x, d):
+    """x / d, a new array."""
+    out = np.empty(x.shape[0])
+    for j in range(x.shape[0]):
+        out[j] = x[j] / d
+    return out
+
+
+@njit(cache=True)
+def _negated(x):
+    out = np.empty(x.shape[0])
+    for j in range(x.shape[0]):
+        out[j] = -x[j]
+    return out
+
+
+@njit(cache=True)
+def _shifted(diag, shift):
+    """diag + shift, a new array."""
+    out = np.empty(diag.shape[0])
+    for j in range(diag.shape[0]):
+        out[j] = diag[j] + shift
+    return out
+
+
 @njit(cache=True)
 def _nodes(u, h):
     n = u.shape[0] - 2
@@ -370,10 +441,10 @@ def _tangent_positive(diag, off, jac, shift):
     """Whether H + shift I is positive definite on the null space of J (of full rank):
     exactly when the KKT matrix has m negative eigenvalues and none zero (Gould;
     ``bordered.kkt_negatives``)."""
-    return kkt_negatives(diag + shift, off, jac, shift) == jac.shape[0]
+    return kkt_negatives(_shifted(diag, shift), off, jac, shift) == jac.shape[0]
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def tangent_shift(diag, off, jac, guess, mode):
     """The least shift (plus 1e-6) that makes the Hessian positive definite on the null
     space of the constraints' Jacobian, 0 where it already is. The least that works: a
@@ -421,7 +492,7 @@ def tangent_shift(diag, off, jac, guess, mode):
     return _refined_shift(diag, off, jac, lo, hi, mode) + 1e-6
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def _rayleigh_shift(diag, off, jac, mode):
     """The least shift from the softest mode's estimate ``mode`` (updated in place), by
     Rayleigh quotient iteration on the constraints' null space (each step a KKT solve at
@@ -430,39 +501,54 @@ def _rayleigh_shift(diag, off, jac, mode):
     quotient q of a vector of the null space bounds the least eigenvalue there from
     above (Courant), and an inertia count at -q + 1e-6 that finds H + (1e-6 - q) I
     positive there bounds it from below, 1e-6 under q."""
-    size = np.sqrt(np.sum(mode * mode))
+    size = math.sqrt(_dot(mode, mode))
     if not size > 0.0 or not math.isfinite(size):
         return 0.0
-    v = mode / size
-    zero = np.zeros(jac.shape[0])
-    scale = np.abs(diag).max() + (np.abs(off).max() if off.shape[0] else 0.0)
-    quotient = np.sum(v[2:] * tridiagonal_times(diag, off, v[2:]))
-    size_j = np.abs(jac).max()
+    v = _divided(mode, size)
+    m = jac.shape[0]
+    zero = np.zeros(m)
+    scale = max_abs(diag) + (max_abs(off) if off.shape[0] else 0.0)
+    quotient = _dot(v[2:], tridiagonal_times(diag, off, v[2:]))
+    size_j = 0.0
+    for r in range(m):
+        size_j = max(size_j, max_abs(jac[r]))
     solved = False  # v in the null space: after one solve
     for _ in range(8):
         # (H - q I) w + J^T y = v, J w = 0: one pass of the condensed solve, without
         # ``kkt_step``'s refinement (these systems are singular by design, and only the
         # solution's direction counts)
-        w, _, ok = _condensed_pass(diag - quotient, off, jac, -quotient, 0.0, v, zero)
-        size = np.sqrt(np.sum(w * w))
+        w, _, ok = _condensed_pass(_shifted(diag, -quotient), off, jac, -quotient, 0.0, v,
+                                   zero)
+        size = math.sqrt(_dot(w, w))
         if not ok or not size > 0.0 or not math.isfinite(size):
             break  # singular at the quotient: it is an eigenvalue to round-off
-        if np.abs(jac @ w).max() > 1e-10 * size * size_j:
+        off_null = 0.0  # |J w|
+        for r in range(m):
+            off_null = max(off_null, abs(_dot(jac[r], w)))
+        if off_null > 1e-10 * size * size_j:
             break  # off the null space beyond round-off: an ill-conditioned solve
-        v = w / size
+        v = _divided(w, size)
         solved = True
         last = quotient
-        quotient = np.sum(v[2:] * tridiagonal_times(diag, off, v[2:]))
+        quotient = _dot(v[2:], tridiagonal_times(diag, off, v[2:]))
         # (H - q) v = v_old / |w| on the null space: the new quotient is exact to
         # round-off once |w| is 1e9 times the Hessian's scale's inverse.
         if size * scale >= 1e9 or abs(quotient - last) <= 1e-14 * scale:
             break
     if not solved:
         return 0.0
-    mode[:] = v
+    _copy_into(mode, v)
     if quotient < 0.0 and _tangent_positive(diag, off, jac, 1e-6 - quotient):
         return -quotient
     return 0.0
+
+
+@njit(cache=True, inline="always")
+def _copy_into(out, v):
+    """out[:] = v, in a loop (see ``bordered.tridiagonal_times``: no shape check's
+    unicode code linked in)."""
+    for j in range(v.shape[0]):
+        out[j] = v[j]
 
 
 @njit(cache=True)
@@ -492,11 +578,12 @@ def _condensed_pass(shifted, off, jac, corner, reg, r_u, r_c):
         for r in range(m):
             acc -= X[j, 1 + r] * sol[2 + r]
         dx[2 + j] = acc
-    dy[:] = sol[2:]
+    for r in range(m):
+        dy[r] = sol[2 + r]
     return dx, dy, True
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def _refined_shift(diag, off, jac, lo, hi, mode):
     """The least shift in [lo, hi] (1 % apart) to round-off: minus the Rayleigh quotient
     of the reduced Hessian's softest mode, found by inverse iteration at the shift hi
@@ -509,19 +596,19 @@ def _refined_shift(diag, off, jac, lo, hi, mode):
     zero = np.zeros(jac.shape[0])
     least = hi
     for _ in range(30):
-        w, _ = kkt_step(diag, off, jac, -v, zero, hi)  # (H + hi I) w + J^T y = v, J w = 0
-        size = np.sqrt(np.sum(w * w))
+        w, _ = kkt_step(diag, off, jac, _negated(v), zero, hi)  # (H + hi I) w + J^T y = v
+        size = math.sqrt(_dot(w, w))  # (and J w = 0)
         if not size > 0.0 or not math.isfinite(size):
             return hi
-        v = w / size
+        v = _divided(w, size)
         # v . H v (H zero on the translations)
-        quotient = np.sum(v[2:] * tridiagonal_times(diag, off, v[2:]))
+        quotient = _dot(v[2:], tridiagonal_times(diag, off, v[2:]))
         change = abs(-quotient - least)
         least = -quotient
         if change <= 1e-14 * abs(least):
             break
     if mode.shape[0] == n + 2:
-        mode[:] = v
+        _copy_into(mode, v)
     # The quotient is the softest mode's eigenvalue from above: the shift from below.
     # Positive definite 1e-6 past it, or the bracket's top.
     if lo <= least <= hi and _tangent_positive(diag, off, jac, least + 1e-6):
@@ -538,37 +625,47 @@ def kkt_step(diag, off, jac, g, c, shift):
     multipliers' block takes -1e-8 on its diagonal, so that a step still comes, which
     bends the part; a system singular even so gives a step of NaN (refused)."""
     n, m = diag.shape[0], jac.shape[0]
-    shifted = diag + shift
+    shifted = _shifted(diag, shift)
     du = np.zeros(n + 2)
     y = np.zeros(m)
+    r_u = np.empty(n + 2)
+    r_c = np.empty(m)
     ok = False
     for reg in (0.0, 1e-8):
         du[:] = 0.0
         y[:] = 0.0
-        r_u = -g.copy()
-        r_c = -c.copy()
+        for j in range(n + 2):
+            r_u[j] = -g[j]
+        for r in range(m):
+            r_c[r] = -c[r]
         for _ in range(2):  # a solve, then a correction from its residual
             dx, dy, ok = _condensed_pass(shifted, off, jac, shift, reg, r_u, r_c)
             if not ok:
                 break
-            du += dx
-            y += dy
+            for j in range(n + 2):
+                du[j] += dx[j]
+            for r in range(m):
+                y[r] += dy[r]
             # The residual of the whole system at (du, y).
-            r_u = -g - shift * du
-            r_u[2:] -= tridiagonal_times(diag, off, du[2:])
-            r_c = -c + reg * y
+            t_du = tridiagonal_times(diag, off, du[2:])
+            for j in range(n + 2):
+                r_u[j] = -g[j] - shift * du[j]
+                if j >= 2:
+                    r_u[j] -= t_du[j - 2]
+            for r in range(m):
+                r_c[r] = -c[r] + reg * y[r]
             for r in range(m):
                 for j in range(n + 2):
                     r_u[j] -= jac[r, j] * y[r]
                     r_c[r] -= jac[r, j] * du[j]
-            size = np.abs(g).max() + np.abs(c).max() + 1e-300
-            if max(np.abs(r_u).max(), np.abs(r_c).max()) <= 1e-12 * size:
+            size = max_abs(g) + max_abs(c) + 1e-300
+            if max(max_abs(r_u), max_abs(r_c)) <= 1e-12 * size:
                 break
         if ok:
             break
     if not ok:
         du[:] = np.nan
-    return du, -y
+    return du, _negated(y)
 
 
 @njit(cache=True)
@@ -586,12 +683,11 @@ def _row_basis(jac):
             r[b, a] = dot
             for j in range(n):
                 q[a, j] -= dot * q[b, j]
-        norm = math.sqrt(np.sum(q[a] * q[a]))
+        norm = math.sqrt(_dot(q[a], q[a]))
         r[a, a] = norm
-        if norm > 1e-12 * (1.0 + np.abs(jac[a]).max()):
-            q[a] /= norm
-        else:
-            q[a] = 0.0
+        keep = norm > 1e-12 * (1.0 + max_abs(jac[a]))
+        for j in range(n):
+            q[a, j] = q[a, j] / norm if keep else 0.0
     return q, r
 
 
@@ -602,10 +698,10 @@ def _multipliers(q, r, g):
     m = q.shape[0]
     lam = np.zeros(m)
     for a in range(m - 1, -1, -1):
-        acc = np.sum(q[a] * g)
+        acc = _dot(q[a], g)
         for b in range(a + 1, m):
             acc -= r[a, b] * lam[b]
-        lam[a] = acc / r[a, a] if np.any(q[a]) else 0.0
+        lam[a] = acc / r[a, a] if _nonzero(q[a]) else 0.0
     return lam
 
 
@@ -617,20 +713,21 @@ def _back_onto(q, r, c):
     m = q.shape[0]
     y = np.zeros(m)
     for a in range(m):
-        if np.any(q[a]):
+        if _nonzero(q[a]):
             acc = -c[a]
             for b in range(a):
                 acc -= r[b, a] * y[b]
             y[a] = acc / r[a, a]
     out = np.zeros(q.shape[1])
     for a in range(m):
-        out += y[a] * q[a]
+        for j in range(q.shape[1]):
+            out[j] += y[a] * q[a, j]
     return out
 
 
 @njit(cache=True)
 def _merit(u, a, rho):
-    return _energy(u, a)[0] + rho * np.abs(_constraints(u, a)).sum()
+    return _energy(u, a)[0] + rho * _abs_sum(_constraints(u, a))
 
 
 @njit(cache=True)
@@ -655,21 +752,25 @@ def _sqp_kernel(u, a, iterations, tolerance, max_turn):
             lam = _multipliers(q, r, g)
         station = g.copy()  # grad E - J^T lam
         for row in range(m):
-            station -= lam[row] * jac[row]
-        if (np.abs(station).max() < tolerance * (1.0 + np.abs(g).max())
-                and (m == 0 or np.abs(c).max() < tolerance)):
+            for j in range(station.shape[0]):
+                station[j] -= lam[row] * jac[row, j]
+        if (max_abs(station) < tolerance * (1.0 + max_abs(g))
+                and (m == 0 or max_abs(c) < tolerance)):
             return u, True
         diag, off = _tridiagonal(u, lam, a)
         shift = tangent_shift(diag, off, jac, shift, mode) if m else 0.0
         du, lam_new = kkt_step(diag, off, jac, g, c, damping + shift)
-        if not np.all(np.isfinite(du)):
+        biggest = max_abs(du)
+        if not math.isfinite(biggest):
             return u, False
-        du *= min(1.0, max_turn / max(np.abs(du).max(), 1e-300))
-        rho = 2.0 * (np.abs(lam_new).max() if m else 0.0) + 1.0
-        merit = e + rho * np.abs(c).sum()
-        slope = min(np.sum(g * du) - rho * np.abs(c).sum(), 0.0)
+        cut = min(1.0, max_turn / max(biggest, 1e-300))
+        for j in range(du.shape[0]):
+            du[j] *= cut
+        rho = 2.0 * (max_abs(lam_new) if m else 0.0) + 1.0
+        merit = e + rho * _abs_sum(c)
+        slope = min(_dot(g, du) - rho * _abs_sum(c), 0.0)
         alpha = 1.0
-        trial = u + du
+        trial = _axpy(u, 1.0, du)
         # (the last term: round-off at the minimum)
         enough = merit + 1e-4 * slope + 1e-12 * abs(merit)
         if _merit(trial, a, rho) > enough:
@@ -679,17 +780,17 @@ def _sqp_kernel(u, a, iterations, tolerance, max_turn):
             # the Maratos effect: case 3's starts took 43 and 26 steps, with it 16 and 12).
             alpha = 0.5
             if m:
-                corrected = trial + _back_onto(q, r, _constraints(trial, a))
+                corrected = _axpy(trial, 1.0, _back_onto(q, r, _constraints(trial, a)))
                 if _merit(corrected, a, rho) <= enough:
                     trial = corrected
                     alpha = 1.0
         while alpha < 1.0:
-            trial = u + alpha * du
+            trial = _axpy(u, alpha, du)
             enough = merit + 1e-4 * alpha * slope + 1e-12 * abs(merit)
             if _merit(trial, a, rho) <= enough:
                 break
             if m:  # the shorter step with its correction too (a curvilinear search)
-                trial += _back_onto(q, r, _constraints(trial, a))
+                trial = _axpy(trial, 1.0, _back_onto(q, r, _constraints(trial, a)))
                 if _merit(trial, a, rho) <= enough:
                     break
             alpha *= 0.5
