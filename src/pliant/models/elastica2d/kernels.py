@@ -174,6 +174,24 @@ def _apply_follower(k, y, Y, lo, hi, st_fol, want_jac):
 
 
 @njit(cache=True, inline="always")
+def turned(c, s, theta, dth):
+    """(cos, sin) of theta + dth from c, s = cos theta, sin theta: where |dth| <= 0.5 by
+    Taylor's series of dth (to dth^14: a remainder below 1e-16) and the sum formulas, a
+    third of the cost of calling both (the integrator's hot loop turns each stage's
+    angle from its step's start by a small dth); else by calling them."""
+    if abs(dth) <= 0.5:
+        d2 = dth * dth
+        cm1 = d2 * (-0.5 + d2 * (1.0 / 24.0 + d2 * (-1.0 / 720.0 + d2 * (
+            1.0 / 40320.0 + d2 * (-1.0 / 3628800.0 + d2 * (
+                1.0 / 479001600.0 - d2 / 87178291200.0))))))
+        sd = dth * (1.0 + d2 * (-1.0 / 6.0 + d2 * (1.0 / 120.0 + d2 * (
+            -1.0 / 5040.0 + d2 * (1.0 / 362880.0 + d2 * (
+                -1.0 / 39916800.0 + d2 / 6227020800.0))))))
+        return c + (c * cm1 - s * sd), s + (s * cm1 + c * sd)
+    return math.cos(theta + dth), math.sin(theta + dth)
+
+
+@njit(cache=True, inline="always")
 def _segment(k, stn, inp):
     """What ``_integrate`` needs of segment k, as scalars."""
     prm, dist = inp.prm, inp.dist
@@ -230,6 +248,8 @@ def _integrate(y, Y, lo, hi, seg, nsteps, work, want_jac):
     for step in range(nsteps):
         s = s0 + step * h
         th0 = y[2]
+        cos0 = math.cos(th0)
+        sin0 = math.sin(th0)
         m0 = y[5]
         nxs = y[3]
         nys = y[4]
@@ -237,11 +257,11 @@ def _integrate(y, Y, lo, hi, seg, nsteps, work, want_jac):
         dy = 0.0
         de = 0.0
         for i in range(nst):
-            th = th0
+            dth = 0.0
             m = m0
             for j in range(i):
                 w = ha[i, j]
-                th += w * K[j, 0]
+                dth += w * K[j, 0]
                 m += w * K[j, 1]
             si = s + c[i] * h
             if follower:
@@ -254,8 +274,7 @@ def _integrate(y, Y, lo, hi, seg, nsteps, work, want_jac):
             else:
                 nx = nx0 - gx * (si - s0)
                 ny = ny0 - gy * (si - s0)
-            ct = math.cos(th)
-            st = math.sin(th)
+            ct, st = turned(cos0, sin0, th0, dth)
             if follower:  # n' = -(g + ft t + fn nu)
                 K[i, 2] = -(gx + ft * ct - fn * st)
                 K[i, 3] = -(gy + ft * st + fn * ct)
