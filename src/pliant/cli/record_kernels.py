@@ -79,6 +79,10 @@ def _child(out: Path, folder: str, kind: str) -> None:
 
     event.register("numba:compile", Timer())
     first_run.compile_ahead = lambda *a, **k: False  # everything lazily, in this process
+    # and no helper started ahead: it would compile its half of the last recording into
+    # the same cache, and this process would load those kernels instead of compiling
+    # them (recorded with no cost and no callees: the plan then runs them too early).
+    first_run.spawn = lambda *a, **k: None
     jobs = ([["demo", "--out", folder]] if kind == "3d" else
             [["solve", str(PAPER / f"case{i}.toml")] for i in (1, 2, 3)])
     for job in jobs:
