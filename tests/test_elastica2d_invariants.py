@@ -12,9 +12,9 @@ from hypothesis import strategies as st
 
 import pliant as pl
 from pliant.io.problem_file import load_problem
-from pliant.models.elastica2d import ShootingSolver, kernels, solve, trace
+from pliant.models.elastica2d import ShootingSolver, kernels, minimum, solve, trace
 from pliant.models.elastica2d.lowering import lower
-from pliant.models.elastica2d.reference import solve_reference
+from pliant.models.elastica2d.reference import equilibrium_error, solve_reference
 
 from .helpers import EXAMPLES, shooting_jacobians, zoo
 
@@ -315,3 +315,26 @@ def test_turned_angle_matches_the_library_sine_and_cosine(theta, dth):
     exact_s = math.sin(theta) * math.cos(dth) + math.cos(theta) * math.sin(dth)
     assert abs(c - exact_c) <= 2e-15
     assert abs(s - exact_s) <= 2e-15
+
+
+def test_a_target_behind_the_clamp_is_reached_through_the_energy_minimum():
+    """A target the part reaches only by turning back sharply at its clamp (the fuzz's
+    2D problem 1577): every continuation route meets a fold or its step budget, and the
+    energy's minimum holds internal forces of about 1,900 EI / L^2 that the loads do not
+    show; Newton from it, cut into shooting intervals and meshed for its own wavenumber,
+    converges. Checked by integrating the ODE again (solve_ivp) and against the discrete
+    minimum's energy (48 elements: within 5 %)."""
+    part = pl.Part(length=0.5647438357719201, bending_stiffness=0.044800894166508405,
+                   rest_curvature=((0.06908137507346428, 0.692752063347229),
+                                   (0.18263280779622046, -2.512908740416341)))
+    problem = pl.Problem(part, (pl.clamp(0.0), pl.grip(
+        part.length, position=(-0.37995196908847134, -0.3696498541478592),
+        angle=2.693306808302032, name="hand")))
+    eq = solve(problem)
+    assert equilibrium_error(eq) <= 1e-8
+    assert eq.stable
+    np.testing.assert_allclose(eq.position[-1], (-0.37995196908847134, -0.3696498541478592),
+                               atol=1e-9)
+    lowest = minimum.minima(problem)[0]
+    scale = part.bending_stiffness / part.length
+    assert eq.energy == pytest.approx(lowest.energy * scale, rel=0.05)

@@ -554,14 +554,31 @@ class Run:
         problem = self.low.problem
         if not minimum.applicable(problem):
             return []
-        base = len(self.lowering(problem).nodes) + 1
+        loads = len(self.lowering(problem).nodes) + 1
 
         def converged(start) -> tuple[Lowered, _Point] | None:
-            for count in (base, 4 * base, 16 * base):
+            # The start's own wavenumber, not only the loads': a target that makes the
+            # part turn back sharply at a clamp is held by internal forces of thousands
+            # of EI / L^2 the loads do not show. Its force sets the shooting intervals (as
+            # ``_renode``'s for answers), all of it the mesh
+            turn, force = _wavenumber(start)
+            base = loads
+            if force > NODE_SPAN * loads:
+                base = math.ceil(1.25 * force / NODE_SPAN)
+            # (a start for Newton, meshed at half the path's accuracy: the answer is
+            # meshed for its own by ``polish``)
+            need = int(math.ceil((turn + force) / (2.0 * self.solver.path_accuracy)))
+            # (more where the start's forces were underestimated; past 16 times the loads'
+            # intervals not beyond 64: each Newton iteration factors a dense matrix of six
+            # unknowns an interval)
+            most = max(16 * loads, MOST_INTERVALS)
+            for count in [c for c in (base, 4 * base, 16 * base) if c <= most]:
                 if clock.now() > self.deadline:
                     return None
                 self.low = low = self.lowering(problem, count)
                 mesh = self.first_mesh()
+                if need > mesh.density:
+                    mesh = low.mesh(need)
                 z, r, status, jac, stats = self.newton(
                     low.unknowns_from(start), low.target, mesh, strict=False,
                     tol=self.solver.tolerance)
@@ -794,6 +811,21 @@ def _extrapolate(history: tuple[Equilibrium, ...], old: _WarmState,
                 weight *= (target - tj) / (ti - tj)
         z = weight * pi.z if z is None else z + weight * pi.z
     return z
+
+
+MOST_INTERVALS = 64  # see ``Run.minima``
+
+
+def _wavenumber(start) -> tuple[float, float]:
+    """(max|theta'|, sqrt(max|n|)) of a start's arrays, dimensionless (as the kernels'
+    statistics: their sum is the wavenumber a mesh must resolve)."""
+    part = start.problem.part
+    L, EI = part.length, part.bending_stiffness
+    s = np.asarray(start.s) / L
+    step = np.diff(s)
+    turn = np.abs(np.diff(np.asarray(start.angle)))[step > 0.0] / step[step > 0.0]
+    force = np.linalg.norm(np.asarray(start.internal_force), axis=1).max() * L**2 / EI
+    return float(turn.max(initial=0.0)), math.sqrt(float(force))
 
 
 def _same_structure(a: Lowered, b: Lowered) -> bool:
