@@ -11,7 +11,7 @@ from scipy.special import ellipe, ellipk
 
 import pliant as pl
 from pliant.core.equilibrium import WARM_START_LOST
-from pliant.core.events import Snapped
+from pliant.core.events import LowestEquilibrium, Snapped
 from pliant.errors import (
     ConvergenceError,
     IllPosedProblemError,
@@ -850,3 +850,41 @@ def test_equilibria_lists_every_bow_side_of_a_buckled_strip():
                for eq in found)
     answer = rod3d.solve(problem, solver=solver)
     assert any(same_shape(answer, eq) for eq in found)
+
+
+def test_where_every_route_with_a_ball_stops_the_answer_clear_of_it_is_taken():
+    """The fuzz's 3D problem 1268: a pre-curved part under its weight, clamped along +x
+    and pinned at a hand, with a ball beside the chord. Every route with the ball met a
+    fold (the part pushed over it); the routes without it reach an equilibrium that
+    touches the ball nowhere, which is one of the problem itself: taken, with a note
+    that says so and its stability (it was "no equilibrium"). Checked independently:
+    global balance of the weight and the end loads, the elements' lengths, the hand's
+    position and the clearance from the ball."""
+    L = 0.6485614980459994
+    part = pl.Part(L, 0.06527975711527931, mass_per_length=0.13420615877001166,
+                   outer_diameter=0.01 * L,
+                   rest_curvature=((0.1484266539024296, 2.4300208001783425),
+                                   (0.6391945159932364, -2.688131703357343)))
+    hand = (0.2416799054037661, 0.10276133896215289, -0.09796450012007521)
+    centre = np.array([0.19540759097764535, 0.09450607220301933, -0.012251104441905449])
+    problem = pl.Problem(part, (pl.clamp(0.0, (0.0, 0.0, 0.0), tangent=(1.0, 0.0, 0.0),
+                                         normal=(0, 0, 1)), pl.grip(L, hand, name="hand")),
+                         gravity=(0.0, 0.0, -9.81),
+                         obstacles=(Obstacle.sphere("ball", 0.1 * L, tuple(centre)),))
+    eq = pl.solve(problem)
+    note = eq.notes[-1]
+    assert isinstance(note, LowestEquilibrium) and note.route_energy is None
+    assert ("unstable" in note) == (eq.verdict == "unstable")
+    EI = part.bending_stiffness
+    q = np.array([0.0, 0.0, -9.81 * part.mass_per_length])
+    x = eq.position
+    ds = np.diff(eq.s)
+    force = q * L + sum(ld.force for ld in eq.loads.values())
+    moment = np.cross(0.5 * (x[1:] + x[:-1]), q[None, :] * ds[:, None]).sum(axis=0)
+    for ld in eq.loads.values():
+        moment += np.cross(x[int(np.argmin(np.abs(eq.s - ld.s)))], ld.force) + ld.moment
+    assert np.abs(force).max() <= 1e-8 * EI / L**2
+    assert np.abs(moment).max() <= 1e-8 * EI / L
+    assert np.abs(np.linalg.norm(np.diff(x, axis=0), axis=1) - ds).max() <= 1e-9 * L
+    np.testing.assert_allclose(x[-1], hand, atol=1e-9 * L)
+    assert np.linalg.norm(x - centre, axis=1).min() >= 0.1 * L + 0.005 * L

@@ -569,7 +569,13 @@ def _solve(problem: Problem, warm_start: Equilibrium3D | None, solver: RodSolver
                 run.notes.append(WarmStartLost(snap[1] if snap else WARM_START_LOST))
                 state = snap[0] if snap else None
         if state is None:
-            state = run.cold()
+            try:
+                state = run.cold()
+            except Stalled as stall:
+                cleared = _clear_instead(run, stall)
+                if cleared is None:
+                    raise
+                return cleared
         if run.rod.gauge_frame >= 0 and run.rod.K[0] != run.rod.K[1]:
             state = _release_roll(run, state)
     except Stalled as stall:
@@ -635,6 +641,40 @@ def _lowest(run: Run, eq: Equilibrium3D) -> tuple[Equilibrium3D, Run]:
     again = Run(best.state.rod, run.solver)
     again.gauge_quat = best.state.gauge_quat
     return chosen, again
+
+
+def _clear_instead(run: Run, stall: Stalled) -> Equilibrium3D | None:
+    """Where every route with the obstacles stalls (a fold as the part is pushed over
+    one), the best of the routes' answers without them that touch none of them
+    (``_clear``): stable before unstable, then the lowest potential energy, with a note
+    that says so and names its stability; None where there is none (then the stall
+    stands). Each is an equilibrium of the problem itself: an obstacle it does not
+    touch changes nothing."""
+    if not run.rod.problem.obstacles or clock.now() > run.deadline:
+        return None
+    found = _clear(run, run.deadline)
+    if not found:
+        return None
+    energy_counts = conservative(run)
+    best = min(found, key=lambda eq: (eq.verdict == "unstable",
+                                      potential_energy(eq) if energy_counts else 0.0))
+    energy = potential_energy(best)
+    route = getattr(best.notes[0], "route", None)
+    unstable = best.verdict == "unstable"
+    note = LowestEquilibrium(
+        f"every route with the obstacles stopped at {stall.t:.3g} of the way "
+        f"({stall.reason}); pliant took the "
+        f"{'' if unstable else 'stable '}equilibrium"
+        f"{' of lowest potential energy' if energy_counts and not unstable else ''} that "
+        f"its routes reach without them and that touches none of them ({energy:.6g} J"
+        f"{f', by the {route} route' if route else ''})"
+        f"{'; it is unstable, and no stable one was found' if unstable else ''}",
+        energy=energy, route_energy=None)
+    again = Run(best.state.rod, run.solver)
+    again.gauge_quat = best.state.gauge_quat
+    eq = replace(best, notes=(*best.notes[1:], note))
+    return eq if run.rod.problem.solved_together else _with_reaction_error(
+        again, eq.state.state, eq)
 
 
 def _clear(run: Run, deadline: float) -> list[Equilibrium3D]:
