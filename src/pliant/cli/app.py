@@ -46,11 +46,13 @@ def _main(version: Annotated[bool, typer.Option(
     """Flexible parts (hoses, pipes, cables) in assembly and disassembly."""
 
 
-def _first_run_note(three_d: bool = True) -> None:
+def _first_run_note(three_d: bool = True, plots: bool = True) -> None:
     """On a first run of a model (its numba kernels not cached yet), say so on stderr,
     with about how long it takes, so that a fresh install does not look hung, and
     compile the model's kernels ahead on two cores (``pliant.models.first_run``), with
-    the kernel being compiled shown on a terminal."""
+    the kernel being compiled shown on a terminal. ``plots``: the job draws or writes
+    meshes (its libraries are imported while the compile waits, ``_HEAD_START``); a job
+    that does not is not delayed by them."""
     from pliant.models import first_run  # noqa: PLC0415 (light: no numba until used)
 
     kind = "3d" if three_d else "2d"
@@ -65,11 +67,11 @@ def _first_run_note(three_d: bool = True) -> None:
 
     console = Console(stderr=True)
     if not console.is_terminal:
-        first_run.compile_ahead(kind=kind, idle=_HEAD_START)
+        first_run.compile_ahead(kind=kind, idle=_HEAD_START if plots else ())
         return
     with console.status("compiling…") as status:
         first_run.compile_ahead(lambda name: status.update(f"compiling {name}…"), kind=kind,
-                                idle=_HEAD_START)
+                                idle=_HEAD_START if plots else ())
 
 
 def _plotting() -> None:
@@ -197,7 +199,7 @@ def solve(
     elements = _elements(elements)
     scene = _load_scene(file)
     problem = scene.problem
-    _first_run_note(problem.dimension == 3)
+    _first_run_note(problem.dimension == 3, plots=plot is not None or mesh is not None)
     if all_:
         all_equilibria(problem, json, elements or scene.solver.elements)
         return
