@@ -1,6 +1,10 @@
 """The demo's first run on a fresh machine, timed end to end (issue 19's 20 s).
 
     .venv/bin/python benchmarks/first_run.py [--runs N] [--against OTHER_CHECKOUT]
+        [--solve PROBLEM_FILE]
+
+``--solve examples/paper/case3.toml`` times ``pliant solve`` of that file instead (a 2D
+problem's first run: the 2D model's kernels).
 
 Each run empties what a fresh install has empty (a new ``NUMBA_CACHE_DIR`` and
 ``PLIANT_CACHE``: every kernel compiles, every scene structure is built) and times
@@ -28,19 +32,21 @@ CODE = ("import sys; from pliant.cli import app; sys.argv = ['pliant', *sys.argv
         "(getattr(app, 'entry', None) or app.main)()")
 
 
-def first_run(checkout: Path) -> float:
-    """Seconds of one fresh ``pliant demo`` with ``checkout``'s sources."""
+def first_run(checkout: Path, solve: Path | None = None) -> float:
+    """Seconds of one fresh ``pliant demo`` (or ``pliant solve`` of a file) with
+    ``checkout``'s sources."""
     with tempfile.TemporaryDirectory() as folder:
         env = dict(os.environ, NUMBA_CACHE_DIR=str(Path(folder) / "numba"),
                    PLIANT_CACHE=str(Path(folder) / "cache"),
                    PYTHONPATH=str(checkout / "src"))
+        job = (["demo", "--out", str(Path(folder) / "out")] if solve is None
+               else ["solve", str(solve.resolve())])
         start = time.perf_counter()
-        done = subprocess.run([sys.executable, "-c", CODE, "demo", "--out",
-                               str(Path(folder) / "out")], env=env, cwd=checkout,
+        done = subprocess.run([sys.executable, "-c", CODE, *job], env=env, cwd=checkout,
                               capture_output=True, text=True)
         seconds = time.perf_counter() - start
     if done.returncode != 0:
-        raise SystemExit(f"pliant demo failed in {checkout}: {done.stderr[-2000:]}")
+        raise SystemExit(f"pliant {job[0]} failed in {checkout}: {done.stderr[-2000:]}")
     return seconds
 
 
@@ -48,6 +54,7 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--runs", type=int, default=3)
     parser.add_argument("--against", type=Path, help="another checkout, run alternately")
+    parser.add_argument("--solve", type=Path, help="time pliant solve of this problem file")
     args = parser.parse_args()
     sides = {"this checkout": ROOT}
     if args.against is not None:
@@ -55,7 +62,7 @@ def main() -> None:
     times: dict[str, list[float]] = {name: [] for name in sides}
     for k in range(args.runs):
         for name, checkout in sides.items():
-            times[name].append(first_run(checkout))
+            times[name].append(first_run(checkout, args.solve))
             print(f"run {k + 1}, {name}: {times[name][-1]:.1f} s", flush=True)
     for name, values in times.items():
         print(f"{name}: median {statistics.median(values):.1f} s "
