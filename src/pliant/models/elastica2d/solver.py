@@ -554,20 +554,19 @@ class Run:
         problem = self.low.problem
         if not minimum.applicable(problem):
             return []
-        loads = len(self.lowering(problem).nodes) + 1
+        own = self.lowering(problem)
+        loads = len(own.nodes) + 1
 
         def converged(start) -> tuple[Lowered, _Point] | None:
             # The start's own wavenumber, not only the loads': a target that makes the
             # part turn back sharply at a clamp is held by internal forces of thousands
             # of EI / L^2 the loads do not show. Its force sets the shooting intervals (as
-            # ``_renode``'s for answers), all of it the mesh
-            turn, force = _wavenumber(start)
-            base = loads
-            if force > NODE_SPAN * loads:
-                base = math.ceil(1.25 * force / NODE_SPAN)
-            # (a start for Newton, meshed at half the path's accuracy: the answer is
-            # meshed for its own by ``polish``)
-            need = int(math.ceil((turn + force) / (2.0 * self.solver.path_accuracy)))
+            # for answers, ``_intervals``), all of it the mesh: a start for Newton, meshed
+            # at half the path's accuracy (the answer is meshed for its own by ``polish``)
+            summary = _statistics(start)
+            base = _intervals(math.sqrt(summary[1]), own) or loads
+            need = int(kernels.needed_density(summary, 2.0 * self.solver.path_accuracy,
+                                              self.solver.min_density))
             # (more where the start's forces were underestimated; past 16 times the loads'
             # intervals not beyond 64: each Newton iteration factors a dense matrix of six
             # unknowns an interval)
@@ -816,16 +815,26 @@ def _extrapolate(history: tuple[Equilibrium, ...], old: _WarmState,
 MOST_INTERVALS = 64  # see ``Run.minima``
 
 
-def _wavenumber(start) -> tuple[float, float]:
-    """(max|theta'|, sqrt(max|n|)) of a start's arrays, dimensionless (as the kernels'
-    statistics: their sum is the wavenumber a mesh must resolve)."""
+def _statistics(start) -> np.ndarray:
+    """A start's arrays summed up as the kernels' statistics: (max|theta'|, max|n|),
+    dimensionless."""
     part = start.problem.part
     L, EI = part.length, part.bending_stiffness
     s = np.asarray(start.s) / L
     step = np.diff(s)
     turn = np.abs(np.diff(np.asarray(start.angle)))[step > 0.0] / step[step > 0.0]
     force = np.linalg.norm(np.asarray(start.internal_force), axis=1).max() * L**2 / EI
-    return float(turn.max(initial=0.0)), math.sqrt(float(force))
+    return np.array([turn.max(initial=0.0), force])
+
+
+def _intervals(k: float, low: Lowered) -> int | None:
+    """The shooting intervals an internal force of wavenumber k = sqrt(max|n|)
+    (dimensionless) needs where it outgrows ``low``'s (k times the longest above
+    ``NODE_SPAN``: its sensitivities would grow like exp(k s) across one): each then
+    spans at most ``NODE_SPAN``, with a quarter to spare; None where ``low``'s do."""
+    if k * low.interval <= NODE_SPAN:
+        return None
+    return math.ceil(1.25 * k / NODE_SPAN)
 
 
 def _same_structure(a: Lowered, b: Lowered) -> bool:
@@ -948,10 +957,10 @@ def _renode(run: Run, point: _Point) -> _Point:
     part pulled taut, a cable hanging): the answer is the same, but later warm starts
     from it stay well conditioned."""
     low = run.low
-    k = math.sqrt(float(point.stats[1]))
-    if k * low.interval <= NODE_SPAN:
+    count = _intervals(math.sqrt(float(point.stats[1])), low)
+    if count is None:
         return point
-    finer = lower(low.problem, nodes=math.ceil(1.25 * k / NODE_SPAN))
+    finer = lower(low.problem, nodes=count)
     here = Equilibrium(problem=low.problem, residual=point.residual, iterations=0, steps=0,
                        sampler=_Sampler(low, point.z, point.mesh.density))
     z0 = finer.unknowns_from(here)
