@@ -638,8 +638,7 @@ def _lowest(run: Run, eq: Equilibrium3D) -> tuple[Equilibrium3D, Run]:
         f"reach ({energy:.6g} J, {best.notes[0]}); the first route's has {first:.6g} J "
         f"and is {eq.verdict}", energy=energy, route_energy=first)
     chosen = replace(best, notes=(*kept, note), iterations=eq.iterations + best.iterations)
-    again = Run(best.state.rod, run.solver)
-    again.gauge_quat = best.state.gauge_quat
+    again = Run(best.state.rod, run.solver, gauge_quat=best.state.gauge_quat)
     return chosen, again
 
 
@@ -670,8 +669,7 @@ def _clear_instead(run: Run, stall: Stalled) -> Equilibrium3D | None:
         f"{f', by the {route} route' if route else ''})"
         f"{'; it is unstable, and no stable one was found' if unstable else ''}",
         energy=energy, route_energy=None)
-    again = Run(best.state.rod, run.solver)
-    again.gauge_quat = best.state.gauge_quat
+    again = Run(best.state.rod, run.solver, gauge_quat=best.state.gauge_quat)
     eq = replace(best, notes=(*best.notes[1:], note))
     return eq if run.rod.problem.solved_together else _with_reaction_error(
         again, eq.state.state, eq)
@@ -697,8 +695,7 @@ def _clear(run: Run, deadline: float) -> list[Equilibrium3D]:
                 or not np.allclose(old.rod.frame_s, rod.frame_s)):
             continue  # (another mesh, where the two lowerings ever differ: a guard)
         state = (X, Q, lam, nu, np.zeros(rod.islot.shape[0]))
-        there = Run(rod, run.solver)
-        there.gauge_quat = old.gauge_quat
+        there = Run(rod, run.solver, gauge_quat=old.gauge_quat)
         R, _, _ = there.residual(state, rod.target)
         r = contact_kernels.contact_max(R, there.contact(rod.target))
         if r > run.solver.tolerance:
