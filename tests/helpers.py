@@ -80,3 +80,20 @@ def precurved_3d() -> pl.Problem:
         pl.grip(1.0, (0.037373700440417025, 0.428805391043273, -0.09993627965470883),
                 tangent=(0.11971269704277052, 0.46351305555694045, -0.877966125482649),
                 name="hand")))
+
+
+def balance_3d(eq) -> tuple[np.ndarray, np.ndarray]:
+    """Net force and moment (about the origin) of loads, reactions and the weight, lumped
+    at the nodes as the model applies it."""
+    problem = eq.problem
+    weight = problem.part.mass_per_length * np.asarray(problem.gravity)
+    h = np.diff(eq.s)
+    lumped = np.zeros_like(eq.position)
+    lumped[:-1] += 0.5 * h[:, None] * weight
+    lumped[1:] += 0.5 * h[:, None] * weight
+    force = lumped.sum(axis=0) + sum(ld.force for ld in eq.loads.values())
+    moment = np.cross(eq.position, lumped).sum(axis=0)
+    for ld in eq.loads.values():
+        i = int(np.argmin(np.abs(eq.s - ld.s)))
+        moment += np.cross(eq.position[i], ld.force) + ld.moment
+    return force, moment

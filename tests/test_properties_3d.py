@@ -13,6 +13,8 @@ import pliant as pl
 from pliant.errors import ConvergenceError, PliantError
 from pliant.models import rod3d
 
+from .helpers import balance_3d
+
 unit_vectors = st.tuples(st.floats(-1, 1), st.floats(-1, 1), st.floats(-1, 1)).filter(
     lambda v: np.linalg.norm(v) > 0.2).map(lambda v: tuple(np.asarray(v) / np.linalg.norm(v)))
 
@@ -72,23 +74,6 @@ def problems(draw):
     return part, tuple(conditions), gravity
 
 
-def balance(eq) -> tuple[np.ndarray, np.ndarray]:
-    """Net force and moment (about the origin) of loads, reactions and the weight, lumped
-    at the nodes as the model applies it."""
-    problem = eq.problem
-    weight = problem.part.mass_per_length * np.asarray(problem.gravity)
-    h = np.diff(eq.s)
-    lumped = np.zeros_like(eq.position)
-    lumped[:-1] += 0.5 * h[:, None] * weight
-    lumped[1:] += 0.5 * h[:, None] * weight
-    force = lumped.sum(axis=0) + sum(ld.force for ld in eq.loads.values())
-    moment = np.cross(eq.position, lumped).sum(axis=0)
-    for ld in eq.loads.values():
-        i = int(np.argmin(np.abs(eq.s - ld.s)))
-        moment += np.cross(eq.position[i], ld.force) + ld.moment
-    return force, moment
-
-
 @settings(max_examples=40, deadline=None, derandomize=True,
           suppress_health_check=[HealthCheck.too_slow, HealthCheck.filter_too_much])
 @given(problems())
@@ -113,7 +98,7 @@ def test_converged_and_consistent_or_typed_error(spec):
             assert np.allclose(eq.frames[i][:, 2], cond.tangent, atol=1e-8)
         if cond.normal is not None:
             assert np.allclose(eq.frames[i][:, 0], cond.normal, atol=1e-8)
-    force, moment = balance(eq)
+    force, moment = balance_3d(eq)
     scale = max(1.0, max(float(np.abs(ld.force).max()) for ld in eq.loads.values()),
                 part.mass_per_length * 9.81 * length)
     assert np.abs(force).max() <= 1e-8 * scale
@@ -139,7 +124,7 @@ def test_everyday_loadings_always_converge(force, weight):
                          gravity=(0.0, 0.0, -9.81))
     eq = rod3d.solve(problem, solver=rod3d.RodSolver(elements=40))
     assert eq.residual <= 1e-9
-    force_net, _moment_net = balance(eq)
+    force_net, _moment_net = balance_3d(eq)
     assert np.abs(force_net).max() <= 1e-8 * max(1.0, weight, np.abs(force).max())
 
 

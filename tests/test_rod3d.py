@@ -27,7 +27,7 @@ from pliant.models.rod3d.solver import Run, Stalled
 from pliant.models.rod3d.stability import stability_dense, stability_of
 from pliant.scene.distance import Obstacle
 
-from .helpers import EXAMPLES, precurved_3d, zoo
+from .helpers import EXAMPLES, balance_3d, precurved_3d, zoo
 
 UNIT = pl.Part(length=1.0, bending_stiffness=1.0, torsional_stiffness=0.8)
 
@@ -405,19 +405,7 @@ def test_invariance_under_a_rigid_motion():
 
 def test_global_balance():
     eq = rod3d.solve(hose_problem())
-    problem = eq.problem
-    rod = eq.state.rod
-    weight = problem.part.mass_per_length * np.asarray(problem.gravity)
-    # Weight lumped at the nodes, as the model applies it.
-    lumped = np.zeros((rod.elements + 1, 3))
-    h = np.diff(eq.s)
-    lumped[:-1] += 0.5 * h[:, None] * weight
-    lumped[1:] += 0.5 * h[:, None] * weight
-    force = lumped.sum(axis=0) + sum(ld.force for ld in eq.loads.values())
-    moment = np.cross(eq.position, lumped).sum(axis=0)
-    for ld in eq.loads.values():
-        i = int(np.argmin(np.abs(eq.s - ld.s)))
-        moment += np.cross(eq.position[i], ld.force) + ld.moment
+    force, moment = balance_3d(eq)
     assert np.abs(force).max() < 1e-9
     assert np.abs(moment).max() < 1e-9
 
@@ -876,13 +864,9 @@ def test_where_every_route_with_a_ball_stops_the_answer_clear_of_it_is_taken():
     assert isinstance(note, LowestEquilibrium) and note.route_energy is None
     assert ("unstable" in note) == (eq.verdict == "unstable")
     EI = part.bending_stiffness
-    q = np.array([0.0, 0.0, -9.81 * part.mass_per_length])
     x = eq.position
     ds = np.diff(eq.s)
-    force = q * L + sum(ld.force for ld in eq.loads.values())
-    moment = np.cross(0.5 * (x[1:] + x[:-1]), q[None, :] * ds[:, None]).sum(axis=0)
-    for ld in eq.loads.values():
-        moment += np.cross(x[int(np.argmin(np.abs(eq.s - ld.s)))], ld.force) + ld.moment
+    force, moment = balance_3d(eq)
     assert np.abs(force).max() <= 1e-8 * EI / L**2
     assert np.abs(moment).max() <= 1e-8 * EI / L
     assert np.abs(np.linalg.norm(np.diff(x, axis=0), axis=1) - ds).max() <= 1e-9 * L
