@@ -284,6 +284,12 @@ class Problem:
     stations: tuple = field(init=False, repr=False, compare=False)
     distributed: tuple[DistributedLoad, ...] = field(init=False, repr=False, compare=False)
     dimension: int = field(init=False, repr=False, compare=False)
+    # The dead load [N/m] on every metre of the part, global frame: its weight (mass per
+    # length times gravity) plus the dead loads that cover it whole; and the
+    # ``distributed`` loads that it leaves out (followers, dead loads on a stretch only).
+    # Worked out once here: every solve reads them, a warm step several times.
+    dead_load_per_length: tuple[float, ...] = field(init=False, repr=False, compare=False)
+    partial_loads: tuple[DistributedLoad, ...] = field(init=False, repr=False, compare=False)
 
     def __post_init__(self) -> None:
         conditions = tuple(self.conditions)
@@ -381,6 +387,7 @@ class Problem:
         object.__setattr__(self, "loads", loads)
         object.__setattr__(self, "distributed", tuple(
             d for ld in loads for d in ld.distributed(gravity)))
+        self._split_loads()
         merge = _merge if dimension == 2 else _merge3
         object.__setattr__(self, "stations", merge(conditions, length))
         self._check_rigid_motion()
@@ -394,24 +401,19 @@ class Problem:
         return bool(self.sliders or self.junctions or self.pivots or any(
             getattr(o, "fitted", None) is not None for o in self.obstacles))
 
-    @property
-    def dead_load_per_length(self) -> tuple[float, ...]:
-        """The dead load [N/m] on every metre of the part, global frame: its weight
-        (mass per length times gravity) plus the dead loads that cover it whole."""
+    def _split_loads(self) -> None:
+        """Sets ``dead_load_per_length`` and ``partial_loads`` (see their fields)."""
+        length = self.part.length
         total = [self.part.mass_per_length * g for g in self.gravity or ()]
+        partial = []
         for ld in self.distributed:
-            if not ld.follower and ld.overlap(0.0, self.part.length, self.part.length) \
-                    >= self.part.length * (1.0 - 1e-12):
+            whole = ld.overlap(0.0, length, length) >= length * (1.0 - 1e-12)
+            if whole and not ld.follower:
                 total = [a + b for a, b in zip(total, ld.force)]
-        return tuple(total)
-
-    @property
-    def partial_loads(self) -> tuple[DistributedLoad, ...]:
-        """The ``distributed`` loads that ``dead_load_per_length`` leaves out: followers,
-        and dead loads on a stretch of the part only."""
-        whole = self.part.length * (1.0 - 1e-12)
-        return tuple(ld for ld in self.distributed if ld.follower
-                     or ld.overlap(0.0, self.part.length, self.part.length) < whole)
+            else:
+                partial.append(ld)
+        object.__setattr__(self, "dead_load_per_length", tuple(total))
+        object.__setattr__(self, "partial_loads", tuple(partial))
 
     @property
     def held_stations(self) -> int:

@@ -30,7 +30,7 @@ from pliant.models.elastica2d.kernels import APPLIED, NODE, PRESCRIBED
 NODE_SPAN = 8.0
 
 
-@dataclass(frozen=True, eq=False)
+@dataclass(slots=True, eq=False)
 class Arrays:
     """The load-dependent kernel inputs at one point of a homotopy."""
 
@@ -69,7 +69,7 @@ class Arrays:
         return self.val, self.fol, self.dist, self.prm
 
 
-@dataclass(frozen=True, eq=False)
+@dataclass(slots=True, eq=False)
 class Mesh:
     """Runge-Kutta steps per segment."""
 
@@ -81,7 +81,7 @@ class Mesh:
         return int(self.steps.sum() + self.steps.shape[0])
 
 
-@dataclass(frozen=True, eq=False)
+@dataclass(eq=False)
 class Lowered:
     problem: Problem
     length: float
@@ -96,7 +96,7 @@ class Lowered:
     station_of: tuple[Station | None, ...]  # the problem's station behind each one
     nz: int
     key: tuple = ()  # equal keys: same structure (a warm start can reuse unknowns)
-    inputs: tuple[float, ...] = ()  # val, fol, prm, dist flat (``_flat``)
+    inputs: tuple[float, ...] = ()  # what moves between problems (``_inputs``)
     nodes: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=np.int64))
     interval: float = 1.0  # the longest stretch between restarts (dimensionless)
     problem_rows: tuple[int, ...] = ()  # the kernel station of each problem station
@@ -108,11 +108,9 @@ class Lowered:
 
     def __post_init__(self) -> None:
         if not self.stations:
-            object.__setattr__(self, "stations", tuple(kernels.Stations(
-                self.st_s, self.st_kind, self.st_col, self.seg_lo, self.seg_hi,
-                self.st_kappa)))
-            object.__setattr__(self, "unloaded", (np.zeros_like(self.target.fol),
-                                                  np.zeros_like(self.target.dist)))
+            self.stations = tuple(kernels.Stations(self.st_s, self.st_kind, self.st_col,
+                                                   self.seg_lo, self.seg_hi, self.st_kappa))
+            self.unloaded = (np.zeros_like(self.target.fol), np.zeros_like(self.target.dist))
 
     # -- scales ---------------------------------------------------------------------------
     @property
@@ -131,19 +129,21 @@ class Lowered:
         rows = self.problem_rows
         if len(problem.stations) != len(rows):
             return None
-        length, fs, ms = self.length, self.force_scale, self.moment_scale
+        length = self.length
+        fs = self.stiffness / (length * length)
+        ms = self.stiffness / length
         val = self.target.val.copy()  # rows of no problem station hold zeros
         fol = self.target.fol.copy()
         station_of = list(self.station_of)
+        flat: list[float] = []
         for k, st in zip(rows, problem.stations):
             old = station_of[k]
             if st.s != old.s or st.prescribed != old.prescribed:  # type: ignore[union-attr]
                 return None
-            (px, py, pa), (kx, ky, ka), (dx, dy, da) = (st.prescribed, st.kinematics,
-                                                        st.dead_load)
-            val[k] = (kx / length if px else dx / fs, ky / length if py else dy / fs,
-                      ka if pa else da / ms)
-            fol[k] = (st.follower_load[0] / fs, st.follower_load[1] / fs)
+            targets = _targets(st, length, fs, ms)
+            val[k] = targets[:3]
+            fol[k] = targets[3:]
+            flat += targets
             station_of[k] = st
         dist = self.target.dist  # zeros without loads on stretches (the warm path)
         if problem.distributed or self.problem.distributed:
@@ -156,14 +156,13 @@ class Lowered:
             prm = prm.copy()  # the kernels copy what they change: arrays may be shared
             prm[0], prm[1] = fx, fy
         # A copy of this lowering with the new targets: its structure (the arrays the
-        # kernels' ``Stations`` hold) is shared, and the frozen dataclass's per-field
-        # __init__ is skipped (a warm step's budget is some tens of microseconds).
+        # kernels' ``Stations`` hold) is shared, and the per-field __init__ is skipped
+        # (a warm step's budget is some tens of microseconds).
         out = object.__new__(Lowered)
         out.__dict__.update(self.__dict__)
         out.__dict__.update(
             problem=problem, target=Arrays(val, fol, prm, dist),
-            station_of=tuple(station_of),
-            inputs=_flat(val, fol, prm, dist))
+            station_of=tuple(station_of), inputs=_inputs(flat, fx, fy, dist))
         return out
 
     # -- kernel calls ---------------------------------------------------------------------
@@ -286,12 +285,24 @@ class Lowered:
         return z
 
 
-def _flat(val: np.ndarray, fol: np.ndarray, prm: np.ndarray,
-          dist: np.ndarray) -> tuple[float, ...]:
-    """The targets and loads as one tuple of floats: the solver measures the distance
-    between two problems by them (``math.dist``, faster on floats than on arrays)."""
-    return (*val.ravel().tolist(), *fol.ravel().tolist(), *prm.tolist(),
-            *dist.ravel().tolist())
+def _targets(st: Station, length: float, fs: float, ms: float) -> tuple[float, ...]:
+    """A problem station's row of the kernels' targets and applied loads (``Arrays.val``:
+    each pair's prescribed kinematics or applied dead load) and of its follower loads
+    (``Arrays.fol``), dimensionless by the length, the force scale fs and the moment
+    scale ms: five floats."""
+    (px, py, pa), (kx, ky, ka), (dx, dy, da) = st.prescribed, st.kinematics, st.dead_load
+    ft, fn = st.follower_load
+    return (kx / length if px else dx / fs, ky / length if py else dy / fs,
+            ka if pa else da / ms, ft / fs, fn / fs)
+
+
+def _inputs(flat: list[float], fx: float, fy: float,
+            dist: np.ndarray) -> tuple[float, ...]:
+    """What moves between two problems of one structure, as one tuple of floats: every
+    problem station's ``_targets``, the dead load on the whole part and those on
+    stretches. The solver measures the distance between two problems by them
+    (``math.dist``, faster on floats than on arrays)."""
+    return (*flat, fx, fy, *dist.ravel().tolist())
 
 
 def distributed_load(problem: Problem) -> tuple[float, float]:
@@ -410,8 +421,6 @@ def lower(problem: Problem, nodes: int | None = None) -> Lowered:
     length, stiffness = part.length, part.bending_stiffness
     force_scale = stiffness / length**2
     moment_scale = stiffness / length
-    load_scale = (force_scale, force_scale, moment_scale)
-    kin_scale = (length, length, 1.0)
 
     stations: list[tuple[float, Station | None, bool]] = [
         (st.s / length, st, False) for st in problem.stations]
@@ -441,6 +450,7 @@ def lower(problem: Problem, nodes: int | None = None) -> Lowered:
     seg_hi = np.empty(nst - 1, dtype=np.int64)
     val = np.zeros((nst, 3))
     fol = np.zeros((nst, 2))
+    flat: list[float] = []
     col = 3
     lo = 0
     st_col[0] = (0, 1, 2)
@@ -451,22 +461,21 @@ def lower(problem: Problem, nodes: int | None = None) -> Lowered:
             lo = col
             col += 6
         elif st is not None:
-            prescribed, kin, dead = st.prescribed, st.kinematics, st.dead_load
+            targets = _targets(st, length, force_scale, moment_scale)
+            val[k] = targets[:3]
+            fol[k] = targets[3:]
+            flat += targets
             for i in range(3):
-                if prescribed[i]:
+                if st.prescribed[i]:
                     st_kind[k, i] = PRESCRIBED
-                    val[k, i] = kin[i] / kin_scale[i]
                     if k > 0:
                         st_col[k, i] = col
                         col += 1
-                else:
-                    val[k, i] = dead[i] / load_scale[i]
-            ft, fn = st.follower_load
-            fol[k] = (ft / force_scale, fn / force_scale)
         if k < nst - 1:
             seg_lo[k] = lo
             seg_hi[k] = col
-    prm = np.array([*distributed_load(problem), 0.0, 0.0, 1.0, axial_compliance(part)])
+    fx, fy = distributed_load(problem)
+    prm = np.array([fx, fy, 0.0, 0.0, 1.0, axial_compliance(part)])
     dist = segment_loads(problem, st_s)
     if part.straight_at_rest:
         st_kappa = np.zeros(nst)
@@ -480,7 +489,7 @@ def lower(problem: Problem, nodes: int | None = None) -> Lowered:
                    st_kind=st_kind, st_col=st_col, seg_lo=seg_lo, seg_hi=seg_hi,
                    st_kappa=st_kappa, target=Arrays(val, fol, prm, dist),
                    station_of=tuple(st for _, st, _ in stations), nz=col, key=key,
-                   inputs=_flat(val, fol, prm, dist),
+                   inputs=_inputs(flat, fx, fy, dist),
                    nodes=node_index,
                    interval=max(b - a for a, b in itertools.pairwise(cuts)),
                    problem_rows=tuple(k for k, (_, st, _) in enumerate(stations)

@@ -127,7 +127,7 @@ class ShootingSolver:
 _DEFAULT = ShootingSolver()  # immutable: one instance (its checks cost microseconds)
 
 
-@dataclass(frozen=True, eq=False)
+@dataclass(slots=True, eq=False)
 class _WarmState:
     """What a later solve needs to start from this one."""
 
@@ -790,26 +790,30 @@ def _extrapolate(history: tuple[Equilibrium, ...], old: _WarmState,
     quadratic (or, with two points, linear) extrapolation in the distance travelled
     through the problems' inputs. Only equilibria of the same structure count."""
     key = low.key
-    points = [h.state for h in history[-2:]
-              if type(h.state) is _WarmState and h.state.low.key == key]
+    points = []
+    for h in history[-2:]:
+        state = h.state
+        if type(state) is _WarmState and state.low.key == key:
+            points.append(state)
     if not points:
         return None
     points.append(old)  # oldest first; at most three
-    taus = [0.0]
-    for a, b in itertools.pairwise(points):
-        step = math.dist(a.low.inputs, b.low.inputs)
-        if step <= 0.0:
-            return None
-        taus.append(taus[-1] + step)
-    target = taus[-1] + math.dist(old.low.inputs, low.inputs)
-    z = None
-    for i, (ti, pi) in enumerate(zip(taus, points)):
-        weight = 1.0  # Lagrange's basis polynomial of point i, at the target
-        for j, tj in enumerate(taus):
-            if j != i:
-                weight *= (target - tj) / (ti - tj)
-        z = weight * pi.z if z is None else z + weight * pi.z
-    return z
+    dists = [math.dist(a.low.inputs, b.low.inputs) for a, b in itertools.pairwise(points)]
+    if min(dists, default=1.0) <= 0.0:
+        return None
+    ahead = math.dist(old.low.inputs, low.inputs)
+    if len(points) == 2:  # linear: z1 + r (z1 - z0), r the step ratio
+        ratio = ahead / dists[0]
+        return (1.0 + ratio) * old.z - ratio * points[0].z
+    # Quadratic, Lagrange's basis polynomials at the target, with the distance
+    # travelled through the inputs as the parameter (t0 = 0, t1 = d0, t2 = d0 + d1).
+    t1 = dists[0]
+    t2 = t1 + dists[1]
+    t = t2 + ahead
+    w0 = (t - t1) * (t - t2) / (t1 * t2)
+    w1 = t * (t - t2) / (t1 * (t1 - t2))
+    w2 = t * (t - t1) / (t2 * (t2 - t1))
+    return w0 * points[0].z + w1 * points[1].z + w2 * old.z
 
 
 MOST_INTERVALS = 64  # see ``Run.minima``
@@ -974,7 +978,7 @@ def _renode(run: Run, point: _Point) -> _Point:
     return _Point(z, jac, mesh, stats, r)
 
 
-@dataclass(frozen=True, eq=False)
+@dataclass(slots=True, eq=False)
 class _Sampler:
     """Integrates the converged unknowns once more on the output grid."""
 
