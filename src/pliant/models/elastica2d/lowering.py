@@ -105,12 +105,15 @@ class Lowered:
     # kernels copy what they change): made once, not per solve.
     stations: tuple = ()
     unloaded: tuple = ()
+    # The applied loads' wavenumber (``load_wavenumber``) where ``lower`` worked it out
+    # (a cold solve's first mesh reads it); None on a retargeted lowering.
+    wave: float | None = None
 
     def __post_init__(self) -> None:
         if not self.stations:
             self.stations = tuple(kernels.Stations(self.st_s, self.st_kind, self.st_col,
                                                    self.seg_lo, self.seg_hi, self.st_kappa))
-            self.unloaded = (np.zeros_like(self.target.fol), np.zeros_like(self.target.dist))
+            self.unloaded = (np.zeros(self.target.fol.shape), np.zeros(self.target.dist.shape))
 
     # -- scales ---------------------------------------------------------------------------
     @property
@@ -162,7 +165,7 @@ class Lowered:
         out.__dict__.update(self.__dict__)
         out.__dict__.update(
             problem=problem, target=Arrays(val, fol, prm, dist),
-            station_of=tuple(station_of), inputs=_inputs(flat, fx, fy, dist))
+            station_of=tuple(station_of), inputs=_inputs(flat, fx, fy, dist), wave=None)
         return out
 
     # -- kernel calls ---------------------------------------------------------------------
@@ -444,36 +447,47 @@ def lower(problem: Problem, nodes: int | None = None) -> Lowered:
     nst = len(stations)
     st_s = np.array([s for s, _, _ in stations])
     st_s[0], st_s[-1] = 0.0, 1.0
-    st_kind = np.zeros((nst, 3), dtype=np.int64)
-    st_col = np.full((nst, 3), -1, dtype=np.int64)
-    seg_lo = np.zeros(nst - 1, dtype=np.int64)
-    seg_hi = np.empty(nst - 1, dtype=np.int64)
-    val = np.zeros((nst, 3))
-    fol = np.zeros((nst, 2))
+    # Filled row by row as Python lists (a NumPy item assignment costs as much as a
+    # list's whole row), made arrays once.
+    kind = [[APPLIED] * 3 for _ in range(nst)]
+    cols = [[-1] * 3 for _ in range(nst)]
+    cols[0] = [0, 1, 2]
+    lows = [0] * (nst - 1)
+    highs = [0] * (nst - 1)
+    vals: list[tuple[float, ...]] = [(0.0, 0.0, 0.0)] * nst
+    fols: list[tuple[float, ...]] = [(0.0, 0.0)] * nst
     flat: list[float] = []
+    node_rows: list[int] = []
+    cuts = [0.0]
     col = 3
     lo = 0
-    st_col[0] = (0, 1, 2)
-    for k, (_, st, is_node) in enumerate(stations):
+    for k, (s, st, is_node) in enumerate(stations):
         if is_node:
-            st_kind[k] = NODE
-            st_col[k] = col
+            kind[k] = [NODE] * 3
+            cols[k] = [col] * 3
+            node_rows.append(k)
+            cuts.append(s)
             lo = col
             col += 6
         elif st is not None:
             targets = _targets(st, length, force_scale, moment_scale)
-            val[k] = targets[:3]
-            fol[k] = targets[3:]
+            vals[k] = targets[:3]
+            fols[k] = targets[3:]
             flat += targets
-            for i in range(3):
-                if st.prescribed[i]:
-                    st_kind[k, i] = PRESCRIBED
+            for i, held in enumerate(st.prescribed):
+                if held:
+                    kind[k][i] = PRESCRIBED
                     if k > 0:
-                        st_col[k, i] = col
+                        cols[k][i] = col
                         col += 1
         if k < nst - 1:
-            seg_lo[k] = lo
-            seg_hi[k] = col
+            lows[k] = lo
+            highs[k] = col
+    cuts.append(1.0)
+    st_kind = np.array(kind, dtype=np.int64)
+    st_col = np.array(cols, dtype=np.int64)
+    val = np.array(vals)
+    fol = np.array(fols)
     fx, fy = distributed_load(problem)
     prm = np.array([fx, fy, 0.0, 0.0, 1.0, axial_compliance(part)])
     dist = segment_loads(problem, st_s)
@@ -483,14 +497,13 @@ def lower(problem: Problem, nodes: int | None = None) -> Lowered:
         st_kappa = np.array([part.rest_curvature_at(s * length) * length for s in st_s])
     key = (length, stiffness, part.axial_stiffness, st_s.tobytes(), st_kind.tobytes(),
            st_kappa.tobytes())
-    node_index = np.nonzero(st_kind[:, 0] == NODE)[0]
-    cuts = [0.0] + [float(st_s[k]) for k in node_index] + [1.0]
     return Lowered(problem=problem, length=length, stiffness=stiffness, st_s=st_s,
-                   st_kind=st_kind, st_col=st_col, seg_lo=seg_lo, seg_hi=seg_hi,
-                   st_kappa=st_kappa, target=Arrays(val, fol, prm, dist),
+                   st_kind=st_kind, st_col=st_col, seg_lo=np.array(lows, dtype=np.int64),
+                   seg_hi=np.array(highs, dtype=np.int64), st_kappa=st_kappa,
+                   target=Arrays(val, fol, prm, dist),
                    station_of=tuple(st for _, st, _ in stations), nz=col, key=key,
                    inputs=_inputs(flat, fx, fy, dist),
-                   nodes=node_index,
+                   nodes=np.array(node_rows, dtype=np.int64),
                    interval=max(b - a for a, b in itertools.pairwise(cuts)),
                    problem_rows=tuple(k for k, (_, st, _) in enumerate(stations)
-                                      if st is not None))
+                                      if st is not None), wave=wave)

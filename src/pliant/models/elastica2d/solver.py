@@ -28,7 +28,7 @@ import itertools
 import math
 from collections.abc import Callable, Iterable, Iterator
 from dataclasses import dataclass, field, replace
-from functools import partial
+from functools import cached_property, partial
 
 import numpy as np
 
@@ -123,6 +123,14 @@ class ShootingSolver:
     def __post_init__(self) -> None:
         check(self, fractions=("contraction", "shrink"))
 
+    @cached_property
+    def options(self) -> np.ndarray:
+        """The settings ``kernels.follow`` reads (its OPT_* indices), made once."""
+        return np.array([self.tolerance, max(self.tolerance, self.loose_tolerance),
+                         self.contraction, self.min_step, self.max_steps,
+                         self.max_iterations, self.accuracy, self.min_density, self.grow,
+                         self.shrink, self.path_accuracy, self.wave_step], dtype=float)
+
 
 _DEFAULT = ShootingSolver()  # immutable: one instance (its checks cost microseconds)
 
@@ -206,13 +214,8 @@ class Run:
         if clock.now() > self.deadline:
             raise Stalled(0.0, math.inf, f"the time budget of {opts.time_budget} s ran out",
                           budget=True, state=z0, status=Status.TIME_BUDGET)
-        options = np.array([opts.tolerance, max(opts.tolerance, opts.loose_tolerance),
-                            opts.contraction, opts.min_step, opts.max_steps,
-                            opts.max_iterations, opts.accuracy, opts.min_density,
-                            opts.grow, opts.shrink, opts.path_accuracy, opts.wave_step],
-                           dtype=float)
         z, jac, density, stats, r, status, last, t, iterations, steps, crossings = kernels.follow(
-            z0, mesh.density, low.stations, start.inputs, end.inputs, options)
+            z0, mesh.density, low.stations, start.inputs, end.inputs, opts.options)
         self.iterations += iterations
         self.steps += steps
         if status == kernels.BUDGET:
@@ -633,8 +636,8 @@ class Run:
         likeliest to settle, and names the others. In force space (one held station) the
         route's answer is the branch the loads lead to from the unloaded part."""
         problem = self.low.problem
-        if (not self.solver.lowest or not minimum.applicable(problem)
-                or clock.now() > self.deadline or problem.held_stations < 2):
+        if (not self.solver.lowest or problem.held_stations < 2
+                or not minimum.applicable(problem) or clock.now() > self.deadline):
             return point  # force space: the path from the unloaded part is the answer
         low, notes, reached = self.low, list(self.notes), list(self.reached)
         judged = self._judged([(low, point)] + self.minima())
@@ -700,7 +703,9 @@ class Run:
         raise stall
 
     def first_mesh(self) -> Mesh:
-        k = load_wavenumber(self.low.problem)
+        k = self.low.wave
+        if k is None:
+            k = load_wavenumber(self.low.problem)
         return self.low.mesh(max(self.solver.min_density,
                                  int(math.ceil(k / self.solver.path_accuracy))))
 
