@@ -5,8 +5,10 @@ errors."""
 
 from __future__ import annotations
 
+import dataclasses
 import itertools
 import math
+import pickle
 
 import numpy as np
 import pytest
@@ -103,6 +105,27 @@ def test_a_dead_load_on_the_whole_part_is_its_weight():
     assert np.allclose(a2.tip, b2.tip, atol=1e-10)
     # And the 2D answer is the 3D one's (the elastica and the rod agree in the plane).
     assert b2.tip[1] == pytest.approx(b.tip[0][2], rel=1e-3)
+
+
+def test_a_problems_load_per_length_follows_its_gravity_and_loads():
+    """The dead load on every metre (weight plus the dead loads that cover the part) and
+    the loads left to the stretches are worked out once, when the problem is made: a
+    problem remade with other gravity or loads (dataclasses.replace, a path's next
+    problem) and one read back from a pickle carry their own."""
+    part = pl.Part(length=2.0, bending_stiffness=1.0, mass_per_length=0.5)
+    whole = pl.DistributedLoad((0.3, -1.0), name="whole")
+    stretch = pl.DistributedLoad((0.0, -2.0), start=0.5, end=1.5, name="stretch")
+    turning = pl.DistributedLoad((0.0, 0.7), follower=True, name="turning")
+    problem = pl.Problem(part, (pl.clamp(0.0),), gravity=(0.0, -9.81),
+                         loads=(whole, stretch, turning))
+    assert problem.dead_load_per_length == pytest.approx((0.3, -0.5 * 9.81 - 1.0))
+    assert {ld.name for ld in problem.partial_loads} == {"stretch", "turning"}
+    moon = dataclasses.replace(problem, gravity=(0.0, -1.62), loads=(stretch,))
+    assert moon.dead_load_per_length == pytest.approx((0.0, -0.5 * 1.62))
+    assert [ld.name for ld in moon.partial_loads] == ["stretch"]
+    back = pickle.loads(pickle.dumps(problem))
+    assert back.dead_load_per_length == problem.dead_load_per_length
+    assert back.partial_loads == problem.partial_loads
 
 
 def test_2d_a_follower_pressure_bends_a_cantilever_into_the_exact_arc():
