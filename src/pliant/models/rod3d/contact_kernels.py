@@ -618,9 +618,12 @@ def newton_contact(X, Q, lam, nu, gam, mesh, tg, num, con, opts):
             rn = contact_max(Rn, con)
             finite = math.isfinite(rn)
             changed = False
+            regrouped = False  # a probe went from free to touching or back
             for k in range(an.shape[0]):
                 if an[k] != active[k]:
                     changed = True
+                    if (an[k] == 0) != (active[k] == 0):
+                        regrouped = True
             if not fresh:  # a chord step: the same probes touching, tenfold smaller
                 if free:
                     accepted = finite and (rn <= tol or rn <= (
@@ -652,9 +655,14 @@ def newton_contact(X, Q, lam, nu, gam, mesh, tg, num, con, opts):
             return X, Q, lam, nu, gam, r, it, NOT_CONTRACTING, energy
         # After the predictor, or a step that converged as fast as a chord must: the
         # next may keep this factorisation. Elsewhere (a probe entering, a step on an
-        # obstacle's seam) a chord would only cost a residual before the rebuild.
+        # obstacle's seam) a chord would only cost a residual before the rebuild. Not
+        # where the step took a probe in or let one go: the factorisation leaves out the
+        # rows of the probes that were free, and chord steps with it converge to the old
+        # touching set, stall near it (2e-4 on a hose lowered onto a block's edge) and
+        # leave a fresh step a probe to release with its whole force (a residual of
+        # hundreds, two or three factorisations more).
         if fresh:
-            chord = chords and ((predict and it == 1) or rn <= CHORD * r)
+            chord = chords and not regrouped and ((predict and it == 1) or rn <= CHORD * r)
         elif rn > CHORD * r:  # (a free part's slower chord step) the next one is fresh
             chord = False
         X, Q, lam, nu, gam, R, ab, r, energy, active = (Xn, Qn, ln, nn, gn, Rn, abn, rn, en,
