@@ -133,7 +133,7 @@ class Lowered:
         if len(problem.stations) != len(rows):
             return None
         length = self.length
-        fs = self.stiffness / (length * length)
+        fs = self.stiffness / length**2
         ms = self.stiffness / length
         val = self.target.val.copy()  # rows of no problem station hold zeros
         fol = self.target.fol.copy()
