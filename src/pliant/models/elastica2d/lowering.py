@@ -132,9 +132,7 @@ class Lowered:
         rows = self.problem_rows
         if len(problem.stations) != len(rows):
             return None
-        length = self.length
-        fs = self.stiffness / length**2
-        ms = self.stiffness / length
+        length, fs, ms = self.length, self.force_scale, self.moment_scale
         val = self.target.val.copy()  # rows of no problem station hold zeros
         fol = self.target.fol.copy()
         station_of = list(self.station_of)
