@@ -37,6 +37,7 @@ from pliant.errors import PliantError
 BUDGET = 20.0  # s: a solve past this counts as a timeout
 WORST: dict[str, float] = defaultdict(float)  # the largest error of a converged answer
 REFUSED: dict[str, list[int]] = defaultdict(list)  # the indices of typed errors and wrong answers
+TIMES: dict[str, list[float]] = defaultdict(list)  # each converged solve's seconds
 
 
 def random_part(rng: np.random.Generator, three: bool) -> pl.Part:
@@ -161,6 +162,7 @@ def run(kind: str, count: int, seed: int, tolerance: float) -> dict[str, Counter
         start = time.perf_counter()
         try:
             eq = pl.solve(problem, solver=solver)
+            TIMES[family].append(time.perf_counter() - start)
             error = check_2d(eq) if kind == "2D" else check_3d(eq)
         except PliantError:
             row["typed error"] += 1
@@ -191,6 +193,11 @@ def main() -> None:
             print(f"{family:26s} {row['tried']:6d} {row['right']:6d} {row['wrong']:6d} "
                   f"{row['typed error']:6d} {row['untyped']:8d} {row['timeout']:8d}  "
                   f"{done / max(row['tried'], 1):.1%} (worst error {WORST[family]:.1e})")
+            took = np.array(TIMES[family]) * 1e3
+            if took.size:  # each answer's solve (not its check): the tail is the long paths
+                print(f"    solve time: median {np.median(took):.1f} ms, 90th percentile "
+                      f"{np.percentile(took, 90):.1f} ms, slowest {took.max():.0f} ms, "
+                      f"all {took.sum() / 1e3:.1f} s")
             if REFUSED[family]:  # to look at one again: the same seed, the same index
                 print(f"    refused or wrong, by index of the {kind} sequence: "
                       f"{REFUSED[family]}")
