@@ -97,3 +97,14 @@ def balance_3d(eq) -> tuple[np.ndarray, np.ndarray]:
         i = int(np.argmin(np.abs(eq.s - ld.s)))
         moment += np.cross(eq.position[i], ld.force) + ld.moment
     return force, moment
+
+
+def shape_at(eq, s: np.ndarray) -> np.ndarray:
+    """A 2D equilibrium's position at arc lengths s [m], read between its samples by a
+    cubic Hermite spline on their tangents (error like h^4 / R^3): two answers on
+    different shooting intervals are sampled at different points."""
+    from scipy.interpolate import CubicHermiteSpline
+
+    grid, first = np.unique(eq.s, return_index=True)  # a station's row comes twice
+    tangent = np.column_stack([np.cos(eq.angle[first]), np.sin(eq.angle[first])])
+    return CubicHermiteSpline(grid, eq.position[first], tangent)(s)

@@ -14,7 +14,7 @@ from pliant.core.events import Status
 from pliant.models import clock, continuation, elastica2d
 from pliant.models.continuation import Candidate, Stalled, Stepping, ranked
 
-from .helpers import zoo
+from .helpers import shape_at, zoo
 from .test_elastica2d_closed_form import cantilever_tip
 
 
@@ -176,12 +176,16 @@ def test_ranked_puts_stable_first_then_the_lower_energy_and_keeps_ties_in_order(
 def test_the_2d_model_driven_by_the_shared_driver_matches_its_compiled_twin(name):
     """The 2D model implements the driver's protocol: solved through it (in Python) and
     through the compiled ``kernels.follow``, the same equilibrium to 1e-9 L and its
-    reactions to 1e-7 of their size."""
+    reactions to 1e-7 of their size. (Where the routes differ, the answers may lie on
+    different shooting intervals, so each is sampled densely and read at common arc
+    lengths: between 64 samples a spline errs by 5e-8 L on the gravity grip.)"""
     problem = zoo()[name]
-    compiled = elastica2d.solve(problem)
-    shared = elastica2d.solve(problem, solver=elastica2d.ShootingSolver(shared_driver=True))
+    compiled = elastica2d.solve(problem, solver=elastica2d.ShootingSolver(samples=512))
+    shared = elastica2d.solve(problem, solver=elastica2d.ShootingSolver(shared_driver=True,
+                                                                         samples=512))
     L = problem.part.length
-    assert np.abs(shared.position - compiled.position).max() <= 1e-9 * L
+    s = np.linspace(0.0, L, 201)
+    assert np.abs(shape_at(shared, s) - shape_at(compiled, s)).max() <= 1e-9 * L
     for key, load in compiled.reactions.items():
         other = shared.reactions[key]
         size = max(np.abs(load.force).max(), 1.0)

@@ -56,6 +56,8 @@ class Stalled(Exception):
         leg's end and the legs after it
     singular_start : the path's start is singular (it may buckle to either side)
     budget : a step or time budget ran out (not a property of the path)
+    intervals : the shooting intervals the path asks for to go on, where its forces
+        outgrew the model's (2D); 0 otherwise
     """
 
     t: float
@@ -68,6 +70,7 @@ class Stalled(Exception):
     loads: Any = None
     ahead: tuple = ()
     status: Status = Status.FOLD
+    intervals: int = 0
 
 
 @dataclass(frozen=True)

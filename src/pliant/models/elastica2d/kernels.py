@@ -657,11 +657,13 @@ def _newton(z0, jac0, stn, inp, seg_steps, tol, max_iter, contraction):
 # Continuation status codes (beyond Newton's).
 STALLED = 5
 BUDGET = 6
+# A continuation's forces outgrew its shooting intervals (``follow``'s last status).
+NEEDS_NODES = 7
 
 # Layout of the options vector of ``follow``.
 OPT_TOL, OPT_LOOSE, OPT_CONTRACTION, OPT_MIN_STEP, OPT_MAX_STEPS, OPT_MAX_ITER, \
     OPT_ACCURACY, OPT_MIN_DENSITY, OPT_GROW, OPT_SHRINK, OPT_PATH_ACCURACY, \
-    OPT_WAVE_STEP = range(12)
+    OPT_WAVE_STEP, OPT_NODE_LIMIT = range(13)
 
 
 @njit(cache=True)
@@ -752,7 +754,9 @@ def follow(z0, density, stations, start, end, opts):
 
     Returns (z, jac, density, stats, residual, status, last, t, iterations, steps,
     crossings); status is CONVERGED, STALLED or BUDGET, last the status of the last
-    Newton, crossings the number of genuine sign changes of det J on the way.
+    Newton (NEEDS_NODES where an intermediate point's wavenumber sqrt(max|n|) times the
+    longest shooting interval passed ``opts[OPT_NODE_LIMIT]``, when that is positive),
+    crossings the number of genuine sign changes of det J on the way.
     """
     stn, inp0, inp1 = Stations(*stations), Inputs(*start), Inputs(*end)
     tol = opts[OPT_TOL]
@@ -769,7 +773,16 @@ def follow(z0, density, stations, start, end, opts):
     shrink = opts[OPT_SHRINK]
     path_accuracy = opts[OPT_PATH_ACCURACY]
     wave_step = opts[OPT_WAVE_STEP]
+    node_limit = opts[OPT_NODE_LIMIT]
     nz = z0.shape[0]
+    # The longest shooting interval (between restart nodes, or an end).
+    span = 0.0
+    last_node = 0.0
+    for k in range(stn.st_s.shape[0]):
+        if stn.st_kind[k, 0] == NODE:
+            span = max(span, stn.st_s[k] - last_node)
+            last_node = stn.st_s[k]
+    span = max(span, 1.0 - last_node)
     # The wavenumber of the applied loads along the path, K(t) = sqrt(t F) + t C: the
     # homotopy crosses the loads at which buckling modes appear (about pi apart in K),
     # so no step may raise K by more than wave_step, or a step could skip the turn of
@@ -915,6 +928,13 @@ def follow(z0, density, stations, start, end, opts):
                     continue
             if final:
                 return (z, jac, density, stats, r, CONVERGED, CONVERGED, t, iterations,
+                        steps, crossings)
+            if node_limit > 0.0 and k_now * span > node_limit:
+                # The forces outgrew the shooting intervals: the sensitivities grow like
+                # exp(k s) across one, Newton's basin shrinks with them, and the steps
+                # would creep on by thousands (a part pulled into a hairpin). The caller
+                # follows again with more intervals.
+                return (z, jac, density, stats, r, STALLED, NEEDS_NODES, t, iterations,
                         steps, crossings)
             dt *= min(4.0, max(0.5, math.sqrt(grow / max(miss, 1e-300))))
             dt = min(dt, 1.0)

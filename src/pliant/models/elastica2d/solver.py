@@ -94,6 +94,11 @@ class ShootingSolver:
         (``pliant.models.continuation.follow``) instead of its compiled twin
         (``kernels.follow``, the same steps, which also follows the sign of det J): some
         ten times slower; for checking one against the other
+    node_limit : the wavenumber sqrt(max|n| L^2 / EI) times the longest shooting
+        interval (dimensionless) past which a continuation stops and follows again with
+        more intervals (a part pulled into a hairpin: its forces grow along the path,
+        and one long interval's Newton basin shrinks like exp(-k s), so the steps would
+        creep on by thousands); NODE_SPAN, the bound the answers' own intervals keep
     lowest : in a cold solve with positions held at two stations or more, also minimise
         the energy from a few starting shapes and answer with the stable equilibrium of
         lowest energy found (a few ms more); False answers with the route's (as fast
@@ -117,6 +122,7 @@ class ShootingSolver:
     bow: float = 0.8
     bow_min: float = 0.01
     bow_max: float = 40.0
+    node_limit: float = NODE_SPAN
     lowest: bool = True
     shared_driver: bool = False
 
@@ -129,7 +135,15 @@ class ShootingSolver:
         return np.array([self.tolerance, max(self.tolerance, self.loose_tolerance),
                          self.contraction, self.min_step, self.max_steps,
                          self.max_iterations, self.accuracy, self.min_density, self.grow,
-                         self.shrink, self.path_accuracy, self.wave_step], dtype=float)
+                         self.shrink, self.path_accuracy, self.wave_step,
+                         self.node_limit], dtype=float)
+
+    @cached_property
+    def fixed_options(self) -> np.ndarray:
+        """``options`` for a path that may not ask for more shooting intervals."""
+        opts = self.options.copy()
+        opts[kernels.OPT_NODE_LIMIT] = 0.0
+        return opts
 
 
 _DEFAULT = ShootingSolver()  # immutable: one instance (its checks cost microseconds)
@@ -179,6 +193,7 @@ class Run:
     reached: list = field(default_factory=list)  # every point the last route reached
     sampled: dict = field(default_factory=dict)  # id(point): (point, low, equilibrium)
     lowered: dict = field(default_factory=dict)  # restart nodes asked: (problem, lowering)
+    needed: int = 0  # the most shooting intervals a path's forces asked for
 
     def __post_init__(self) -> None:
         self.deadline = clock.now() + self.solver.time_budget
@@ -205,19 +220,39 @@ class Run:
         return int(kernels.needed_density(stats, self.solver.accuracy,
                                           self.solver.min_density))
 
+    def renoded(self, route: Callable[[], _Point]) -> _Point:
+        """route() on the present lowering, and again from the start on one with more
+        shooting intervals each time its path's forces outgrow them (a ``Stalled`` with
+        ``intervals``): what the abandoned try said is dropped."""
+        while True:
+            said = len(self.notes)
+            try:
+                return route()
+            except Stalled as stall:
+                if not stall.intervals:
+                    raise
+                del self.notes[said:]
+                self.needed = max(self.needed, stall.intervals)
+                self.low = self.lowering(self.low.problem, stall.intervals)
+
     def follow(self, start: Arrays, end: Arrays, z0: np.ndarray, mesh: Mesh) -> _Point:
         """Continuation from (start, z0), an exact solution, to end (see
-        ``kernels.follow``)."""
+        ``kernels.follow``); a ``Stalled`` with ``intervals`` where the path's forces
+        outgrow the shooting intervals (``ShootingSolver.node_limit``)."""
         opts, low = self.solver, self.low
         if opts.shared_driver:
             return self.follow_shared(start, end, z0, mesh)
         if clock.now() > self.deadline:
             raise Stalled(0.0, math.inf, f"the time budget of {opts.time_budget} s ran out",
                           budget=True, state=z0, status=Status.TIME_BUDGET)
+        more = len(low.nodes) + 1 < MOST_INTERVALS
         z, jac, density, stats, r, status, last, t, iterations, steps, crossings = kernels.follow(
-            z0, mesh.density, low.stations, start.inputs, end.inputs, opts.options)
+            z0, mesh.density, low.stations, start.inputs, end.inputs,
+            opts.options if more else opts.fixed_options)
         self.iterations += iterations
         self.steps += steps
+        if last == kernels.NEEDS_NODES:
+            raise self._outgrown(stats, t, z)
         if status == kernels.BUDGET:
             raise Stalled(t, r, f"the continuation budget of {opts.max_steps} steps "
                           "ran out", budget=True, state=z, status=Status.STEP_BUDGET)
@@ -313,7 +348,23 @@ class Run:
         return force, moment
 
     def begin_step(self, state: _Point) -> _Point:
+        """Where the last point's forces outgrew the shooting intervals, stop (as
+        ``kernels.follow`` does after it accepts such a point)."""
+        low = self.low
+        if (len(low.nodes) + 1 < MOST_INTERVALS
+                and math.sqrt(float(state.stats[1])) * low.interval > self.solver.node_limit):
+            raise self._outgrown(state.stats, math.nan, state.z)
         return state
+
+    def _outgrown(self, stats: np.ndarray, t: float, z: np.ndarray) -> Stalled:
+        """The stall of a path whose forces (``stats``) outgrew the shooting intervals,
+        asking for enough that they may grow fourfold more (k s at NODE_SPAN / 2), and at
+        least twice as many."""
+        count = len(self.low.nodes) + 1
+        more = min(MOST_INTERVALS, max(2 * count, math.ceil(
+            2.0 * math.sqrt(float(stats[1])) / NODE_SPAN)))
+        return Stalled(t, math.inf, f"its forces outgrew the {count} shooting intervals; "
+                       f"follow again with {more}", state=z, intervals=more)
 
     def memo(self) -> None:
         return None
@@ -326,10 +377,18 @@ class Run:
         problem = self.low.problem
         nodes = len(self.low.nodes) + 1
 
+        tried: set[tuple[int, str]] = set()
+
         def attempt(count: int, legs: Callable[[Arrays], list[Arrays]]) -> _Point:
+            # No fewer intervals than an earlier route's forces asked for, and no route
+            # twice on the same intervals.
+            count = max(count, self.needed)
+            if (count, legs.__name__) in tried:
+                raise Stalled(0.0, math.inf, "tried already", status=Status.NO_ROUTE)
+            tried.add((count, legs.__name__))
             if count != len(self.low.nodes) + 1:
                 self.low = self.lowering(problem, count)
-            return self.lowest(self.route(legs))
+            return self.lowest(self.renoded(partial(self.route, legs)))
 
         attempts = ((nodes, self.straight), (4 * nodes, self.straight),
                     (nodes, self.two_stage), (nodes, self.swing), (nodes, self.loads_first))
@@ -386,7 +445,7 @@ class Run:
                 found.append((bow, self.bowed(bow, legs, mesh)))
                 break
             except Stalled as stall:
-                if stall.budget:
+                if stall.budget or stall.intervals:
                     raise
                 stalls.append(stall)
         if not found:
@@ -410,7 +469,7 @@ class Run:
             try:
                 found.append((-pushed, self.bowed(-pushed, legs, mesh)))
             except Stalled as stall:
-                if stall.budget:
+                if stall.budget or stall.intervals:
                     raise
         energies = [self.energy(point) for _, point in found]
         twins = len(found) == 2 and abs(energies[1] - energies[0]) <= 1e-9 * abs(energies[0])
@@ -762,16 +821,19 @@ class Run:
         except Stalled as stall:
             if not stall.budget:
                 # Perhaps the shooting intervals are too long for the forces on the way:
-                # follow again with twice the restart nodes (both problems re-lowered,
-                # so the start is still exact).
-                count = 2 * (len(low.nodes) + 1)
-                self.low = low = lower(low.problem, nodes=count)
-                start = lower(warm.problem, nodes=count)
-                try:
-                    return self.follow(start.target, low.target, start.unknowns_from(warm),
-                                       low.mesh(mesh.density))
-                except Stalled:
-                    pass
+                # follow again with twice the restart nodes, or as many as the path
+                # asked for (both problems re-lowered, so the start is still exact).
+                count = max(2 * (len(low.nodes) + 1), stall.intervals)
+                while True:
+                    self.low = low = lower(low.problem, nodes=count)
+                    start = lower(warm.problem, nodes=count)
+                    try:
+                        return self.follow(start.target, low.target,
+                                           start.unknowns_from(warm), low.mesh(mesh.density))
+                    except Stalled as again:
+                        if again.intervals <= count:
+                            break
+                        count = again.intervals
             if follow_only:
                 raise
             return None
@@ -926,7 +988,7 @@ def equilibria(problem: Problem, *, solver: ShootingSolver | None = None,
             break
         run = Run(lower(problem, nodes=count), replace(solver, time_budget=left))
         try:
-            run.route(getattr(run, name))
+            run.renoded(partial(run.route, getattr(run, name)))
         except Stalled:
             continue
         low = run.low
@@ -953,12 +1015,30 @@ def equilibria(problem: Problem, *, solver: ShootingSolver | None = None,
 
 
 def _same(a: Equilibrium, b: Equilibrium) -> bool:
-    """One equilibrium reached twice: the same shape to 1e-6 of the part's length."""
+    """One equilibrium reached twice: the same shape to 1e-6 of the part's length, at
+    b's samples (a read between its own by its tangent too where they lie elsewhere: two
+    routes may answer on different shooting intervals, and a straight line between
+    samples misses the arc by h^2 / 8R, some 1e-4 L)."""
     L = a.problem.part.length
-    s = np.linspace(0.0, L, 41)
-    pa = np.column_stack([np.interp(s, a.s, a.position[:, k]) for k in range(2)])
-    pb = np.column_stack([np.interp(s, b.s, b.position[:, k]) for k in range(2)])
-    return float(np.abs(pa - pb).max()) <= 1e-6 * L
+    if a.s.shape == b.s.shape and np.array_equal(a.s, b.s):  # sampled alike
+        return float(np.abs(a.position - b.position).max()) <= 1e-6 * L
+    return float(np.abs(_between(a, b.s) - b.position).max()) <= 1e-6 * L
+
+
+def _between(eq: Equilibrium, s: np.ndarray) -> np.ndarray:
+    """The position at arc lengths s by cubic Hermite interpolation of the samples,
+    whose tangents are (cos, sin) of the angle: an error like h^4 / R^3."""
+    grid, pos, angle = eq.s, eq.position, eq.angle
+    k = np.clip(np.searchsorted(grid, s, side="right") - 1, 0, grid.size - 2)
+    h = grid[k + 1] - grid[k]
+    u = np.divide(s - grid[k], h, out=np.zeros_like(s), where=h > 0.0)
+    w0, w1 = (1 + 2 * u) * (1 - u) ** 2, u**2 * (3 - 2 * u)  # the ends' positions
+    t0, t1 = u * (1 - u) ** 2 * h, -(u**2) * (1 - u) * h  # and tangents
+    out = np.empty((s.size, 2))
+    for i, trig in enumerate((np.cos, np.sin)):
+        out[:, i] = (w0 * pos[k, i] + w1 * pos[k + 1, i] + t0 * trig(angle[k])
+                     + t1 * trig(angle[k + 1]))
+    return out
 
 
 def _renode(run: Run, point: _Point) -> _Point:
