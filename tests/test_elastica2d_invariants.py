@@ -350,6 +350,51 @@ def test_a_taut_hairpin_is_followed_on_more_intervals_as_its_forces_grow():
     assert carried[-1].energy == pytest.approx(eq.energy, rel=1e-9)
 
 
+@settings(max_examples=200, deadline=None)
+@given(n=st.integers(1, 60), kl=st.integers(0, 9), ku=st.integers(0, 5),
+       seed=st.integers(0, 2**32 - 1), scales=st.booleans())
+def test_the_shooting_solve_over_the_band_matches_lapack(n, kl, ku, seed, scales):
+    """``kernels.lu_solve`` and ``det_sign`` visit only the band (multiple shooting's
+    Jacobian: kl about 8, ku 3): on random banded matrices, rows of sizes 1e-6 to 1e6
+    where ``scales``, the solution of LAPACK's dense solve (numpy, of the rows scaled to
+    1 as ``lu_solve`` scales them) to its conditioning, and the sign of the
+    determinant; a dense matrix is a band as wide as itself."""
+    rng = np.random.default_rng(seed)
+    A = rng.standard_normal((n, n)) + 4.0 * np.eye(n)
+    A[np.subtract.outer(np.arange(n), np.arange(n)) > kl] = 0.0
+    A[np.subtract.outer(np.arange(n), np.arange(n)) < -ku] = 0.0
+    if scales:
+        A *= 10.0 ** rng.uniform(-6.0, 6.0, n)[:, None]
+    b = rng.standard_normal(n)
+    x, ok = kernels.lu_solve(A, b)
+    rows = np.abs(A).max(axis=1)[:, None]  # LAPACK on the rows scaled as it scales them
+    cond = np.linalg.cond(A / rows)
+    if cond < 1e10:
+        assert kernels.det_sign(A) == np.linalg.slogdet(A)[0]
+        assert ok
+        exact = np.linalg.solve(A / rows, b / rows[:, 0])
+        assert np.abs(x - exact).max() <= 1e-13 * cond * (1.0 + np.abs(exact).max())
+
+
+@settings(max_examples=100, deadline=None)
+@given(n=st.integers(7, 40), seed=st.integers(0, 2**32 - 1))
+def test_the_reused_jacobians_update_keeps_its_band_and_the_secant(n, seed):
+    """Broyden's update of a reused Jacobian (Schubert's where it is banded): afterwards
+    J step equals the residual's change (the secant condition), and nothing outside the
+    band moves, so the next solve stays banded."""
+    from pliant.models.elastica2d.kernels import _broyden
+
+    rng = np.random.default_rng(seed)
+    below = np.subtract.outer(np.arange(n), np.arange(n))  # i - j
+    outside = (below > 3) | (below < -2)
+    J = np.where(outside, 0.0, rng.standard_normal((n, n)))
+    step, r0, r1 = rng.standard_normal((3, n))
+    _broyden(J, step, r1, r0)
+    np.testing.assert_allclose(J @ step, r1 - r0, rtol=0.0,
+                               atol=1e-12 * (1.0 + np.abs(J).max()))
+    assert not J[outside].any()
+
+
 @settings(max_examples=300, deadline=None)
 @given(theta=st.floats(-4.0, 4.0), dth=st.floats(-0.8, 0.8))
 def test_turned_angle_matches_the_library_sine_and_cosine(theta, dth):
