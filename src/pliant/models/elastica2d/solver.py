@@ -630,9 +630,9 @@ class Run:
             need = int(kernels.needed_density(summary, 2.0 * self.solver.path_accuracy,
                                               self.solver.min_density))
             # (more where the start's forces were underestimated; past 16 times the loads'
-            # intervals not beyond 64: each Newton iteration factors a dense matrix of six
-            # unknowns an interval)
-            most = max(16 * loads, MOST_INTERVALS)
+            # intervals not beyond 64, nor ever beyond MAX_INTERVALS: each Newton
+            # iteration shoots a dense Jacobian of six unknowns an interval)
+            most = min(MAX_INTERVALS, max(16 * loads, MOST_INTERVALS))
             for count in [c for c in (base, 4 * base, 16 * base) if c <= most]:
                 if clock.now() > self.deadline:
                     return None
@@ -803,6 +803,8 @@ class Run:
             # the intervals are too long for its forces (a hairpin's: as ``minima``).
             base = len(low.nodes) + 1
             for count in (1, 4, 16):
+                if count > 1 and count * base > MAX_INTERVALS:
+                    break
                 if count > 1:
                     self.low = low = lower(low.problem, nodes=count * base)
                     z0 = low.unknowns_from(warm)
@@ -884,6 +886,12 @@ def _extrapolate(history: tuple[Equilibrium, ...], old: _WarmState,
 
 
 MOST_INTERVALS = 64  # see ``Run.minima``
+# The most shooting intervals any lowering here asks for: the largest wavenumber a
+# problem may have (k L = 1000, ``lowering.MAX_WAVENUMBER``) needs 157 at NODE_SPAN with a
+# quarter to spare. A cable at q L^3 / EI = 1e6 (k L near 1000, on 124 intervals) had its
+# energy's minimum tried on 16 times as many: a dense Jacobian of 12,000 unknowns, a
+# gigabyte, for minutes past the time budget.
+MAX_INTERVALS = 256
 
 
 def _statistics(start) -> np.ndarray:
@@ -905,7 +913,7 @@ def _intervals(k: float, low: Lowered) -> int | None:
     spans at most ``NODE_SPAN``, with a quarter to spare; None where ``low``'s do."""
     if k * low.interval <= NODE_SPAN:
         return None
-    return math.ceil(1.25 * k / NODE_SPAN)
+    return min(MAX_INTERVALS, math.ceil(1.25 * k / NODE_SPAN))
 
 
 def _same_structure(a: Lowered, b: Lowered) -> bool:
