@@ -98,7 +98,9 @@ class ShootingSolver:
         interval (dimensionless) past which a continuation stops and follows again with
         more intervals (a part pulled into a hairpin: its forces grow along the path,
         and one long interval's Newton basin shrinks like exp(-k s), so the steps would
-        creep on by thousands); NODE_SPAN, the bound the answers' own intervals keep
+        creep on by thousands); half as much again as NODE_SPAN, the bound the answers'
+        own intervals keep (a path that ends a little past it finishes, and its answer is
+        re-lowered after)
     lowest : in a cold solve with positions held at two stations or more, also minimise
         the energy from a few starting shapes and answer with the stable equilibrium of
         lowest energy found (a few ms more); False answers with the route's (as fast
@@ -122,7 +124,7 @@ class ShootingSolver:
     bow: float = 0.8
     bow_min: float = 0.01
     bow_max: float = 40.0
-    node_limit: float = NODE_SPAN
+    node_limit: float = 1.5 * NODE_SPAN
     lowest: bool = True
     shared_driver: bool = False
 
