@@ -4,7 +4,7 @@ the 2D model driven by it against its compiled twin."""
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 import pytest
@@ -105,6 +105,22 @@ def test_no_step_raises_the_loads_wavenumber_by_more_than_one():
     free = Cubic()
     continuation.follow(free, Lam(0.0, 1.5), np.float64(0.0), STEPPING, clock.now() + 10.0)
     assert free.steps < model.steps
+
+
+def test_a_step_that_would_leave_a_sliver_takes_the_rest_at_once():
+    """With F = 10.1^2 the wavenumber caps end steps at t = (n / 10.1)^2: the tenth at
+    t = 0.980 leaves a sliver of 0.02 that costs an eleventh corrector. With
+    last_stretch = 1.25 the tenth step (0.19 long, the sliver under a quarter of it)
+    takes the rest at once, raising the wavenumber by 1.1, within 1.25 of the cap."""
+    capped = Cubic(force=10.1**2)
+    x = continuation.follow(capped, Lam(0.0, 1.5), np.float64(0.0), STEPPING,
+                            clock.now() + 10.0)
+    stretched = Cubic(force=10.1**2)
+    y = continuation.follow(stretched, Lam(0.0, 1.5), np.float64(0.0),
+                            replace(STEPPING, last_stretch=1.25), clock.now() + 10.0)
+    assert float(x) == pytest.approx(middle_root(1.5), abs=1e-11)
+    assert float(y) == pytest.approx(middle_root(1.5), abs=1e-11)
+    assert (capped.steps, stretched.steps) == (11, 10)
 
 
 def test_the_driver_stops_at_a_fold_and_keeps_the_last_good_point():

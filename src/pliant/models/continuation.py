@@ -93,6 +93,10 @@ class Stepping:
     parabola : from the third step on, predict along the parabola through the last
         three points (an error like dt^3) instead of the secant (the 2D model's twin of
         its compiled ``follow``; dt still scales by the secant's rule, the more cautious)
+    last_stretch : a step that would leave less than (last_stretch - 1) of itself to go
+        takes the rest at once, past the caps by that much at most (the sliver would
+        cost a corrector of its own); 1 (never) by default, the 2D model's driver sets
+        its kernel's ``LAST_STRETCH``
     """
 
     tolerance: float
@@ -106,6 +110,7 @@ class Stepping:
     time_budget: float = math.inf
     fold_hint: str = ""
     parabola: bool = False
+    last_stretch: float = 1.0
 
 
 class Path(Protocol):
@@ -209,6 +214,8 @@ def follow(model: Continuable, path: Path, state: Any, stepping: Stepping,
             k_next = math.sqrt(t) * root_f + t * load_c + stepping.wave_step
             u = 2.0 * k_next / (root_f + math.sqrt(root_f**2 + 4.0 * load_c * k_next))
             dt = min(dt, max(u * u - t, stepping.min_step))
+        if t + dt < 1.0 and t + stepping.last_stretch * dt >= 1.0:
+            dt = 1.0 - t  # the rest at once: no sliver that costs a corrector of its own
         t_next = min(1.0, t + dt)
         loads = path.at(t_next)
         state = model.begin_step(state)

@@ -701,7 +701,14 @@ NEEDS_NODES = 7
 # Layout of the options vector of ``follow``.
 OPT_TOL, OPT_LOOSE, OPT_CONTRACTION, OPT_MIN_STEP, OPT_MAX_STEPS, OPT_MAX_ITER, \
     OPT_ACCURACY, OPT_MIN_DENSITY, OPT_GROW, OPT_SHRINK, OPT_PATH_ACCURACY, \
-    OPT_WAVE_STEP, OPT_NODE_LIMIT = range(13)
+    OPT_WAVE_STEP, OPT_NODE_LIMIT, OPT_PATH_MIN_DENSITY = range(14)
+
+
+# A step that would leave less than a quarter of itself to go takes the rest at once,
+# up to a quarter longer than the caps allow: the sliver left would cost a corrector of
+# its own to the full tolerance (the paper's case 1 reached t = 0.974 and then 1). The
+# 2D model's shared driver takes it too (``continuation.Stepping.last_stretch``).
+LAST_STRETCH = 1.25
 
 
 @njit(cache=True)
@@ -782,7 +789,8 @@ def follow(z0, density, stations, start, end, opts):
     (each unknown relative to its size), and no step may raise the wavenumber by more
     than ``wave_step``. Intermediate points only need to be on the branch: they
     converge to a loose tolerance (relative to how far the
-    homotopy moves its inputs) on a mesh of the coarser path accuracy. The end point
+    homotopy moves its inputs) on a mesh of the coarser path accuracy (and of its own
+    floor, ``OPT_PATH_MIN_DENSITY``, below the answer's). The end point
     converges to the full tolerance on a mesh refined until it resolves the solution
     to the accuracy asked for.
 
@@ -807,6 +815,7 @@ def follow(z0, density, stations, start, end, opts):
     max_iter = int(opts[OPT_MAX_ITER])
     accuracy = opts[OPT_ACCURACY]
     min_density = int(opts[OPT_MIN_DENSITY])
+    path_min_density = int(opts[OPT_PATH_MIN_DENSITY])
     grow = opts[OPT_GROW]
     shrink = opts[OPT_SHRINK]
     path_accuracy = opts[OPT_PATH_ACCURACY]
@@ -895,6 +904,8 @@ def follow(z0, density, stations, start, end, opts):
         dt = min(dt, max(u * u - t, min_step))
         if k_prev >= 0.0 and t_prev >= 0.0 and k_now > k_prev:
             dt = min(dt, max(wave_step * (t - t_prev) / (k_now - k_prev), min_step))
+        if t + dt < 1.0 and t + LAST_STRETCH * dt >= 1.0:
+            dt = 1.0 - t  # the rest at once (see LAST_STRETCH)
         t_next = min(1.0, t + dt)
         _lerp_into(inp, inp0, inp1, t_next)
         predictor = z.copy()
@@ -952,7 +963,10 @@ def follow(z0, density, stations, start, end, opts):
             r = rn
             t = t_next
             stats = st
-            need = needed_density(stats, accuracy if final else path_accuracy, min_density)
+            if final:
+                need = needed_density(stats, accuracy, min_density)
+            else:
+                need = needed_density(stats, path_accuracy, path_min_density)
             if need > density:
                 density = int(math.ceil(1.1 * need))
                 seg_steps = mesh_steps(st_s, density)
