@@ -13,7 +13,6 @@ component at its rest value) and ends at the problem.
 
 from __future__ import annotations
 
-import itertools
 import math
 from dataclasses import dataclass, field
 
@@ -417,77 +416,94 @@ def lower(problem: Problem, nodes: int | None = None) -> Lowered:
 
     nodes : the number of shooting intervals (restart nodes + 1); by default enough for
         the applied loads' wavenumber (NODE_SPAN per interval).
+
+    Written for speed as well as clarity (a cold solve's budget is some hundred
+    microseconds): rows are built as Python lists and made arrays once each.
     """
     part = problem.part
     length, stiffness = part.length, part.bending_stiffness
     force_scale = stiffness / length**2
     moment_scale = stiffness / length
-
-    stations: list[tuple[float, Station | None, bool]] = [
-        (st.s / length, st, False) for st in problem.stations]
-    # Every knot inside the part is a kink of kappa0 (two knots at 0.3 and 0.7 m are
-    # two kinks, with constant curvature beyond them): a station, so that the kernel's
-    # linear interpolation between stations is the profile's.
-    extra = [0.0, 1.0] + [s / length for s, _ in part.rest_knots if 0.0 < s < length]
-    extra += _load_spans(problem)  # a segment is loaded whole or not at all
-    for s in extra:
-        if not any(abs(s - t) <= 1e-12 for t, _, _ in stations):
-            stations.append((s, None, False))
     wave = check_wavenumber(problem)
     if nodes is None:
         nodes = max(1, math.ceil(wave / NODE_SPAN))
+
+    stations: list[tuple[float, Station | None, bool]] = [
+        (st.s / length, st, False) for st in problem.stations]
+    # Both ends, and every knot inside the part: a kink of kappa0 (two knots at 0.3 and
+    # 0.7 m are two kinks, with constant curvature beyond them), a station so that the
+    # kernel's linear interpolation between stations is the profile's; and where each
+    # load on a stretch starts and ends (a segment is loaded whole or not at all).
+    at = [s for s, _, _ in stations]
+    extra = [0.0, 1.0] + [s / length for s, _ in part.rest_knots if 0.0 < s < length]
+    if problem.partial_loads:
+        extra += _load_spans(problem)
+    for s in extra:
+        if not any(abs(s - t) <= 1e-12 for t in at):
+            stations.append((s, None, False))
+            at.append(s)
     for i in range(1, nodes):
         s = i / nodes
-        while any(abs(s - t) <= 1e-9 for t, _, _ in stations):
+        while any(abs(s - t) <= 1e-9 for t in at):
             s += 0.5 / (nodes * 64)  # never on a station: a node restarts, a station jumps
         stations.append((s, None, True))
+        at.append(s)
     stations.sort(key=lambda item: item[0])
     nst = len(stations)
-    st_s = np.array([s for s, _, _ in stations])
-    st_s[0], st_s[-1] = 0.0, 1.0
     # Filled row by row as Python lists (a NumPy item assignment costs as much as a
     # list's whole row), made arrays once.
-    kind = [[APPLIED] * 3 for _ in range(nst)]
-    cols = [[-1] * 3 for _ in range(nst)]
-    cols[0] = [0, 1, 2]
-    lows = [0] * (nst - 1)
-    highs = [0] * (nst - 1)
-    vals: list[tuple[float, ...]] = [(0.0, 0.0, 0.0)] * nst
-    fols: list[tuple[float, ...]] = [(0.0, 0.0)] * nst
+    kind: list[list[int]] = []
+    cols: list[list[int]] = []
+    lows: list[int] = []
+    highs: list[int] = []
+    vals: list[tuple[float, ...]] = []
+    fols: list[tuple[float, ...]] = []
     flat: list[float] = []
     node_rows: list[int] = []
-    cuts = [0.0]
+    problem_rows: list[int] = []
+    interval = last_cut = 0.0
     col = 3
     lo = 0
     for k, (s, st, is_node) in enumerate(stations):
         if is_node:
-            kind[k] = [NODE] * 3
-            cols[k] = [col] * 3
+            kind.append([NODE] * 3)
+            cols.append([col] * 3)
+            vals.append((0.0, 0.0, 0.0))
+            fols.append((0.0, 0.0))
             node_rows.append(k)
-            cuts.append(s)
+            interval = max(interval, s - last_cut)
+            last_cut = s
             lo = col
             col += 6
         elif st is not None:
             targets = _targets(st, length, force_scale, moment_scale)
-            vals[k] = targets[:3]
-            fols[k] = targets[3:]
+            vals.append(targets[:3])
+            fols.append(targets[3:])
             flat += targets
+            problem_rows.append(k)
+            row_kind = [APPLIED] * 3
+            row_cols = [0, 1, 2] if k == 0 else [-1] * 3
             for i, held in enumerate(st.prescribed):
                 if held:
-                    kind[k][i] = PRESCRIBED
+                    row_kind[i] = PRESCRIBED
                     if k > 0:
-                        cols[k][i] = col
+                        row_cols[i] = col
                         col += 1
+            kind.append(row_kind)
+            cols.append(row_cols)
+        else:
+            kind.append([APPLIED] * 3)
+            cols.append([0, 1, 2] if k == 0 else [-1] * 3)
+            vals.append((0.0, 0.0, 0.0))
+            fols.append((0.0, 0.0))
         if k < nst - 1:
-            lows[k] = lo
-            highs[k] = col
-    cuts.append(1.0)
+            lows.append(lo)
+            highs.append(col)
+    interval = max(interval, 1.0 - last_cut)
+    st_s = np.array([s for s, _, _ in stations])
+    st_s[0], st_s[-1] = 0.0, 1.0
     st_kind = np.array(kind, dtype=np.int64)
-    st_col = np.array(cols, dtype=np.int64)
-    val = np.array(vals)
-    fol = np.array(fols)
     fx, fy = distributed_load(problem)
-    prm = np.array([fx, fy, 0.0, 0.0, 1.0, axial_compliance(part)])
     dist = segment_loads(problem, st_s)
     if part.straight_at_rest:
         st_kappa = np.zeros(nst)
@@ -496,12 +512,13 @@ def lower(problem: Problem, nodes: int | None = None) -> Lowered:
     key = (length, stiffness, part.axial_stiffness, st_s.tobytes(), st_kind.tobytes(),
            st_kappa.tobytes())
     return Lowered(problem=problem, length=length, stiffness=stiffness, st_s=st_s,
-                   st_kind=st_kind, st_col=st_col, seg_lo=np.array(lows, dtype=np.int64),
+                   st_kind=st_kind, st_col=np.array(cols, dtype=np.int64),
+                   seg_lo=np.array(lows, dtype=np.int64),
                    seg_hi=np.array(highs, dtype=np.int64), st_kappa=st_kappa,
-                   target=Arrays(val, fol, prm, dist),
+                   target=Arrays(np.array(vals), np.array(fols),
+                                 np.array([fx, fy, 0.0, 0.0, 1.0, axial_compliance(part)]),
+                                 dist),
                    station_of=tuple(st for _, st, _ in stations), nz=col, key=key,
                    inputs=_inputs(flat, fx, fy, dist),
-                   nodes=np.array(node_rows, dtype=np.int64),
-                   interval=max(b - a for a, b in itertools.pairwise(cuts)),
-                   problem_rows=tuple(k for k, (_, st, _) in enumerate(stations)
-                                      if st is not None), wave=wave)
+                   nodes=np.array(node_rows, dtype=np.int64), interval=interval,
+                   problem_rows=tuple(problem_rows), wave=wave)
