@@ -11,6 +11,7 @@ from scipy.special import ellipe, ellipeinc, ellipk, ellipkinc
 
 import pliant as pl
 from pliant.models.elastica2d import ShootingSolver, solve
+from pliant.models.elastica2d.reference import equilibrium_error
 
 
 def cantilever_tip(alpha: float) -> tuple[float, float, float]:
@@ -132,6 +133,26 @@ def test_convergence_order_is_eight():
     e1, e2 = error(10), error(20)
     order = math.log2(e1 / e2)
     assert 7.0 <= order <= 9.5, (e1, e2, order)
+
+
+def test_a_heavy_cable_clamped_at_one_end_hangs_under_its_weight():
+    """A cable clamped level at one end hangs down under q L^3 / EI = 3e5 (a thin cable
+    10 m long, EI = 0.03 N m^2): its continuation used to accept its first points at a
+    loose tolerance set by the full weight, drift off the branch and stop at "a fold"
+    at t = 2e-4. Checked without the shooting: re-integrated by solve_ivp from its
+    samples, the clamp carries the whole weight, and the moment of the weight about
+    the clamp; the tip hangs within a bending layer of the clamp's vertical."""
+    length, q = 10.0, 9.81
+    part = pl.Part(length=length, bending_stiffness=q * length**3 / 3e5, mass_per_length=1.0)
+    eq = solve(pl.Problem(part, (pl.clamp(0.0),), gravity=(0.0, -9.81)),
+               solver=ShootingSolver(time_budget=3600.0))
+    assert equilibrium_error(eq) < 1e-7
+    clamp = eq.reactions["clamp"]
+    assert clamp.force == pytest.approx([0.0, q * length], abs=1e-8 * q * length)
+    x = eq.position[:, 0]
+    assert clamp.moment == pytest.approx(q * float(np.trapezoid(x, eq.s)), rel=1e-5)
+    layer = (part.bending_stiffness / q) ** (1.0 / 3.0)  # where the part turns down
+    assert eq.tip[1] < -(length - 3.0 * layer) and 0.0 < eq.tip[0] < 3.0 * layer
 
 
 def test_floppy_cable_hangs_as_a_catenary():

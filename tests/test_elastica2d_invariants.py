@@ -203,6 +203,29 @@ def test_switching_a_grip_to_force_control_keeps_the_shape():
     assert np.allclose(eq2.position[i], (0.45, 0.2), atol=1e-8)
 
 
+def test_a_long_path_stops_at_its_deadline_inside_the_kernel():
+    """A cable clamped at one end under q L^3 / EI = 1e6 takes seconds in one
+    continuation call (a budget checked between calls overran 0.01 s by seconds; a
+    cable held at both ends, by 1.9 s). With its deadline
+    already past, the kernel stops at its first look at the clock, after CLOCK_WORK of
+    work, on the way (0 < t < 1) and says why (BUDGET, OUT_OF_TIME); without one, the
+    same path goes on past that point."""
+    cable = pl.Problem(pl.Part(10.0, 0.01, mass_per_length=1.0), (pl.clamp(0.0),),
+                       gravity=(0.0, -9.81))
+    low = lower(cable)
+    mesh = low.mesh(8)
+    rest, z0 = low.rest(mesh)
+    args = (z0, mesh.density, low.stations, rest.inputs, low.target.inputs)
+    opts = ShootingSolver().options
+    late = kernels.follow(*args, opts, -math.inf)
+    assert late[5] == kernels.BUDGET and late[6] == kernels.OUT_OF_TIME
+    assert 0.0 < late[7] < 1.0 and late[9] >= 1
+    more = opts.copy()
+    more[kernels.OPT_MAX_STEPS] = late[9] + 5
+    free = kernels.follow(*args, more, math.inf)
+    assert free[6] != kernels.OUT_OF_TIME and free[7] > late[7]
+
+
 def test_kernel_newton_reports_a_singular_start():
     """The straight part with its tip pulled back along its axis is singular (the chord
     cannot shorten to first order): the kernel says so instead of diverging, and the

@@ -93,6 +93,8 @@ class Stepping:
     parabola : from the third step on, predict along the parabola through the last
         three points (an error like dt^3) instead of the secant (the 2D model's twin of
         its compiled ``follow``; dt still scales by the secant's rule, the more cautious)
+    loose_at : the tolerance of the point at t on the way, where it is not ``loose``
+        throughout (the 2D model's: relative to how far its inputs have moved so far)
     last_stretch : a step that would leave less than (last_stretch - 1) of itself to go
         takes the rest at once, past the caps by that much at most (the sliver would
         cost a corrector of its own); 1 (never) by default, the 2D model's driver sets
@@ -111,6 +113,7 @@ class Stepping:
     fold_hint: str = ""
     parabola: bool = False
     last_stretch: float = 1.0
+    loose_at: Callable[[float], float] | None = None
 
 
 class Path(Protocol):
@@ -234,7 +237,8 @@ def follow(model: Continuable, path: Path, state: Any, stepping: Stepping,
         else:
             predictor = state
         final = t_next >= 1.0
-        tol = stepping.tolerance if final else stepping.loose
+        tol = stepping.tolerance if final else (
+            stepping.loose if stepping.loose_at is None else stepping.loose_at(t_next))
         corrected, r, status = model.correct(predictor, loads, strict=strict, tol=tol)
         if (status != Status.CONVERGED and stepping.retry_from_last and prev is not None):
             # The secant overshot: the corrector once more from the last point.

@@ -45,10 +45,11 @@ columns [lo, hi) of the unknowns that act on it.
 from __future__ import annotations
 
 import math
+import time
 from typing import NamedTuple
 
 import numpy as np
-from numba import njit
+from numba import njit, objmode
 
 from pliant.models.elastica2d.tableau import dop853
 
@@ -697,6 +698,13 @@ STALLED = 5
 BUDGET = 6
 # A continuation's forces outgrew its shooting intervals (``follow``'s last status).
 NEEDS_NODES = 7
+# A continuation ran past its deadline (``follow``'s last status, with BUDGET).
+OUT_OF_TIME = 8
+# The work (Runge-Kutta steps times the sensitivity columns carried, each Newton
+# iteration) between two looks at the clock in ``follow``: some milliseconds, so that a
+# path stops within about that of its deadline, and a small problem never looks (a look
+# leaves the compiled code for the interpreter: a microsecond or two).
+CLOCK_WORK = 100_000
 
 # Layout of the options vector of ``follow``.
 OPT_TOL, OPT_LOOSE, OPT_CONTRACTION, OPT_MIN_STEP, OPT_MAX_STEPS, OPT_MAX_ITER, \
@@ -728,6 +736,20 @@ def parabola_fits(loose, grow):
     within a hundredth of the corrector distance the steps aim at (``grow``). The rule
     of ``follow`` and of the shared driver's twin of it (``solver.Run.follow_shared``)."""
     return 8.0 * loose <= 0.01 * grow
+
+
+@njit(cache=True)
+def loose_at(t, span, loose, tol):
+    """The tolerance of a continuation's point at t, its inputs moved by ``span`` in
+    all (the largest change of a target or load, dimensionless): ``loose`` times how far
+    they have moved so far, and never below ``loose`` times min(span, 1). The residuals
+    scale with the loads, and a stiff path's round-off with them; but early on a heavy
+    path its loads are small: at ``loose * span`` throughout, a cable clamped at one end
+    under q L^3 / EI = 3e5 accepted its first points untouched, with residuals up to a
+    third of a unit (2 % of the weight it then carried), until no corrector could bring
+    it back ("a fold" at t = 2e-4). The twin of the shared driver's
+    (``continuation.Stepping.loose_at``)."""
+    return max(tol, loose * max(min(span, 1.0), t * span))
 
 
 @njit(cache=True)
@@ -772,7 +794,7 @@ def _inputs_change(a, b):
 
 
 @njit(cache=True)
-def follow(z0, density, stations, start, end, opts):
+def follow(z0, density, stations, start, end, opts, deadline):
     """Continuation from (start, z0), an exact solution, to end (``Inputs``, as plain
     tuples like the ``Stations``: see ``shoot``).
 
@@ -788,8 +810,8 @@ def follow(z0, density, stations, start, end, opts):
     contract (see ``newton``); the next step aims at a corrector distance of ``grow``
     (each unknown relative to its size), and no step may raise the wavenumber by more
     than ``wave_step``. Intermediate points only need to be on the branch: they
-    converge to a loose tolerance (relative to how far the
-    homotopy moves its inputs) on a mesh of the coarser path accuracy (and of its own
+    converge to a loose tolerance (``loose_at``: relative to how far the homotopy has
+    moved its inputs so far) on a mesh of the coarser path accuracy (and of its own
     floor, ``OPT_PATH_MIN_DENSITY``, below the answer's). The end point
     converges to the full tolerance on a mesh refined until it resolves the solution
     to the accuracy asked for.
@@ -798,17 +820,23 @@ def follow(z0, density, stations, start, end, opts):
     (it jumped to another branch, or crossed a fold or bifurcation too fast) until the
     step is so short that the crossing is genuine (a bifurcation on the path).
 
+    deadline : ``time.perf_counter()`` past which the path stops (BUDGET, OUT_OF_TIME),
+    looked at after every CLOCK_WORK of work (a heavy cable's path took seconds in one
+    call, past any budget the caller checked between calls).
+
     Returns (z, jac, density, stats, residual, status, last, t, iterations, steps,
     crossings); status is CONVERGED, STALLED or BUDGET, last the status of the last
     Newton (NEEDS_NODES where an intermediate point's wavenumber sqrt(max|n|) times the
-    longest shooting interval passed ``opts[OPT_NODE_LIMIT]``, when that is positive),
-    crossings the number of genuine sign changes of det J on the way.
+    longest shooting interval passed ``opts[OPT_NODE_LIMIT]``, when that is positive;
+    OUT_OF_TIME past the deadline), crossings the number of genuine sign changes of det J
+    on the way.
     """
     stn, inp0, inp1 = Stations(*stations), Inputs(*start), Inputs(*end)
     tol = opts[OPT_TOL]
-    # Intermediate points converge relative to how far the homotopy moves the inputs.
+    # Intermediate points converge relative to how far the homotopy moves the inputs
+    # (``loose_at``); the end's tolerance decides the predictor.
     span = _inputs_change(inp0, inp1)
-    loose = max(tol, opts[OPT_LOOSE] * span)
+    loose = loose_at(1.0, span, opts[OPT_LOOSE], tol)
     contraction = opts[OPT_CONTRACTION]
     min_step = opts[OPT_MIN_STEP]
     max_steps = int(opts[OPT_MAX_STEPS])
@@ -891,7 +919,16 @@ def follow(z0, density, stations, start, end, opts):
     sign = det_sign(j_eps)
     crossings = 0
     refining = False
+    work = 0.0
+    columns = 1 + min(nz, 12)  # the live sensitivity columns, about (see _shoot)
     while steps < max_steps:
+        if work >= CLOCK_WORK:
+            work = 0.0
+            with objmode(now="float64"):
+                now = time.perf_counter()
+            if now > deadline:
+                return (z, jac, density, stats, r, BUDGET, OUT_OF_TIME, t, iterations,
+                        steps, crossings)
         # The cap on the step from the loads, then from the solution's own wavenumber
         # (which carries the unknown reactions too), extrapolated along the last step.
         k_load = math.sqrt(t) * root_f + t * load_c + wave_step
@@ -927,9 +964,11 @@ def follow(z0, density, stations, start, end, opts):
         # do not move: a shorter step cannot help): a damped Newton, not a corrector that
         # must contract (a taut cable's first step there often does not).
         zn, rn, it, status, jn, st, _theta = _newton(
-            predictor, no_jac, stn, inp, seg_steps, tol if final else loose, max_iter,
+            predictor, no_jac, stn, inp, seg_steps,
+            tol if final else loose_at(t_next, span, opts[OPT_LOOSE], tol), max_iter,
             0.0 if refining else contraction)
         iterations += it
+        work += (it + 1) * columns * density  # RK steps (density a unit length) times columns
         if status == CONVERGED:
             # How far the corrector travelled from the prediction, each unknown relative
             # to its size: the secant and the first (tangent) predictors err like dt^2,

@@ -27,6 +27,7 @@ from __future__ import annotations
 import copy
 import itertools
 import math
+import time
 from collections.abc import Callable, Iterable, Iterator
 from dataclasses import dataclass, field, replace
 from functools import cached_property, partial
@@ -255,13 +256,18 @@ class Run:
             raise Stalled(0.0, math.inf, f"the time budget of {opts.time_budget} s ran out",
                           budget=True, state=z0, status=Status.TIME_BUDGET)
         more = len(low.nodes) + 1 < MOST_INTERVALS
+        # The kernel reads time.perf_counter(); the solvers' clock leaves out compiling.
+        deadline = time.perf_counter() + (self.deadline - clock.now())
         z, jac, density, stats, r, status, last, t, iterations, steps, crossings = kernels.follow(
             z0, mesh.density, low.stations, start.inputs, end.inputs,
-            opts.options if more else opts.fixed_options)
+            opts.options if more else opts.fixed_options, deadline)
         self.iterations += iterations
         self.steps += steps
         if last == kernels.NEEDS_NODES:
             raise self._outgrown(stats, t, z)
+        if last == kernels.OUT_OF_TIME:
+            raise Stalled(t, r, f"the time budget of {opts.time_budget} s ran out",
+                          budget=True, state=z, status=Status.TIME_BUDGET)
         if status == kernels.BUDGET:
             raise Stalled(t, r, f"the continuation budget of {opts.max_steps} steps "
                           "ran out", budget=True, state=z, status=Status.STEP_BUDGET)
@@ -293,6 +299,8 @@ class Run:
         loose = max(opts.tolerance, opts.loose_tolerance * span)
         stepping = continuation.Stepping(
             tolerance=opts.tolerance, loose=loose, min_step=opts.min_step,
+            loose_at=partial(kernels.loose_at, span=span, loose=opts.loose_tolerance,
+                             tol=opts.tolerance),
             max_steps=opts.max_steps, grow=opts.grow, shrink=opts.shrink,
             wave_step=opts.wave_step, time_budget=opts.time_budget,
             parabola=bool(kernels.parabola_fits(loose, opts.grow)),
