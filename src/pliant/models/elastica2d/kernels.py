@@ -741,15 +741,16 @@ def parabola_fits(loose, grow):
 @njit(cache=True)
 def loose_at(t, span, loose, tol):
     """The tolerance of a continuation's point at t, its inputs moved by ``span`` in
-    all (the largest change of a target or load, dimensionless): ``loose`` times how far
-    they have moved so far, and never below ``loose`` times min(span, 1). The residuals
-    scale with the loads, and a stiff path's round-off with them; but early on a heavy
-    path its loads are small: at ``loose * span`` throughout, a cable clamped at one end
-    under q L^3 / EI = 3e5 accepted its first points untouched, with residuals up to a
-    third of a unit (2 % of the weight it then carried), until no corrector could bring
-    it back ("a fold" at t = 2e-4). The twin of the shared driver's
-    (``continuation.Stepping.loose_at``)."""
-    return max(tol, loose * max(min(span, 1.0), t * span))
+    all (the largest change of a target or load, dimensionless): ``loose`` times that
+    span (the residuals, and a stiff path's round-off, scale with its loads), but never
+    more than a hundred times ``loose`` times how far the inputs have moved so far (at
+    least one unit). Early on a heavy path its loads are still small: at ``loose *
+    span`` throughout, a cable clamped at one end under q L^3 / EI = 3e5 accepted its
+    first points untouched, with residuals up to a third of a unit (2 % of the weight it
+    then carried), until no corrector could bring it back ("a fold" at t = 2e-4). A
+    hundredth of that bound, throughout, cost the heavy paths 1.5 to 3 times the
+    iterations. The twin of the shared driver's (``continuation.Stepping.loose_at``)."""
+    return max(tol, loose * min(span, 100.0 * max(1.0, t * span)))
 
 
 @njit(cache=True)
@@ -851,13 +852,13 @@ def follow(z0, density, stations, start, end, opts, deadline):
     node_limit = opts[OPT_NODE_LIMIT]
     nz = z0.shape[0]
     # The longest shooting interval (between restart nodes, or an end).
-    span = 0.0
+    longest = 0.0
     last_node = 0.0
     for k in range(stn.st_s.shape[0]):
         if stn.st_kind[k, 0] == NODE:
-            span = max(span, stn.st_s[k] - last_node)
+            longest = max(longest, stn.st_s[k] - last_node)
             last_node = stn.st_s[k]
-    span = max(span, 1.0 - last_node)
+    longest = max(longest, 1.0 - last_node)
     # The wavenumber of the applied loads along the path, K(t) = sqrt(t F) + t C: the
     # homotopy crosses the loads at which buckling modes appear (about pi apart in K),
     # so no step may raise K by more than wave_step, or a step could skip the turn of
@@ -1020,7 +1021,7 @@ def follow(z0, density, stations, start, end, opts, deadline):
             if final:
                 return (z, jac, density, stats, r, CONVERGED, CONVERGED, t, iterations,
                         steps, crossings)
-            if node_limit > 0.0 and k_now * span > node_limit:
+            if node_limit > 0.0 and k_now * longest > node_limit:
                 # The forces outgrew the shooting intervals: the sensitivities grow like
                 # exp(k s) across one, Newton's basin shrinks with them, and the steps
                 # would creep on by thousands (a part pulled into a hairpin). The caller
