@@ -299,8 +299,8 @@ class Run:
         loose = max(opts.tolerance, opts.loose_tolerance * span)
         stepping = continuation.Stepping(
             tolerance=opts.tolerance, loose=loose, min_step=opts.min_step,
-            loose_at=partial(kernels.loose_at, span=span, loose=opts.loose_tolerance,
-                             tol=opts.tolerance),
+            loose_at=partial(kernels.loose_at, span=span, tol=opts.tolerance,
+                             loose=max(opts.tolerance, opts.loose_tolerance)),
             max_steps=opts.max_steps, grow=opts.grow, shrink=opts.shrink,
             wave_step=opts.wave_step, time_budget=opts.time_budget,
             parabola=bool(kernels.parabola_fits(loose, opts.grow)),
