@@ -14,7 +14,10 @@ by global balance of forces and moments (conditions, weight and contacts), the
 prescribed positions and axes, inextensibility (every element its rest length) and the
 tube outside the ball.
 
-    .venv/bin/python benchmarks/fuzz.py [N2D] [N3D]
+    .venv/bin/python benchmarks/fuzz.py [N2D] [N3D] [NFLOPPY]
+
+NFLOPPY (200 by default) floppy cables clamped at one end (``problem_floppy``), checked
+as the 2D ones.
 
 It prints, per family: tried, converged and checked right, converged but wrong, typed
 errors, untyped exceptions, and runs slower than the solver's budget; and the index of
@@ -75,6 +78,24 @@ def problem_2d(rng: np.random.Generator) -> tuple[str, pl.Problem]:
     return "2D configuration space", pl.Problem(
         part, (start, pl.grip(L, position=target, angle=angle, name="hand")),
         gravity=gravity)
+
+
+def problem_floppy(rng: np.random.Generator) -> tuple[str, pl.Problem]:
+    """A floppy cable clamped at one end, at any angle, hanging under its weight
+    (q L^3 / EI from 1e3 to 5e5, log-uniform; the model takes up to 1e6), half of them
+    with an end load of up to half the weight: force space, one equilibrium the loads
+    lead to. Until stop 49 such a cable from q L^3 / EI = 3e5 on stopped at "a fold"."""
+    length = float(rng.uniform(0.5, 10.0))
+    stiffness = float(10 ** rng.uniform(-2, 1))
+    q = float(10 ** rng.uniform(3, np.log10(5e5))) * stiffness / length**3
+    part = pl.Part(length, stiffness, mass_per_length=q / 9.81)
+    conditions = [pl.clamp(0.0, angle=float(rng.uniform(-math.pi, math.pi)))]
+    if rng.random() < 0.5:
+        direction = rng.normal(size=2)
+        force = direction / np.linalg.norm(direction) * rng.uniform(0.0, 0.5) * q * length
+        conditions.append(pl.push(length, force=tuple(float(f) for f in force), name="tip"))
+    return "2D floppy cable, clamped", pl.Problem(part, tuple(conditions),
+                                                  gravity=(0.0, -9.81))
 
 
 def check_2d(eq) -> float:
@@ -155,15 +176,16 @@ def run(kind: str, count: int, seed: int, tolerance: float) -> dict[str, Counter
     solver = None
     if kind == "3D":
         solver = pl.RodSolver(elements=40)
+    make = {"2D": problem_2d, "3D": problem_3d, "2D floppy": problem_floppy}[kind]
     for index in range(count):
-        family, problem = problem_2d(rng) if kind == "2D" else problem_3d(rng)
+        family, problem = make(rng)
         row = table[family]
         row["tried"] += 1
         start = time.perf_counter()
         try:
             eq = pl.solve(problem, solver=solver)
             TIMES[family].append(time.perf_counter() - start)
-            error = check_2d(eq) if kind == "2D" else check_3d(eq)
+            error = check_3d(eq) if kind == "3D" else check_2d(eq)
         except PliantError:
             row["typed error"] += 1
             REFUSED[family].append(index)
@@ -184,9 +206,11 @@ def run(kind: str, count: int, seed: int, tolerance: float) -> dict[str, Counter
 def main() -> None:
     n2 = int(sys.argv[1]) if len(sys.argv) > 1 else 3000
     n3 = int(sys.argv[2]) if len(sys.argv) > 2 else 2000
+    floppy = int(sys.argv[3]) if len(sys.argv) > 3 else 200
     print(f"{'family':26s} {'tried':>6s} {'right':>6s} {'wrong':>6s} {'typed':>6s} "
           f"{'untyped':>8s} {'timeout':>8s}  converged")
-    for kind, count, tolerance in (("2D", n2, 1e-6), ("3D", n3, 1e-6)):
+    for kind, count, tolerance in (("2D", n2, 1e-6), ("3D", n3, 1e-6),
+                                   ("2D floppy", floppy, 1e-6)):
         start = time.perf_counter()
         for family, row in sorted(run(kind, count, 1, tolerance).items()):
             done = row["right"] + row["wrong"]
