@@ -205,11 +205,11 @@ def test_switching_a_grip_to_force_control_keeps_the_shape():
 
 def test_a_long_path_stops_at_its_deadline_inside_the_kernel():
     """A cable clamped at one end under q L^3 / EI = 1e6 takes seconds in one
-    continuation call (a budget checked between calls overran 0.01 s by seconds; a
-    cable held at both ends, by 1.9 s). With its deadline
-    already past, the kernel stops at its first look at the clock, after CLOCK_WORK of
-    work, on the way (0 < t < 1) and says why (BUDGET, OUT_OF_TIME); without one, the
-    same path goes on past that point."""
+    continuation call (a budget read only between calls overran 0.01 s by seconds; on
+    a cable held at both ends, by 1.9 s). With its deadline already past, the kernel
+    stops at its first look at the clock, after CLOCK_WORK of work, on the way
+    (0 < t < 1) and says why (BUDGET, OUT_OF_TIME); without one, the same path goes on
+    past that point."""
     cable = pl.Problem(pl.Part(10.0, 0.01, mass_per_length=1.0), (pl.clamp(0.0),),
                        gravity=(0.0, -9.81))
     low = lower(cable)
