@@ -16,8 +16,8 @@ tube outside the ball.
 
     .venv/bin/python benchmarks/fuzz.py [N2D] [N3D] [NFLOPPY]
 
-NFLOPPY (200 by default) floppy cables clamped at one end (``problem_floppy``), checked
-as the 2D ones.
+NFLOPPY (200 by default) floppy cables, clamped at one end or held at a target
+(``problem_floppy``), checked as the 2D ones.
 
 It prints, per family: tried, converged and checked right, converged but wrong, typed
 errors, untyped exceptions, and runs slower than the solver's budget; and the index of
@@ -81,22 +81,37 @@ def problem_2d(rng: np.random.Generator) -> tuple[str, pl.Problem]:
 
 
 def problem_floppy(rng: np.random.Generator) -> tuple[str, pl.Problem]:
-    """A floppy cable clamped at one end, at any angle, hanging under its weight
-    (q L^3 / EI from 1e3 to 6.6e5, log-uniform: with an end load of up to half the
-    weight, which half of them have, the loads' wavenumber stays within the model's
-    k L = 1000): force space, one equilibrium the loads lead to. Until stop 49 such a
-    cable from q L^3 / EI = 3e5 on stopped at "a fold"."""
+    """A floppy cable (q L^3 / EI from 1e3 to 6.6e5, log-uniform: with an end load of up
+    to half the weight the loads' wavenumber stays within the model's k L = 1000).
+    Half of them clamped at one end at any angle and hanging, half of those with such an
+    end load (force space: until stop 49 a cable from q L^3 / EI = 3e5 on stopped at "a
+    fold" that is not there); half held by a clamp at any angle or a pin and a hand at a
+    random reachable target (configuration space, as ``problem_2d``'s)."""
     length = float(rng.uniform(0.5, 10.0))
     stiffness = float(10 ** rng.uniform(-2, 1))
     q = float(10 ** rng.uniform(3, np.log10(6.6e5))) * stiffness / length**3
     part = pl.Part(length, stiffness, mass_per_length=q / 9.81)
-    conditions = [pl.clamp(0.0, angle=float(rng.uniform(-math.pi, math.pi)))]
+    gravity = (0.0, -9.81)
     if rng.random() < 0.5:
-        direction = rng.normal(size=2)
-        force = direction / np.linalg.norm(direction) * rng.uniform(0.0, 0.5) * q * length
-        conditions.append(pl.push(length, force=tuple(float(f) for f in force), name="tip"))
-    return "2D floppy cable, clamped", pl.Problem(part, tuple(conditions),
-                                                  gravity=(0.0, -9.81))
+        conditions = [pl.clamp(0.0, angle=float(rng.uniform(-math.pi, math.pi)))]
+        if rng.random() < 0.5:
+            direction = rng.normal(size=2)
+            force = direction / np.linalg.norm(direction) * rng.uniform(0.0, 0.5) * q * length
+            conditions.append(pl.push(length, force=tuple(float(f) for f in force),
+                                      name="tip"))
+        return "2D floppy cable, clamped", pl.Problem(part, tuple(conditions),
+                                                      gravity=gravity)
+    r = length * math.sqrt(rng.uniform(0.05, 0.9))
+    a = rng.uniform(-math.pi, math.pi)
+    target = (float(r * math.cos(a)), float(r * math.sin(a)))
+    start = (pl.clamp(0.0, angle=float(rng.uniform(-math.pi, math.pi)))
+             if rng.random() < 0.5 else pl.pin(0.0))
+    angle = float(rng.uniform(-math.pi, math.pi)) if rng.random() < 0.5 else None
+    if start.angle is None and angle is None:
+        angle = float(rng.uniform(-math.pi, math.pi))
+    return "2D floppy cable, held", pl.Problem(
+        part, (start, pl.grip(length, position=target, angle=angle, name="hand")),
+        gravity=gravity)
 
 
 def check_2d(eq) -> float:
