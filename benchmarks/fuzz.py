@@ -68,16 +68,24 @@ def problem_2d(rng: np.random.Generator) -> tuple[str, pl.Problem]:
         moment = float(rng.uniform(-3, 3) * part.bending_stiffness / L)
         return "2D force space", pl.Problem(
             part, (pl.clamp(0.0), pl.push(L, force=force, moment=moment)), gravity=gravity)
+    return "2D configuration space", held(
+        rng, part, lambda g: pl.clamp(0.0) if g.random() < 0.7 else pl.pin(0.0), gravity)
+
+
+def held(rng: np.random.Generator, part: pl.Part, start_of, gravity) -> pl.Problem:
+    """The part held by ``start_of(rng)`` at s = 0 and a hand at its end at a random
+    target within reach (0.05 to 0.9 of the area of the disc of radius L), its angle
+    held or free (held where the start holds none)."""
+    L = part.length
     r = L * math.sqrt(rng.uniform(0.05, 0.9))
     a = rng.uniform(-math.pi, math.pi)
     target = (float(r * math.cos(a)), float(r * math.sin(a)))
-    start = pl.clamp(0.0) if rng.random() < 0.7 else pl.pin(0.0)
+    start = start_of(rng)
     angle = float(rng.uniform(-math.pi, math.pi)) if rng.random() < 0.5 else None
     if start.angle is None and angle is None:
         angle = float(rng.uniform(-math.pi, math.pi))
-    return "2D configuration space", pl.Problem(
-        part, (start, pl.grip(L, position=target, angle=angle, name="hand")),
-        gravity=gravity)
+    return pl.Problem(part, (start, pl.grip(L, position=target, angle=angle, name="hand")),
+                      gravity=gravity)
 
 
 def problem_floppy(rng: np.random.Generator) -> tuple[str, pl.Problem]:
@@ -101,17 +109,9 @@ def problem_floppy(rng: np.random.Generator) -> tuple[str, pl.Problem]:
                                       name="tip"))
         return "2D floppy cable, clamped", pl.Problem(part, tuple(conditions),
                                                       gravity=gravity)
-    r = length * math.sqrt(rng.uniform(0.05, 0.9))
-    a = rng.uniform(-math.pi, math.pi)
-    target = (float(r * math.cos(a)), float(r * math.sin(a)))
-    start = (pl.clamp(0.0, angle=float(rng.uniform(-math.pi, math.pi)))
-             if rng.random() < 0.5 else pl.pin(0.0))
-    angle = float(rng.uniform(-math.pi, math.pi)) if rng.random() < 0.5 else None
-    if start.angle is None and angle is None:
-        angle = float(rng.uniform(-math.pi, math.pi))
-    return "2D floppy cable, held", pl.Problem(
-        part, (start, pl.grip(length, position=target, angle=angle, name="hand")),
-        gravity=gravity)
+    return "2D floppy cable, held", held(
+        rng, part, lambda g: (pl.clamp(0.0, angle=float(g.uniform(-math.pi, math.pi)))
+                              if g.random() < 0.5 else pl.pin(0.0)), gravity)
 
 
 def check_2d(eq) -> float:
