@@ -217,12 +217,12 @@ def test_a_long_path_stops_at_its_deadline_inside_the_kernel():
     rest, z0 = low.rest(mesh)
     args = (z0, mesh.density, low.stations, rest.inputs, low.target.inputs)
     opts = ShootingSolver().options
-    late = kernels.follow(*args, opts, -math.inf)
+    late = kernels.follow(*args, opts, low.interval, -math.inf)
     assert late[5] == kernels.BUDGET and late[6] == kernels.OUT_OF_TIME
     assert 0.0 < late[7] < 1.0 and late[9] >= 1
     more = opts.copy()
     more[kernels.OPT_MAX_STEPS] = late[9] + 5
-    free = kernels.follow(*args, more, math.inf)
+    free = kernels.follow(*args, more, low.interval, math.inf)
     assert free[6] != kernels.OUT_OF_TIME and free[7] > late[7]
 
 

@@ -795,7 +795,7 @@ def _inputs_change(a, b):
 
 
 @njit(cache=True)
-def follow(z0, density, stations, start, end, opts, deadline):
+def follow(z0, density, stations, start, end, opts, longest, deadline):
     """Continuation from (start, z0), an exact solution, to end (``Inputs``, as plain
     tuples like the ``Stations``: see ``shoot``).
 
@@ -821,6 +821,8 @@ def follow(z0, density, stations, start, end, opts, deadline):
     (it jumped to another branch, or crossed a fold or bifurcation too fast) until the
     step is so short that the crossing is genuine (a bifurcation on the path).
 
+    longest : the longest shooting interval (``Lowered.interval``, dimensionless), by
+    which the path's forces are judged against ``opts[OPT_NODE_LIMIT]``.
     deadline : ``time.perf_counter()`` past which the path stops (BUDGET, OUT_OF_TIME),
     looked at after every CLOCK_WORK of work (a heavy cable's path took seconds in one
     call, past any budget the caller checked between calls).
@@ -851,14 +853,6 @@ def follow(z0, density, stations, start, end, opts, deadline):
     wave_step = opts[OPT_WAVE_STEP]
     node_limit = opts[OPT_NODE_LIMIT]
     nz = z0.shape[0]
-    # The longest shooting interval (between restart nodes, or an end).
-    longest = 0.0
-    last_node = 0.0
-    for k in range(stn.st_s.shape[0]):
-        if stn.st_kind[k, 0] == NODE:
-            longest = max(longest, stn.st_s[k] - last_node)
-            last_node = stn.st_s[k]
-    longest = max(longest, 1.0 - last_node)
     # The wavenumber of the applied loads along the path, K(t) = sqrt(t F) + t C: the
     # homotopy crosses the loads at which buckling modes appear (about pi apart in K),
     # so no step may raise K by more than wave_step, or a step could skip the turn of

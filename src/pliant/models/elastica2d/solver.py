@@ -260,7 +260,7 @@ class Run:
         deadline = time.perf_counter() + (self.deadline - clock.now())
         z, jac, density, stats, r, status, last, t, iterations, steps, crossings = kernels.follow(
             z0, mesh.density, low.stations, start.inputs, end.inputs,
-            opts.options if more else opts.fixed_options, deadline)
+            opts.options if more else opts.fixed_options, low.interval, deadline)
         self.iterations += iterations
         self.steps += steps
         if last == kernels.NEEDS_NODES:
@@ -414,15 +414,14 @@ class Run:
             finally:
                 tried.add((len(self.low.nodes) + 1, legs.__name__))
 
-        attempts = [(nodes, self.straight), (4 * nodes, self.straight),
-                    (nodes, self.two_stage), (nodes, self.swing), (nodes, self.loads_first)]
-        if 4 * nodes > MOST_INTERVALS:
-            # A heavy part's intervals, four times over, make each step cost a hundred
-            # times one of the other routes' (a cable held at q L^3 / EI = 6e5 on 384
-            # intervals: 95 s to a fold at the very end, where the two-stage route on 96
-            # answered in 3 s): tried last, and on no more than MAX_INTERVALS.
-            attempts.append((min(4 * nodes, MAX_INTERVALS), self.straight))
-            del attempts[1]
+        finer = [(min(4 * nodes, MAX_INTERVALS), self.straight)]
+        others = [(nodes, self.two_stage), (nodes, self.swing), (nodes, self.loads_first)]
+        # A heavy part's intervals, four times over, make each step cost a hundred times
+        # one of the other routes' (a cable held at q L^3 / EI = 6e5 on 384 intervals: 95
+        # s to a fold at the very end, where the two-stage route on 96 answered in 3 s):
+        # there the finer straight route comes last.
+        heavy = 4 * nodes > MOST_INTERVALS
+        attempts = [(nodes, self.straight)] + (others + finer if heavy else finer + others)
         try:
             return first_route([partial(attempt, c, legs) for c, legs in attempts],
                                self.notes, self.deadline)
