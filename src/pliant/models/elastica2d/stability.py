@@ -73,13 +73,16 @@ def _smallest(form: tuple) -> float:
     assemble, A, metric, diagonal, k, weight, bound, w = form
     n = metric.shape[0]
     value = None
+    Q = None  # the dense form, assembled once where an eigensolver needs it
     if n > DENSE_UP_TO:
         value = _smallest_sturm(diagonal, k, A, weight, bound) if not w else None
         if value is None:
-            value = _smallest_sparse(assemble(), A, metric, -2.0 * bound)
+            Q = assemble()
+            value = _smallest_sparse(Q, A, metric, -2.0 * bound)
     if value is not None:
         return value
-    Q = assemble()
+    if Q is None:
+        Q = assemble()
     Z = null_space(A) if A.shape[0] else np.eye(n)
     reduced = Z.T @ Q @ Z
     mass = Z.T @ (metric[:, None] * Z)
