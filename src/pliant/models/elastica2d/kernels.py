@@ -758,6 +758,16 @@ def loose_at(t, span, loose, tol):
 
 
 @njit(cache=True)
+def combined(a, b, c, wa, wb, wc):
+    """wa a + wb b + wc c, one new array (a warm step's prediction: as numpy
+    expressions, five arrays and three microseconds)."""
+    out = np.empty(a.shape[0])
+    for j in range(a.shape[0]):
+        out[j] = wa * a[j] + wb * b[j] + wc * c[j]
+    return out
+
+
+@njit(cache=True)
 def needed_density(stats, accuracy, min_density):
     """Steps per unit length that resolve the wavenumber max|theta'| + sqrt(max|n|)."""
     k = stats[0] + math.sqrt(stats[1])

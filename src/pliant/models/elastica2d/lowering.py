@@ -131,20 +131,22 @@ class Lowered:
         rows = self.problem_rows
         if len(problem.stations) != len(rows):
             return None
-        length, fs, ms = self.length, self.force_scale, self.moment_scale
-        val = self.target.val.copy()  # rows of no problem station hold zeros
-        fol = self.target.fol.copy()
+        length, stiffness = self.length, self.stiffness
+        fs, ms = stiffness / (length * length), stiffness / length
         station_of = list(self.station_of)
         flat: list[float] = []
         for k, st in zip(rows, problem.stations):
             old = station_of[k]
             if st.s != old.s or st.prescribed != old.prescribed:  # type: ignore[union-attr]
                 return None
-            targets = _targets(st, length, fs, ms)
-            val[k] = targets[:3]
-            fol[k] = targets[3:]
-            flat += targets
+            flat += _targets(st, length, fs, ms)
             station_of[k] = st
+        rows_of = np.array(flat).reshape(-1, 5)
+        if len(rows) == self.st_s.shape[0]:  # every kernel station a problem's
+            val, fol = rows_of[:, :3].copy(), rows_of[:, 3:].copy()
+        else:  # the restart nodes' rows hold zeros
+            val, fol = self.target.val.copy(), self.target.fol.copy()
+            val[list(rows)], fol[list(rows)] = rows_of[:, :3], rows_of[:, 3:]
         dist = self.target.dist  # zeros without loads on stretches (the warm path)
         if problem.distributed or self.problem.distributed:
             if _load_spans(problem) != _load_spans(self.problem):

@@ -907,30 +907,28 @@ def _extrapolate(history: tuple[Equilibrium, ...], old: _WarmState,
     quadratic (or, with two points, linear) extrapolation in the distance travelled
     through the problems' inputs. Only equilibria of the same structure count."""
     key = low.key
-    points = []
-    for h in history[-2:]:
-        state = h.state
-        if type(state) is _WarmState and state.low.key == key:
-            points.append(state)
+    points = [h.state for h in history[-2:]
+              if type(h.state) is _WarmState and h.state.low.key == key]
     if not points:
         return None
-    points.append(old)  # oldest first; at most three
-    dists = [math.dist(a.low.inputs, b.low.inputs) for a, b in itertools.pairwise(points)]
-    if min(dists, default=1.0) <= 0.0:
-        return None
     ahead = math.dist(old.low.inputs, low.inputs)
-    if len(points) == 2:  # linear: z1 + r (z1 - z0), r the step ratio
-        ratio = ahead / dists[0]
-        return (1.0 + ratio) * old.z - ratio * points[0].z
+    last = math.dist(points[-1].low.inputs, old.low.inputs)
+    if len(points) == 1:  # linear: z1 + r (z1 - z0), r the step ratio
+        if last <= 0.0:
+            return None
+        ratio = ahead / last
+        return kernels.combined(points[0].z, old.z, old.z, -ratio, 1.0 + ratio, 0.0)
     # Quadratic, Lagrange's basis polynomials at the target, with the distance
     # travelled through the inputs as the parameter (t0 = 0, t1 = d0, t2 = d0 + d1).
-    t1 = dists[0]
-    t2 = t1 + dists[1]
+    t1 = math.dist(points[0].low.inputs, points[1].low.inputs)
+    if t1 <= 0.0 or last <= 0.0:
+        return None
+    t2 = t1 + last
     t = t2 + ahead
     w0 = (t - t1) * (t - t2) / (t1 * t2)
     w1 = t * (t - t2) / (t1 * (t1 - t2))
     w2 = t * (t - t1) / (t2 * (t2 - t1))
-    return w0 * points[0].z + w1 * points[1].z + w2 * old.z
+    return kernels.combined(points[0].z, points[1].z, old.z, w0, w1, w2)
 
 
 MOST_INTERVALS = 64  # see ``Run.minima``
