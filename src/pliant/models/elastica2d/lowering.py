@@ -161,10 +161,10 @@ class Lowered:
         # kernels' ``Stations`` hold) is shared, and the per-field __init__ is skipped
         # (a warm step's budget is some tens of microseconds).
         out = object.__new__(Lowered)
-        out.__dict__.update(self.__dict__)
-        out.__dict__.update(
-            problem=problem, target=Arrays(val, fol, prm, dist),
-            station_of=tuple(station_of), inputs=_inputs(flat, fx, fy, dist), wave=None)
+        out.__dict__ = {**self.__dict__, "problem": problem,
+                        "target": Arrays(val, fol, prm, dist),
+                        "station_of": tuple(station_of),
+                        "inputs": _inputs(flat, fx, fy, dist), "wave": None}
         return out
 
     # -- kernel calls ---------------------------------------------------------------------
