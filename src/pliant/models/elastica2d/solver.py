@@ -153,6 +153,25 @@ class ShootingSolver:
         opts[kernels.OPT_NODE_LIMIT] = 0.0
         return opts
 
+    @cached_property
+    def _leg_options(self) -> tuple[np.ndarray, np.ndarray]:
+        """``options`` and ``fixed_options`` for a leg another leg starts from: its end
+        meshed for the path's accuracy, not the answer's."""
+        out = []
+        for opts in (self.options, self.fixed_options):
+            leg = opts.copy()
+            leg[kernels.OPT_ACCURACY] = self.path_accuracy
+            leg[kernels.OPT_MIN_DENSITY] = self.path_min_density
+            out.append(leg)
+        return out[0], out[1]
+
+    def options_for(self, final: bool, more: bool) -> np.ndarray:
+        """The options of a path: to an answer (``final``) or to another leg's start;
+        that may ask for more shooting intervals (``more``) or not."""
+        if final:
+            return self.options if more else self.fixed_options
+        return self._leg_options[0 if more else 1]
+
 
 _DEFAULT = ShootingSolver()  # immutable: one instance (its checks cost microseconds)
 
@@ -245,13 +264,18 @@ class Run:
                 self.needed = max(self.needed, stall.intervals)
                 self.low = self.lowering(self.low.problem, stall.intervals)
 
-    def follow(self, start: Arrays, end: Arrays, z0: np.ndarray, mesh: Mesh) -> _Point:
+    def follow(self, start: Arrays, end: Arrays, z0: np.ndarray, mesh: Mesh,
+               final: bool = True) -> _Point:
         """Continuation from (start, z0), an exact solution, to end (see
         ``kernels.follow``); a ``Stalled`` with ``intervals`` where the path's forces
-        outgrow the shooting intervals (``ShootingSolver.node_limit``)."""
+        outgrow the shooting intervals (``ShootingSolver.node_limit``). The end point
+        is converged fully, on a mesh of the answer's accuracy where it is ``final``, of
+        the path's where another leg starts from it (a bowed part's leg before its bow
+        is removed: a hairpin's end refined to 723 steps a length made its next leg cost
+        1.3 s, where the path's accuracy asks for 220)."""
         opts, low = self.solver, self.low
         if opts.shared_driver:
-            return self.follow_shared(start, end, z0, mesh)
+            return self.follow_shared(start, end, z0, mesh, final)
         if clock.now() > self.deadline:
             raise Stalled(0.0, math.inf, f"the time budget of {opts.time_budget} s ran out",
                           budget=True, state=z0, status=Status.TIME_BUDGET)
@@ -260,7 +284,7 @@ class Run:
         deadline = time.perf_counter() + (self.deadline - clock.now())
         z, jac, density, stats, r, status, last, t, iterations, steps, crossings = kernels.follow(
             z0, mesh.density, low.stations, start.inputs, end.inputs,
-            opts.options if more else opts.fixed_options, low.interval, deadline)
+            opts.options_for(final, more), low.interval, deadline)
         self.iterations += iterations
         self.steps += steps
         if last == kernels.NEEDS_NODES:
@@ -286,7 +310,7 @@ class Run:
 
     # -- the shared driver (continuation.Continuable) ------------------------------------
     def follow_shared(self, start: Arrays, end: Arrays, z0: np.ndarray,
-                      mesh: Mesh) -> _Point:
+                      mesh: Mesh, final: bool = True) -> _Point:
         """``follow`` by the shared driver (``continuation.follow``): its steps are the
         compiled ``kernels.follow``'s (the parabola's predictor, a fresh Jacobian in each
         corrector), less the sign of det J; the mesh is refined as the path's solution
@@ -313,7 +337,8 @@ class Run:
             if isinstance(stall.state, _Point):
                 stall.state = stall.state.z
             raise
-        return self.polish(point)  # the end point on a mesh of the full accuracy
+        # The end point on a mesh of the full accuracy (a leg's, of the path's: correct)
+        return self.polish(point) if final else point
 
     def correct(self, predictor: _Point, loads: Arrays, *, strict: bool,
                 tol: float | None) -> tuple[_Point, float, Status]:
@@ -552,7 +577,7 @@ class Run:
         bow = side * min(opts.bow_max, max(opts.bow_min, amplitude))
         rest, z = low.rest(mesh, bow, span)
         bowed = [leg.with_bow(bow, span) for leg in legs(rest)]
-        point = self.through(rest, bowed, z, mesh)
+        point = self.through(rest, bowed, z, mesh, final=False)
         # Removing the bow is the same path from the same bowed equilibrium whatever
         # route reached it: where it met a fold once, it meets it again (a part held
         # behind its clamp: the straight and two-stage routes reached one bowed
@@ -591,11 +616,13 @@ class Run:
         return stable_sign(self._equilibrium(point), JUDGE_ELEMENTS)
 
     def through(self, start: Arrays, targets: list[Arrays], z: np.ndarray,
-                mesh: Mesh) -> _Point:
-        """Follow the homotopies start -> targets[0] -> targets[1] -> ..."""
+                mesh: Mesh, final: bool = True) -> _Point:
+        """Follow the homotopies start -> targets[0] -> targets[1] -> ...; each leg's end
+        meshed for the path's accuracy but the last's (``follow``'s ``final``)."""
         point = None
-        for end in targets:
-            point = self.follow(start, end, z, mesh if point is None else point.mesh)
+        for i, end in enumerate(targets):
+            point = self.follow(start, end, z, mesh if point is None else point.mesh,
+                                final=final and i == len(targets) - 1)
             start, z = end, point.z
         assert point is not None
         return point
