@@ -313,8 +313,9 @@ class Run:
                       mesh: Mesh, final: bool = True) -> _Point:
         """``follow`` by the shared driver (``continuation.follow``): its steps are the
         compiled ``kernels.follow``'s (the parabola's predictor, a fresh Jacobian in each
-        corrector), less the sign of det J; the mesh is refined as the path's solution
-        needs (``correct``), and at the end to the full accuracy."""
+        corrector), less the sign of det J and the rule on creeping paths
+        (``kernels.CREEP``); the mesh is refined as the path's solution needs
+        (``correct``), and at the end to the full accuracy where the end is ``final``."""
         opts = self.solver
         span = max(float(np.abs(end.val - start.val).max(initial=0.0)),
                    float(np.abs(end.fol - start.fol).max(initial=0.0)),
