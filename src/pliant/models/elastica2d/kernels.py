@@ -595,6 +595,15 @@ def _broyden(jac, step, res_new, res_old):
             jac[i, j] += f * step[j]
 
 
+# A damped Newton whose residual fell by less than 1 % over its last STALL_SPAN iterations
+# is stuck (at a minimum of the residual's norm that is no root: the backtracking accepts
+# steps that lower it by 1e-4 of itself); it stops there instead of running out its
+# iterations. From the energy minima's starts over 900 held targets, 210 damped Newtons
+# sat at one residual for 20 of their 25 iterations, a tenth of all the solves' time.
+STALL_SPAN = 6
+STALL_DROP = 0.99
+
+
 @njit(cache=True)
 def newton(z0, jac0, stations, inputs, seg_steps, tol, max_iter, contraction):
     """``_newton`` called from Python (stations and inputs as plain tuples, see
@@ -635,9 +644,14 @@ def _newton(z0, jac0, stn, inp, seg_steps, tol, max_iter, contraction):
     if not math.isfinite(r):
         return z, r, 0, NOT_FINITE, jac, stats, 1.0
     it = 0
+    past = np.empty(STALL_SPAN)  # the damped Newton's residuals, the last STALL_SPAN
     while it < max_iter:
         if r <= tol:
             return z, r, it, CONVERGED, jac, stats, theta
+        if contraction <= 0.0:
+            if it >= STALL_SPAN and r > STALL_DROP * past[it % STALL_SPAN]:
+                return z, r, it, NOT_CONTRACTING, jac, stats, theta  # stuck: see STALL_SPAN
+            past[it % STALL_SPAN] = r
         it += 1
         dz, ok = lu_solve(jac, -res)
         if not ok:
