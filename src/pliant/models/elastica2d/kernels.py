@@ -867,8 +867,8 @@ def follow(z0, density, stations, start, end, opts, longest, deadline):
     crossings); status is CONVERGED, STALLED or BUDGET, last the status of the last
     Newton (NEEDS_NODES where an intermediate point's wavenumber sqrt(max|n|) times the
     longest shooting interval passed ``opts[OPT_NODE_LIMIT]``, when that is positive, or
-    two thirds of it on a path that creeps: see CREEP; OUT_OF_TIME past the deadline), crossings the number of genuine sign changes of det J
-    on the way.
+    two thirds of it on a path that creeps: see CREEP; OUT_OF_TIME past the deadline),
+    crossings the number of genuine sign changes of det J on the way.
     """
     stn, inp0, inp1 = Stations(*stations), Inputs(*start), Inputs(*end)
     tol = opts[OPT_TOL]
