@@ -128,6 +128,16 @@ class BeyondFold(Event):
     at: float = 0.0
 
 
+class LoadsStaged(Event):
+    """Every path from the unloaded part to the whole load met a fold (at ``at`` of the
+    way): the loads were applied in stages, ``factors`` of them, each solved from the
+    last."""
+
+    kind = "loads_staged"
+    factors: tuple = ()
+    at: float = 0.0
+
+
 class Snapped(Event):
     """On the way the part snapped through ``count`` times, the first at ``at`` of the
     way, and settled on a stable equilibrium."""

@@ -25,7 +25,6 @@ The route, for a problem with no warm start:
 from __future__ import annotations
 
 import copy
-import itertools
 import math
 import time
 from collections.abc import Callable, Iterable, Iterator
@@ -45,12 +44,14 @@ from pliant.core.events import (
     BeyondFold,
     BranchTaken,
     CrossedBifurcation,
+    LoadsStaged,
     LowestEquilibrium,
     OthersFound,
     ReachedBy,
     Status,
     WarmStartLost,
 )
+from pliant.core.loads import AddedMass, DistributedLoad
 from pliant.core.problem import Problem
 from pliant.errors import ConvergenceError
 from pliant.models import clock, continuation
@@ -459,6 +460,10 @@ class Run:
                 return point
         if best.budget:
             raise best
+        if clock.now() < self.deadline:
+            point = self.staged(best)
+            if point is not None:
+                return point
         return self.beyond_fold(best)
 
     def route(self, legs: Callable[[Arrays], list[Arrays]]) -> _Point:
@@ -813,6 +818,50 @@ class Run:
         self.reached = [point]
         return point
 
+    def staged(self, stall: Stalled) -> _Point | None:
+        """Every path met a fold on a heavily loaded part (load wavenumber k L past
+        ``STAGED_WAVE``): the loads applied in stages instead, each a solve of its own
+        (the first cold, each next warm from the last), the wavenumber thrice the last's
+        from ``STAGED_WAVE / 3`` on. One path from the unloaded part to the whole load
+        converges its early points relative to the whole load and on the mesh and
+        intervals of the whole load: a cable clamped pointing up under q L^3 / EI =
+        7.5e5 (k L 866), which first falls over and then hangs, left its branch at
+        0.1 % of the way; in stages it hangs. None where the part is not so loaded, or
+        a stage found no equilibrium (the route's stall then stands)."""
+        problem = self.low.problem
+        k = load_wavenumber(problem)
+        if k <= STAGED_WAVE or not all(isinstance(ld, DistributedLoad | AddedMass)
+                                       for ld in problem.loads):
+            return None
+        waves = [STAGED_WAVE / 3.0]
+        while 3.0 * waves[-1] < k:
+            waves.append(3.0 * waves[-1])
+        factors = [(w / k) ** 2 for w in waves] + [1.0]
+        eq = None
+        try:
+            for f in factors:
+                left = self.deadline - clock.now()
+                if left <= 0.0:
+                    return None
+                stage = problem if f == 1.0 else _loads_scaled(problem, f)
+                eq = _solve(stage, eq, replace(self.solver, time_budget=left),
+                            follow_only=eq is not None)
+        except ConvergenceError:
+            return None
+        assert eq is not None and isinstance(eq.state, _WarmState)
+        self.low, state = eq.state.low, eq.state
+        z, r, status, jac, stats = self.newton(state.z, self.low.target, state.mesh,
+                                               strict=False, tol=self.solver.tolerance)
+        if status != kernels.CONVERGED:
+            return None
+        self.notes[:] = [n for n in eq.notes if not isinstance(n, WarmStartLost)]
+        self.notes.append(LoadsStaged(
+            f"every path from the unloaded part to the whole load met a fold (at "
+            f"{stall.t:.3g} of the way): the loads were applied in {len(factors)} stages "
+            f"({', '.join(f'{f:.3g}' for f in factors)} of them), each solved from the last",
+            factors=tuple(factors), at=stall.t))
+        return _Point(z, jac, state.mesh, stats, r)
+
     def beyond_fold(self, stall: Stalled) -> _Point:
         """Every path met a fold (the part would snap through): look for an equilibrium
         of the problem itself with a damped Newton, from the last state before the fold,
@@ -957,6 +1006,24 @@ def _extrapolate(history: tuple[Equilibrium, ...], old: _WarmState,
     w1 = t * (t - t2) / (t1 * (t1 - t2))
     w2 = t * (t - t1) / (t2 * (t2 - t1))
     return kernels.combined(points[0].z, points[1].z, old.z, w0, w1, w2)
+
+
+STAGED_WAVE = 30.0  # the load wavenumber k L past which a part's loads may be staged
+
+
+def _loads_scaled(problem: Problem, f: float) -> Problem:
+    """The problem with every load times f: the conditions' forces and moments, gravity
+    (the weight of the part and of masses added to it) and the distributed loads."""
+    def scaled(values):
+        return tuple(None if v is None else f * v for v in values) if values else values
+
+    conditions = tuple(replace(c, force=scaled(c.force), moment=None if c.moment is None
+                               else f * c.moment)  # type: ignore[operator]  # 2D: a number
+                       for c in problem.conditions)
+    loads = tuple(replace(ld, force=scaled(ld.force)) if isinstance(ld, DistributedLoad)
+                  else ld for ld in problem.loads)
+    return replace(problem, conditions=conditions, gravity=scaled(problem.gravity),
+                   loads=loads)
 
 
 MOST_INTERVALS = 64  # see ``Run.minima``
