@@ -152,6 +152,63 @@ def test_equilibria_lists_what_the_routes_reach_the_answer_first(capsys):
     assert listed[0]["potential_energy"] == pytest.approx(answer.energy, rel=1e-9)
 
 
+@pytest.mark.parametrize("hand, angle, mirror", [
+    ((0.7, 0.4), 0.0, "turned"),  # the paper's case 3: ends held parallel, offset
+    ((1.1, 0.9), 0.4, "turned"),  # the same, not along x
+    ((0.8, 0.0), 0.0, "reflected"),  # a clamped strut: ends held along the chord
+    ((0.5, 0.3), None, "reflected"),  # a pinned strut
+])
+def test_a_problem_that_is_its_own_mirror_image_lists_both_mirror_twins(hand, angle,
+                                                                       mirror):
+    """A problem that maps onto itself, turned half round about its chord's midpoint and
+    read from the other end (theta(s) -> theta(L - s)) or reflected in its chord, has its
+    equilibria in mirror pairs, one bowed to each side, of one energy: the route takes
+    the other side's as this one's mirror image, converged, instead of a path of its own.
+    Checked: each of the pair is an equilibrium by re-integration with solve_ivp, each
+    the other's mirror image at 41 arc lengths, of one energy, both stable."""
+    from pliant.core.equilibrium import bow_side, potential_energy
+    from pliant.models.elastica2d.reference import equilibrium_error
+
+    length = 1.5 if hand[0] > 1.0 else 1.0
+    far = pl.pin(length, hand, name="hand") if angle is None else pl.grip(
+        length, hand, angle=angle, name="hand")
+    start = pl.pin(0.0) if angle is None else pl.clamp(0.0, angle=angle)
+    problem = pl.Problem(pl.Part(length, 2.0), (start, far))
+    found = equilibria(problem)
+    answer = pl.solve(problem)
+    assert "mirror twin" in answer.notes[0]
+    pair = [e for e in found if abs(potential_energy(e) - potential_energy(answer))
+            <= 1e-9 * potential_energy(answer)]
+    assert len(pair) == 2 and {bow_side(e) for e in pair} == {"left", "right"}
+    s = np.linspace(0.0, length, 41)
+    a, b = (shape_at(e, s) for e in pair)
+    chord = np.asarray(hand) / math.hypot(*hand)
+    if mirror == "turned":  # r_b(s) = 2 c - r_a(L - s), c the chord's midpoint
+        expected = np.asarray(hand) - a[::-1]
+    else:  # r_b = 2 (r_a . u) u - r_a
+        expected = 2.0 * (a @ chord)[:, None] * chord - a
+    assert np.abs(b - expected).max() < 1e-8 * length
+    for eq in pair:
+        assert equilibrium_error(eq) < 1e-8
+        assert eq.verdict == "stable"
+
+
+def test_both_bow_sides_reaching_one_equilibrium_are_not_called_twins():
+    """Held to wind a whole turn (the hand's angle the clamp's plus 2 pi), the part makes
+    a loop, and the paths bowed to either side reach the same one: one equilibrium, said
+    so, not a mirror pair (a mirror would reverse the turn: no mirror image of this
+    problem is itself)."""
+    from pliant.core.events import BranchTaken
+
+    problem = pl.Problem(pl.Part(1.5, 2.0), (pl.clamp(0.0, angle=0.4), pl.grip(
+        1.5, (1.1, 0.9), angle=0.4 + 2.0 * math.pi, name="hand")))
+    answer = pl.solve(problem)
+    taken = next(n for n in answer.notes if isinstance(n, BranchTaken))
+    assert not taken.twin and "reached the same equilibrium" in taken
+    assert answer.angle[-1] - answer.angle[0] == pytest.approx(2.0 * math.pi, abs=1e-9)
+    assert len(equilibria(problem)) == 1
+
+
 def test_the_sparse_eigensolvers_agree_with_the_dense_one(monkeypatch):
     """The planar verdict's smallest eigenvalue by the Sturm count's bisection (an
     inextensible part) and by shift-invert Lanczos on the sparse bordered system

@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
+from types import SimpleNamespace
 
 import numpy as np
 
@@ -253,7 +254,7 @@ class Lowered:
         return -1.0 if side < -1e-12 else 1.0
 
     # -- unknowns <-> physical state ------------------------------------------------------
-    def unknowns_from(self, eq: Equilibrium) -> np.ndarray:
+    def unknowns_from(self, eq: Equilibrium | SimpleNamespace) -> np.ndarray:
         """Dimensionless unknowns from any equilibrium of a problem with the same part:
         its pose at s = 0, the loads of the conditions (by name) and its state at the
         restart nodes."""

@@ -30,6 +30,7 @@ import time
 from collections.abc import Callable, Iterable, Iterator
 from dataclasses import dataclass, field, replace
 from functools import cached_property, partial
+from types import SimpleNamespace
 
 import numpy as np
 
@@ -496,6 +497,7 @@ class Run:
             f"{_BRANCH_NOTE} for the inextensible part; this one shortens, and its straight "
             "equilibrium is unstable")
         pushed = low.lateral_side(rest)
+        mirrored = False
         # The side the targets and loads push to first; where its path meets a fold (a
         # part held below and on from its clamp, whose bow would have to turn over), the
         # other.
@@ -527,12 +529,24 @@ class Run:
             self.reached = [found[0][1]]
             return found[0][1]
         if not stalls:  # the other side too: keep the lower stable one, say what else exists
+            # Where the problem is its own mirror image, the other side's equilibrium is
+            # this one's, mirrored (``_mirror``), converged by Newton, not a path of its own.
+            twin = self.mirrored(found[0][1])
+            mirrored = twin is not None
             try:
-                found.append((-pushed, self.bowed(-pushed, legs, mesh)))
+                found.append((-pushed, twin if twin is not None
+                              else self.bowed(-pushed, legs, mesh)))
             except Stalled as stall:
                 if stall.budget or stall.intervals:
                     raise
-        energies = [self.energy(point) for _, point in found]
+        if (len(found) == 2 and not mirrored and found[0][1].z.shape == found[1][1].z.shape
+                and _one_point(found[0][1].z, found[1][1].z)):
+            found.pop()  # both sides' paths reached one equilibrium (a loop's, say)
+            fold = "; the path bowing to the other side reached the same equilibrium"
+        # (a mirror twin's energy is the other's: the mirror keeps the bending energy,
+        # and nothing else acts)
+        energies = [self.energy(point) for _, point in found[:1 if mirrored else 2]]
+        energies += energies[:len(found) - len(energies)]
         twins = len(found) == 2 and abs(energies[1] - energies[0]) <= 1e-9 * abs(energies[0])
         judged = [(side, point, energy, self.stable(point) if len(found) == 2 and not twins
                    else None) for (side, point), energy in zip(found, energies)]
@@ -561,6 +575,22 @@ class Run:
                                       twin=twins))
         self.reached = [best[1]] + [j[1] for j in judged if j is not best]
         return best[1]
+
+    def mirrored(self, point: _Point) -> _Point | None:
+        """The point's mirror twin (``_mirror``), converged on this lowering, where the
+        problem maps onto itself; None where it does not, or Newton does not converge."""
+        mirror = _mirror(self.low.problem)
+        if mirror is None:
+            return None
+        z0 = self.low.unknowns_from(mirror(self._equilibrium(point)))
+        z, r, status, jac, stats = self.newton(z0, self.low.target, point.mesh,
+                                               strict=False, tol=self.solver.tolerance)
+        if status != kernels.CONVERGED or _one_point(z, point.z):
+            return None  # (its own mirror image: a loop's, say; the other side is followed)
+        try:
+            return self.polish(_Point(z, jac, point.mesh, stats, r))
+        except Stalled:
+            return None
 
     def bowed(self, side: float, legs: Callable[[Arrays], list[Arrays]],
               mesh: Mesh) -> _Point:
@@ -1009,6 +1039,101 @@ def _extrapolate(history: tuple[Equilibrium, ...], old: _WarmState,
 
 
 STAGED_WAVE = 30.0  # the load wavenumber k L past which a part's loads may be staged
+
+
+def _one_point(a: np.ndarray, b: np.ndarray) -> bool:
+    """Whether two points' unknowns on one lowering are one equilibrium's."""
+    return bool(np.abs(a - b).max() <= 1e-6 * (1.0 + np.abs(b).max()))
+
+
+def _mirror(problem: Problem) -> Callable[[Equilibrium], SimpleNamespace] | None:
+    """Where the problem is its own mirror image, the map of an equilibrium to its
+    mirror twin's arrays (those ``Lowered.unknowns_from`` reads); else None.
+
+    Only a uniform straight part with nothing on it but its two ends' conditions, each
+    holding the position (and both or neither the angle): turned half round about the
+    chord's midpoint and read from its other end (theta(s) -> theta(L - s): ends held
+    at one angle, a hose between two parallel ports, the paper's case 3), or reflected
+    in the chord (ends held along the chord, or pinned: the buckled strut). Either maps
+    a part bowed to one side of its chord onto one bowed to the other, of equal energy."""
+    part, stations = problem.part, problem.stations
+    length = part.length
+    if (len(stations) != 2 or stations[0].s != 0.0 or stations[1].s != length
+            or any(k != 0.0 for _, k in part.rest_knots) or problem.partial_loads
+            or any(problem.dead_load_per_length) or problem.loads):
+        return None
+    first, last = stations
+    if any(st.prescribed[:2] != (True, True) or any(st.dead_load) or any(st.follower_load)
+           for st in (first, last)) or first.prescribed[2] != last.prescribed[2]:
+        return None
+    a = np.array(first.kinematics[:2])
+    chord = np.array(last.kinematics[:2]) - a
+    size = float(np.hypot(*chord))
+    if size == 0.0:
+        return None
+    u = chord / size
+    phi = math.atan2(u[1], u[0])
+
+    held = first.prescribed[2]
+    theta0, theta1 = first.kinematics[2], last.kinematics[2]
+    # Held angles are read as turns too (theta(L) - theta(0) is how often the part winds
+    # round): either mirror reverses that, so the two must be one angle; reflected, it
+    # must lie along the chord, the angles then 2 phi - theta and a whole number of turns.
+    if held and abs(theta1 - theta0) > 1e-12:
+        return None
+    turns = round((theta0 - phi) / math.pi)
+    along = not held or abs(theta0 - phi - turns * math.pi) <= 1e-12
+    shift = 2.0 * math.pi * turns if held else 0.0
+
+    def loads_of(eq: Equilibrium) -> list[tuple[np.ndarray, float]]:
+        """Each end's load on the part: (force, moment)."""
+        out = []
+        for st in stations:
+            f = (eq.loads[st.owner[0]].force[0], eq.loads[st.owner[1]].force[1])
+            m = eq.loads[st.owner[2]].moment if st.owner[2] is not None else 0.0
+            out.append((np.array(f, dtype=float), float(m)))
+        return out
+
+    def named(ends: list[tuple[np.ndarray, float]]) -> dict[str, SimpleNamespace]:
+        loads: dict[str, SimpleNamespace] = {}
+        for st, (f, m) in zip(stations, ends):
+            for i, owner in enumerate(st.owner):
+                if owner is not None:
+                    load = loads.setdefault(owner, SimpleNamespace(force=[0.0, 0.0],
+                                                                   moment=0.0))
+                    if i < 2:
+                        load.force[i] = float(f[i])
+                    else:
+                        load.moment = m
+        return loads
+
+    if along:
+        def reflected(eq: Equilibrium) -> SimpleNamespace:
+            """Reflected in the chord: v -> 2 (v . u) u - v, theta -> 2 phi - theta (and
+            the held angle's turns), moments change sign."""
+            def flip(v: np.ndarray) -> np.ndarray:
+                return 2.0 * (v @ u)[..., None] * u - v
+
+            return SimpleNamespace(
+                s=eq.s, position=a + flip(eq.position - a),
+                angle=2.0 * phi + shift - eq.angle,
+                internal_force=flip(eq.internal_force), bending_moment=-eq.bending_moment,
+                loads=named([(flip(f), -m) for f, m in loads_of(eq)]))
+        return reflected
+    if held:  # at one angle
+        def turned(eq: Equilibrium) -> SimpleNamespace:
+            """Turned half round about the chord's midpoint c and read from the other
+            end: r(s) -> 2 c - r(L - s), theta and n the same at L - s, m the opposite;
+            each end takes the other's load, turned."""
+            centre = a + 0.5 * chord
+            ends = loads_of(eq)
+            return SimpleNamespace(
+                s=length - eq.s[::-1], position=2.0 * centre - eq.position[::-1],
+                angle=eq.angle[::-1].copy(), internal_force=eq.internal_force[::-1].copy(),
+                bending_moment=-eq.bending_moment[::-1],
+                loads=named([(-ends[1][0], ends[1][1]), (-ends[0][0], ends[0][1])]))
+        return turned
+    return None
 
 
 def _loads_scaled(problem: Problem, f: float) -> Problem:
