@@ -768,18 +768,39 @@ class Run:
                 out.append(found)
         return out
 
-    def _judged(self, candidates: list[tuple[Lowered, _Point]]) -> list[tuple]:
-        """Distinct candidates as (unstable, energy, low, point), the best first
-        (``continuation.ranked``: stable or neutral before unstable, then the lower
-        potential energy; a tie, mirror twins to 1e-9, keeps the earlier first)."""
-        judged: list[Candidate] = []
-        seen: list[Equilibrium] = []
+    def _distinct(self, candidates: list[tuple[Lowered, _Point]]
+                  ) -> list[tuple[Lowered, _Point]]:
+        """The candidates, each equilibrium once (the first found of those that are one).
+        Two on one structure are one where their unknowns are (``_one_point``), else
+        compared by their shapes (``_same``, which samples them)."""
+        out: list[tuple[Lowered, _Point, Equilibrium | None]] = []
         for low, point in candidates:
+            alike = [(o_point, o_eq) for o_low, o_point, o_eq in out if o_low.key == low.key]
+            if any(_one_point(point.z, o_point.z) for o_point, _ in alike):
+                continue
+            eq = None
+            if len(alike) < len(out):  # some on another structure: by their shapes
+                self.low = low
+                eq = self._equilibrium(point)
+                if any(_same(eq, self._sampled(o_low, o_point, o_eq))
+                       for o_low, o_point, o_eq in out if o_low.key != low.key):
+                    continue
+            out.append((low, point, eq))
+        return [(low, point) for low, point, _ in out]
+
+    def _sampled(self, low: Lowered, point: _Point, eq: Equilibrium | None) -> Equilibrium:
+        if eq is None:
             self.low = low
             eq = self._equilibrium(point)
-            if any(_same(eq, other) for other in seen):
-                continue
-            seen.append(eq)
+        return eq
+
+    def _judged(self, candidates: list[tuple[Lowered, _Point]]) -> list[tuple]:
+        """Distinct candidates (``_distinct``) as (unstable, energy, low, point), the best
+        first (``continuation.ranked``: stable or neutral before unstable, then the lower
+        potential energy; a tie, mirror twins to 1e-9, keeps the earlier first)."""
+        judged: list[Candidate] = []
+        for low, point in self._distinct(candidates):
+            self.low = low
             stable = self.stable(point)
             energy = self.energy(point)
             judged.append(Candidate(stable, energy, (stable is False, energy, low, point)))
@@ -807,7 +828,11 @@ class Run:
                 or not minimum.applicable(problem) or clock.now() > self.deadline):
             return point  # force space: the path from the unloaded part is the answer
         low, notes, reached = self.low, list(self.notes), list(self.reached)
-        judged = self._judged([(low, point)] + self.minima())
+        distinct = self._distinct([(low, point)] + self.minima())
+        if len(distinct) == 1:  # the minima found the route's answer again: nothing to rank
+            self.low, self.notes, self.reached = low, notes, reached
+            return point
+        judged = self._judged(distinct)
         best = judged[0]
         if best[3] is point:
             self.low, self.notes, self.reached = low, notes, reached
