@@ -183,10 +183,12 @@ def minima(problem: Problem, *, elements: int = ELEMENTS, deadline: float | None
         if np.ptp(start[2:]) < 1e-9:
             continue  # straight: a chord that must shorten cannot to first order
         with np.errstate(over="ignore", invalid="ignore"):  # a trial step too far: refused
-            state = _minimise(disc, start)
-        if state is not None and not any(
-                np.abs(state.u[2:] - other.u[2:]).max() < 1e-4 for other in found):
-            found.append(state)
+            u = _minimise(disc, start)
+        # (a minimum found again is not made into arrays again: case 3's two starts
+        # find one)
+        if u is not None and not any(
+                np.abs(u[2:] - other.u[2:]).max() < 1e-4 for other in found):
+            found.append(_state(disc, u))
     found.sort(key=lambda state: state.energy)
     return found
 
@@ -204,13 +206,14 @@ def refined(state: SimpleNamespace, factor: int = 4) -> SimpleNamespace | None:
     theta = np.repeat(state.u[2:], factor)
     u = np.concatenate([state.u[:2], theta])
     with np.errstate(over="ignore", invalid="ignore"):
-        return _sqp(disc, u, tolerance=REFINED_TOLERANCE)
+        found = _sqp(disc, u, tolerance=REFINED_TOLERANCE)
+    return _state(disc, found) if found is not None else None
 
 
-def _minimise(disc: Discrete, u0: np.ndarray) -> SimpleNamespace | None:
-    """The minimum from u0: the exact-Hessian SQP (``_sqp``, a few milliseconds), or
-    where it fails, scipy's SLSQP (quasi-Newton, slower, but it gets through the tangled
-    shapes a bad start leads the SQP into)."""
+def _minimise(disc: Discrete, u0: np.ndarray) -> np.ndarray | None:
+    """The minimum's unknowns from u0: the exact-Hessian SQP (``_sqp_kernel``, a few
+    milliseconds), or where it fails, scipy's SLSQP (quasi-Newton, slower, but it gets
+    through the tangled shapes a bad start leads the SQP into)."""
     found = _sqp(disc, u0)
     if found is not None:
         return found
@@ -222,15 +225,16 @@ def _minimise(disc: Discrete, u0: np.ndarray) -> SimpleNamespace | None:
                       options={"maxiter": 400, "ftol": 1e-12})
     if not result.success or np.abs(disc.constraints(result.x)).max() > 1e-8:
         return None
-    return _state(disc, result.x)
+    return result.x
 
 
 def _sqp(disc: Discrete, u: np.ndarray, iterations: int = 60,
-         tolerance: float = 1e-10) -> SimpleNamespace | None:
-    """The compiled SQP (``_sqp_kernel``) from u; None when it does not converge."""
+         tolerance: float = 1e-10) -> np.ndarray | None:
+    """The compiled SQP (``_sqp_kernel``) from u: the minimum's unknowns, or None when it
+    does not converge."""
     found, ok = _sqp_kernel(np.ascontiguousarray(u, float), disc.arrays, iterations,
                             tolerance, MAX_TURN)
-    return _state(disc, found) if ok else None
+    return found if ok else None
 
 
 # -- compiled kernels (the discrete elastica and its SQP) --------------------------------
