@@ -99,6 +99,11 @@ class Stepping:
         takes the rest at once, past the caps by that much at most (the sliver would
         cost a corrector of its own); 1 (never) by default, the 2D model's driver sets
         its kernel's ``LAST_STRETCH``
+    refused_fade : where set, a refused step leaves a memory: the steps after it grow to
+        no more than half of it, the memory fading by this factor at each step taken
+        (steps that alternated, taken, grown fourfold and refused, waste half their
+        correctors); None (off) by default, the 2D model's driver sets its kernel's
+        ``REFUSED_FADE``
     """
 
     tolerance: float
@@ -114,6 +119,7 @@ class Stepping:
     parabola: bool = False
     last_stretch: float = 1.0
     loose_at: Callable[[float], float] | None = None
+    refused_fade: float | None = None
 
 
 class Path(Protocol):
@@ -199,6 +205,7 @@ def follow(model: Continuable, path: Path, state: Any, stepping: Stepping,
     load_f, load_c = model.load_size(path)
     root_f = math.sqrt(load_f)
     t, dt = 0.0, 1.0
+    refused = math.inf  # the last step refused (``Stepping.refused_fade``)
     prev: tuple[float, Any] | None = None
     prev2: tuple[float, Any] | None = None
     steps = 0
@@ -252,11 +259,16 @@ def follow(model: Continuable, path: Path, state: Any, stepping: Stepping,
             if final:
                 return state
             if stepping.grow is None:
-                dt = min(1.0 - t, 2.0 * dt)
+                grown = min(1.0 - t, 2.0 * dt)
             else:
-                dt = min(1.0, dt * min(4.0, max(0.5, math.sqrt(
+                grown = min(1.0, dt * min(4.0, max(0.5, math.sqrt(
                     stepping.grow / max(miss, 1e-300)))))
+            if stepping.refused_fade is not None:
+                refused *= stepping.refused_fade
+                grown = min(grown, max(dt, 0.5 * refused))
+            dt = grown
         else:
+            refused = t_next - t
             dt *= stepping.shrink
             if dt < stepping.min_step:
                 raise Stalled(t, r, _stall_words(status) + stepping.fold_hint,

@@ -740,6 +740,11 @@ LAST_STRETCH = 1.25
 # thirds of the node limit) asks for more intervals too: each widens Newton's basin, whose
 # width there made the steps short (a hairpin's unbow leg crept from t = 0.98 to a fold
 # at 0.99997 in 391 steps of 7e-5, 0.46 s; over 900 held targets, 12 % of the time).
+# A step refused leaves a memory: the steps after it grow to no more than half of it,
+# and the memory fades by half as much again at each step taken. Without it the steps
+# alternated near a fold or on a creeping path (taken at dt, grown fourfold and refused,
+# taken at dt again): half of each such path's correctors were refused ones.
+REFUSED_FADE = 1.5
 CREEP = 1e-3
 CREEP_STEPS = 25
 CREEP_SPAN = 2.0 / 3.0
@@ -952,6 +957,7 @@ def follow(z0, density, stations, start, end, opts, longest, deadline):
     refining = False
     work = 0.0
     creeping = 0
+    refused = math.inf  # the last step refused, its memory fading (see REFUSED_FADE)
     columns = 1 + min(nz, 12)  # the live sensitivity columns, about (see _shoot)
     while steps < max_steps:
         if work >= CLOCK_WORK:
@@ -1062,10 +1068,12 @@ def follow(z0, density, stations, start, end, opts, longest, deadline):
                 # follows again with more intervals.
                 return (z, jac, density, stats, r, STALLED, NEEDS_NODES, t, iterations,
                         steps, crossings)
-            dt *= min(4.0, max(0.5, math.sqrt(grow / max(miss, 1e-300))))
-            dt = min(dt, 1.0)
+            refused *= REFUSED_FADE
+            grown = dt * min(4.0, max(0.5, math.sqrt(grow / max(miss, 1e-300))))
+            dt = min(grown, max(dt, 0.5 * refused), 1.0)
         else:
             last_status = status
+            refused = t_next - t
             dt *= shrink
             if dt < min_step:
                 return (z, jac, density, stats, rn, STALLED, last_status, t, iterations,

@@ -331,7 +331,7 @@ class Run:
             max_steps=opts.max_steps, grow=opts.grow, shrink=opts.shrink,
             wave_step=opts.wave_step, time_budget=opts.time_budget,
             parabola=bool(kernels.parabola_fits(loose, opts.grow)),
-            last_stretch=kernels.LAST_STRETCH)
+            last_stretch=kernels.LAST_STRETCH, refused_fade=kernels.REFUSED_FADE)
         try:
             point = continuation.follow(self, Line(start, end),
                                         _Point(z0, _EMPTY_JAC, mesh, np.zeros(2), math.inf),
