@@ -740,14 +740,15 @@ LAST_STRETCH = 1.25
 # thirds of the node limit) asks for more intervals too: each widens Newton's basin, whose
 # width there made the steps short (a hairpin's unbow leg crept from t = 0.98 to a fold
 # at 0.99997 in 391 steps of 7e-5, 0.46 s; over 900 held targets, 12 % of the time).
-# A step refused leaves a memory: the steps after it grow to no more than half of it,
-# and the memory fades by half as much again at each step taken. Without it the steps
-# alternated near a fold or on a creeping path (taken at dt, grown fourfold and refused,
-# taken at dt again): half of each such path's correctors were refused ones.
-REFUSED_FADE = 1.5
 CREEP = 1e-3
 CREEP_STEPS = 25
 CREEP_SPAN = 2.0 / 3.0
+
+# A step refused leaves a memory: the steps after it grow to no more than half of it,
+# and the memory fades by a factor REFUSED_FADE at each step taken. Without it the steps
+# alternated near a fold or on a creeping path (taken at dt, grown fourfold and refused,
+# taken at dt again): half of each such path's correctors were refused ones.
+REFUSED_FADE = 1.5
 
 
 @njit(cache=True)

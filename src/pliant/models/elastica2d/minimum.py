@@ -207,7 +207,7 @@ def refined(state: SimpleNamespace, factor: int = 4) -> SimpleNamespace | None:
     u = np.concatenate([state.u[:2], theta])
     with np.errstate(over="ignore", invalid="ignore"):
         found = _sqp(disc, u, tolerance=REFINED_TOLERANCE)
-    return _state(disc, found) if found is not None else None
+        return _state(disc, found) if found is not None else None
 
 
 def _minimise(disc: Discrete, u0: np.ndarray) -> np.ndarray | None:
