@@ -543,10 +543,10 @@ class Run:
                 and _one_point(found[0][1].z, found[1][1].z)):
             found.pop()  # both sides' paths reached one equilibrium (a loop's, say)
             fold = "; the path bowing to the other side reached the same equilibrium"
-        # (a mirror twin's energy is the other's: the mirror keeps the bending energy,
-        # and nothing else acts)
-        energies = [self.energy(point) for _, point in found[:1 if mirrored else 2]]
-        energies += energies[:len(found) - len(energies)]
+        energies = [self.energy(found[0][1])]
+        if len(found) == 2:  # (a mirror twin's is the other's: the mirror keeps the
+            # bending energy, and nothing else acts)
+            energies.append(energies[0] if mirrored else self.energy(found[1][1]))
         twins = len(found) == 2 and abs(energies[1] - energies[0]) <= 1e-9 * abs(energies[0])
         judged = [(side, point, energy, self.stable(point) if len(found) == 2 and not twins
                    else None) for (side, point), energy in zip(found, energies)]
@@ -773,26 +773,22 @@ class Run:
         """The candidates, each equilibrium once (the first found of those that are one).
         Two on one structure are one where their unknowns are (``_one_point``), else
         compared by their shapes (``_same``, which samples them)."""
-        out: list[tuple[Lowered, _Point, Equilibrium | None]] = []
+        out: list[tuple[Lowered, _Point]] = []
         for low, point in candidates:
-            alike = [(o_point, o_eq) for o_low, o_point, o_eq in out if o_low.key == low.key]
-            if any(_one_point(point.z, o_point.z) for o_point, _ in alike):
+            if any(o_low.key == low.key and _one_point(point.z, o_point.z)
+                   for o_low, o_point in out):
                 continue
-            eq = None
-            if len(alike) < len(out):  # some on another structure: by their shapes
-                self.low = low
-                eq = self._equilibrium(point)
-                if any(_same(eq, self._sampled(o_low, o_point, o_eq))
-                       for o_low, o_point, o_eq in out if o_low.key != low.key):
-                    continue
-            out.append((low, point, eq))
-        return [(low, point) for low, point, _ in out]
+            others = [(o_low, o_point) for o_low, o_point in out if o_low.key != low.key]
+            if others and any(_same(self._sampled(low, point), self._sampled(*other))
+                              for other in others):
+                continue
+            out.append((low, point))
+        return out
 
-    def _sampled(self, low: Lowered, point: _Point, eq: Equilibrium | None) -> Equilibrium:
-        if eq is None:
-            self.low = low
-            eq = self._equilibrium(point)
-        return eq
+    def _sampled(self, low: Lowered, point: _Point) -> Equilibrium:
+        """``_equilibrium`` of a point on its own lowering (sampled once: cached)."""
+        self.low = low
+        return self._equilibrium(point)
 
     def _judged(self, candidates: list[tuple[Lowered, _Point]]) -> list[tuple]:
         """Distinct candidates (``_distinct``) as (unstable, energy, low, point), the best
