@@ -209,6 +209,34 @@ def test_both_bow_sides_reaching_one_equilibrium_are_not_called_twins():
     assert len(equilibria(problem)) == 1
 
 
+
+def test_one_equilibrium_reached_on_two_meshes_is_listed_once():
+    """A part that turns 22 rad a length, reached by the route and again from the
+    energy's minimum on other shooting intervals: read between one's samples at the
+    other's (cubic Hermite, error h^4 k^3 / 384), the two missed each other by 2e-6 L,
+    past the 1e-6 L that two answers of one equilibrium keep, and the answer was listed
+    among the others found, with its own energy. The comparison now allows the reading's
+    error, and no more: the other bow side's equilibrium, 0.2 L away, is still listed."""
+    from pliant.core.equilibrium import potential_energy
+    from pliant.core.events import OthersFound
+
+    length = 1.0065514916069802
+    problem = pl.Problem(pl.Part(length, 4.827332863489238, mass_per_length=0.49),
+                         (pl.clamp(0.0, angle=-2.8776247977850966),
+                          pl.grip(length, (0.7750919795880583, 0.27958225764938327),
+                                  angle=0.2639678558046965, name="hand")))
+    answer = pl.solve(problem)
+    assert not any(isinstance(n, OthersFound) for n in answer.notes)
+    found = equilibria(problem)
+    s = np.linspace(0.0, length, 41)
+    shapes = [shape_at(e, s) for e in found]
+    assert len(found) == 2
+    assert np.abs(shapes[0] - shapes[1]).max() > 0.1 * length
+    assert potential_energy(found[0]) == pytest.approx(potential_energy(answer), rel=1e-9)
+    assert np.abs(shapes[0] - shape_at(answer, s)).max() < 1e-6 * length
+    assert [e.verdict for e in found] == ["stable", "unstable"]
+
+
 def test_the_sparse_eigensolvers_agree_with_the_dense_one(monkeypatch):
     """The planar verdict's smallest eigenvalue by the Sturm count's bisection (an
     inextensible part) and by shift-invert Lanczos on the sparse bordered system

@@ -1311,13 +1311,24 @@ def equilibria(problem: Problem, *, solver: ShootingSolver | None = None,
 
 def _same(a: Equilibrium, b: Equilibrium) -> bool:
     """One equilibrium reached twice: the same shape to 1e-6 of the part's length, at
-    b's samples (a read between its own by its tangent too where they lie elsewhere: two
-    routes may answer on different shooting intervals, and a straight line between
-    samples misses the arc by h^2 / 8R, some 1e-4 L)."""
+    b's samples. Where a's samples lie elsewhere (two routes may answer on different
+    shooting intervals) a is read between its own by its tangents too (``_between``),
+    and the tolerance grows by that reading's error (``_hermite_error``): a straight
+    line between samples misses the arc by h^2 / 8R, some 1e-4 L, and the cubic, on a
+    part turning 22 rad a length, 2e-6 L, which listed an answer among the others found
+    as one more equilibrium of the same energy."""
     L = a.problem.part.length
     if a.s.shape == b.s.shape and np.array_equal(a.s, b.s):  # sampled alike
         return float(np.abs(a.position - b.position).max()) <= 1e-6 * L
-    return float(np.abs(_between(a, b.s) - b.position).max()) <= 1e-6 * L
+    return float(np.abs(_between(a, b.s) - b.position).max()) <= 1e-6 * L + _hermite_error(a)
+
+
+def _hermite_error(eq: Equilibrium) -> float:
+    """A bound on ``_between``'s error [m]: the cubic Hermite interpolant's, h^4 / 384
+    times the fourth derivative, which on an arc of curvature k is k^3: h dtheta^3 / 384
+    an interval, here four times over (the curvature varies along it)."""
+    h = np.diff(eq.s)
+    return float(np.max(h * np.abs(np.diff(eq.angle)) ** 3, initial=0.0)) / 96.0
 
 
 def _between(eq: Equilibrium, s: np.ndarray) -> np.ndarray:
