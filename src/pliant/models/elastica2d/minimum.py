@@ -26,6 +26,7 @@ follower load has no potential, and an extensible part's start would miss its st
 from __future__ import annotations
 
 import math
+from functools import cached_property
 from types import SimpleNamespace
 from typing import NamedTuple
 
@@ -149,6 +150,20 @@ class Discrete:
         """A start: the part from its first end along its first prescribed angle (or
         toward its last prescribed position), turning at a constant rate to its last
         prescribed angle, bowed by ``bow`` rad (sin(pi s) profile)."""
+        theta, sine, anchor, base = self._unbowed
+        u = np.concatenate([[0.0, 0.0], theta + bow * sine])
+        u[:2] = base - self.nodes(u)[anchor]
+        return u
+
+    def straight(self) -> bool:
+        """Whether the unbowed start is straight (a chord that must shorten cannot to
+        first order: no start)."""
+        return bool(np.ptp(self._unbowed[0]) < 1e-9)
+
+    @cached_property
+    def _unbowed(self) -> tuple[np.ndarray, np.ndarray, int, np.ndarray]:
+        """The starts' common part: (the unbowed angles, the bow's profile, the node
+        whose position they are placed by, that position)."""
         s_el = (np.arange(self.n) + 0.5) * self.h
         first = next((v for k, v in self.ends if k == 0), None)
         last = next((v for k, v in self.ends if k == self.n), None)
@@ -163,37 +178,33 @@ class Discrete:
             else:
                 first = last if last is not None else 0.0
         turn = 0.0 if last is None else last - first
-        theta = first + turn * s_el + bow * np.sin(math.pi * s_el)
-        u = np.concatenate([[0.0, 0.0], theta])
-        u[:2] = base - self.nodes(u)[anchor]
-        return u
+        return first + turn * s_el, np.sin(math.pi * s_el), anchor, base
 
 
 def minima(problem: Problem, *, elements: int = ELEMENTS, deadline: float | None = None,
-           bows: tuple[float, ...] = BOWS) -> list[SimpleNamespace]:
+           bows: tuple[float, ...] = BOWS) -> list[Minimum]:
     """Local minima of the discrete part's energy under the problem's conditions, one per
     start that converged, lowest first, as the arrays a 2D warm start reads (s, position,
     angle, internal_force, bending_moment, loads by name)."""
     disc = Discrete(problem, elements)
-    found: list[SimpleNamespace] = []
+    found: list[Minimum] = []
     for bow in bows:
         if deadline is not None and clock.now() > deadline:
             break
-        start = disc.start(bow)
-        if np.ptp(start[2:]) < 1e-9:
+        if bow == 0.0 and disc.straight():
             continue  # straight: a chord that must shorten cannot to first order
         with np.errstate(over="ignore", invalid="ignore"):  # a trial step too far: refused
-            u = _minimise(disc, start)
+            u = _minimise(disc, disc.start(bow))
         # (a minimum found again is not made into arrays again: case 3's two starts
         # find one)
         if u is not None and not any(
                 np.abs(u[2:] - other.u[2:]).max() < 1e-4 for other in found):
-            found.append(_state(disc, u))
+            found.append(Minimum(disc, u))
     found.sort(key=lambda state: state.energy)
     return found
 
 
-def refined(state: SimpleNamespace, factor: int = 4) -> SimpleNamespace | None:
+def refined(state: Minimum, factor: int = 4) -> Minimum | None:
     """The minimum again on a grid ``factor`` times finer, from the coarse one: where
     the part bends sharply (a taut part's U-turn) a coarse start is too far from the
     part's own equilibrium for Newton. Converged to ``REFINED_TOLERANCE`` only: it is a
@@ -207,7 +218,7 @@ def refined(state: SimpleNamespace, factor: int = 4) -> SimpleNamespace | None:
     u = np.concatenate([state.u[:2], theta])
     with np.errstate(over="ignore", invalid="ignore"):
         found = _sqp(disc, u, tolerance=REFINED_TOLERANCE)
-        return _state(disc, found) if found is not None else None
+        return Minimum(disc, found) if found is not None else None
 
 
 def _minimise(disc: Discrete, u0: np.ndarray) -> np.ndarray | None:
@@ -874,45 +885,81 @@ def _sqp_kernel(u, a, iterations, tolerance, max_turn):
     return u, False
 
 
-def _state(disc: Discrete, u: np.ndarray) -> SimpleNamespace:
-    """The discrete minimum as physical arrays, with the reactions from the multipliers."""
-    problem = disc.problem
-    part = problem.part
-    L, EI = part.length, part.bending_stiffness
-    _, g = disc.energy(u)
-    jac = disc.jacobian(u)
-    q, r = _row_basis(jac)
-    lam = _multipliers(q, r, g)  # grad E = J^T lambda (least squares)
-    force = disc.arrays.f.copy()  # every point load on the part, reactions included
-    reactions = {}
-    for r, (k, i, _) in enumerate(disc.position):
-        force[k, i] += lam[r]
-        reactions[(k, i)] = lam[r]
-    for r, (k, _) in enumerate(disc.angle, start=len(disc.position)):
-        reactions[(k, 2)] = lam[r]
-    n, h = disc.n, disc.h
-    theta = u[2:]
-    x = disc.nodes(u)
-    node_theta = np.concatenate([[theta[0]], 0.5 * (theta[1:] + theta[:-1]), [theta[-1]]])
-    moment = np.zeros(n + 1)  # M / EI - the rest curvature
-    moment[1:-1] = (np.diff(theta) / h - disc.arrays.kappa0[1:-1])
-    moment[0], moment[-1] = moment[1], moment[-2]
-    for k, v, end in disc.end_terms(theta):
-        node_theta[k], moment[k] = v, end
-        # The held end's couple on the part: -M at the first end, +M at the last.
-        reactions[(k, 2)] = -end if k == 0 else end
-    # Internal force at node k: the loads of the later nodes (what lies beyond it).
-    beyond = np.zeros((n + 1, 2))
-    beyond[:-1] = np.cumsum(force[::-1], axis=0)[::-1][1:]
-    loads = {}
-    for index, c in enumerate(problem.conditions):
-        k = disc.node_of[index]
-        applied = [float(c.force[i] or 0.0) * L**2 / EI if c.force and c.force[i] is not None
-                   else 0.0 for i in range(2)]
-        f = np.array([reactions.get((k, i), applied[i]) for i in range(2)])
-        m = reactions.get((k, 2), float(c.moment or 0.0) * L / EI)  # type: ignore[arg-type]
-        loads[c.name] = SimpleNamespace(force=f * EI / L**2, moment=m * EI / L)
-    return SimpleNamespace(problem=problem, s=disc.s * L, position=x * L, angle=node_theta,
-                           internal_force=beyond * EI / L**2, bending_moment=moment * EI / L,
-                           loads=loads, notes=(), state=None, u=u, disc=disc,
-                           energy=disc.energy(u)[0])
+class Minimum:
+    """A discrete minimum as the arrays a 2D warm start reads (s, position, angle,
+    internal_force, bending_moment, loads by name, with the reactions from the
+    multipliers) and its unknowns u and energy. Its angles come at once, the rest when
+    first read: a minimum the route reached already is recognised by its angles
+    (``solver.Run.minima``), and the rest took 42 us of a 1.4 ms cold solve."""
+
+    notes = ()
+    state = None
+
+    def __init__(self, disc: Discrete, u: np.ndarray) -> None:
+        problem = disc.problem
+        self.problem, self.disc, self.u = problem, disc, u
+        part = problem.part
+        L, EI = part.length, part.bending_stiffness
+        e, self._gradient = disc.energy(u)
+        self.energy = float(e)
+        theta = u[2:]
+        node_theta = np.empty(disc.n + 1)  # each interior node: its elements' mean
+        node_theta[1:-1] = 0.5 * (theta[1:] + theta[:-1])
+        node_theta[0], node_theta[-1] = theta[0], theta[-1]
+        self._ends = disc.end_terms(theta)
+        for k, v, _ in self._ends:
+            node_theta[k] = v
+        self.s, self.angle = disc.s * L, node_theta
+        self._scales = (L, EI)
+
+    @cached_property
+    def position(self) -> np.ndarray:
+        return self.disc.nodes(self.u) * self._scales[0]
+
+    @property
+    def internal_force(self) -> np.ndarray:
+        return self._forces[0]
+
+    @property
+    def bending_moment(self) -> np.ndarray:
+        return self._forces[1]
+
+    @property
+    def loads(self) -> dict[str, SimpleNamespace]:
+        return self._forces[2]
+
+    @cached_property
+    def _forces(self) -> tuple[np.ndarray, np.ndarray, dict[str, SimpleNamespace]]:
+        """(internal force, bending moment, loads by name), from the multipliers."""
+        disc, problem, u = self.disc, self.problem, self.u
+        L, EI = self._scales
+        jac = disc.jacobian(u)
+        q, r = _row_basis(jac)
+        lam = _multipliers(q, r, self._gradient)  # grad E = J^T lambda (least squares)
+        force = disc.arrays.f.copy()  # every point load on the part, reactions included
+        reactions = {}
+        for row, (k, i, _) in enumerate(disc.position):
+            force[k, i] += lam[row]
+            reactions[(k, i)] = lam[row]
+        for row, (k, _) in enumerate(disc.angle, start=len(disc.position)):
+            reactions[(k, 2)] = lam[row]
+        n, h = disc.n, disc.h
+        moment = np.zeros(n + 1)  # M / EI - the rest curvature
+        moment[1:-1] = (np.diff(u[2:]) / h - disc.arrays.kappa0[1:-1])
+        moment[0], moment[-1] = moment[1], moment[-2]
+        for k, _, end in self._ends:
+            moment[k] = end
+            # The held end's couple on the part: -M at the first end, +M at the last.
+            reactions[(k, 2)] = -end if k == 0 else end
+        # Internal force at node k: the loads of the later nodes (what lies beyond it).
+        beyond = np.zeros((n + 1, 2))
+        beyond[:-1] = np.cumsum(force[::-1], axis=0)[::-1][1:]
+        loads = {}
+        for index, c in enumerate(problem.conditions):
+            k = disc.node_of[index]
+            applied = [float(c.force[i] or 0.0) * L**2 / EI
+                       if c.force and c.force[i] is not None else 0.0 for i in range(2)]
+            f = np.array([reactions.get((k, i), applied[i]) for i in range(2)])
+            m = reactions.get((k, 2), float(c.moment or 0.0) * L / EI)  # type: ignore[arg-type]
+            loads[c.name] = SimpleNamespace(force=f * EI / L**2, moment=m * EI / L)
+        return beyond * EI / L**2, moment * EI / L, loads
