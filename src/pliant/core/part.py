@@ -236,6 +236,10 @@ class Part:
         """Rest curvature [1/m] at arc length s [m] (linear between knots)."""
         return _interpolate(self.rest_knots, s)
 
+    def rest_curvature_along(self, s: np.ndarray) -> np.ndarray:
+        """``rest_curvature_at`` at every arc length of s [m] (2D)."""
+        return _interpolate_many(self.rest_knots, np.asarray(s, float))
+
     def rest_darboux_along(self, s: np.ndarray) -> np.ndarray:
         """(n, 3) rest curvatures about (d1, d2) and rest twist [1/m] at arc lengths s
         (n,) [m]: ``rest_darboux_at`` for many points at once."""

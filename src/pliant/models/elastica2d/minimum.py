@@ -85,11 +85,12 @@ class Discrete:
         n, h = elements, self.h
         s = np.linspace(0.0, 1.0, n + 1)
         self.s = s
-        kappa0 = part.rest_darboux_along(s * L)[:, 0] * L
-        weight = np.full(n + 1, h)
-        weight[[0, -1]] = 0.5 * h
-        q = np.asarray(problem.dead_load_per_length, float) * L**3 / EI
-        f = weight[:, None] * q[None, :]  # dead forces at the nodes
+        kappa0 = part.rest_curvature_along(s * L) * L
+        qx, qy = problem.dead_load_per_length
+        f = np.zeros((n + 1, 2))  # dead forces at the nodes
+        if qx or qy:
+            f[:] = (h * (qx * L**3 / EI), h * (qy * L**3 / EI))
+            f[[0, -1]] *= 0.5
         for ld in problem.partial_loads:  # a dead load on a stretch: each node's cell
             lo = np.maximum(s - 0.5 * h, 0.0) * L
             hi = np.minimum(s + 0.5 * h, 1.0) * L
@@ -116,13 +117,16 @@ class Discrete:
             elif c.moment is not None:
                 m[k] += float(c.moment) * L / EI  # type: ignore[arg-type]  # 2D: a number
         ints = np.int64
+
+        def column(rows: list, j: int, kind: type) -> np.ndarray:
+            return np.array([row[j] for row in rows], kind)
+
         self.arrays = Arrays(
             h, kappa0, f, np.cumsum(f[::-1], axis=0)[::-1].copy(), m,
-            np.array([p[0] for p in self.position], ints),
-            np.array([p[1] for p in self.position], ints),
-            np.array([p[2] for p in self.position], float),
-            np.array([a[0] for a in self.angle], ints), np.array([a[1] for a in self.angle]),
-            np.array([e[0] for e in self.ends], ints), np.array([e[1] for e in self.ends]))
+            column(self.position, 0, ints), column(self.position, 1, ints),
+            column(self.position, 2, float), column(self.angle, 0, ints),
+            column(self.angle, 1, float), column(self.ends, 0, ints),
+            column(self.ends, 1, float))
 
     def nodes(self, u: np.ndarray) -> np.ndarray:
         return _nodes(u, self.h)
