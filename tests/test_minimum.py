@@ -6,6 +6,7 @@ whose paths meet a fold, and the lowest-energy choice against a slower exhaustiv
 from __future__ import annotations
 
 import math
+from types import SimpleNamespace
 
 import numpy as np
 import pytest
@@ -228,6 +229,31 @@ def test_inverse_solves_converge_at_least_96_percent_of_the_time():
     """The floor of the property above (it runs first: tests keep their file order)."""
     assert len(TRIED) >= 10
     assert sum(TRIED) >= 0.96 * len(TRIED)
+
+
+def test_a_minimum_search_leaves_out_the_equilibrium_it_was_told_of_and_only_that():
+    """Case 3: both bowed starts descend to the minimum next to the route's answer
+    (within the discretisation's 1e-2 rad at every element). Told of that answer, the
+    SQP stops once it settles next to it, and leaves it out; told of its mirror twin
+    (bowed the other way, 0.7 rad off at places) or of a straight part, it finds the
+    minimum as before."""
+    from pliant.models.elastica2d import ShootingSolver, equilibria
+
+    problem = load_problem(EXAMPLES / "paper" / "case3.toml")
+    answer = pl.solve(problem, solver=ShootingSolver(lowest=False))
+    (found,) = minimum.minima(problem)
+    middles = (np.arange(minimum.ELEMENTS) + 0.5) / minimum.ELEMENTS
+    assert np.abs(found.u[2:] - np.interp(middles, answer.s, answer.angle)).max() < 1e-2
+    assert minimum.minima(problem, known=[answer]) == []
+    def middle(eq):
+        return np.interp(0.5, eq.s, eq.position[:, 1])
+
+    (twin,) = [e for e in equilibria(problem) if abs(middle(e) - middle(answer)) > 0.1]
+    assert np.abs(np.interp(middles, twin.s, twin.angle) - found.u[2:]).max() > 0.5
+    straight = SimpleNamespace(s=answer.s, angle=np.zeros_like(answer.angle))
+    for other in ([twin], [straight], [twin, straight]):
+        (again,) = minimum.minima(problem, known=other)
+        np.testing.assert_array_equal(again.u, found.u)
 
 
 def test_lowest_false_answers_with_the_route_alone(monkeypatch):

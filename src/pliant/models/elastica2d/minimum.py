@@ -26,9 +26,10 @@ follower load has no potential, and an extensible part's start would miss its st
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from functools import cached_property
 from types import SimpleNamespace
-from typing import NamedTuple
+from typing import Any, NamedTuple
 
 import numpy as np
 from numba import njit
@@ -41,6 +42,11 @@ from pliant.models.elastica2d.kernels import lu_solve, max_abs
 ELEMENTS = 48  # elements of the discrete part: a start for Newton, not an answer
 BOWS = (0.0, 1.5, -1.5)  # starting bows [rad]: straight, and to either side
 REFINED_TOLERANCE = 1e-7  # the refined grid's stationarity (relative): see ``refined``
+# Where an SQP stops (``_sqp_kernel``).
+FAILED, CONVERGED, KNOWN = 0, 1, 2
+# rad: an SQP iterate this close to an equilibrium found already, settling, is that
+# one's (half the ``solver.MATCHED`` by which a minimum is recognised as the route's)
+NEAR = 0.05
 MAX_TURN = 1.0  # rad: the largest change of an element's angle in one SQP step (a
 # longer step from a poor start leaps into a tangled shape of far higher energy)
 
@@ -186,11 +192,18 @@ class Discrete:
 
 
 def minima(problem: Problem, *, elements: int = ELEMENTS, deadline: float | None = None,
-           bows: tuple[float, ...] = BOWS) -> list[Minimum]:
+           bows: tuple[float, ...] = BOWS, known: Sequence[Any] = ()) -> list[Minimum]:
     """Local minima of the discrete part's energy under the problem's conditions, one per
     start that converged, lowest first, as the arrays a 2D warm start reads (s, position,
-    angle, internal_force, bending_moment, loads by name)."""
+    angle, internal_force, bending_moment, loads by name).
+
+    known : equilibria found already (each with s [m] and angle arrays): a start whose
+        SQP comes within ``NEAR`` of one, settling (``_sqp_kernel``), is that one's and is
+        left out, its last iterations not spent."""
     disc = Discrete(problem, elements)
+    middles = (np.arange(elements) + 0.5) * (problem.part.length / elements)
+    near = np.array([np.interp(middles, eq.s, eq.angle) for eq in known]).reshape(
+        len(known), elements)
     found: list[Minimum] = []
     for bow in bows:
         if deadline is not None and clock.now() > deadline:
@@ -198,7 +211,7 @@ def minima(problem: Problem, *, elements: int = ELEMENTS, deadline: float | None
         if bow == 0.0 and disc.straight():
             continue  # straight: a chord that must shorten cannot to first order
         with np.errstate(over="ignore", invalid="ignore"):  # a trial step too far: refused
-            u = _minimise(disc, disc.start(bow))
+            u = _minimise(disc, disc.start(bow), near)
         # (a minimum found again is not made into arrays again: case 3's two starts
         # find one)
         if u is not None and not any(
@@ -221,17 +234,20 @@ def refined(state: Minimum, factor: int = 4) -> Minimum | None:
     theta = np.repeat(state.u[2:], factor)
     u = np.concatenate([state.u[:2], theta])
     with np.errstate(over="ignore", invalid="ignore"):
-        found = _sqp(disc, u, tolerance=REFINED_TOLERANCE)
-        return Minimum(disc, found) if found is not None else None
+        found, status = _sqp(disc, u, tolerance=REFINED_TOLERANCE)
+        return Minimum(disc, found) if status == CONVERGED else None
 
 
-def _minimise(disc: Discrete, u0: np.ndarray) -> np.ndarray | None:
+def _minimise(disc: Discrete, u0: np.ndarray, known: np.ndarray) -> np.ndarray | None:
     """The minimum's unknowns from u0: the exact-Hessian SQP (``_sqp_kernel``, a few
     milliseconds), or where it fails, scipy's SLSQP (quasi-Newton, slower, but it gets
-    through the tangled shapes a bad start leads the SQP into)."""
-    found = _sqp(disc, u0)
-    if found is not None:
+    through the tangled shapes a bad start leads the SQP into); None where neither
+    converges, or the SQP settles next to an equilibrium ``known`` (element angles)."""
+    found, status = _sqp(disc, u0, known=known)
+    if status == CONVERGED:
         return found
+    if status == KNOWN:
+        return None
     from scipy.optimize import minimize  # noqa: PLC0415 (scipy.optimize: on demand)
 
     result = minimize(disc.energy, u0, jac=True, method="SLSQP",
@@ -243,13 +259,14 @@ def _minimise(disc: Discrete, u0: np.ndarray) -> np.ndarray | None:
     return result.x
 
 
-def _sqp(disc: Discrete, u: np.ndarray, iterations: int = 60,
-         tolerance: float = 1e-10) -> np.ndarray | None:
-    """The compiled SQP (``_sqp_kernel``) from u: the minimum's unknowns, or None when it
-    does not converge."""
-    found, ok = _sqp_kernel(np.ascontiguousarray(u, float), disc.arrays, iterations,
-                            tolerance, MAX_TURN)
-    return found if ok else None
+def _sqp(disc: Discrete, u: np.ndarray, iterations: int = 60, tolerance: float = 1e-10,
+         known: np.ndarray | None = None) -> tuple[np.ndarray, int]:
+    """The compiled SQP (``_sqp_kernel``) from u: (its last iterate, how it stopped:
+    CONVERGED, KNOWN next to a row of ``known``, or FAILED)."""
+    if known is None:
+        known = np.zeros((0, disc.n))
+    return _sqp_kernel(np.ascontiguousarray(u, float), disc.arrays, iterations,
+                       tolerance, MAX_TURN, known, NEAR)
 
 
 # -- compiled kernels (the discrete elastica and its SQP) --------------------------------
@@ -818,13 +835,30 @@ def _merit(u, a, rho):
 
 
 @njit(cache=True)
-def _sqp_kernel(u, a, iterations, tolerance, max_turn):
+def _near_known(u, known, near):
+    """Whether u's element angles all lie within ``near`` of one row of ``known``."""
+    for row in range(known.shape[0]):
+        off = 0.0
+        for j in range(known.shape[1]):
+            off = max(off, abs(u[2 + j] - known[row, j]))
+        if off < near:
+            return True
+    return False
+
+
+@njit(cache=True)
+def _sqp_kernel(u, a, iterations, tolerance, max_turn, known, near):
     """Sequential quadratic programming with the exact Hessian of the Lagrangian. Where
     that Hessian is not positive on the constraints' tangent space it is shifted until
     it is, so each step descends toward a minimum, not a saddle; an element's angle turns
     by at most ``max_turn`` a step (a longer one from a poor start leaps into a tangled
     shape); a step the l1 merit function cuts back raises a damping shift for the next
-    (Levenberg's rule), which a full step lowers again. (u, converged)."""
+    (Levenberg's rule), which a full step lowers again.
+
+    An iterate within ``near`` of a row of ``known`` (element angles of equilibria found
+    already) where the Hessian needs no shift (a minimum's basin) and the step is
+    shorter than ``near`` converges to that equilibrium's minimum: it stops there.
+    (u, CONVERGED, KNOWN or FAILED)."""
     m = a.pos_k.shape[0] + a.ang_k.shape[0]
     lam = np.zeros(m)
     q, r = np.zeros((m, u.shape[0])), np.zeros((m, m))  # J's row basis (``_row_basis``)
@@ -844,13 +878,15 @@ def _sqp_kernel(u, a, iterations, tolerance, max_turn):
                 station[j] -= lam[row] * jac[row, j]
         if (max_abs(station) < tolerance * (1.0 + max_abs(g))
                 and (m == 0 or max_abs(c) < tolerance)):
-            return u, True
+            return u, CONVERGED
         diag, off = _tridiagonal_at(u, lam, a, cos_u, sin_u)
         shift = tangent_shift(diag, off, jac, shift, mode) if m else 0.0
         du, lam_new = kkt_step(diag, off, jac, g, c, damping + shift)
         biggest = max_abs(du)
         if not math.isfinite(biggest):
-            return u, False
+            return u, FAILED
+        if m and shift == 0.0 and biggest < near and _near_known(u, known, near):
+            return u, KNOWN
         cut = min(1.0, max_turn / max(biggest, 1e-300))
         for j in range(du.shape[0]):
             du[j] *= cut
@@ -883,10 +919,10 @@ def _sqp_kernel(u, a, iterations, tolerance, max_turn):
                     break
             alpha *= 0.5
             if alpha < 1e-6:
-                return u, False
+                return u, FAILED
         damping = damping / 4.0 if alpha == 1.0 else max(4.0 * damping, 1.0)
         u = trial
-    return u, False
+    return u, FAILED
 
 
 class Minimum:

@@ -768,8 +768,11 @@ class Run:
                     return True
             return False
 
+        # The SQP stops next to the route's answer (``minimum.minima``'s ``known``; sampled
+        # for its energy already, where the others are sampled only if a minimum needs).
+        known = [self._sampled(route_low, reached[0])] if reached else []
         out: list[tuple[Lowered, _Point]] = []
-        for start in minimum.minima(problem, deadline=self.deadline):
+        for start in minimum.minima(problem, deadline=self.deadline, known=known):
             if matched(start):
                 continue
             found = converged(start)
