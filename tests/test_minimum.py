@@ -257,23 +257,33 @@ def test_a_minimum_search_leaves_out_the_equilibrium_it_was_told_of_and_only_tha
 
 
 def test_lowest_false_answers_with_the_route_alone(monkeypatch):
-    """Case 3: the route's answer is already the lowest (its mirror twin ties), so both
-    settings give the same equilibrium; only the default searched the energy's minima.
-    (Which twin a bowed start descends to from the saddle between them is round-off's
-    choice, so the search is counted, not read from the note of the others found.)"""
+    """A clamped part held by its tip, pre-curved (no singular start: one path): the
+    default also searched the energy's minima, lowest=False did not, and where the route
+    answered with the lowest both give one equilibrium. Case 3: its route bows the part
+    to both sides (mirror twins, stable), the two families the minima's bowed starts
+    descend to, so it searches no minima either."""
     from pliant.models.elastica2d import ShootingSolver
 
     searches = []
     search = minimum.minima
     monkeypatch.setattr(minimum, "minima",
                         lambda *args, **kw: searches.append(1) or search(*args, **kw))
-    problem = load_problem(EXAMPLES / "paper" / "case3.toml")
+    part = pl.Part(1.0, 1.0, rest_curvature=0.8)
+    problem = pl.Problem(part, (pl.clamp(0.0), pl.grip(1.0, (0.6, 0.5), angle=1.2,
+                                                       name="hand")))
     searched = pl.solve(problem)
     assert len(searches) == 1
     alone = pl.solve(problem, solver=ShootingSolver(lowest=False))
     assert len(searches) == 1
     np.testing.assert_allclose(alone.position, searched.position, atol=1e-12)
     assert not any(isinstance(n, LowestEquilibrium) for n in searched.notes)
+    case3 = load_problem(EXAMPLES / "paper" / "case3.toml")
+    answer = pl.solve(case3)
+    assert len(searches) == 1
+    (taken,) = [n for n in answer.notes if isinstance(n, BranchTaken)]
+    assert taken.twin and answer.verdict == "stable"
+    np.testing.assert_allclose(pl.solve(case3, solver=ShootingSolver(lowest=False)).position,
+                               answer.position, atol=1e-12)
 
 
 def test_where_the_side_pushed_to_meets_a_fold_the_other_bow_side_answers():
