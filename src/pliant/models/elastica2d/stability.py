@@ -33,8 +33,12 @@ from __future__ import annotations
 
 import itertools
 import math
+from collections.abc import Callable
+from functools import lru_cache
+from typing import NamedTuple
 
 import numpy as np
+from numba import njit
 
 from pliant.core.equilibrium import NEUTRAL
 
@@ -66,16 +70,16 @@ def smallest_eigenvalue(eq, elements: int | None = None) -> float | None:
     return None if form is None else _smallest(form)
 
 
-def _smallest(form: tuple) -> float:
+def _smallest(form: Form) -> float:
     """``smallest_eigenvalue`` of a second variation already assembled."""
     from scipy.linalg import eigh, null_space  # noqa: PLC0415 (heavy; on demand)
 
-    assemble, A, metric, diagonal, k, weight, bound, w = form
+    assemble, A, metric, bound, w = form.assemble, form.A, form.metric, form.bound, form.w
     n = metric.shape[0]
     value = None
     Q = None  # the dense form, assembled once where an eigensolver needs it
     if n > DENSE_UP_TO:
-        value = _smallest_sturm(diagonal, k, A, weight, bound) if not w else None
+        value = _smallest_sturm(form) if not w else None
         if value is None:
             Q = assemble()
             value = _smallest_sparse(Q, A, metric, -2.0 * bound)
@@ -99,11 +103,10 @@ def stable_sign(eq, elements: int | None = None) -> bool | None:
     form = _second_variation(eq, elements)
     if form is None:
         return None
-    _, A, _, diagonal, k, weight, _, w = form
     part = eq.problem.part
     scale = part.bending_stiffness / part.length
     threshold = -NEUTRAL * scale
-    pencil = None if w else _bordered(diagonal, k, A, weight)
+    pencil = None if form.w else _bordered(form)
     if pencil is not None:
         from pliant.models.elastica2d.bordered import below  # noqa: PLC0415
 
@@ -114,69 +117,72 @@ def stable_sign(eq, elements: int | None = None) -> bool | None:
     return _smallest(form) > threshold
 
 
-def _bordered(diagonal: np.ndarray, k: np.ndarray, A: np.ndarray, weight: np.ndarray
-              ) -> tuple[np.ndarray, ...] | None:
+class Form(NamedTuple):
+    """The discretised second variation (see the module): ``assemble()`` the form on
+    the element angles (then the stretches, then the first end's shift) as a dense
+    matrix, built when asked (the Sturm counts read its tridiagonal block alone, and its
+    n^2 zeros took two thirds of a verdict's time); A the constraints' rows; the
+    metric; the angles' tridiagonal block (diagonal, -k); their weight h / L; a bound
+    below every eigenvalue [N m]; the number of stretch unknowns w; and an
+    inextensible part's constraint rows in the Sturm counts' order (``pencil_rows``:
+    the first end's shift, then the angles)."""
+
+    assemble: Callable[[], np.ndarray]
+    A: np.ndarray
+    metric: np.ndarray
+    diagonal: np.ndarray
+    k: np.ndarray
+    weight: np.ndarray
+    bound: float
+    w: int
+    pencil_rows: np.ndarray
+
+
+def _bordered(form: Form) -> tuple[np.ndarray, ...] | None:
     """An inextensible part's pencil as ``bordered``'s counts take it: (the angles'
     tridiagonal diagonal, off-diagonal, the constraints' rows with the first end's shift
-    first, the angles' weight), contiguous; None where A's rows are dependent (a zero
-    eigenvalue the count cannot tell from the part's)."""
-    if A.shape[0] and np.linalg.matrix_rank(A) < A.shape[0]:
+    first, the angles' weight); None where the rows are dependent (a zero eigenvalue the
+    count cannot tell from the part's)."""
+    rows = form.pencil_rows
+    if rows.shape[0] and not _independent(rows):
         return None
-    return (np.ascontiguousarray(diagonal, dtype=float), np.ascontiguousarray(-k, dtype=float),
-            np.ascontiguousarray(np.hstack([A[:, -2:], A[:, :-2]])),
-            np.ascontiguousarray(weight, dtype=float))
+    return form.diagonal, _negated(form.k), rows, form.weight
 
 
-def _second_variation(eq, elements: int | None):
-    """The discretised second variation (see the module): (Q, A, metric, diagonal, k,
-    weight, bound, w) with Q() the form on the element angles (then the stretches, then
-    the first end's shift) as a dense matrix, assembled when asked (the Sturm counts read
-    its tridiagonal block alone, and its n^2 zeros took two thirds of a verdict's time),
-    A the constraints' rows, the metric, the angles' tridiagonal block (diagonal, -k),
-    their weight h / L, a bound below every eigenvalue [N m] and the number of stretch
-    unknowns; None with follower loads."""
+def _second_variation(eq, elements: int | None) -> Form | None:
+    """The discretised second variation (``Form``); None with follower loads. The
+    element terms come from one compiled pass (``_element_form``: numpy's forty calls
+    on arrays of 60 took 70 us of a verdict's 110)."""
     problem = eq.problem
     if any(st.follower_load != (0.0, 0.0) for st in problem.stations) or any(
             ld.follower for ld in problem.distributed):
         return None
     part = problem.part
     L, EI = part.length, part.bending_stiffness
-    knots = sorted({0.0, L, *(min(max(st.s, 0.0), L) for st in problem.stations)})
-    nodes = [np.array([0.0])]
-    for a, b in itertools.pairwise(knots):
-        if b - a <= 1e-12 * L:
-            continue
-        count = max(2, math.ceil((elements or ELEMENTS) * (b - a) / L))
-        nodes.append(np.linspace(a, b, count + 1)[1:])
-    s = np.concatenate(nodes)
-    h = np.diff(s)
-    mid = 0.5 * (s[:-1] + s[1:])
-    m = len(h)
-    theta = np.interp(mid, eq.s, eq.angle)
-    tangent = np.column_stack([np.cos(theta), np.sin(theta)])
-    force = np.column_stack([np.interp(mid, eq.s, eq.internal_force[:, k]) for k in range(2)])
-    axial = np.einsum("ij,ij->i", force, tangent)
-    normal = np.column_stack([-tangent[:, 1], tangent[:, 0]])
+    s, held = _grid(L, tuple(st.s for st in problem.stations),
+                    tuple(st.s for st in problem.stations if st.prescribed[2]),
+                    elements or ELEMENTS)
+    m = len(s) - 1
+    row_s = [st.s for st in problem.stations for axis in (0, 1) if st.prescribed[axis]]
+    row_axis = [axis for st in problem.stations for axis in (0, 1) if st.prescribed[axis]]
     ea = part.axial_stiffness
-    stretch = 1.0 if ea is None else 1.0 + axial / ea
-    fixed = np.array([st.s for st in problem.stations if st.prescribed[2]], dtype=float)
-    held = (np.abs(s[:, None] - fixed[None, :]).min(axis=1) <= 1e-12 * L if fixed.size
-            else np.zeros(len(s), dtype=bool))
+    h, tangent, axial, shear, diagonal, k, pencil_rows = _element_form(
+        s, np.ascontiguousarray(eq.s, dtype=float), np.ascontiguousarray(eq.angle, dtype=float),
+        np.ascontiguousarray(eq.internal_force, dtype=float), held,
+        np.array(row_s, dtype=float), np.array(row_axis, dtype=np.int64), float(EI),
+        0.0 if ea is None else 1.0 / ea)
 
     # unknowns: the element angles, the element stretches (extensible), then the first
     # end's shift (dx0, dy0)
     w = m if ea is not None else 0
     n = m + w + 2
-    diagonal = h * axial * stretch
-    # each side of a held node bends from the held angle over half an element
-    diagonal[:-1] += np.where(held[1:-1], 2.0 * EI / h[:-1], 0.0)  # node j = e + 1
-    diagonal[1:] += np.where(held[1:-1], 2.0 * EI / h[1:], 0.0)    # node j = e
-    diagonal[0] += 2.0 * EI / h[0] if held[0] else 0.0
-    diagonal[-1] += 2.0 * EI / h[-1] if held[-1] else 0.0
-    k = np.where(held[1:-1], 0.0, EI / (0.5 * (h[:-1] + h[1:])))  # interior free nodes
-    diagonal[:-1] += k
-    diagonal[1:] += k
-    shear = np.einsum("ij,ij->i", force, normal) if w else np.zeros(m)
+    A = np.zeros((len(row_s), n))
+    A[:, :m] = pencil_rows[:, 2:]
+    A[:, m + w:] = pencil_rows[:, :2]
+    if w:
+        mid = 0.5 * (s[:-1] + s[1:])
+        for r, (at, axis) in enumerate(zip(row_s, row_axis)):
+            A[r, m:m + w] = np.where(mid < at, h * tangent[:, axis], 0.0)
 
     def assemble() -> np.ndarray:
         Q = np.zeros((n, n))
@@ -188,30 +194,142 @@ def _second_variation(eq, elements: int | None):
             Q[m + idx, m + idx] = h * ea
             Q[idx, m + idx] = Q[m + idx, idx] = -h * shear
         return Q
-    rows = []
-    for st in problem.stations:
-        before = mid < st.s
-        for axis in (0, 1):
-            if st.prescribed[axis]:
-                row = np.zeros(n)
-                row[:m] = np.where(before, h * stretch * normal[:, axis], 0.0)
-                if w:
-                    row[m:m + w] = np.where(before, h * tangent[:, axis], 0.0)
-                row[m + w + axis] = 1.0
-                rows.append(row)
-    A = np.array(rows) if rows else np.zeros((0, n))
+
     metric = np.concatenate([h / L, h[:w] / L, [0.0, 0.0]])
+    stretch = 1.0 if ea is None else 1.0 + axial / ea
     # Below every eigenvalue [N m]: the bending's scale plus the geometric terms' bound
     # (h N theta^2 in the metric h / L is N L; the shear's coupling to the stretches
     # lowers it by at most S^2 L / EA).
     bound = EI / L + L * float(np.abs(axial * stretch).max(initial=0.0))
     if w:
         bound += L * float(np.max(shear**2, initial=0.0)) / ea
-    return assemble, A, metric, diagonal, k, h / L, bound, w
+    return Form(assemble, A, metric, diagonal, k, h / L, bound, w, pencil_rows)
 
 
-def _smallest_sturm(diagonal: np.ndarray, k: np.ndarray, A: np.ndarray,
-                    weight: np.ndarray, bound: float) -> float | None:
+@lru_cache(maxsize=64)
+def _grid(length: float, stations: tuple[float, ...], fixed: tuple[float, ...],
+          elements: int) -> tuple[np.ndarray, np.ndarray]:
+    """The elements' nodes [m], about ``elements`` over the part, every station a node,
+    and whether each is one whose angle is held (at a station of ``fixed``). Made once
+    per part and stations (a verdict's grid), read only."""
+    knots = sorted({0.0, length, *(min(max(at, 0.0), length) for at in stations)})
+    nodes = [np.array([0.0])]
+    for a, b in itertools.pairwise(knots):
+        if b - a <= 1e-12 * length:
+            continue
+        count = max(2, math.ceil(elements * (b - a) / length))
+        nodes.append(np.linspace(a, b, count + 1)[1:])
+    grid = np.concatenate(nodes)
+    held = np.array([any(abs(x - f) <= 1e-12 * length for f in fixed) for x in grid.tolist()])
+    grid.flags.writeable = held.flags.writeable = False
+    return grid, held
+
+
+@njit(cache=True)
+def _element_form(s, eq_s, eq_angle, eq_force, held, row_s, row_axis, EI, inv_ea):
+    """The element terms of the second variation on the nodes s, read from the
+    equilibrium's samples (linearly, at the elements' middles): (h, tangent, axial
+    force, shear force, the angles' diagonal, the coupling k between neighbours, the
+    constraints' rows as the Sturm counts take them: the first end's shift, then the
+    angles, each scaled by the stretch 1 + N inv_ea). A held node bends each side from
+    its angle over half an element; a held position constrains the angles of the
+    elements before it."""
+    m = s.shape[0] - 1
+    mid = np.empty(m)
+    h = np.empty(m)
+    for e in range(m):
+        h[e] = s[e + 1] - s[e]
+        mid[e] = 0.5 * (s[e] + s[e + 1])
+    theta = np.empty(m)
+    fx = np.empty(m)
+    fy = np.empty(m)
+    j = 0  # numpy's interp, as a walk along both ascending grids
+    last = eq_s.shape[0] - 1
+    for e in range(m):
+        x = mid[e]
+        while j < last - 1 and eq_s[j + 1] <= x:
+            j += 1
+        if x <= eq_s[0]:
+            theta[e], fx[e], fy[e] = eq_angle[0], eq_force[0, 0], eq_force[0, 1]
+        elif x >= eq_s[last]:
+            theta[e], fx[e], fy[e] = eq_angle[last], eq_force[last, 0], eq_force[last, 1]
+        else:
+            gap = eq_s[j + 1] - eq_s[j]
+            theta[e] = (eq_angle[j + 1] - eq_angle[j]) / gap * (x - eq_s[j]) + eq_angle[j]
+            fx[e] = (eq_force[j + 1, 0] - eq_force[j, 0]) / gap * (x - eq_s[j]) + eq_force[j, 0]
+            fy[e] = (eq_force[j + 1, 1] - eq_force[j, 1]) / gap * (x - eq_s[j]) + eq_force[j, 1]
+    tangent = np.empty((m, 2))
+    axial = np.empty(m)
+    shear = np.empty(m)
+    diagonal = np.empty(m)
+    rows = np.zeros((row_s.shape[0], m + 2))
+    for e in range(m):
+        c, sn = math.cos(theta[e]), math.sin(theta[e])
+        tangent[e, 0], tangent[e, 1] = c, sn
+        axial[e] = fx[e] * c + fy[e] * sn
+        shear[e] = fx[e] * -sn + fy[e] * c
+        stretch = 1.0 + axial[e] * inv_ea
+        diagonal[e] = h[e] * axial[e] * stretch
+        for r in range(row_s.shape[0]):
+            if mid[e] < row_s[r]:
+                rows[r, 2 + e] = h[e] * stretch * (-sn if row_axis[r] == 0 else c)
+    for r in range(row_s.shape[0]):
+        rows[r, row_axis[r]] = 1.0
+    k = np.zeros(max(m - 1, 0))
+    for e in range(m - 1):  # node e + 1, between elements e and e + 1
+        if held[e + 1]:
+            diagonal[e] += 2.0 * EI / h[e]
+            diagonal[e + 1] += 2.0 * EI / h[e + 1]
+    if held[0]:
+        diagonal[0] += 2.0 * EI / h[0]
+    if held[m]:
+        diagonal[m - 1] += 2.0 * EI / h[m - 1]
+    for e in range(m - 1):  # interior free nodes
+        if not held[e + 1]:
+            k[e] = EI / (0.5 * (h[e] + h[e + 1]))
+            diagonal[e] += k[e]
+            diagonal[e + 1] += k[e]
+    return h, tangent, axial, shear, diagonal, k, rows
+
+
+@njit(cache=True)
+def _independent(rows):
+    """Whether the rows are linearly independent: Gram-Schmidt, twice over, each row's
+    remainder above 1e-10 of its own size (numpy's matrix_rank, by an SVD, took 15 us)."""
+    m, n = rows.shape
+    q = np.zeros((m, n))
+    for a in range(m):
+        size = 0.0
+        for j in range(n):
+            q[a, j] = rows[a, j]
+            size += rows[a, j] * rows[a, j]
+        for _ in range(2):
+            for b in range(a):
+                dot = 0.0
+                for j in range(n):
+                    dot += q[b, j] * q[a, j]
+                for j in range(n):
+                    q[a, j] -= dot * q[b, j]
+        norm = 0.0
+        for j in range(n):
+            norm += q[a, j] * q[a, j]
+        if not norm > 1e-20 * size:
+            return False
+        norm = math.sqrt(norm)
+        for j in range(n):
+            q[a, j] /= norm
+    return True
+
+
+@njit(cache=True)
+def _negated(x):
+    out = np.empty(x.shape[0])
+    for j in range(x.shape[0]):
+        out[j] = -x[j]
+    return out
+
+
+def _smallest_sturm(form: Form) -> float | None:
     """An inextensible part's smallest eigenvalue in n m operations a count: bisection on
     the number of eigenvalues below lambda (``bordered.smallest_constrained``: a Sturm
     sequence on the angles' tridiagonal block, the element angles' (diagonal, -k), and
@@ -222,11 +340,11 @@ def _smallest_sturm(diagonal: np.ndarray, k: np.ndarray, A: np.ndarray,
     then answer."""
     from pliant.models.elastica2d.bordered import smallest_constrained  # noqa: PLC0415
 
-    pencil = _bordered(diagonal, k, A, weight)
+    pencil = _bordered(form)
     if pencil is None:
         return None
     diag, off, jac, mass = pencil
-    value = smallest_constrained(diag, off, jac, mass, -2.0 * bound, bound)
+    value = smallest_constrained(diag, off, jac, mass, -2.0 * form.bound, form.bound)
     return None if math.isnan(value) else float(value)
 
 
