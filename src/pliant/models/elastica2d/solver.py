@@ -110,7 +110,8 @@ class ShootingSolver:
         re-lowered after)
     lowest : in a cold solve with positions held at two stations or more, also minimise
         the energy from a few starting shapes and answer with the stable equilibrium of
-        lowest energy found (a few ms more); False answers with the route's (as fast
+        lowest energy found (at most a few ms more; none where the route bowed the part
+        to both sides and took a stable one); False answers with the route's (as fast
         as the shooting, but it may be a higher or unstable branch)
     """
 
