@@ -33,9 +33,8 @@ from __future__ import annotations
 
 import itertools
 import math
-from collections.abc import Callable
-from functools import lru_cache
-from typing import NamedTuple
+from dataclasses import dataclass
+from functools import cached_property, lru_cache
 
 import numpy as np
 from numba import njit
@@ -117,25 +116,81 @@ def stable_sign(eq, elements: int | None = None) -> bool | None:
     return _smallest(form) > threshold
 
 
-class Form(NamedTuple):
-    """The discretised second variation (see the module): ``assemble()`` the form on
-    the element angles (then the stretches, then the first end's shift) as a dense
-    matrix, built when asked (the Sturm counts read its tridiagonal block alone, and its
-    n^2 zeros took two thirds of a verdict's time); A the constraints' rows; the
-    metric; the angles' tridiagonal block (diagonal, -k); their weight h / L; a bound
-    below every eigenvalue [N m]; the number of stretch unknowns w; and an
-    inextensible part's constraint rows in the Sturm counts' order (``pencil_rows``:
-    the first end's shift, then the angles)."""
+@dataclass(eq=False)
+class Form:
+    """The discretised second variation (see the module) of a part (L, EI, EA) on the
+    element nodes s: the element lengths h, tangents, axial and shear forces; the
+    angles' tridiagonal block (diagonal, -k); the constraints' rows, at arc lengths
+    ``row_s`` along ``row_axis``, in the Sturm counts' order (``pencil_rows``: the first
+    end's shift, then the angles, for an inextensible part); the number of stretch
+    unknowns w. What only the eigensolvers read (the rows over every unknown A, the
+    metric, a bound below every eigenvalue, the dense form) is made when first asked:
+    a quick verdict's Sturm count reads the block and the rows alone."""
 
-    assemble: Callable[[], np.ndarray]
-    A: np.ndarray
-    metric: np.ndarray
+    length: float
+    stiffness: float
+    axial_stiffness: float | None
+    s: np.ndarray
+    row_s: list[float]
+    row_axis: list[int]
+    h: np.ndarray
+    tangent: np.ndarray
+    axial: np.ndarray
+    shear: np.ndarray
     diagonal: np.ndarray
     k: np.ndarray
-    weight: np.ndarray
-    bound: float
-    w: int
     pencil_rows: np.ndarray
+    w: int
+
+    @property
+    def weight(self) -> np.ndarray:
+        """The angles' weight in the metric, h / L."""
+        return self.h / self.length
+
+    @cached_property
+    def A(self) -> np.ndarray:
+        """The constraints' rows over the unknowns: the element angles, the stretches
+        (extensible), then the first end's shift (dx0, dy0)."""
+        m, w = self.h.shape[0], self.w
+        A = np.zeros((len(self.row_s), m + w + 2))
+        A[:, :m] = self.pencil_rows[:, 2:]
+        A[:, m + w:] = self.pencil_rows[:, :2]
+        if w:
+            mid = 0.5 * (self.s[:-1] + self.s[1:])
+            for r, (at, axis) in enumerate(zip(self.row_s, self.row_axis)):
+                A[r, m:m + w] = np.where(mid < at, self.h * self.tangent[:, axis], 0.0)
+        return A
+
+    @cached_property
+    def metric(self) -> np.ndarray:
+        return np.concatenate([self.weight, self.h[:self.w] / self.length, [0.0, 0.0]])
+
+    @cached_property
+    def bound(self) -> float:
+        """Below every eigenvalue [N m]: the bending's scale plus the geometric terms'
+        bound (h N theta^2 in the metric h / L is N L; the shear's coupling to the
+        stretches lowers it by at most S^2 L / EA)."""
+        L, ea = self.length, self.axial_stiffness
+        stretch = 1.0 if ea is None else 1.0 + self.axial / ea
+        bound = self.stiffness / L + L * float(np.abs(self.axial * stretch).max(initial=0.0))
+        if self.w and ea is not None:
+            bound += L * float(np.max(self.shear**2, initial=0.0)) / ea
+        return bound
+
+    def assemble(self) -> np.ndarray:
+        """The form as a dense matrix (the angles, the stretches, the first end's shift):
+        built when asked (its n^2 zeros took two thirds of a verdict's time)."""
+        m, w = self.h.shape[0], self.w
+        n = m + w + 2
+        Q = np.zeros((n, n))
+        idx = np.arange(m)
+        Q[idx, idx] = self.diagonal
+        Q[idx[:-1], idx[1:]] = -self.k
+        Q[idx[1:], idx[:-1]] = -self.k
+        if w:
+            Q[m + idx, m + idx] = self.h * self.axial_stiffness
+            Q[idx, m + idx] = Q[m + idx, idx] = -self.h * self.shear
+        return Q
 
 
 def _bordered(form: Form) -> tuple[np.ndarray, ...] | None:
@@ -162,48 +217,17 @@ def _second_variation(eq, elements: int | None) -> Form | None:
     s, held = _grid(L, tuple(st.s for st in problem.stations),
                     tuple(st.s for st in problem.stations if st.prescribed[2]),
                     elements or ELEMENTS)
-    m = len(s) - 1
     row_s = [st.s for st in problem.stations for axis in (0, 1) if st.prescribed[axis]]
     row_axis = [axis for st in problem.stations for axis in (0, 1) if st.prescribed[axis]]
     ea = part.axial_stiffness
-    h, tangent, axial, shear, diagonal, k, pencil_rows = _element_form(
+    terms = _element_form(
         s, np.ascontiguousarray(eq.s, dtype=float), np.ascontiguousarray(eq.angle, dtype=float),
         np.ascontiguousarray(eq.internal_force, dtype=float), held,
         np.array(row_s, dtype=float), np.array(row_axis, dtype=np.int64), float(EI),
         0.0 if ea is None else 1.0 / ea)
-
-    # unknowns: the element angles, the element stretches (extensible), then the first
-    # end's shift (dx0, dy0)
-    w = m if ea is not None else 0
-    n = m + w + 2
-    A = np.zeros((len(row_s), n))
-    A[:, :m] = pencil_rows[:, 2:]
-    A[:, m + w:] = pencil_rows[:, :2]
-    if w:
-        mid = 0.5 * (s[:-1] + s[1:])
-        for r, (at, axis) in enumerate(zip(row_s, row_axis)):
-            A[r, m:m + w] = np.where(mid < at, h * tangent[:, axis], 0.0)
-
-    def assemble() -> np.ndarray:
-        Q = np.zeros((n, n))
-        idx = np.arange(m)
-        Q[idx, idx] = diagonal
-        Q[idx[:-1], idx[1:]] = -k
-        Q[idx[1:], idx[:-1]] = -k
-        if w:
-            Q[m + idx, m + idx] = h * ea
-            Q[idx, m + idx] = Q[m + idx, idx] = -h * shear
-        return Q
-
-    metric = np.concatenate([h / L, h[:w] / L, [0.0, 0.0]])
-    stretch = 1.0 if ea is None else 1.0 + axial / ea
-    # Below every eigenvalue [N m]: the bending's scale plus the geometric terms' bound
-    # (h N theta^2 in the metric h / L is N L; the shear's coupling to the stretches
-    # lowers it by at most S^2 L / EA).
-    bound = EI / L + L * float(np.abs(axial * stretch).max(initial=0.0))
-    if w:
-        bound += L * float(np.max(shear**2, initial=0.0)) / ea
-    return Form(assemble, A, metric, diagonal, k, h / L, bound, w, pencil_rows)
+    h, tangent, axial, shear, diagonal, k, pencil_rows = terms
+    return Form(L, EI, ea, s, row_s, row_axis, h, tangent, axial, shear, diagonal, k,
+                pencil_rows, w=len(s) - 1 if ea is not None else 0)
 
 
 @lru_cache(maxsize=64)
