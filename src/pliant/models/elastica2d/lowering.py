@@ -186,14 +186,27 @@ class Lowered:
     def station_rows(self, mesh: Mesh) -> np.ndarray:
         """Row of each station in a trajectory (the start of its segment; the end for
         the last station)."""
-        rows = np.concatenate([[0], np.cumsum(mesh.steps + 1)])
+        rows = np.zeros(mesh.steps.shape[0] + 1, dtype=np.int64)
+        np.cumsum(mesh.steps + 1, out=rows[1:])
         rows[-1] -= 1
         return rows
 
     def grid(self, mesh: Mesh) -> np.ndarray:
-        """Arc length [m] of each trajectory row."""
-        return np.concatenate([np.linspace(self.st_s[k], self.st_s[k + 1], mesh.steps[k] + 1)
-                               for k in range(mesh.steps.shape[0])]) * self.length
+        """Arc length [m] of each trajectory row: each segment's numpy linspace, by its
+        arithmetic (start + i (end - start) / steps, the last exactly the end) without
+        its checks (4.6 us a segment, a tenth of a sample's time)."""
+        ends, steps = self.st_s.tolist(), mesh.steps.tolist()
+        out = np.empty(sum(steps) + len(steps))
+        row = 0
+        for k, count in enumerate(steps):
+            a, b = ends[k], ends[k + 1]
+            part = out[row:row + count + 1]
+            np.multiply(np.arange(count + 1.0), (b - a) / count, out=part)
+            part += a
+            part[-1] = b
+            row += count + 1
+        out *= self.length
+        return out
 
     # -- the rest state -------------------------------------------------------------------
     def rest(self, mesh: Mesh, bow: float = 0.0,

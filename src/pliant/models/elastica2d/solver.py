@@ -1437,10 +1437,11 @@ def _station_load(low: Lowered, k: int, station, cond, z: np.ndarray,
     force = [0.0, 0.0]
     moment = 0.0
     flags = [False, False, False]
+    cols = low.st_col[k].tolist()
     for i in range(3):
         if station.owner[i] == cond.name:
             flags[i] = True
-            value = z[low.st_col[k, i]]
+            value = float(z[cols[i]])
             if i < 2:
                 force[i] = value * low.force_scale
             else:
