@@ -201,7 +201,7 @@ def _bordered(form: Form) -> tuple[np.ndarray, ...] | None:
     rows = form.pencil_rows
     if rows.shape[0] and not _independent(rows):
         return None
-    return form.diagonal, _negated(form.k), rows, form.weight
+    return form.diagonal, -form.k, rows, form.weight
 
 
 def _second_variation(eq, elements: int | None) -> Form | None:
@@ -343,14 +343,6 @@ def _independent(rows):
         for j in range(n):
             q[a, j] /= norm
     return True
-
-
-@njit(cache=True)
-def _negated(x):
-    out = np.empty(x.shape[0])
-    for j in range(x.shape[0]):
-        out[j] = -x[j]
-    return out
 
 
 def _smallest_sturm(form: Form) -> float | None:
