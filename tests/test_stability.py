@@ -238,10 +238,11 @@ def test_one_equilibrium_reached_on_two_meshes_is_listed_once():
 
 
 def test_the_sparse_eigensolvers_agree_with_the_dense_one(monkeypatch):
-    """The planar verdict's smallest eigenvalue by the Sturm count's bisection (an
-    inextensible part) and by shift-invert Lanczos on the sparse bordered system
-    (milliseconds) against the dense null space and eigensolver, on a held tip (case 3's
-    target), a heavy pinned part and a stretching cable (the Lanczos only): to 1e-9."""
+    """The planar verdict's smallest eigenvalue by the Sturm count (an inextensible
+    part: bisection, then Rayleigh quotient iteration proved by counts) and by
+    shift-invert Lanczos on the sparse bordered system (milliseconds) against the dense
+    null space and eigensolver, on a held tip (case 3's target), a heavy pinned part and
+    a stretching cable (the Lanczos only): to 1e-9."""
     part = pl.Part(1.0, 1.0)
     heavy = pl.Part(1.2, 0.5, mass_per_length=0.3, rest_curvature=0.8)
     cable = pl.Part(1.0, 1.0, axial_stiffness=2e4)
@@ -262,10 +263,11 @@ def test_the_sparse_eigensolvers_agree_with_the_dense_one(monkeypatch):
         monkeypatch.undo()
         assert default == pytest.approx(dense, rel=1e-9, abs=1e-9)
         assert lanczos == pytest.approx(dense, rel=1e-9, abs=1e-9)
-        # The solver's quick verdicts (60 elements) take the dense path; forced through
-        # the others instead, the same eigenvalue.
+        # At 60 elements an inextensible part takes the Sturm count too, and the others
+        # the dense path; forced through the dense one, the same eigenvalue.
         quick = planar.smallest_eigenvalue(eq, 60)
-        monkeypatch.setattr(planar, "DENSE_UP_TO", 0)
+        monkeypatch.setattr(planar, "_smallest_sturm", lambda *args: None)
+        monkeypatch.setattr(planar, "_smallest_sparse", lambda *args: None)
         assert planar.smallest_eigenvalue(eq, 60) == pytest.approx(quick, rel=1e-9, abs=1e-9)
         monkeypatch.undo()
 
@@ -307,6 +309,37 @@ def test_the_sturm_count_finds_the_constrained_pencils_smallest_eigenvalue(seed,
     bound = 1.0 + 50.0  # EI / L plus L |N|, below every eigenvalue (as the verdict's)
     value = bordered.smallest_constrained(diag, off, jac, weight, -2.0 * bound, bound)
     assert value == pytest.approx(exact, abs=1e-9 * bound)
+
+
+def test_the_sturm_count_proves_its_rayleigh_value_or_bisects_a_double_one():
+    """The count's answer comes from Rayleigh quotient iteration once the bracket holds
+    the smallest eigenvalue alone, proved by two counts 1e-12 of the scale either side;
+    a double eigenvalue (two identical halves, uncoupled) never stands alone, and the
+    bisection answers. Both against numpy's eigenvalues of the angles' block (the
+    constraints hold the translations only)."""
+    from pliant.models.elastica2d import bordered
+
+    rng = np.random.default_rng(4)
+    half = 12
+    h = np.full(2 * half, 1.0 / (2 * half))
+    k = 1.0 / h[:-1]
+    axial = rng.uniform(-30.0, 30.0, size=half)
+    for double in (False, True):
+        diag = h * np.concatenate([axial, axial if double else axial[::-1] + 1.0])
+        diag[:-1] += k
+        diag[1:] += k
+        off = -k.copy()
+        if double:  # two identical halves, uncoupled: every eigenvalue twice
+            diag[half - 1] -= k[half - 1]
+            diag[half] -= k[half - 1]
+            off[half - 1] = 0.0
+        jac = np.zeros((2, 2 * half + 2))
+        jac[0, 0] = jac[1, 1] = 1.0
+        T = np.diag(diag) + np.diag(off, 1) + np.diag(off, -1)
+        exact = np.linalg.eigvalsh(T / np.sqrt(np.outer(h, h)))
+        assert bool(abs(exact[1] - exact[0]) < 1e-9) == double
+        value = bordered.smallest_constrained(diag, off, jac, h, -100.0, 40.0)
+        assert value == pytest.approx(exact[0], abs=1e-10 * 40.0)
 
 
 @settings(max_examples=200, deadline=None, derandomize=True)

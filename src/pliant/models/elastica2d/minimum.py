@@ -36,8 +36,8 @@ from numba import njit
 
 from pliant.core.problem import Problem
 from pliant.models import clock
-from pliant.models.elastica2d.bordered import condensed, kkt_negatives, tridiagonal_times
-from pliant.models.elastica2d.kernels import lu_solve, max_abs
+from pliant.models.elastica2d.bordered import kkt_negatives, kkt_solve, tridiagonal_times
+from pliant.models.elastica2d.kernels import max_abs
 
 ELEMENTS = 48  # elements of the discrete part: a start for Newton, not an answer
 BOWS = (0.0, 1.5, -1.5)  # starting bows [rad]: straight, and to either side
@@ -610,7 +610,7 @@ def _rayleigh_shift(diag, off, jac, mode):
         # (H - q I) w + J^T y = v, J w = 0: one pass of the condensed solve, without
         # ``kkt_step``'s refinement (these systems are singular by design, and only the
         # solution's direction counts)
-        w, _, ok = _condensed_pass(_shifted(diag, -quotient), off, jac, -quotient, 0.0, v,
+        w, _, ok = kkt_solve(_shifted(diag, -quotient), off, jac, -quotient, 0.0, v,
                                    zero)
         size = math.sqrt(_dot(w, w))
         if not ok or not size > 0.0 or not math.isfinite(size):
@@ -652,38 +652,6 @@ def _copy_into(out, v):
     unicode code linked in)."""
     for j in range(v.shape[0]):
         out[j] = v[j]
-
-
-@njit(cache=True)
-def _condensed_pass(shifted, off, jac, corner, reg, r_u, r_c):
-    """One solve of [[H, J^T], [J, -reg I]] (dx, dy) = (r_u, r_c), H = corner I on the
-    translations and tridiag(shifted, off) on the angles, by its condensed form
-    (``bordered.condensed``): (dx, dy, ok)."""
-    n, m = shifted.shape[0], jac.shape[0]
-    dx = np.zeros(n + 2)
-    dy = np.zeros(m)
-    S, X, ok = condensed(shifted, off, jac, corner, reg, r_u[2:])
-    if not ok:
-        return dx, dy, False
-    rhs = np.empty(2 + m)
-    rhs[0], rhs[1] = r_u[0], r_u[1]
-    for r in range(m):
-        acc = 0.0
-        for j in range(n):
-            acc += jac[r, 2 + j] * X[j, 0]
-        rhs[2 + r] = r_c[r] - acc
-    sol, ok = lu_solve(S, rhs)
-    if not ok:
-        return dx, dy, False
-    dx[0], dx[1] = sol[0], sol[1]
-    for j in range(n):
-        acc = X[j, 0]
-        for r in range(m):
-            acc -= X[j, 1 + r] * sol[2 + r]
-        dx[2 + j] = acc
-    for r in range(m):
-        dy[r] = sol[2 + r]
-    return dx, dy, True
 
 
 @njit(cache=True, inline="always")
@@ -742,7 +710,7 @@ def kkt_step(diag, off, jac, g, c, shift):
         for r in range(m):
             r_c[r] = -c[r]
         for _ in range(2):  # a solve, then a correction from its residual
-            dx, dy, ok = _condensed_pass(shifted, off, jac, shift, reg, r_u, r_c)
+            dx, dy, ok = kkt_solve(shifted, off, jac, shift, reg, r_u, r_c)
             if not ok:
                 break
             for j in range(n + 2):

@@ -43,10 +43,10 @@ from pliant.core.equilibrium import NEUTRAL
 
 ELEMENTS = 240  # about this many elements over the part: the eigenvalue's error is O(h^2)
 # Up to this many unknowns the dense null space and eigensolver are quicker than the
-# shift-invert Lanczos (0.4 against 2.2 ms at the solver's 60-element verdicts; they
-# cost about the same near 120 elements, and the dense one its cube beyond) and than
-# the Sturm count's bisection (0.39 against 0.43 ms at 60; 1.1 ms at 240, where the
-# Lanczos takes 2.9 and the dense 8 ms).
+# shift-invert Lanczos (0.4 against 2.2 ms at 60 elements; they cost about the same near
+# 120, and the dense one its cube beyond). An inextensible part's Sturm count comes
+# first at any size (case 3: 60 us at 60 elements against the dense 290 us; 160 us at
+# 240, where the Lanczos takes 2.9 and the dense 8 ms).
 DENSE_UP_TO = 100
 
 
@@ -77,11 +77,10 @@ def _smallest(form: Form) -> float:
     n = metric.shape[0]
     value = None
     Q = None  # the dense form, assembled once where an eigensolver needs it
-    if n > DENSE_UP_TO:
-        value = _smallest_sturm(form) if not w else None
-        if value is None:
-            Q = assemble()
-            value = _smallest_sparse(Q, A, metric, -2.0 * bound)
+    value = _smallest_sturm(form) if not w else None
+    if value is None and n > DENSE_UP_TO:
+        Q = assemble()
+        value = _smallest_sparse(Q, A, metric, -2.0 * bound)
     if value is not None:
         return value
     if Q is None:
@@ -350,8 +349,9 @@ def _smallest_sturm(form: Form) -> float | None:
     the number of eigenvalues below lambda (``bordered.smallest_constrained``: a Sturm
     sequence on the angles' tridiagonal block, the element angles' (diagonal, -k), and
     the small Schur complement of the first end's shift and the held positions' rows A,
-    from -2 ``bound``, below every eigenvalue, to 1e-12 of ``bound``). 1.1 ms at 240
-    elements where the Lanczos takes 2.9 ms. None where A's rows are dependent (a zero
+    from -2 ``bound``, below every eigenvalue), then Rayleigh quotient iteration proved
+    by two counts, to 1e-12 of ``bound``. 160 us at 240 elements where the Lanczos
+    takes 2.9 ms (the bisection alone took 0.45 ms). None where A's rows are dependent (a zero
     eigenvalue the count cannot tell from the part's) or a count fails: the eigensolvers
     then answer."""
     from pliant.models.elastica2d.bordered import smallest_constrained  # noqa: PLC0415
