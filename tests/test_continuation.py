@@ -4,6 +4,7 @@ the 2D model driven by it against its compiled twin."""
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, replace
 
 import numpy as np
@@ -243,6 +244,28 @@ def test_the_2d_model_driven_by_the_shared_driver_matches_its_compiled_twin(name
         size = max(np.abs(load.force).max(), 1.0)
         assert np.abs(np.asarray(other.force) - load.force).max() <= 1e-7 * size
     assert shared.residual <= 1e-9
+
+
+@pytest.mark.parametrize("factor", [1.2, 3.0])
+def test_both_drivers_say_a_column_pushed_past_its_critical_load_crossed_a_bifurcation(
+        factor):
+    """A cantilever pushed along its axis past Euler's load EI (pi / 2L)^2, solved cold:
+    the path of growing load stays on the straight branch, whose det J changes sign at
+    the critical load. Both the compiled ``kernels.follow`` and the shared driver (the
+    model's ``det_sign``) refuse the steps that flip it until they are short enough that
+    the crossing is genuine, then say so; the answer is the straight column (its tip at
+    (L, 0), pointing along x) and unstable (its eigenvalue L (EI (pi / 2L)^2 - P) < 0)."""
+    from pliant.core.events import CrossedBifurcation
+
+    critical = math.pi**2 / 4.0
+    problem = pl.Problem(pl.Part(1.0, 1.0), (pl.clamp(0.0), pl.push(
+        1.0, force=(-factor * critical, 0.0), name="tip")))
+    for shared in (False, True):
+        eq = elastica2d.solve(problem, solver=elastica2d.ShootingSolver(shared_driver=shared))
+        assert sum(isinstance(n, CrossedBifurcation) for n in eq.notes) == 1
+        assert np.allclose(eq.tip, (1.0, 0.0, 0.0), atol=1e-12)
+        assert eq.verdict == "unstable"
+        assert eq.steps > 10  # the refused steps shortened until the crossing
 
 
 def test_a_warm_2d_step_through_the_shared_driver_meets_the_elliptic_solution():

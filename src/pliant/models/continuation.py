@@ -144,7 +144,15 @@ class Line:
 
 class Continuable(Protocol):
     """What ``follow`` asks of a model. ``correct`` adds its Newton iterations to the
-    model's count; the driver adds the steps."""
+    model's count; the driver adds the steps.
+
+    A model may also offer ``det_sign(point, loads, fresh) -> float``, the sign of its
+    Jacobian's determinant at a converged point (its corrector's Jacobian, or a fresh
+    one where ``fresh``), and ``crossed()``: the driver then follows that sign along the
+    path as the 2D model's compiled twin does (``elastica2d.kernels.follow``). A step
+    that flips it jumped to another branch or crossed a fold or bifurcation too fast,
+    and is refused, until the step is so short (1e3 ``min_step``) that the crossing is
+    genuine: then ``crossed()`` is told, so that the model can say so."""
 
     steps: int
 
@@ -204,6 +212,8 @@ def follow(model: Continuable, path: Path, state: Any, stepping: Stepping,
                       status=Status.SINGULAR)
     load_f, load_c = model.load_size(path)
     root_f = math.sqrt(load_f)
+    signed = getattr(model, "det_sign", None)  # optional (see ``Continuable``)
+    sign = signed(state, path.at(0.0), True) if signed is not None else None
     t, dt = 0.0, 1.0
     refused = math.inf  # the last step refused (``Stepping.refused_fade``)
     prev: tuple[float, Any] | None = None
@@ -251,6 +261,16 @@ def follow(model: Continuable, path: Path, state: Any, stepping: Stepping,
             # The secant overshot: the corrector once more from the last point.
             predictor = state
             corrected, r, status = model.correct(state, loads, strict=strict, tol=tol)
+        if status == Status.CONVERGED and signed is not None:
+            new_sign = signed(corrected, loads, False)
+            if new_sign != sign:
+                new_sign = signed(corrected, loads, True)  # (a corrector's may be updated)
+            if new_sign != sign:
+                if dt > 1e3 * stepping.min_step:
+                    status = Status.FOLD  # refused: shorter, until the crossing is genuine
+                else:
+                    sign = new_sign
+                    model.crossed()  # type: ignore[attr-defined]
         if status == Status.CONVERGED:
             steps += 1
             model.steps += 1

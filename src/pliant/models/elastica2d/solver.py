@@ -225,6 +225,7 @@ class Run:
     verdicts: dict = field(default_factory=dict)  # id(point): (point, low, ``stable``)
     lowered: dict = field(default_factory=dict)  # restart nodes asked: (problem, lowering)
     needed: int = 0  # the most shooting intervals a path's forces asked for
+    crossings: int = 0  # genuine sign changes of det J on the shared driver's paths
     # Bowed equilibria whose bow could not be removed: ((bow, structure), z, the stall)
     unbowed: list = field(default_factory=list)
 
@@ -306,10 +307,7 @@ class Run:
                 singular_start=last == kernels.SINGULAR and steps == 0 and t == 0.0,
                 status=_STATUS.get(last, Status.FOLD))
         if crossings:
-            self.notes.append(CrossedBifurcation(
-                "the path to this problem crosses a bifurcation (det J changes sign); the "
-                "equilibrium continued through it may be unstable, and a neighbouring "
-                "branch may be the one the part takes"))
+            self.notes.append(_crossed_note())
         return _Point(z, jac, low.mesh(density), stats, r)
 
     # -- the shared driver (continuation.Continuable) ------------------------------------
@@ -334,6 +332,7 @@ class Run:
             wave_step=opts.wave_step, time_budget=opts.time_budget,
             parabola=bool(kernels.parabola_fits(loose, opts.grow)),
             last_stretch=kernels.LAST_STRETCH, refused_fade=kernels.REFUSED_FADE)
+        crossings = self.crossings
         try:
             point = continuation.follow(self, Line(start, end),
                                         _Point(z0, _EMPTY_JAC, mesh, np.zeros(2), math.inf),
@@ -342,6 +341,8 @@ class Run:
             if isinstance(stall.state, _Point):
                 stall.state = stall.state.z
             raise
+        if self.crossings > crossings:
+            self.notes.append(_crossed_note())
         # The end point on a mesh of the full accuracy (a leg's, of the path's: correct)
         return self.polish(point) if final else point
 
@@ -362,6 +363,18 @@ class Run:
         word = Status.CONVERGED if status == kernels.CONVERGED else _STATUS.get(
             status, Status.FOLD)
         return _Point(z, jac, mesh, stats, r), r, word
+
+    def det_sign(self, point: _Point, loads: Arrays, fresh: bool) -> float:
+        """The sign of det J at a converged point: its corrector's Jacobian, or a fresh
+        one (``continuation.Continuable``)."""
+        jac = point.jac
+        if fresh or jac.shape[0] != point.z.shape[0]:
+            _, jac, _ = self.low.shoot(point.z, loads, point.mesh)
+        return float(kernels.det_sign(jac))
+
+    def crossed(self) -> None:
+        """A genuine crossing of det J's sign on a path (``continuation.follow``)."""
+        self.crossings += 1
 
     def tangent(self, state: _Point, path: Line) -> np.ndarray | None:
         """dz/dt = -J^-1 dG/dt at the start, dG/dt by a forward difference."""
@@ -1066,6 +1079,13 @@ class Run:
         if status != kernels.CONVERGED:
             raise Stalled(1.0, r, "the refined mesh did not converge", state=point.z)
         return _Point(z, jac, mesh, stats, r)
+
+
+def _crossed_note() -> CrossedBifurcation:
+    return CrossedBifurcation(
+        "the path to this problem crosses a bifurcation (det J changes sign); the "
+        "equilibrium continued through it may be unstable, and a neighbouring branch may "
+        "be the one the part takes")
 
 
 def _extrapolate(history: tuple[Equilibrium, ...], old: _WarmState,
