@@ -99,8 +99,8 @@ class ShootingSolver:
         curvature amplitude (dimensionless)
     shared_driver : run each continuation in Python through the shared driver
         (``pliant.models.continuation.follow``) instead of its compiled twin
-        (``kernels.follow``, the same steps, which also follows the sign of det J): some
-        ten times slower; for checking one against the other
+        (``kernels.follow``, the same steps; both follow the sign of det J): some ten
+        times slower; for checking one against the other
     node_limit : the wavenumber sqrt(max|n| L^2 / EI) times the longest shooting
         interval (dimensionless) past which a continuation stops and follows again with
         more intervals (a part pulled into a hairpin: its forces grow along the path,
@@ -315,8 +315,8 @@ class Run:
                       mesh: Mesh, final: bool = True) -> _Point:
         """``follow`` by the shared driver (``continuation.follow``): its steps are the
         compiled ``kernels.follow``'s (the parabola's predictor, a fresh Jacobian in each
-        corrector), less the sign of det J and the rule on creeping paths
-        (``kernels.CREEP``); the mesh is refined as the path's solution needs
+        corrector, the sign of det J followed: ``det_sign``), less the rule on creeping
+        paths (``kernels.CREEP``); the mesh is refined as the path's solution needs
         (``correct``), and at the end to the full accuracy where the end is ``final``."""
         opts = self.solver
         span = max(float(np.abs(end.val - start.val).max(initial=0.0)),
