@@ -95,6 +95,58 @@ def test_the_driver_follows_a_branch_to_its_end():
     assert 1 <= model.steps < 50
 
 
+@dataclass
+class Pitchfork(Cubic):
+    """x^3 - lam x = 0 on its trivial branch x = 0, lam from -1 to 1.1: its Jacobian
+    3 x^2 - lam changes sign at lam = 0, the bifurcation. The model offers the sign of
+    its determinant (``det_sign``) and is told of crossings (``crossed``) and of each
+    step taken (``stepped``)."""
+
+    crossings: int = 0
+    taken: list = None  # type: ignore[assignment]
+
+    def correct(self, predictor, loads, *, strict, tol):
+        x, lam = float(predictor), float(loads)
+        for _ in range(30):
+            r = x**3 - lam * x
+            if abs(r) <= (1e-12 if tol is None else tol):
+                return np.float64(x), abs(r), Status.CONVERGED
+            x -= r / (3 * x * x - lam)
+            self.iterations += 1
+        return np.float64(x), abs(x**3 - lam * x), Status.FOLD
+
+    def tangent(self, state, path):
+        return np.float64(0.0)  # d x / d lam = x / (3 x^2 - lam) = 0 on the branch
+
+    def det_sign(self, point, loads, fresh):
+        return float(np.sign(3 * float(point) ** 2 - float(loads)))
+
+    def crossed(self):
+        self.crossings += 1
+
+    def stepped(self, dt):
+        self.taken = (self.taken or []) + [dt]
+
+
+def test_the_driver_refuses_a_step_that_flips_det_j_until_the_crossing_is_genuine():
+    """On the pitchfork's trivial branch the driver does not step over lam = 0 in one
+    long step: the steps that flip the sign are refused and shortened until 1e3
+    ``min_step`` short, the crossing then counted once; every step taken but the last is
+    reported, the last ending at lam = 1.1."""
+    model = Pitchfork()
+    x = continuation.follow(model, Lam(-1.0, 1.1), np.float64(0.0), STEPPING,
+                            clock.now() + 10.0)
+    assert float(x) == 0.0
+    assert model.crossings == 1
+    steps = model.taken
+    assert len(steps) == model.steps - 1 and min(steps) > 0.0
+    assert min(steps) <= 1e3 * STEPPING.min_step  # the crossing step, cut short
+    assert sum(steps) > 1.0 / 2.1  # past lam = 0 before the last step
+    plain = Cubic()  # no det_sign: the driver follows as before
+    continuation.follow(plain, Lam(0.0, 1.5), np.float64(0.0), STEPPING, clock.now() + 10.0)
+    assert plain.steps >= 1
+
+
 def test_no_step_raises_the_loads_wavenumber_by_more_than_one():
     """With F = 100 the wavenumber sqrt(t F) reaches 10 at t = 1: steps of one in it end
     at t = (n / 10)^2, ten steps, where the corrector alone would take one."""

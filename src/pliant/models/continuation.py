@@ -152,7 +152,9 @@ class Continuable(Protocol):
     path as the 2D model's compiled twin does (``elastica2d.kernels.follow``). A step
     that flips it jumped to another branch or crossed a fold or bifurcation too fast,
     and is refused, until the step is so short (1e3 ``min_step``) that the crossing is
-    genuine: then ``crossed()`` is told, so that the model can say so."""
+    genuine: then ``crossed()`` is told, so that the model can say so. And
+    ``stepped(dt)``: told the length of each step taken but the last (the 2D model
+    counts the short ones, as its twin's rule on creeping paths does)."""
 
     steps: int
 
@@ -213,6 +215,7 @@ def follow(model: Continuable, path: Path, state: Any, stepping: Stepping,
     load_f, load_c = model.load_size(path)
     root_f = math.sqrt(load_f)
     signed = getattr(model, "det_sign", None)  # optional (see ``Continuable``)
+    stepped = getattr(model, "stepped", None)
     sign = signed(state, path.at(0.0), True) if signed is not None else None
     t, dt = 0.0, 1.0
     refused = math.inf  # the last step refused (``Stepping.refused_fade``)
@@ -278,6 +281,8 @@ def follow(model: Continuable, path: Path, state: Any, stepping: Stepping,
             prev2, prev, state, t = prev, (t, state), corrected, t_next
             if final:
                 return state
+            if stepped is not None:
+                stepped(dt)
             if stepping.grow is None:
                 grown = min(1.0 - t, 2.0 * dt)
             else:

@@ -226,6 +226,7 @@ class Run:
     lowered: dict = field(default_factory=dict)  # restart nodes asked: (problem, lowering)
     needed: int = 0  # the most shooting intervals a path's forces asked for
     crossings: int = 0  # genuine sign changes of det J on the shared driver's paths
+    creeping: int = 0  # short steps on the shared driver's path (``stepped``)
     # Bowed equilibria whose bow could not be removed: ((bow, structure), z, the stall)
     unbowed: list = field(default_factory=list)
 
@@ -315,9 +316,9 @@ class Run:
                       mesh: Mesh, final: bool = True) -> _Point:
         """``follow`` by the shared driver (``continuation.follow``): its steps are the
         compiled ``kernels.follow``'s (the parabola's predictor, a fresh Jacobian in each
-        corrector, the sign of det J followed: ``det_sign``), less the rule on creeping
-        paths (``kernels.CREEP``); the mesh is refined as the path's solution needs
-        (``correct``), and at the end to the full accuracy where the end is ``final``."""
+        corrector, the sign of det J followed: ``det_sign``, the creeping paths' rule:
+        ``stepped``); the mesh is refined as the path's solution needs (``correct``),
+        and at the end to the full accuracy where the end is ``final``."""
         opts = self.solver
         span = max(float(np.abs(end.val - start.val).max(initial=0.0)),
                    float(np.abs(end.fol - start.fol).max(initial=0.0)),
@@ -332,7 +333,7 @@ class Run:
             wave_step=opts.wave_step, time_budget=opts.time_budget,
             parabola=bool(kernels.parabola_fits(loose, opts.grow)),
             last_stretch=kernels.LAST_STRETCH, refused_fade=kernels.REFUSED_FADE)
-        crossings = self.crossings
+        crossings, self.creeping = self.crossings, 0
         try:
             point = continuation.follow(self, Line(start, end),
                                         _Point(z0, _EMPTY_JAC, mesh, np.zeros(2), math.inf),
@@ -376,6 +377,12 @@ class Run:
         """A genuine crossing of det J's sign on a path (``continuation.follow``)."""
         self.crossings += 1
 
+    def stepped(self, dt: float) -> None:
+        """A step of length dt taken on a path (``continuation.follow``): the short ones
+        counted, as ``kernels.follow`` counts them (``kernels.CREEP``)."""
+        if dt < kernels.CREEP:
+            self.creeping += 1
+
     def tangent(self, state: _Point, path: Line) -> np.ndarray | None:
         """dz/dt = -J^-1 dG/dt at the start, dG/dt by a forward difference."""
         eps = 1e-7
@@ -410,10 +417,13 @@ class Run:
 
     def begin_step(self, state: _Point) -> _Point:
         """Where the last point's forces outgrew the shooting intervals, stop (as
-        ``kernels.follow`` does after it accepts such a point)."""
+        ``kernels.follow`` does after it accepts such a point), and sooner on a path
+        that creeps (more than ``kernels.CREEP_STEPS`` short steps: ``stepped``)."""
         low = self.low
-        if (len(low.nodes) + 1 < MOST_INTERVALS
-                and math.sqrt(float(state.stats[1])) * low.interval > self.solver.node_limit):
+        span = math.sqrt(float(state.stats[1])) * low.interval
+        limit = self.solver.node_limit
+        if len(low.nodes) + 1 < MOST_INTERVALS and (span > limit or (
+                self.creeping > kernels.CREEP_STEPS and span > kernels.CREEP_SPAN * limit)):
             raise self._outgrown(state.stats, math.nan, state.z)
         return state
 
