@@ -157,9 +157,10 @@ def _own_potential_energy(eq) -> float:
     dim = problem.dimension
     q = np.asarray(problem.dead_load_per_length, dtype=float)
     total = float(eq.energy)
-    if q.any():  # (the terms below are zero without a weight: 25 us of a 2D solve's 1 ms)
+    weighed = bool(q.any())  # (the terms below are zero without: 25 us of a 2D solve's 1 ms)
+    if weighed:
         total -= float(np.trapezoid(r @ q, s))
-    if dim == 2 and q.any():
+    if dim == 2 and weighed:
         # The smooth shape's samples: each interval's integral of its cubic Hermite
         # reading (the tangent is the position's derivative), an error like h^4, where
         # the trapezoid's h^2 left 4e-5 of a hanging part's energy (two answers of one

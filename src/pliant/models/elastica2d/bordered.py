@@ -298,9 +298,9 @@ def smallest_constrained(diag, off, jac, weight, lo, scale):
             tried = True
             value = _pencil_rayleigh(diag, off, jac, weight, lo, hi, scale)
             if lo <= value <= hi:
-                step = 1e-12 * scale
-                if (below(diag, off, jac, weight, value - step, scale) == 0
-                        and below(diag, off, jac, weight, value + step, scale) != 0):
+                margin = 1e-12 * scale
+                if (below(diag, off, jac, weight, value - margin, scale) == 0
+                        and below(diag, off, jac, weight, value + margin, scale) != 0):
                     return value
         mid = 0.5 * (lo + hi)
         found = below(diag, off, jac, weight, mid, scale)

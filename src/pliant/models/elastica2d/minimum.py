@@ -202,7 +202,7 @@ def minima(problem: Problem, *, elements: int = ELEMENTS, deadline: float | None
         left out, its last iterations not spent."""
     disc = Discrete(problem, elements)
     middles = (np.arange(elements) + 0.5) * (problem.part.length / elements)
-    near = np.array([np.interp(middles, eq.s, eq.angle) for eq in known]).reshape(
+    known_angles = np.array([np.interp(middles, eq.s, eq.angle) for eq in known]).reshape(
         len(known), elements)
     found: list[Minimum] = []
     for bow in bows:
@@ -211,7 +211,7 @@ def minima(problem: Problem, *, elements: int = ELEMENTS, deadline: float | None
         if bow == 0.0 and disc.straight():
             continue  # straight: a chord that must shorten cannot to first order
         with np.errstate(over="ignore", invalid="ignore"):  # a trial step too far: refused
-            u = _minimise(disc, disc.start(bow), near)
+            u = _minimise(disc, disc.start(bow), known_angles)
         # (a minimum found again is not made into arrays again: case 3's two starts
         # find one)
         if u is not None and not any(

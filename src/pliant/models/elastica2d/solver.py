@@ -31,6 +31,7 @@ from collections.abc import Callable, Iterable, Iterator
 from dataclasses import dataclass, field, replace
 from functools import cached_property, partial
 from types import SimpleNamespace
+from typing import Any
 
 import numpy as np
 
@@ -662,17 +663,23 @@ class Run:
                 self.unbowed.append((seen, point.z, copy.copy(stall)))
             raise
 
+    def _once(self, store: dict, point: _Point, make: Callable[[], Any]) -> Any:
+        """``make()`` for a point on the present lowering, made once: ``store`` keeps
+        id(point): (point, lowering, value)."""
+        seen = store.get(id(point))
+        if seen is not None and seen[0] is point and seen[1] is self.low:
+            return seen[2]
+        value = make()
+        store[id(point)] = (point, self.low, value)
+        return value
+
     def _equilibrium(self, point: _Point) -> Equilibrium:
         """The point as an equilibrium (sampled once: its energy, stability and shape
         are each asked for while the routes' answers are compared)."""
-        seen = self.sampled.get(id(point))
-        if seen is not None and seen[0] is point and seen[1] is self.low:
-            return seen[2]
-        eq = Equilibrium(problem=self.low.problem, residual=point.residual, iterations=0,
-                         steps=0, sampler=_Sampler(self.low, point.z, max(
-                             point.mesh.density, self.solver.samples)))
-        self.sampled[id(point)] = (point, self.low, eq)
-        return eq
+        return self._once(self.sampled, point, lambda: Equilibrium(
+            problem=self.low.problem, residual=point.residual, iterations=0, steps=0,
+            sampler=_Sampler(self.low, point.z, max(point.mesh.density,
+                                                    self.solver.samples))))
 
     def energy(self, point: _Point) -> float:
         """The potential energy [J] of a point reached (elastic, weight, dead loads)."""
@@ -681,12 +688,8 @@ class Run:
     def stable(self, point: _Point) -> bool | None:
         """Whether a point reached is stable, on a coarse grid (the sign is what counts;
         the answer's own verdict is computed finely when asked for). Judged once."""
-        seen = self.verdicts.get(id(point))
-        if seen is not None and seen[0] is point and seen[1] is self.low:
-            return seen[2]
-        verdict = stable_sign(self._equilibrium(point), JUDGE_ELEMENTS)
-        self.verdicts[id(point)] = (point, self.low, verdict)
-        return verdict
+        return self._once(self.verdicts, point, lambda: stable_sign(
+            self._equilibrium(point), JUDGE_ELEMENTS))
 
     def through(self, start: Arrays, targets: list[Arrays], z: np.ndarray,
                 mesh: Mesh, final: bool = True) -> _Point:
@@ -767,13 +770,13 @@ class Run:
         own = self.lowering(problem)
         loads = len(own.nodes) + 1
 
-        def converged(start) -> tuple[Lowered, _Point] | None:
+        def converged(start, summary: np.ndarray) -> tuple[Lowered, _Point] | None:
             # The start's own wavenumber, not only the loads': a target that makes the
             # part turn back sharply at a clamp is held by internal forces of thousands
             # of EI / L^2 the loads do not show. Its force sets the shooting intervals (as
             # for answers, ``_intervals``), all of it the mesh: a start for Newton, meshed
-            # at half the path's accuracy (the answer is meshed for its own by ``polish``)
-            summary = _statistics(start)
+            # at half the path's accuracy (the answer is meshed for its own by ``polish``;
+            # ``summary``: the start's ``_statistics``)
             base = _intervals(math.sqrt(summary[1]), own) or loads
             need = int(kernels.needed_density(summary, 2.0 * self.solver.path_accuracy,
                                               self.solver.min_density))
@@ -815,11 +818,12 @@ class Run:
             # A start whose force's wavenumber k outgrows its elements (k h past
             # UNRESOLVED) cannot hold the part's boundary layers (1 / k wide): its finer
             # refinement is tried, not it.
-            resolved = math.sqrt(float(_statistics(start)[1])) * start.disc.h <= UNRESOLVED
-            found = converged(start) if resolved else None
+            summary = _statistics(start)
+            resolved = math.sqrt(float(summary[1])) * start.disc.h <= UNRESOLVED
+            found = converged(start, summary) if resolved else None
             if found is None and clock.now() < self.deadline:
                 finer = minimum.refined(start)
-                found = converged(finer) if finer is not None else None
+                found = converged(finer, _statistics(finer)) if finer is not None else None
             if found is not None:
                 out.append(found)
         return out
