@@ -152,6 +152,67 @@ def test_case3_answer_is_stable_under_the_other_route():
                                                            abs=1e-7)
 
 
+def _case3_at(problem: pl.Problem, t: float) -> pl.Problem:
+    """Case 3 with its hole moved t of the way from the straight shape's tip."""
+    return problem.with_conditions([problem.condition("clamp"), pl.clamp(
+        1.0, position=(1 - 0.3 * t, 0.4 * t), angle=0.0, name="hole")])
+
+
+def test_a_path_that_reuses_its_jacobians_keeps_its_answers(monkeypatch):
+    """Along a path a step starts from the cubic through the last answers, with the
+    Jacobian extrapolated from the last ones shot: on most of 150 steps the kernel's
+    Newton gets one (it need not integrate the sensitivities). Each answer is the one
+    a warm start from the step before finds with a Jacobian of its own, re-integrated
+    by solve_ivp to 1e-8, and out and back along the same line (where the
+    extrapolation overshoots the turn) the answers on the way back are those on the
+    way out."""
+    problem = load_problem(EXAMPLES / "paper" / "case3.toml")
+    given_jacobians = []
+    newton = kernels.newton
+
+    def counted(z0, jac0, *args):
+        given_jacobians.append(jac0.shape[0] == z0.shape[0])
+        return newton(z0, jac0, *args)
+
+    monkeypatch.setattr(kernels, "newton", counted)
+    ts = np.linspace(0.01, 0.75, 75)
+    path = [_case3_at(problem, t) for t in np.concatenate([ts, ts[-2::-1]])]
+    answers = list(trace(path))
+    assert sum(given_jacobians) >= len(path) // 2
+    for i in range(1, len(path), 15):
+        mine = solve(path[i], warm_start=answers[i - 1])
+        np.testing.assert_allclose(answers[i].position, mine.position, atol=1e-9)
+        assert equilibrium_error(answers[i]) < 1e-8
+    way_out, way_back = answers[:74], answers[-1:74:-1]
+    for out, back in zip(way_out, way_back, strict=True):
+        assert out.problem.condition("hole").position == back.problem.condition(
+            "hole").position
+        np.testing.assert_allclose(back.loads["clamp"].force, out.loads["clamp"].force,
+                                   atol=1e-8)
+
+
+def test_a_path_restarts_its_extrapolation_where_its_structure_changes():
+    """A grip switched to force control half way along a path (and back) changes the
+    unknowns: the steps after it start afresh and still hold the target."""
+    part = pl.Part(length=1.0, bending_stiffness=0.4, mass_per_length=0.2)
+
+    def held(t: float, pushed: pl.Equilibrium | None = None) -> pl.Problem:
+        at = (0.45 - 0.1 * t, 0.2 + 0.1 * t)
+        hand = (pl.grip(0.6, position=at, name="hand") if pushed is None else
+                pl.push(0.6, force=tuple(pushed.loads["hand"].force), name="hand"))
+        return pl.Problem(part, (pl.clamp(0.0), hand), gravity=(0.0, -9.81))
+
+    first = list(trace([held(t) for t in np.linspace(0.0, 0.5, 8)]))
+    switched = next(trace([held(0.5, first[-1])], start=first[-1]))
+    rest = list(trace([held(t) for t in np.linspace(0.5, 1.0, 8)[1:]], start=switched))
+    for eq in (*first, switched, *rest):
+        assert equilibrium_error(eq) < 1e-8
+    i = int(np.argmin(np.abs(switched.s - 0.6)))
+    np.testing.assert_allclose(switched.position[i], first[-1].position[i], atol=1e-8)
+    cold = solve(held(1.0), warm_start=rest[-2])
+    np.testing.assert_allclose(rest[-1].position, cold.position, atol=1e-9)
+
+
 @pytest.mark.parametrize("name", sorted(zoo()))
 def test_agrees_with_solve_bvp(name):
     problem = zoo()[name]

@@ -188,6 +188,14 @@ class _WarmState:
     z: np.ndarray
     jac: np.ndarray
     mesh: Mesh
+    # The distance travelled through the problems' inputs since this structure's first
+    # (a cold solve's): the parameter a path's steps extrapolate in.
+    travel: float = 0.0
+    # The last four answers' unknowns on the way here, and the last four Jacobians shot
+    # afresh, as ``_Memory``: a path's next step starts from their extrapolations.
+    path: _Memory | None = None
+    shot: _Memory | None = None
+    refresh: bool = False  # the next step shoots its Jacobian afresh
 
 
 @dataclass
@@ -228,6 +236,11 @@ class Run:
     needed: int = 0  # the most shooting intervals a path's forces asked for
     crossings: int = 0  # genuine sign changes of det J on the shared driver's paths
     creeping: int = 0  # short steps on the shared driver's path (``stepped``)
+    travel: float = 0.0  # the answer's ``_WarmState.travel``
+    path: _Memory | None = None  # the warm start's (``_WarmState.path``)
+    shot: _Memory | None = None  # the warm start's (``_WarmState.shot``)
+    reused: bool = False  # whether the answer came with an extrapolated Jacobian
+    refresh: bool = True  # whether the next warm step should shoot one afresh
     # Bowed equilibria whose bow could not be removed: ((bow, structure), z, the stall)
     unbowed: list = field(default_factory=list)
 
@@ -243,11 +256,12 @@ class Run:
         return seen[1]
 
     def newton(self, z0: np.ndarray, arrays: Arrays, mesh: Mesh, *, strict: bool,
-               tol: float, jac0: np.ndarray = _EMPTY_JAC):
+               tol: float, jac0: np.ndarray = _EMPTY_JAC, iterations: int = 0):
+        """``kernels.newton`` from z0 (at most ``iterations`` iterations where given)."""
         opts = self.solver
         z, r, it, status, jac, stats, _ = kernels.newton(  # type: ignore[call-arg]
-            z0, jac0, *self.low.args(arrays, mesh), tol, opts.max_iterations,
-            opts.contraction if strict else 0.0)
+            z0, jac0, *self.low.args(arrays, mesh), tol,
+            iterations or opts.max_iterations, opts.contraction if strict else 0.0)
         self.iterations += it
         return z, r, status, jac, stats
 
@@ -1010,22 +1024,51 @@ class Run:
         floor = opts.path_min_density if path else opts.min_density
         return self.low.mesh(max(floor, int(math.ceil(k / opts.path_accuracy))))
 
-    def warm(self, warm: Equilibrium, follow_only: bool,
-             history: tuple[Equilibrium, ...] = ()) -> _Point | None:
+    def warm(self, warm: Equilibrium, follow_only: bool, extrapolate: bool) -> _Point | None:
+        """From the equilibrium warm (the last step's, where ``extrapolate``, of a path);
+        None where nothing nearby converges and not ``follow_only``."""
         low, opts = self.low, self.solver
         old = warm.state if isinstance(warm.state, _WarmState) else None
         same = old is not None and _same_structure(old.low, low)
         if same:
             assert old is not None
             z0, jac0, mesh = old.z, old.jac, old.mesh
-            predictor = _extrapolate(history, old, low)
+            self.travel = travel = old.travel + math.dist(old.low.inputs, low.inputs)
+            predictor = guess = None
+            if extrapolate:
+                # Cubic, but where the last step took three iterations or more: there
+                # the steps are long for the path's bends, and a quadratic extrapolates
+                # them better.
+                predictor = _extrapolated(old.path, low.key, travel, 2,
+                                          3 if warm.iterations > 2 else 4)
+                if predictor is not None and not old.refresh:
+                    guess = _extrapolated(old.shot, low.key, travel, 3)
+            if predictor is not None and guess is not None:
+                # The Jacobians shot on the last steps, extrapolated, contract Newton's
+                # residual some 1e-5 times (on case 3's path of 100 steps): one
+                # iteration, without shooting the sensitivities, usually converges (a
+                # second is allowed).
+                before = self.iterations
+                z, r, status, jac, stats = self.newton(predictor, low.target, mesh,
+                                                       strict=True, tol=opts.tolerance,
+                                                       jac0=guess, iterations=2)
+                if status == kernels.CONVERGED:
+                    self.steps += 1
+                    self.reused = True
+                    # Shoot afresh next time unless this one converged well in one.
+                    self.refresh = (self.iterations - before > 1
+                                    or r > REUSE_MARGIN * opts.tolerance)
+                    return self.polish(_Point(z, jac, mesh, stats, r))
             if predictor is not None:
                 # From a close prediction a fresh Jacobian converges in about one
                 # iteration; the last point's would contract by only ~the step size.
+                before = self.iterations
                 z, r, status, jac, stats = self.newton(predictor, low.target, mesh,
                                                        strict=True, tol=opts.tolerance)
                 if status == kernels.CONVERGED:
                     self.steps += 1
+                    # Steps too long for one iteration are too long for a reused one.
+                    self.refresh = self.iterations - before > 1
                     return self.polish(_Point(z, jac, mesh, stats, r))
         else:
             z0 = low.unknowns_from(warm)
@@ -1102,34 +1145,36 @@ def _crossed_note() -> CrossedBifurcation:
         "be the one the part takes")
 
 
-def _extrapolate(history: tuple[Equilibrium, ...], old: _WarmState,
-                 low: Lowered) -> np.ndarray | None:
-    """Predict the unknowns along a path of problems from the last equilibria: a
-    quadratic (or, with two points, linear) extrapolation in the distance travelled
-    through the problems' inputs. Only equilibria of the same structure count."""
-    key = low.key
-    points = [h.state for h in history[-2:]
-              if type(h.state) is _WarmState and h.state.low.key == key]
-    if not points:
+REUSE_MARGIN = 0.5  # of the tolerance: a residual past it, the Jacobians are too old
+_NAN = math.nan
+
+
+_Memory = tuple  # (structure, travel: 4 floats, values: 4 arrays), oldest first
+
+
+def _remembered(memory: _Memory | None, key: tuple, travel: float,
+                value: np.ndarray) -> _Memory:
+    """memory with value at travel added and its oldest dropped; begun anew where the
+    structure differs or the travel does not grow (a NaN travel: no value there)."""
+    if memory is not None and (memory[0] is key or memory[0] == key) and (
+            memory[1][3] < travel):
+        return key, memory[1][1:] + (travel,), memory[2][1:] + (value,)
+    return key, (_NAN, _NAN, _NAN, travel), (value, value, value, value)
+
+
+def _extrapolated(memory: _Memory | None, key: tuple, travel: float, least: int,
+                  most: int = 4) -> np.ndarray | None:
+    """The polynomial through the last remembered values (cubic through four,
+    quadratic through three, linear through two; at least ``least``, at most ``most``)
+    at travel, or None."""
+    if memory is None or not (memory[0] is key or memory[0] == key):
         return None
-    ahead = math.dist(old.low.inputs, low.inputs)
-    last = math.dist(points[-1].low.inputs, old.low.inputs)
-    if len(points) == 1:  # linear: z1 + r (z1 - z0), r the step ratio
-        if last <= 0.0:
-            return None
-        ratio = ahead / last
-        return kernels.combined(points[0].z, old.z, old.z, -ratio, 1.0 + ratio, 0.0)
-    # Quadratic, Lagrange's basis polynomials at the target, with the distance
-    # travelled through the inputs as the parameter (t0 = 0, t1 = d0, t2 = d0 + d1).
-    t1 = math.dist(points[0].low.inputs, points[1].low.inputs)
-    if t1 <= 0.0 or last <= 0.0:
+    ts = memory[1]
+    if math.isnan(ts[4 - least]) or not ts[3] < travel:
         return None
-    t2 = t1 + last
-    t = t2 + ahead
-    w0 = (t - t1) * (t - t2) / (t1 * t2)
-    w1 = t * (t - t2) / (t1 * (t1 - t2))
-    w2 = t * (t - t1) / (t2 * (t2 - t1))
-    return kernels.combined(points[0].z, points[1].z, old.z, w0, w1, w2)
+    if most < 4:
+        ts = (_NAN,) * (4 - most) + ts[4 - most:]
+    return kernels.extrapolated(*memory[2], *ts, travel)  # type: ignore[call-arg]
 
 
 STAGED_WAVE = 30.0  # the load wavenumber k L past which a part's loads may be staged
@@ -1305,19 +1350,24 @@ def solve(problem: Problem, *, warm_start: Equilibrium | None = None,
 
 
 def _solve(problem: Problem, warm_start: Equilibrium | None, solver: ShootingSolver,
-           follow_only: bool, history: tuple[Equilibrium, ...] = ()) -> Equilibrium:
+           follow_only: bool, extrapolate: bool = False) -> Equilibrium:
     old = warm_start.state if warm_start is not None else None
     low = old.low.retarget(problem) if isinstance(old, _WarmState) else None
     if low is None:
         low = lower(problem, nodes=len(old.low.nodes) + 1 if isinstance(old, _WarmState)
                     else None)
     run = Run(low, solver)
-    if not isinstance(old, _WarmState):
+    if isinstance(old, _WarmState):
+        if extrapolate:
+            run.path, run.shot = old.path, old.shot
+        else:  # a path begins here: what came before it is not its own
+            run.path = _remembered(None, old.low.key, old.travel, old.z)
+    else:
         run.lowered[None] = (problem, low)
     point = None
     try:
         if warm_start is not None:
-            point = run.warm(warm_start, follow_only, history)
+            point = run.warm(warm_start, follow_only, extrapolate)
             if point is not None:
                 # What was said of the branch still holds along it.
                 run.notes[:0] = [n for n in warm_start.notes if isinstance(n, BranchTaken)]
@@ -1341,10 +1391,15 @@ def _answer(run: Run, point: _Point, problem: Problem, solver: ShootingSolver,
     point = _renode(run, point)
     low = run.low
     sampler = _Sampler(low, point.z, max(point.mesh.density, solver.samples))
+    key, shot = low.key, run.shot
+    if not run.reused and point.jac.shape[0] == point.z.shape[0]:
+        shot = _remembered(shot, key, run.travel, point.jac)
     return Equilibrium(problem=problem, residual=point.residual, iterations=run.iterations,
                        steps=run.steps, sampler=sampler,
                        notes=tuple(run.notes) if notes is None else notes,
-                       state=_WarmState(low, point.z, point.jac, point.mesh),
+                       state=_WarmState(low, point.z, point.jac, point.mesh, run.travel,
+                                        _remembered(run.path, key, run.travel, point.z),
+                                        shot, run.refresh),
                        stability_check=stability)
 
 
@@ -1520,12 +1575,11 @@ def trace(problems: Iterable[Problem], *, start: Equilibrium | None = None,
     """
     solver = solver or _DEFAULT
     previous = start
-    history: tuple[Equilibrium, ...] = ()  # the two before previous, oldest first
     for problem in problems:
+        # From the second step on, each starts from an extrapolation of the path's last
+        # answers (``_WarmState.path``); the first from start itself.
         eq = _solve(problem, previous, solver, follow_only=previous is not None,
-                    history=history)
-        if previous is not None:
-            history = (history + (previous,))[-2:]
+                    extrapolate=previous is not start)
         previous = eq
         yield eq
 
