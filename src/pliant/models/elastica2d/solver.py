@@ -420,14 +420,15 @@ class Run:
 
     def load_size(self, path: Line) -> tuple[float, float]:
         """(F, C), the change of the applied forces and moments on the path (as
-        ``kernels.follow`` measures them, distributed loads by their totals)."""
+        ``kernels.follow`` measures them, distributed loads by their totals; a bow's
+        removal is none)."""
         low, a, b = self.low, path.start, path.end
         applied = low.st_kind == APPLIED
         dv = np.abs(b.val - a.val)
         force = (float(dv[:, :2][applied[:, :2]].sum()) + float(np.abs(b.fol - a.fol).sum())
                  + math.hypot(b.prm[0] - a.prm[0], b.prm[1] - a.prm[1])
                  + float((np.abs(b.dist - a.dist).sum(axis=1)[:-1] * np.diff(low.st_s)).sum()))
-        moment = float(dv[:, 2][applied[:, 2]].sum()) + abs(float(b.prm[2] - a.prm[2]))
+        moment = float(dv[:, 2][applied[:, 2]].sum())
         return force, moment
 
     def begin_step(self, state: _Point) -> _Point:
