@@ -1056,9 +1056,11 @@ class Run:
                 if status == kernels.CONVERGED:
                     self.steps += 1
                     self.reused = True
-                    # Shoot afresh next time unless this one converged well in one.
-                    self.refresh = (self.iterations - before > 1
-                                    or r > REUSE_MARGIN * opts.tolerance)
+                    # Shoot afresh next time unless this one converged well in one (or
+                    # the prediction needed none: the Jacobian was not tried).
+                    used = self.iterations - before
+                    self.refresh = used > 1 or (used == 1
+                                                and r > REUSE_MARGIN * opts.tolerance)
                     return self.polish(_Point(z, jac, mesh, stats, r))
             if predictor is not None:
                 # From a close prediction a fresh Jacobian converges in about one
