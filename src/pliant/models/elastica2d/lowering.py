@@ -60,8 +60,9 @@ class Arrays:
 
     @property
     def follower(self) -> bool:
-        """Whether any load follows the part (no potential: no stability, no energy)."""
-        return bool(self.fol.any() or self.dist[:, 2:].any())
+        """Whether any load follows the part (no potential: no stability, no energy).
+        (``count_nonzero``: a quarter of ``any``'s time on these few numbers.)"""
+        return bool(np.count_nonzero(self.fol) or np.count_nonzero(self.dist[:, 2:]))
 
     @property
     def inputs(self) -> tuple:

@@ -623,10 +623,12 @@ class Run:
         mirror = _mirror(self.low.problem)
         if mirror is None:
             return None
-        z0 = self.low.unknowns_from(mirror(self._equilibrium(point)))
-        # Often exact already (no restart nodes to read between samples: case 3's twin
-        # is off by 5e-11): then one shoot without the Jacobian shows it, and the twin
-        # keeps none (a warm start from it makes its own).
+        z0 = mirror.unknowns(self.low, point.z)
+        if z0 is None:  # restart nodes: their states read from the samples, mirrored
+            z0 = self.low.unknowns_from(mirror(self._equilibrium(point)))
+        # Often exact already (straight from z's where there are no restart nodes: case
+        # 3's twin is off by 5e-11): then one shoot without the Jacobian shows it, and
+        # the twin keeps none (a warm start from it makes its own).
         res, _, _ = self.low.shoot(z0, self.low.target, point.mesh, want_jac=False)
         r = float(np.abs(res).max())
         if r <= self.solver.tolerance and not _one_point(z0, point.z):
@@ -1188,9 +1190,93 @@ def _one_point(a: np.ndarray, b: np.ndarray) -> bool:
     return bool(np.abs(a - b).max() <= 1e-6 * (1.0 + np.abs(b).max()))
 
 
-def _mirror(problem: Problem) -> Callable[[Equilibrium], SimpleNamespace] | None:
-    """Where the problem is its own mirror image, the map of an equilibrium to its
-    mirror twin's arrays (those ``Lowered.unknowns_from`` reads); else None.
+@dataclass(frozen=True, eq=False)
+class _Mirror:
+    """A problem's own mirror image (``_mirror``): reflected in the chord, or turned half
+    round about the chord's midpoint and read from the other end. The chord runs from a
+    along u (its angle phi) to a + size u; ``shift`` is the held angle's whole turns."""
+
+    stations: tuple
+    length: float
+    reflected: bool
+    a: tuple[float, float]
+    u: tuple[float, float]
+    size: float
+    phi: float
+    shift: float
+
+    def _flip(self, v: np.ndarray) -> np.ndarray:
+        """Reflected in the chord: v -> 2 (v . u) u - v (rows of v)."""
+        u = np.array(self.u)
+        return 2.0 * (v @ u)[..., None] * u - v
+
+    def _ends(self, ends: list[tuple[np.ndarray, float]]) -> list[tuple[np.ndarray, float]]:
+        """Each end's load on the part, (force, moment), mapped: reflected, the moments
+        change sign; turned, each end takes the other's load, turned."""
+        if self.reflected:
+            return [(self._flip(f), -m) for f, m in ends]
+        return [(-ends[1][0], ends[1][1]), (-ends[0][0], ends[0][1])]
+
+    def __call__(self, eq: Equilibrium) -> SimpleNamespace:
+        """The mirror twin of an equilibrium: its arrays (those ``Lowered.unknowns_from``
+        reads)."""
+        ends = []
+        for st in self.stations:  # each end's load on the part: (force, moment)
+            f = (eq.loads[st.owner[0]].force[0], eq.loads[st.owner[1]].force[1])
+            m = eq.loads[st.owner[2]].moment if st.owner[2] is not None else 0.0
+            ends.append((np.array(f, dtype=float), float(m)))
+        loads = self._named(self._ends(ends))
+        a = np.array(self.a)
+        if self.reflected:  # theta -> 2 phi - theta (and the held angle's turns)
+            return SimpleNamespace(
+                s=eq.s, position=a + self._flip(eq.position - a),
+                angle=2.0 * self.phi + self.shift - eq.angle,
+                internal_force=self._flip(eq.internal_force),
+                bending_moment=-eq.bending_moment, loads=loads)
+        # r(s) -> 2 c - r(L - s), theta and n the same at L - s, m the opposite
+        centre = a + 0.5 * self.size * np.array(self.u)
+        return SimpleNamespace(
+            s=self.length - eq.s[::-1], position=2.0 * centre - eq.position[::-1],
+            angle=eq.angle[::-1].copy(), internal_force=eq.internal_force[::-1].copy(),
+            bending_moment=-eq.bending_moment[::-1], loads=loads)
+
+    def _named(self, ends: list[tuple[np.ndarray, float]]) -> dict[str, SimpleNamespace]:
+        loads: dict[str, SimpleNamespace] = {}
+        for st, (f, m) in zip(self.stations, ends):
+            for i, owner in enumerate(st.owner):
+                if owner is not None:
+                    load = loads.setdefault(owner, SimpleNamespace(force=[0.0, 0.0],
+                                                                   moment=0.0))
+                    if i < 2:
+                        load.force[i] = float(f[i])
+                    else:
+                        load.moment = m
+        return loads
+
+    def unknowns(self, low: Lowered, z: np.ndarray) -> np.ndarray | None:
+        """The twin's unknowns straight from z's, where the lowering has no restart nodes
+        (none to read between samples): the ends' reactions mapped as ``__call__`` maps
+        their loads (nothing else acts on a part that is its own mirror image), and a
+        free first angle (a pin's) reflected. None where there are nodes."""
+        if len(low.nodes) or low.st_s.shape[0] != 2:
+            return None
+        kind, col = low.st_kind.tolist(), low.st_col.tolist()
+        ends = [(np.array([z[col[k][0]], z[col[k][1]]]),  # both ends' positions held
+                 float(z[col[k][2]]) if kind[k][2] == PRESCRIBED else 0.0) for k in (0, 1)]
+        twin = self._ends(ends)
+        out = np.zeros(low.nz)
+        for k in (0, 1):
+            f, m = twin[k]
+            out[col[k][0]], out[col[k][1]] = f[0], f[1]
+            if kind[k][2] == PRESCRIBED:
+                out[col[k][2]] = m
+            elif k == 0:  # a free angle at s = 0 is an unknown (a pin's): reflected
+                out[col[0][2]] = 2.0 * self.phi + self.shift - z[col[0][2]]
+        return out
+
+
+def _mirror(problem: Problem) -> _Mirror | None:
+    """Where the problem is its own mirror image, its mirror (``_Mirror``); else None.
 
     Only a uniform straight part with nothing on it but its two ends' conditions, each
     holding the position (and both or neither the angle): turned half round about the
@@ -1208,16 +1294,12 @@ def _mirror(problem: Problem) -> Callable[[Equilibrium], SimpleNamespace] | None
     if any(st.prescribed[:2] != (True, True) or any(st.dead_load) or any(st.follower_load)
            for st in (first, last)) or first.prescribed[2] != last.prescribed[2]:
         return None
-    a = np.array(first.kinematics[:2])
-    chord = np.array(last.kinematics[:2]) - a
-    size = float(np.hypot(*chord))
+    (ax, ay, theta0), (bx, by, theta1) = first.kinematics, last.kinematics
+    size = math.hypot(bx - ax, by - ay)
     if size == 0.0:
         return None
-    u = chord / size
-    phi = math.atan2(u[1], u[0])
-
+    phi = math.atan2(by - ay, bx - ax)
     held = first.prescribed[2]
-    theta0, theta1 = first.kinematics[2], last.kinematics[2]
     # Held angles are read as turns too (theta(L) - theta(0) is how often the part winds
     # round): either mirror reverses that, so the two must be one angle; reflected, it
     # must lie along the chord, the angles then 2 phi - theta and a whole number of turns.
@@ -1225,57 +1307,11 @@ def _mirror(problem: Problem) -> Callable[[Equilibrium], SimpleNamespace] | None
         return None
     turns = round((theta0 - phi) / math.pi)
     along = not held or abs(theta0 - phi - turns * math.pi) <= 1e-12
-    shift = 2.0 * math.pi * turns if held else 0.0
-
-    def loads_of(eq: Equilibrium) -> list[tuple[np.ndarray, float]]:
-        """Each end's load on the part: (force, moment)."""
-        out = []
-        for st in stations:
-            f = (eq.loads[st.owner[0]].force[0], eq.loads[st.owner[1]].force[1])
-            m = eq.loads[st.owner[2]].moment if st.owner[2] is not None else 0.0
-            out.append((np.array(f, dtype=float), float(m)))
-        return out
-
-    def named(ends: list[tuple[np.ndarray, float]]) -> dict[str, SimpleNamespace]:
-        loads: dict[str, SimpleNamespace] = {}
-        for st, (f, m) in zip(stations, ends):
-            for i, owner in enumerate(st.owner):
-                if owner is not None:
-                    load = loads.setdefault(owner, SimpleNamespace(force=[0.0, 0.0],
-                                                                   moment=0.0))
-                    if i < 2:
-                        load.force[i] = float(f[i])
-                    else:
-                        load.moment = m
-        return loads
-
-    if along:
-        def reflected(eq: Equilibrium) -> SimpleNamespace:
-            """Reflected in the chord: v -> 2 (v . u) u - v, theta -> 2 phi - theta (and
-            the held angle's turns), moments change sign."""
-            def flip(v: np.ndarray) -> np.ndarray:
-                return 2.0 * (v @ u)[..., None] * u - v
-
-            return SimpleNamespace(
-                s=eq.s, position=a + flip(eq.position - a),
-                angle=2.0 * phi + shift - eq.angle,
-                internal_force=flip(eq.internal_force), bending_moment=-eq.bending_moment,
-                loads=named([(flip(f), -m) for f, m in loads_of(eq)]))
-        return reflected
-    if held:  # at one angle
-        def turned(eq: Equilibrium) -> SimpleNamespace:
-            """Turned half round about the chord's midpoint c and read from the other
-            end: r(s) -> 2 c - r(L - s), theta and n the same at L - s, m the opposite;
-            each end takes the other's load, turned."""
-            centre = a + 0.5 * chord
-            ends = loads_of(eq)
-            return SimpleNamespace(
-                s=length - eq.s[::-1], position=2.0 * centre - eq.position[::-1],
-                angle=eq.angle[::-1].copy(), internal_force=eq.internal_force[::-1].copy(),
-                bending_moment=-eq.bending_moment[::-1],
-                loads=named([(-ends[1][0], ends[1][1]), (-ends[0][0], ends[0][1])]))
-        return turned
-    return None
+    if not along and not held:
+        return None
+    return _Mirror(stations=(first, last), length=length, reflected=along, a=(ax, ay),
+                   u=((bx - ax) / size, (by - ay) / size), size=size, phi=phi,
+                   shift=2.0 * math.pi * turns if held else 0.0)
 
 
 def _loads_scaled(problem: Problem, f: float) -> Problem:
