@@ -762,6 +762,34 @@ def mesh_steps(st_s, density):
 
 
 @njit(cache=True)
+def sample_rows(st_s, steps, length):
+    """Where a trajectory's rows lie (``shoot``'s traj on these steps per segment): the
+    arc length of each, times ``length`` (each segment's points evenly spaced by numpy
+    linspace's arithmetic, i (b - a) / n + a, its last exactly its end), and the row of
+    each station (its segment's first; the last station's, the last row). One call where
+    numpy's small-array calls took 6 us of a sample's 40."""
+    n = st_s.shape[0] - 1
+    total = 0
+    for k in range(n):
+        total += steps[k] + 1
+    grid = np.empty(total)
+    rows = np.empty(n + 1, dtype=np.int64)
+    row = 0
+    for k in range(n):
+        a = st_s[k]
+        b = st_s[k + 1]
+        count = steps[k]
+        step = (b - a) / count
+        rows[k] = row
+        for i in range(count):
+            grid[row + i] = (i * step + a) * length
+        grid[row + count] = b * length
+        row += count + 1
+    rows[n] = row - 1
+    return grid, rows
+
+
+@njit(cache=True)
 def parabola_fits(loose, grow):
     """Whether a continuation predicts along the parabola through its last three points:
     their own errors, amplified by it up to about eightfold (``loose`` each), must stay

@@ -184,30 +184,10 @@ class Lowered:
         res, jac, _ = kernels.shoot(z, *self.args(arrays, mesh), want_jac, traj)  # type: ignore[call-arg]
         return res, jac, traj
 
-    def station_rows(self, mesh: Mesh) -> np.ndarray:
-        """Row of each station in a trajectory (the start of its segment; the end for
-        the last station)."""
-        rows = np.zeros(mesh.steps.shape[0] + 1, dtype=np.int64)
-        np.cumsum(mesh.steps + 1, out=rows[1:])
-        rows[-1] -= 1
-        return rows
-
-    def grid(self, mesh: Mesh) -> np.ndarray:
-        """Arc length [m] of each trajectory row: each segment's numpy linspace, by its
-        arithmetic (start + i (end - start) / steps, the last exactly the end) without
-        its checks (4.6 us a segment, a tenth of a sample's time)."""
-        ends, steps = self.st_s.tolist(), mesh.steps.tolist()
-        out = np.empty(sum(steps) + len(steps))
-        row = 0
-        for k, count in enumerate(steps):
-            a, b = ends[k], ends[k + 1]
-            part = out[row:row + count + 1]
-            np.multiply(np.arange(count + 1.0), (b - a) / count, out=part)
-            part += a
-            part[-1] = b
-            row += count + 1
-        out *= self.length
-        return out
+    def rows(self, mesh: Mesh) -> tuple[np.ndarray, np.ndarray]:
+        """(s, rows): the arc length [m] of each trajectory row, and each station's row
+        (the start of its segment; the end for the last station): ``kernels.sample_rows``."""
+        return kernels.sample_rows(self.st_s, mesh.steps, self.length)
 
     # -- the rest state -------------------------------------------------------------------
     def rest(self, mesh: Mesh, bow: float = 0.0,

@@ -546,7 +546,7 @@ class Run:
         stalls: list[Stalled] = []
         for bow in (pushed, -pushed):
             try:
-                found.append((bow, self.bowed(bow, legs, mesh)))
+                found.append((bow, self.bowed(bow, legs, mesh, rest)))
                 break
             except Stalled as stall:
                 if stall.budget or stall.intervals:
@@ -576,7 +576,7 @@ class Run:
             mirrored = twin is not None
             try:
                 found.append((-pushed, twin if twin is not None
-                              else self.bowed(-pushed, legs, mesh)))
+                              else self.bowed(-pushed, legs, mesh, rest)))
             except Stalled as stall:
                 if stall.budget or stall.intervals:
                     raise
@@ -643,11 +643,11 @@ class Run:
             return None
 
     def bowed(self, side: float, legs: Callable[[Arrays], list[Arrays]],
-              mesh: Mesh) -> _Point:
+              mesh: Mesh, rest: Arrays) -> _Point:
         """The route on a part bowed to ``side`` (+1 left of its chord, -1 right), with a
-        last leg that removes the bow at the problem."""
+        last leg that removes the bow at the problem; rest: the unbowed rest state's
+        arrays on the mesh."""
         low, opts = self.low, self.solver
-        rest, _ = low.rest(mesh)
         ends = low.chord()
         span = (0.0, 1.0)
         if ends is not None:
@@ -1559,9 +1559,10 @@ class _Sampler:
     def __call__(self) -> Samples:
         low, z = self.low, self.z
         mesh = low.mesh(self.density)
-        _, _, traj = low.shoot(z, low.target, mesh, want_jac=False, trajectory=True)
+        grid, rows = low.rows(mesh)
+        traj = np.zeros((grid.shape[0], kernels.NSTATE))
+        kernels.shoot(z, *low.args(low.target, mesh), False, traj)  # type: ignore[call-arg]
         fs, ms = low.force_scale, low.moment_scale
-        rows = low.station_rows(mesh)
         loads: dict[str, StationLoad] = {}
         for k, station in enumerate(low.station_of):
             if station is None:
@@ -1569,7 +1570,7 @@ class _Sampler:
             theta = float(traj[rows[k], 2])
             for cond in station.conditions:
                 loads[cond.name] = _station_load(low, k, station, cond, z, theta)
-        return Samples(s=low.grid(mesh), position=traj[:, :2] * low.length,
+        return Samples(s=grid, position=traj[:, :2] * low.length,
                        angle=traj[:, 2].copy(), internal_force=traj[:, 3:5] * fs,
                        bending_moment=traj[:, 5] * ms,
                        energy=float(traj[-1, 6]) * low.stiffness / low.length, loads=loads)
