@@ -31,9 +31,10 @@ class _CompileTimer(event.Listener):
 
     def on_end(self, event: event.Event) -> None:
         with self._lock:
-            self._depth -= 1
-            if self._depth == 0:
+            # The total first: ``now`` reads it without the lock once depth is 0.
+            if self._depth == 1:
                 self.total += time.perf_counter() - self._start
+            self._depth -= 1
 
 
 _TIMER = _CompileTimer()
@@ -48,6 +49,8 @@ def compiling() -> float:
 
 def now() -> float:
     """Seconds on the solvers' clock: ``time.perf_counter()`` less compile time."""
+    if not _TIMER._depth:  # nothing compiling (the usual case): no lock to take
+        return time.perf_counter() - _TIMER.total
     with _TIMER._lock:
         compiling = time.perf_counter() - _TIMER._start if _TIMER._depth else 0.0
         return time.perf_counter() - _TIMER.total - compiling

@@ -128,21 +128,26 @@ class Lowered:
     def retarget(self, problem: Problem) -> Lowered | None:
         """The same lowering for another problem with the same part and stations (only
         targets and loads moved: a hand's next pose), or None. Cheaper than ``lower``."""
-        if problem.part is not self.problem.part and problem.part != self.problem.part:
+        before = self.problem
+        if problem.part is not before.part and problem.part != before.part:
             return None
-        rows = self.problem_rows
-        if len(problem.stations) != len(rows):
+        rows, stations = self.problem_rows, problem.stations
+        if len(stations) != len(rows):
             return None
         length, stiffness = self.length, self.stiffness
         fs, ms = stiffness / (length * length), stiffness / length
-        station_of = list(self.station_of)
         flat: list[float] = []
-        for k, st in zip(rows, problem.stations):
-            old = station_of[k]
-            if st.s != old.s or st.prescribed != old.prescribed:  # type: ignore[union-attr]
+        for st, old in zip(stations, before.stations):
+            if st.s != old.s or st.prescribed != old.prescribed:
                 return None
             flat += _targets(st, length, fs, ms)
-            station_of[k] = st
+        if len(rows) == len(self.station_of):  # every kernel station a problem's
+            station_of = stations
+        else:
+            listed = list(self.station_of)
+            for k, st in zip(rows, stations):
+                listed[k] = st
+            station_of = tuple(listed)
         rows_of = np.array(flat).reshape(-1, 5)
         if len(rows) == self.st_s.shape[0]:  # every kernel station a problem's
             val, fol = rows_of[:, :3].copy(), rows_of[:, 3:].copy()
@@ -165,8 +170,10 @@ class Lowered:
         out = object.__new__(Lowered)
         out.__dict__ = {**self.__dict__, "problem": problem,
                         "target": Arrays(val, fol, prm, dist),
-                        "station_of": tuple(station_of),
-                        "inputs": _inputs(flat, fx, fy, dist), "wave": None}
+                        "station_of": station_of,
+                        "inputs": _inputs(flat, fx, fy, dist) if dist is not self.target.dist
+                        else (*flat, fx, fy, *self.inputs[len(flat) + 2:]),  # the same tail
+                        "wave": None}
         return out
 
     # -- kernel calls ---------------------------------------------------------------------
