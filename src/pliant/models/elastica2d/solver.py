@@ -1607,7 +1607,9 @@ def _station_load(low: Lowered, k: int, station, cond, z: np.ndarray,
 def trace(problems: Iterable[Problem], *, start: Equilibrium | None = None,
           solver: ShootingSolver | None = None) -> Iterator[Equilibrium]:
     """Follow a sequence of problems (a hand moving, a load growing), warm-starting each
-    solve from the last equilibrium; yields one equilibrium per problem.
+    solve from the last equilibrium; yields one equilibrium per problem. From the second
+    problem on, a step starts from the cubic through the path's last answers, with the
+    Jacobian extrapolated from the last ones shot (``Run.warm``).
 
     It stays on the branch it is on: where the branch ends or turns back (a fold, a
     snap-through) it raises ConvergenceError with ``last_good`` the last equilibrium,
