@@ -57,15 +57,15 @@ def cli(*args: str):
 
 def shooting_jacobians(low, z, mesh) -> tuple:
     """(the shooting's Jacobian at z, its central differences) for a 2D lowering."""
-    _, jac, _ = low.shoot(z, low.target, mesh)
+    _, jac = low.shoot(z, low.target, mesh)
     fd = np.empty_like(jac)
     for j in range(low.nz):
         h = 1e-6 * max(1.0, abs(z[j]))
         zp, zm = z.copy(), z.copy()
         zp[j] += h
         zm[j] -= h
-        rp, _, _ = low.shoot(zp, low.target, mesh, want_jac=False)
-        rm, _, _ = low.shoot(zm, low.target, mesh, want_jac=False)
+        rp, _ = low.shoot(zp, low.target, mesh, want_jac=False)
+        rm, _ = low.shoot(zm, low.target, mesh, want_jac=False)
         fd[:, j] = (rp - rm) / (2 * h)
     return jac, fd
 

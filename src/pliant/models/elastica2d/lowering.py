@@ -28,6 +28,7 @@ from pliant.models.elastica2d.kernels import APPLIED, NODE, PRESCRIBED
 # Largest wavenumber times interval length between restart nodes: the sensitivities
 # grow by at most about exp(NODE_SPAN) across one shooting interval.
 NODE_SPAN = 8.0
+_NO_ROWS = np.zeros((0, kernels.NSTATE))  # no trajectory asked for (the kernels only read it)
 
 
 @dataclass(slots=True, eq=False)
@@ -76,10 +77,6 @@ class Mesh:
 
     steps: np.ndarray  # (nst - 1,) int64
     density: int  # steps per unit (dimensionless) length
-
-    @property
-    def npoints(self) -> int:
-        return int(self.steps.sum() + self.steps.shape[0])
 
 
 @dataclass(eq=False)
@@ -184,12 +181,12 @@ class Lowered:
         """The shooting kernels' arguments after the unknowns: (stations, inputs, steps)."""
         return self.stations, arrays.inputs, mesh.steps
 
-    def shoot(self, z: np.ndarray, arrays: Arrays, mesh: Mesh, want_jac: bool = True,
-              trajectory: bool = False) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """(residual, Jacobian, trajectory); the trajectory is empty unless asked for."""
-        traj = np.zeros((mesh.npoints if trajectory else 0, kernels.NSTATE))
-        res, jac, _ = kernels.shoot(z, *self.args(arrays, mesh), want_jac, traj)  # type: ignore[call-arg]
-        return res, jac, traj
+    def shoot(self, z: np.ndarray, arrays: Arrays, mesh: Mesh,
+              want_jac: bool = True) -> tuple[np.ndarray, np.ndarray]:
+        """(residual, Jacobian; empty unless ``want_jac``). A trajectory's rows lie where
+        ``rows`` says (``solver._Sampler`` shoots them itself)."""
+        res, jac, _ = kernels.shoot(z, *self.args(arrays, mesh), want_jac, _NO_ROWS)  # type: ignore[call-arg]
+        return res, jac
 
     def rows(self, mesh: Mesh) -> tuple[np.ndarray, np.ndarray]:
         """(s, rows): the arc length [m] of each trajectory row, and each station's row

@@ -385,7 +385,7 @@ class Run:
         one (``continuation.Continuable``)."""
         jac = point.jac
         if fresh or jac.shape[0] != point.z.shape[0]:
-            _, jac, _ = self.low.shoot(point.z, loads, point.mesh)
+            _, jac = self.low.shoot(point.z, loads, point.mesh)
         return float(kernels.det_sign(jac))
 
     def crossed(self) -> None:
@@ -629,7 +629,7 @@ class Run:
         # Often exact already (straight from z's where there are no restart nodes: case
         # 3's twin is off by 5e-11): then one shoot without the Jacobian shows it, and
         # the twin keeps none (a warm start from it makes its own).
-        res, _, _ = self.low.shoot(z0, self.low.target, point.mesh, want_jac=False)
+        res, _ = self.low.shoot(z0, self.low.target, point.mesh, want_jac=False)
         r = float(np.abs(res).max())
         if r <= self.solver.tolerance and not _one_point(z0, point.z):
             return _Point(z0, _EMPTY_JAC, point.mesh, point.stats, r)
