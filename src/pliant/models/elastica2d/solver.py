@@ -1046,35 +1046,32 @@ class Run:
                                           3 if warm.iterations > 2 else 4)
                 if predictor is not None and not old.refresh:
                     guess = _extrapolated(old.shot, low.key, travel, 3)
-            if predictor is not None and guess is not None:
-                # The Jacobians shot on the last steps, extrapolated, contract Newton's
-                # residual some 1e-5 times (on case 3's path of 100 steps): one
-                # iteration, without shooting the sensitivities, usually converges (a
-                # second is allowed).
+            # First, where the path has them, the Jacobians shot on its last steps,
+            # extrapolated: they contract Newton's residual some 1e-5 times (on case 3's
+            # path of 100 steps), so one iteration (two allowed) usually converges without
+            # shooting the sensitivities. Else, or where that fails, a fresh Jacobian at
+            # the prediction, which converges in about one (the last point's would
+            # contract by only ~the step size).
+            tries = [(_EMPTY_JAC, 0)] if guess is None else [(guess, 2), (_EMPTY_JAC, 0)]
+            for jac_try, most in tries:
+                if predictor is None:
+                    break
                 before = self.iterations
                 z, r, status, jac, stats = self.newton(predictor, low.target, mesh,
                                                        strict=True, tol=opts.tolerance,
-                                                       jac0=guess, iterations=2)
-                if status == kernels.CONVERGED:
-                    self.steps += 1
-                    self.reused = True
-                    # Shoot afresh next time unless this one converged well in one (or
-                    # the prediction needed none: the Jacobian was not tried).
-                    used = self.iterations - before
-                    self.refresh = used > 1 or (used == 1
-                                                and r > REUSE_MARGIN * opts.tolerance)
-                    return self.polish(_Point(z, jac, mesh, stats, r))
-            if predictor is not None:
-                # From a close prediction a fresh Jacobian converges in about one
-                # iteration; the last point's would contract by only ~the step size.
-                before = self.iterations
-                z, r, status, jac, stats = self.newton(predictor, low.target, mesh,
-                                                       strict=True, tol=opts.tolerance)
-                if status == kernels.CONVERGED:
-                    self.steps += 1
-                    # Steps too long for one iteration are too long for a reused one.
-                    self.refresh = self.iterations - before > 1
-                    return self.polish(_Point(z, jac, mesh, stats, r))
+                                                       jac0=jac_try, iterations=most)
+                if status != kernels.CONVERGED:
+                    continue
+                used = self.iterations - before
+                self.steps += 1
+                self.reused = jac_try is guess
+                # Shoot afresh next time after a step of more than one iteration (too
+                # long for an old Jacobian), or a reused one that only just converged
+                # (the Jacobians are getting old). A prediction that needed no
+                # iteration did not try its Jacobian.
+                self.refresh = used > 1 or (self.reused and used == 1
+                                            and r > REUSE_MARGIN * opts.tolerance)
+                return self.polish(_Point(z, jac, mesh, stats, r))
         else:
             z0 = low.unknowns_from(warm)
             jac0 = _EMPTY_JAC
