@@ -134,28 +134,25 @@ def test_case3_round_trip_through_force_space():
                        atol=1e-8)
 
 
+def _case3_at(problem: pl.Problem, t: float) -> pl.Problem:
+    """Case 3 with its hole moved t of the way from the straight shape's tip."""
+    return problem.with_conditions([problem.condition("clamp"), pl.clamp(
+        1.0, position=(1 - 0.3 * t, 0.4 * t), angle=0.0, name="hole")])
+
+
 def test_case3_answer_is_stable_under_the_other_route():
     """Following the hand from the straight shape to the hole in 50 steps ends on the
     equilibrium the cold solve finds."""
     problem = load_problem(EXAMPLES / "paper" / "case3.toml")
     cold = solve(problem)
     hole = problem.condition("hole")
-    path = [problem.with_conditions([problem.condition("clamp"),
-                                     pl.clamp(1.0, position=(1 - 0.3 * t, 0.4 * t),
-                                              angle=0.0, name="hole")])
-            for t in np.linspace(0.02, 1.0, 50)]
+    path = [_case3_at(problem, t) for t in np.linspace(0.02, 1.0, 50)]
     *_, last = trace(path)
     assert last.problem.condition("hole").position == hole.position
     assert np.allclose(last.reactions["clamp"].force, cold.reactions["clamp"].force,
                        atol=1e-7)
     assert last.reactions["clamp"].moment == pytest.approx(cold.reactions["clamp"].moment,
                                                            abs=1e-7)
-
-
-def _case3_at(problem: pl.Problem, t: float) -> pl.Problem:
-    """Case 3 with its hole moved t of the way from the straight shape's tip."""
-    return problem.with_conditions([problem.condition("clamp"), pl.clamp(
-        1.0, position=(1 - 0.3 * t, 0.4 * t), angle=0.0, name="hole")])
 
 
 def test_a_path_that_reuses_its_jacobians_keeps_its_answers(monkeypatch):
