@@ -491,3 +491,46 @@ def test_twist_rate_is_the_torque_over_gj_and_zero_where_the_part_is_free_to_twi
     eq = rod3d.solve(held)
     assert eq.max_moment()[0] > 0.1  # it bends: a real moment beside the zero torque
     assert twist_rate(eq, gj) == 0.0
+
+
+# -- fallbacks: said in every output, never a verdict -------------------------------------
+def test_a_part_held_rigid_is_said_everywhere_and_leaves_the_verdict_undecided(monkeypatch):
+    """No silent fallback (issue 61): where the parts cannot be solved together, the
+    answer holds the fitted part still; the evaluation names it and the steps in the
+    terminal, the HTML and the JSON, and its verdict is UNDECIDED, not a fit or a
+    failure resting on that answer. The twin without the refusal is decided."""
+    from rich.console import Console
+
+    from pliant.assembly.scenes import load_scene
+    from pliant.cli.evaluation_report import print_evaluation, render_html
+    from pliant.errors import ConvergenceError
+    from pliant.models.rod3d import coupled
+
+    scene = load_scene(Path(__file__).resolve().parents[1] / "examples" / "scenes"
+                       / "line_over_hose.toml")
+    honest = evaluate(scene, search=False)
+    assert honest.verdict.decided
+    touching = [k for k, eq in enumerate(honest.run.equilibria) if eq.fitted]
+    assert touching  # the line touches the hose on the way: solved together there
+
+    def refuse(*args, **kwargs):
+        raise ConvergenceError("refused for the test", residual=1.0)
+
+    monkeypatch.setattr(coupled, "solve_coupled", refuse)
+    ev = evaluate(scene, search=False)
+    held = [c for c in ev.checks if c.rule == "held rigid"]
+    assert len(held) == 1 and held[0].zone == Zone.UNCHECKED
+    assert "coolant hose" in held[0].title and held[0].value >= len(touching) > 0
+    assert not ev.verdict.decided and not ev.verdict.passes
+    assert ev.verdict.headline.startswith("UNDECIDED: steps solved with coolant hose held")
+    console = Console(width=200, record=True)
+    print_evaluation(ev, console)
+    said = console.export_text()
+    assert "UNDECIDED" in said and "held rigid" in said and "coolant hose" in said
+    html = render_html(ev)
+    assert "UNDECIDED" in html and "undecided: its answer rests on a fallback" in html
+    data = json.loads(evaluation_json(ev))
+    assert data["verdict"]["decided"] is False
+    assert any(c["rule"] == "held rigid" for c in data["checks"])
+    notes = [n for step in data["path"]["steps"] for n in step.get("notes", [])]
+    assert any(n.get("kind") == "held_rigid" and "coolant hose" in n["held"] for n in notes)

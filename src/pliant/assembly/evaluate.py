@@ -43,7 +43,7 @@ from pliant.assembly.checks import (
 )
 from pliant.assembly.path import PathRun, StepRecord, follow_path
 from pliant.core.equilibrium import Result, stretch_summary
-from pliant.core.events import WarmStartLost, has
+from pliant.core.events import HeldRigid, WarmStartLost, has
 from pliant.core.numbers import clean, triple
 from pliant.core.rules import Capacity, EvaluationSettings, PartKind, Rules
 from pliant.errors import InputError
@@ -321,6 +321,7 @@ class Verdict:
     operator: str | None
     headline: str
     reasons: list[str]
+    decided: bool = True  # False: the answer rests on a fallback (a part held rigid)
 
     def to_dict(self) -> dict[str, Any]:
         return dict(self.__dict__)
@@ -513,6 +514,9 @@ def _part_checks(scene: Any, run: PathRun, rules: Rules, kind: PartKind | None,
         checks.append(Check("path solved", "steps solved", "solve", float(solved), "",
                             Zone.RED, "below", None, float(run.planned), "the accurate model",
                             "computed", step=solved + 1, note=run.stopped))
+    held = _held_rigid_check(run)
+    if held is not None:
+        checks.append(held)
     residual = max(eq.residual for eq in eqs)
     checks.append(Check("residual", "largest relative residual of the steps", "solve",
                         residual, "", Zone.INFO, "above", None, None,
@@ -700,6 +704,27 @@ def stretch_checks(run: PathRun, part: Any, rules: Rules) -> list[Check]:
                          rules.stretch.provenance, where=where)]
 
 
+def held_rigid_steps(run: PathRun) -> list[int]:
+    """The steps whose answer is a fallback (``HeldRigid``): parts held still that
+    could not be solved together with the part."""
+    return [k for k, eq in enumerate(run.equilibria) if has(eq.notes, HeldRigid)]
+
+
+def _held_rigid_check(run: PathRun) -> Check | None:
+    """The fallback steps as an unchecked item: what was held and why, in every output
+    (the verdict does not rest on them, see ``_verdict``)."""
+    steps = held_rigid_steps(run)
+    if not steps:
+        return None
+    notes = [n for n in run.equilibria[steps[0]].notes if isinstance(n, HeldRigid)]
+    names = sorted({h for k in steps for n in run.equilibria[k].notes
+                    if isinstance(n, HeldRigid) for h in n.held})
+    return Check("held rigid", f"steps solved with {', '.join(names)} held rigid", "solve",
+                 float(len(steps)), "", Zone.UNCHECKED, "above", None, None,
+                 "the accurate model (a fallback, not the system's equilibrium)", "computed",
+                 step=steps[0], note=f"{_ranges(tuple(steps))}: {notes[0]}; not judged there")
+
+
 def _stability_check(run: PathRun) -> Check:
     bad = [k for k, r in enumerate(run.steps) if r.stable is False or r.snap]
     undecided = [k for k, r in enumerate(run.steps) if r.stable is None]
@@ -823,6 +848,21 @@ def _verdict(run: PathRun, checks: list[Check],
     reasons = [f"[{c.zone.value}] {c.sentence()}"
                for group in (checks, ops.checks if ops is not None else [])
                for c in worst_first(group) if c.zone in (Zone.RED, Zone.YELLOW)]
+    # No verdict rests on a fallback: a red item stands only where it is red at a step
+    # that was solved as the system it is; otherwise the operation is undecided.
+    held = set(held_rigid_steps(run))
+    if held:
+        fallback = next(c for c in checks if c.rule == "held rigid")
+        genuine = [c for c in red if c.family == "solve" or not held.issuperset(
+            c.red_steps or ((c.step,) if c.step is not None else ()))]
+        if not genuine:
+            return Verdict(passes=False, assemblable=False, operator=None,
+                           headline=f"UNDECIDED: {fallback.title} "
+                                    f"({_ranges(tuple(sorted(held)))}); the verdict "
+                                    "would rest on that fallback",
+                           reasons=[f"[{fallback.zone.value}] {fallback.sentence()}",
+                                    *reasons], decided=False)
+        red = genuine
     if not assemblable:
         first = red[0] if red else None
         headline = ("DOES NOT FIT: " + first.sentence().split(". ")[0]) if first else (

@@ -10,6 +10,7 @@ would snap, or the grip asks for something it cannot reach).
 
 from __future__ import annotations
 
+import itertools
 import math
 from collections.abc import Callable
 from dataclasses import dataclass, field, replace
@@ -18,7 +19,7 @@ from typing import Any
 import numpy as np
 
 from pliant.core.equilibrium import Equilibrium3D
-from pliant.core.events import WarmStartLost, has
+from pliant.core.events import WarmStartLost, events, has
 from pliant.core.numbers import triple
 from pliant.core.planning import PathSpec
 from pliant.core.problem import Problem
@@ -114,9 +115,15 @@ class PathRun:
     def to_dict(self) -> dict[str, Any]:
         return {"grip": self.grip, "margin": self.margin, "planned": self.planned,
                 "complete": self.complete, "stopped": self.stopped,
-                "steps": [r.to_dict() for r in self.steps],
+                "steps": [r.to_dict() | {"notes": _step_notes(eq)} for r, eq in
+                          itertools.zip_longest(self.steps, self.equilibria[:len(self.steps)])],
                 "interference": None if self.interference is None
                 else self.interference.to_dict()}
+
+
+def _step_notes(eq: Any) -> list[dict[str, Any]]:
+    """A step's events as JSON-ready records (none where its equilibrium is not kept)."""
+    return [] if eq is None else [e.to_dict() for e in events(eq.notes)]
 
 
 def carry(problem: Problem, path: PathSpec | None) -> list[Problem]:

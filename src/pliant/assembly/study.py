@@ -138,6 +138,7 @@ def _record(ev: Any, voxel: float) -> tuple[dict[str, Any], np.ndarray]:
     voxels = np.unique(np.floor(points / voxel).astype(np.int32), axis=0)
     return {
         "passes": ev.verdict.passes, "assemblable": ev.verdict.assemblable,
+        "decided": ev.verdict.decided,
         "operator": ev.verdict.operator, "headline": ev.verdict.headline,
         "complete": run.complete, "steps_solved": len(run.steps),
         "peak_force": max(forces), "peak_force_step": int(np.argmax(forces)),
@@ -388,7 +389,8 @@ def summarize(result: StudyResult) -> dict[str, Any]:
         elif r["passes"]:
             key = f"passes: {r['operator']}"
         else:
-            key = "does not fit" if not r["assemblable"] else "no operator passes"
+            key = ("undecided (a fallback)" if not r.get("decided", True) else
+                   "does not fit" if not r["assemblable"] else "no operator passes")
         verdicts[key] = verdicts.get(key, 0) + 1
     percentiles = {}
     for key, title, unit in OUTPUTS:

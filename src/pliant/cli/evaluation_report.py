@@ -33,7 +33,7 @@ def print_evaluation(ev: Any, console: Console | None = None) -> None:
     """The verdict, the operators tried and the red, yellow and unchecked items."""
     console = console or Console()
     v = ev.verdict
-    style = "bold green" if v.passes else "bold red"
+    style = "bold green" if v.passes else "bold red" if v.decided else "bold yellow"
     console.print(f"[{style}]{v.headline}[/{style}]")
     table = Table(title="operators tried", title_justify="left")
     for column in ("operator", "zone", "what it takes"):
@@ -236,6 +236,7 @@ h1{font-size:22px;margin:0 0 4px} h2{font-size:17px;margin:28px 0 8px;border-bot
 #d5dbe1;padding-bottom:4px} .meta{color:#56606b;font-size:12.5px}
 .verdict{border-radius:8px;padding:16px 20px;margin:16px 0;color:#fff;font-size:18px;
 font-weight:600} .verdict.pass{background:#1b7f3b} .verdict.fail{background:#c0262d}
+.verdict.undecided{background:#8a6d00}
 .verdict small{display:block;font-weight:400;font-size:13px;opacity:.92;margin-top:6px}
 table{border-collapse:collapse;width:100%;background:#fff;font-size:13px}
 th,td{border-bottom:1px solid #e3e7eb;padding:5px 8px;text-align:left;vertical-align:top}
@@ -281,14 +282,16 @@ def render_html(ev: Any) -> str:
         poses.append(("worst", worst))
     if last > 0:
         poses.append(("last (worst)" if worst == last else "last", last))
-    passes = "The operation passes." if v.passes else "The operation does not pass."
+    passes = ("The operation passes." if v.passes else "The operation does not pass." if
+              v.decided else "The operation is undecided: its answer rests on a fallback.")
     head = (f"<!doctype html><html lang=en><head><meta charset=utf-8><title>pliant "
             f"evaluation: {e(ev.name)}</title><style>{STYLE}</style></head><body><main>")
     meta = (f"<h1>{e(ev.name)}</h1><div class=meta>{e(ev.part)} · {len(ev.run.steps) - 1} "
             f"of {ev.run.planned} steps solved · grips: {e(', '.join(ev.grips))} · rules: "
             f"{e(ev.rules_origin)} · pliant {__version__} · "
             f"{datetime.now(UTC):%Y-%m-%d %H:%M} UTC</div>")
-    verdict = (f'<div class="verdict {"pass" if v.passes else "fail"}" id=verdict>'
+    look = "pass" if v.passes else "fail" if v.decided else "undecided"
+    verdict = (f'<div class="verdict {look}" id=verdict>'
                f"{e(v.headline)}<small>{passes} Exit status of <code>pliant evaluate</code>: "
                f"{0 if v.passes else 1}.</small></div>")
     parts = [head, meta, verdict]

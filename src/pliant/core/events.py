@@ -187,6 +187,16 @@ class SolvedTogether(Event):
     assessed: bool = False
 
 
+class HeldRigid(Event):
+    """A fallback: the parts named in ``held`` (fitted parts, sliding clips) could not be
+    solved together with the part, so this answer holds them still (fitted parts at
+    rest, clips where they start). It is not the system's equilibrium: a verdict must
+    not rest on it."""
+
+    kind = "held_rigid"
+    held: tuple = ()
+
+
 def has(notes, kind: type[Event]) -> bool:
     """Whether any of an answer's notes is an event of this kind."""
     return any(isinstance(n, kind) for n in notes)

@@ -69,6 +69,8 @@ class VerdictModel(_Model):
     operator: str | None
     headline: str
     reasons: list[str]
+    decided: bool = Field(True, description="false: the answer rests on a fallback (a "
+                          "part held rigid), and the verdict is UNDECIDED")
 
 
 class EvaluationReport(_Model):

@@ -387,6 +387,7 @@ class ViewerState:
         None where it cannot be judged (2D, no grip)."""
         if self.dimension != 3:
             return None
+        from pliant.assembly.checks import Zone  # noqa: PLC0415
         from pliant.assembly.evaluate import evaluate_pose, worst_zone  # noqa: PLC0415
 
         clearances = {c.obstacle: c.clearance for c in interference.clearances}
@@ -397,6 +398,8 @@ class ViewerState:
             return None
         chosen = ev.chosen
         zone = worst_zone(ev.checks + (chosen.checks if chosen else []))
+        if not ev.verdict.decided:  # a fallback: no colour of a verdict
+            zone = Zone.UNCHECKED
         return P.Verdict(passes=ev.verdict.passes, headline=ev.verdict.headline,
                          operator=ev.verdict.operator, zone=zone.value,
                          items=[P.VerdictItem(zone=c.zone.value,

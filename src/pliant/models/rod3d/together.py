@@ -18,7 +18,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from pliant.core.equilibrium import Equilibrium3D
-from pliant.core.events import ReachedBy
+from pliant.core.events import HeldRigid, ReachedBy
 from pliant.errors import ConvergenceError
 from pliant.models import clock, continuation
 from pliant.models.rod3d import coupled
@@ -124,7 +124,8 @@ def solve_fitted(problem, warm_start, solver: RodSolver, follow_only: bool) -> E
     except ConvergenceError as err:
         if follow_only:
             raise
-        held = ", ".join(touched + [c.name for c in problem.sliders])
+        names = tuple(touched + [c.name for c in problem.sliders])
+        held = ", ".join(names)
         if cold:
             # Another route's answer may be solved together (the first's may lie past a
             # fold that letting the fitted parts go crosses): the best of those, where it
@@ -142,9 +143,10 @@ def solve_fitted(problem, warm_start, solver: RodSolver, follow_only: bool) -> E
         if problem.junctions:  # a harness has no answer without its branches
             raise
         # Said, not hidden: the answer is the one with those parts held still.
-        note = (f"{held} could not be solved together with the part ({err}); held rigid "
-                "here: fitted parts at rest (their deformation and their clamps' share of "
-                "the contact not computed), sliding clips where they start")
+        note = HeldRigid(f"{held} could not be solved together with the part ({err}); "
+                         "held rigid here: fitted parts at rest (their deformation and their "
+                         "clamps' share of the contact not computed), sliding clips where "
+                         "they start", held=names)
         return replace(rigid, problem=problem, notes=rigid.notes + (note,))
 
 
