@@ -168,7 +168,7 @@ def test_a_scene_without_a_path_is_evaluated_as_its_one_pose():
     assert out.returncode == 0, out.stderr
     text = " ".join(out.stdout.split())
     assert "1 obstacle, one pose (no [path])" in text
-    assert "the pose: the grip's force and moment" in text
+    assert "the pose: the force and moment at hand" in text
     assert "steps solved" not in text and "followed to its end" not in text
     assert "peak force" not in text and "progress" not in text
 

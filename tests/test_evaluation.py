@@ -16,6 +16,7 @@ import numpy as np
 import pytest
 from scipy.optimize import minimize_scalar
 
+import pliant as pl
 from pliant.assembly.checks import (
     Zone,
     brazier_flattening,
@@ -242,6 +243,7 @@ elements = 60
 HAND = """
 [[condition]]
 name = "{name}"
+hand = true
 s = {s}
 x = {x}
 y = 0.0
@@ -534,3 +536,148 @@ def test_a_part_held_rigid_is_said_everywhere_and_leaves_the_verdict_undecided(m
     assert any(c["rule"] == "held rigid" for c in data["checks"])
     notes = [n for step in data["path"]["steps"] for n in step.get("notes", [])]
     assert any(n.get("kind") == "held_rigid" and "coolant hose" in n["held"] for n in notes)
+
+
+def test_a_part_in_its_clamps_is_judged_in_its_clamps_not_as_held_by_hands():
+    """A scene with no hand (no [path], no grips, no ``hand = true``): the verdict is the
+    part's in its clamps, and each clamp's load is its reaction, which for a symmetric
+    heavy part held level at both ends is half its weight (the closed form, as the
+    two-hand twin above); a hand's capacities are not applied to a clamp."""
+    text = _carried(HAND.replace("hand = true\n", "").format(name="left", s=0.0, x=0.0)
+                    + HAND.replace("hand = true\n", "").format(name="right", s=1.0,
+                                                                   x=0.999))
+    ev = evaluate(parse_scene(text, "clamped.toml"))
+    assert ev.grips == ()
+    assert [o.operator for o in ev.operators] == ["no hand"]
+    assert ev.verdict.passes and ev.verdict.operator == "no hand"
+    assert ev.verdict.headline == "FITS in its clamps (no hand holds it)"
+    assert "hand" not in " ".join(c.title for c in ev.operators[0].checks)
+    forces = {c.grip: c.value for c in ev.operators[0].checks if c.unit == "N"}
+    eq = ev.run.equilibria[0]
+    for name in ("left", "right"):  # each carries half the weight, and the axial thrust
+        reaction = eq.loads[name].force
+        assert reaction[2] == pytest.approx(4.0 * G / 2, rel=1e-6)
+        assert forces[name] == pytest.approx(np.linalg.norm(reaction), rel=1e-12)
+    # The same scene with the hands declared is judged by hand capacities, by name.
+    held = evaluate(parse_scene(_carried(HAND.format(name="left", s=0.0, x=0.0)
+                                         + HAND.format(name="right", s=1.0, x=0.999)),
+                                "carried.toml"))
+    assert held.grips == ("left", "right") and held.operators[0].operator == "one hand"
+
+
+@pytest.mark.parametrize("kind", ["coolant hose", "metal hose"])
+def test_a_stiffness_its_material_alone_does_not_give_is_an_item_of_the_evaluation(kind):
+    """An EPDM coolant hose (plied) or a metal hose (corrugated) whose stiffness comes
+    from a solid section of its material: the file's reader warns and names pliant
+    identify, and the evaluation carries the warning as an unchecked item (every
+    output), while a measured stiffness says nothing."""
+    material = "EPDM" if kind == "coolant hose" else "stainless-304"
+    text = _arc_scene(kind, 0.05).replace(
+        "bending_stiffness = 0.02\n", f'material = "{material}"\ninner_diameter = 0.03\n')
+    ev = evaluate(parse_scene(text, "arc.toml"))
+    warned = [c for c in ev.items if c.rule == "file warning"]
+    assert len(warned) == 1 and warned[0].zone == Zone.UNCHECKED
+    assert kind in warned[0].sentence() and "pliant identify" in warned[0].sentence()
+    data = json.loads(evaluation_json(ev))
+    assert any(c["rule"] == "file warning" and c["value"] is None for c in data["checks"])
+    measured = evaluate(parse_scene(_arc_scene(kind, 0.05), "arc.toml"))
+    assert not [c for c in measured.checks if c.rule == "file warning"]
+
+
+def test_one_bend_limit_on_every_surface_the_one_the_verdict_uses():
+    """One number for one thing (issue 61): a rubber hose quoting 190 mm to the inside,
+    OD 40 mm, is limited at 210 mm on its centreline; the verdict, the terminal's path
+    summary, the solve's warnings and the viewer's all say 210 mm, none the datasheet's
+    190 mm as if it were the centreline's."""
+    from rich.console import Console
+
+    from pliant.assembly.checks import shape_warnings
+    from pliant.assembly.evaluate import centreline_bend_limit
+    from pliant.cli.report import print_path
+
+    ev = evaluate(parse_scene(_arc_scene("rubber hose", 0.19), "arc.toml"))
+    bend = next(c for c in ev.checks if c.rule == "bend radius")
+    part = ev.run.equilibria[0].problem.part
+    assert bend.red_at == pytest.approx(0.21) == centreline_bend_limit(part)
+    console = Console(width=200, record=True)
+    print_path(ev.run, part, console)
+    said = console.export_text()
+    assert "below the part's limit 210 mm (centreline)" in said and "190" not in said
+    (warning,) = shape_warnings(bend_radius=0.2, bend_at=0.5,
+                                allowed=centreline_bend_limit(part))
+    assert "limit 210.0 mm (centreline)" in warning
+    # A part with no kind: its minimum is taken as given, at the centreline.
+    assert centreline_bend_limit(pl.Part(1.0, 1.0, min_bend_radius=0.05)) == 0.05
+
+
+def test_round_off_in_a_demand_is_zero_and_real_small_values_stay():
+    """A twist nothing applies reads 0 deg, not 1e-14 (against the part's own twist
+    scale EI / GJ); a real one stays."""
+    from pliant.assembly.evaluate import series_check
+
+    tiny = series_check("t", "twist", "damage", [1.179e-14, 3e-15], "deg", "above", None,
+                        None, "s", "computed", scale=57.3)
+    assert tiny.value == 0.0 and tiny.sentence().startswith("twist: 0 deg")
+    real = series_check("t", "twist", "damage", [1.5e-3, 3e-15], "deg", "above", None,
+                        None, "s", "computed", scale=57.3)
+    assert real.value == 1.5e-3
+
+
+PUSHED = """
+name = "pushed onto its port"
+gravity = [0.0, 0.0, 0.0]
+[part]
+name = "line"
+length = 0.5
+bending_stiffness = 0.01
+outer_diameter = 0.01
+[solver]
+elements = 40
+[evaluation]
+connector_force = 60.0
+[[port]]
+name = "stub"
+position = [0.49, 0.0, 0.0]
+axis = [-1.0, 0.0, 0.0]
+[[condition]]
+name = "clamp"
+s = 0.0
+x = 0.0
+y = 0.0
+z = 0.0
+tangent = [1.0, 0.0, 0.0]
+normal = [0.0, 0.0, 1.0]
+[[condition]]
+name = "hand"
+s = 0.5
+x = 0.45
+y = 0.05
+z = 0.0
+tangent = [1.0, 0.0, 0.0]
+[path]
+grip = "hand"
+waypoints = [[0.49, 0.0, 0.0]]
+steps = 5
+"""
+
+
+def test_a_connector_push_is_labelled_a_push_onto_the_port_and_printed():
+    """The connector's own mating force pushes the part onto its port: the hand's axial
+    demand at that step is labelled so (not "pull", though it points along the part's
+    end), and the terminal prints the seating push with the connector's force, which
+    the path's peak at the grip leaves out."""
+    from rich.console import Console
+
+    from pliant.cli.evaluation_report import print_evaluation
+
+    ev = evaluate(parse_scene(PUSHED, "pushed.toml"), search=False)
+    seat = next(c for c in ev.checks if c.rule == "insertion")
+    grip_force = np.asarray(ev.run.equilibria[-1].loads["hand"].force)
+    assert seat.value == pytest.approx(60.0 + grip_force[0], rel=1e-9)  # along +x
+    palm = next(c for c in ev.chosen.checks if c.rule == "grip: palm push")
+    assert palm.step == len(ev.run.steps) - 1 and "(push onto the port)" in palm.title
+    console = Console(width=200, record=True)
+    print_evaluation(ev, console)
+    said = " ".join(console.export_text().split())
+    assert "seating: push along stub's axis at the last step" in said
+    assert "connector's own 60 N" in said

@@ -165,3 +165,23 @@ def test_a_part_resting_on_a_round_prop_reads_touching_where_it_touches():
     assert abs(report.smallest.clearance) < 1e-7
     assert report.smallest.s == where
     assert not report.penetrations
+
+
+@pytest.mark.parametrize(("gap", "shown"), [
+    (3e-6, 0.0),       # below what a sampled clearance resolves: touching, 0
+    (-5e-7, 0.0),      # within the contact's tolerance: touching, not inside
+    (5e-4, 5e-4),      # half a millimetre: as it is
+    (-2e-3, -2e-3),    # 2 mm inside: as it is, negative
+])
+def test_one_clearance_for_one_contact_touching_within_what_the_model_resolves(gap, shown):
+    """One number for one thing (issue 61): the interference report, which the terminal,
+    the page's verdict, the files and studies all read, shows a gap below what the
+    sampled clearance resolves as 0 (touching), and real gaps as they are: a straight
+    tube over a sphere, its distance worked by hand (R + r + gap at the top)."""
+    s, points = straight(R + r + gap, n=401)
+    report = interference_of_curve(s, points, r, [Obstacle.sphere("ball", R, (0, 0, 0))])
+    (c,) = report.clearances
+    if shown == 0.0:
+        assert c.clearance == 0.0
+    else:
+        assert c.clearance == pytest.approx(shown, abs=1e-9)

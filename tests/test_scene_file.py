@@ -256,8 +256,8 @@ def test_run_writes_its_records_with_their_units(tmp_path, capsys):
     record = json.loads((tmp_path / "out" / "s.json").read_text())
     assert record["schema_version"] == 1 and record["complete"]
     assert record["units"]["force"] == "N" and record["units"]["clearance"] == "m"
-    assert set(record["steps"][0]) - {"snap", "stable", "nearest", "contacts"} <= set(
-        record["units"])  # every number has its unit
+    assert set(record["steps"][0]) - {"snap", "stable", "nearest", "contacts", "notes"} <= set(
+        record["units"])  # every number has its unit (notes: the step's events, in words)
     # And on screen (rich once read "[mm]" and "[m]" as markup and dropped them).
     printed = " ".join(capsys.readouterr().out.split())
     for header in ("smallest clearance [mm]", "at s [m]", "x y z [m]"):

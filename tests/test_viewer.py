@@ -859,7 +859,7 @@ def test_the_page_the_cli_and_the_frames_warn_in_the_same_words(folder):
         frame = by_type(replies, "frame")[-1]
     finally:
         viewer.close()
-    assert accurate.ok and any("below the part's minimum 500.0 mm" in w
+    assert accurate.ok and any("below the part's limit 500.0 mm (centreline)" in w
                                for w in accurate.warnings)
     scene = load_scene(folder / "tight.toml")
     eq = rod3d.solve(scene.problem, solver=rod3d.RodSolver(elements=30))

@@ -193,15 +193,16 @@ def shape_warnings(*, bend_radius: float, bend_at: float, allowed: float | None,
     """The warnings of one shape, in plain words with their values and thresholds.
 
     bend_radius, bend_at : the smallest bend radius [m] and where [m]; allowed : the
-        part's minimum [m] (None: unchecked); stable, eigenvalue : the stability verdict
-        and smallest eigenvalue [N m] (None: undecided or not computed); penetrations :
-        spans (``obstacle``, ``s_start``, ``s_end``, ``worst`` [m], negative inside);
+        centreline limit [m] (``evaluate.centreline_bend_limit``; None: unchecked);
+        stable, eigenvalue : the stability verdict and smallest eigenvalue [N m] (None:
+        undecided or not computed); penetrations : spans (``obstacle``, ``s_start``,
+        ``s_end``, ``worst`` [m], negative inside);
         preview : the shape is the real-time model's.
     """
     out = []
     if allowed and math.isfinite(bend_radius) and bend_radius < allowed:
         out.append(f"bend radius {bend_radius * 1e3:.1f} mm at s = {bend_at:.3f} m is "
-                   f"below the part's minimum {allowed * 1e3:.1f} mm")
+                   f"below the part's limit {allowed * 1e3:.1f} mm (centreline)")
     if stable is False:
         detail = "" if eigenvalue is None else (
             f" (smallest stiffness eigenvalue {eigenvalue:.3g} N m)")

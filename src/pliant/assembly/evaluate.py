@@ -23,7 +23,7 @@ from __future__ import annotations
 import itertools
 import math
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Any
 
 import numpy as np
@@ -44,7 +44,7 @@ from pliant.assembly.checks import (
 from pliant.assembly.path import PathRun, StepRecord, follow_path
 from pliant.core.equilibrium import Result, stretch_summary
 from pliant.core.events import HeldRigid, WarmStartLost, has
-from pliant.core.numbers import clean, triple
+from pliant.core.numbers import ROUND_OFF, clean, triple
 from pliant.core.rules import Capacity, EvaluationSettings, PartKind, Rules
 from pliant.errors import InputError
 
@@ -108,7 +108,9 @@ class Check:
         if limit is not None and self.zone in (Zone.RED, Zone.YELLOW):
             word = "above" if self.worse == "above" else "below"
             against = f" ({word} {_fmt(limit, self.unit)})"
-        text = f"{self.title}: {_fmt(self.value, self.unit)}{against}"
+        # a check without a value (a file's warning) is its words alone
+        text = self.title if math.isnan(self.value) else (
+            f"{self.title}: {_fmt(self.value, self.unit)}{against}")
         if where:
             text += ", " + ", ".join(where)
         if with_step and len(self.red_steps) + len(self.yellow_steps) > 1:
@@ -155,10 +157,16 @@ def series_check(rule: str, title: str, family: str, values: list[float], unit: 
                  worse: str, yellow_at: float | None, red_at: float | None, source: str,
                  provenance: str, *, grip: str | None = None,
                  where: Sequence[float | None] | None = None, unscored_below: float = 0.0,
-                 note: str = "", steps: list[int] | None = None) -> Check:
+                 note: str = "", steps: list[int] | None = None, scale: float = 0.0) -> Check:
     """A rule applied at each step's value, reported at the worst step (the highest
-    zone, then the worst value)."""
+    zone, then the worst value); a demand's round-off (below ``ROUND_OFF`` of the
+    largest of its values, its limits and ``scale``, a physical one) is 0."""
     steps = list(range(len(values))) if steps is None else steps
+    if worse == "above":  # a demand's round-off is 0 (against its limits and its series)
+        finite = [abs(v) for v in values if math.isfinite(v)]
+        scale = max([*finite, abs(yellow_at or 0.0), abs(red_at or 0.0), scale])
+        values = [0.0 if math.isfinite(v) and abs(v) <= ROUND_OFF * scale else float(v)
+                  for v in values]
     zones = [zone_of(v, yellow_at, red_at, worse, unscored_below) for v in values]
     if not values:
         return Check(rule, title, family, math.nan, unit, Zone.UNCHECKED, worse, yellow_at,
@@ -193,6 +201,7 @@ class GripStep:
     moment: tuple[float, float, float]
     tangent: tuple[float, float, float]
     s: float
+    onto_port: bool = False  # the step that seats the part: its push goes onto the port
 
 
 def tangent_at(eq: Result, s: float) -> np.ndarray:
@@ -217,8 +226,11 @@ def grip_step(eq: Result, name: str, extra_push: float = 0.0,
     if extra_push and push_axis is not None:
         force = force + extra_push * push_axis
     moment = np.array(load.moment, float)
+    # Seating: a force along the arrival pushes the part onto the port (its end's
+    # outward tangent is the arrival there), though along the part it reads as a pull.
+    onto = push_axis is not None and float(np.dot(force, push_axis)) > 0.0
     return GripStep(split_wrench(force, moment, tangent, outward),
-                    triple(force), triple(moment), triple(tangent), float(load.s))
+                    triple(force), triple(moment), triple(tangent), float(load.s), onto)
 
 
 def hand_rows(rules: Rules, settings: EvaluationSettings, hold: str,
@@ -249,7 +261,8 @@ def hand_checks(name: str, steps: list[GripStep], rows: list[Capacity], friction
         title = f"{row.title} at {name}"
         if row.demand == "axial" and steps:
             k = int(np.argmax([abs(g.wrench.axial) for g in steps]))
-            title += " (push)" if steps[k].wrench.axial < 0 else " (pull)"
+            title += (" (push onto the port)" if steps[k].onto_port else
+                      " (push)" if steps[k].wrench.axial < 0 else " (pull)")
         out.append(series_check(
             f"grip: {row.id}", title, "ergonomics", values, row.unit, "above", row.green,
             row.yellow, row.sourced.source, row.sourced.provenance, grip=name,
@@ -397,7 +410,7 @@ def evaluate(scene: Any, *, rules: Rules | None = None, run: PathRun | None = No
     ``follow_path``)."""
     rules, grips, port = prepare(scene, rules)
     if run is None:
-        run = follow_path(scene.problem, scene.path, scene.grip or grips[0],
+        run = follow_path(scene.problem, scene.path, scene.grip or _recorded(scene, grips),
                           margin=scene.margin, elements=elements or scene.solver.elements,
                           on_step=on_step, start_from=start_from)
     if not run.steps:
@@ -413,16 +426,15 @@ def evaluate_pose(scene: Any, pose: Any, clearances: dict[str, float], *,
     without the second-hand search (it would take tens of solves). ``clearances``: the
     smallest clearance [m] to each obstacle, by name; ``grips`` the conditions a hand
     holds (default: as ``evaluate`` finds them)."""
-    from dataclasses import replace  # noqa: PLC0415
-
     scene = replace(scene, path=[], problem=pose.problem)
     if grips is not None and not scene.evaluation.grips:
         scene = replace(scene, evaluation=replace(scene.evaluation, grips=tuple(grips)))
     rules, grips, port = prepare(scene, rules)
+    recorded = _recorded(scene, grips)
     radius, at = pose.min_bend_radius if isinstance(pose.min_bend_radius, tuple) else (
         pose.min_bend_radius())
     nearest = min(clearances.items(), key=lambda kv: kv[1], default=("", math.inf))
-    grip = pose.loads[grips[0]]
+    grip = pose.loads[recorded]
     record = StepRecord(
         progress=0.0, grip_position=(0.0, 0.0, 0.0), force=triple(grip.force),
         moment=triple(grip.moment), clearance=float(nearest[1]),
@@ -430,7 +442,7 @@ def evaluate_pose(scene: Any, pose: Any, clearances: dict[str, float], *,
         contact_force=0.0, bend_radius=float(radius), bend_at=float(at),
         stable=pose.stable, snap=has(pose.notes, WarmStartLost), seconds=0.0,
         clearances=tuple(clearances.items()))
-    run = PathRun(grip=grips[0], margin=scene.margin, steps=[record], final=pose,
+    run = PathRun(grip=recorded, margin=scene.margin, steps=[record], final=pose,
                   equilibria=[pose], problems=[pose.problem])
     return _judge(scene, run, rules, grips, port, None, False)
 
@@ -459,7 +471,8 @@ def _judge(scene: Any, run: PathRun, rules: Rules, grips: tuple[str, ...], port:
     last = len(eqs) - 1
     push_axis = None if port is None else _arrival(port)
     grip_steps = {g: [grip_step(eq, g, settings.connector_force if k == last and g == grips[0]
-                                else 0.0, push_axis) for k, eq in enumerate(eqs)]
+                                else 0.0, push_axis if k == last and g == grips[0] else None)
+                      for k, eq in enumerate(eqs)]
                   for g in grips}
     checks = _part_checks(scene, run, rules, kind, settings, port, grips, grip_steps)
     operators = _operators(scene, run, rules, settings, grips, grip_steps, elements, search)
@@ -478,13 +491,19 @@ def _grips(scene: Any, settings: EvaluationSettings) -> tuple[str, ...]:
                                  f"{', '.join(names)}")
         return tuple(settings.grips)
     if scene.grip:
-        return (scene.grip,)
-    held = tuple(c.name for c in scene.problem.conditions
-                 if c.name not in scene.fixed and not c.loads_only)
-    if not held:
-        raise InputError("evaluation.grips", "no condition is held by a hand; name the "
-                         "grips in [evaluation] grips = [...]")
-    return held
+        return (scene.grip, *(h for h in scene.hands if h != scene.grip))
+    # Without a path, only the conditions declared held by a hand are hands: a part
+    # clamped at both ends is judged in its clamps, not as held by a hand at each.
+    return tuple(scene.hands)
+
+
+def _recorded(scene: Any, grips: tuple[str, ...]) -> str:
+    """The condition whose wrench a step records: the first hand's, else (a part in its
+    clamps) the first condition that holds the part."""
+    if grips:
+        return grips[0]
+    return next((c.name for c in scene.problem.conditions if not c.loads_only),
+                scene.problem.conditions[0].name)
 
 
 def _goal_port(scene: Any, settings: EvaluationSettings, grips: tuple[str, ...]) -> Any:
@@ -517,6 +536,10 @@ def _part_checks(scene: Any, run: PathRun, rules: Rules, kind: PartKind | None,
     held = _held_rigid_check(run)
     if held is not None:
         checks.append(held)
+    # What the file's reader warned of (a stiffness its material alone does not give)
+    # stands beside the verdict in every output, not on the terminal only.
+    checks += [Check("file warning", w, "solve", math.nan, "", Zone.UNCHECKED, "above", None,
+                     None, "the scene file", "user") for w in scene.warnings]
     residual = max(eq.residual for eq in eqs)
     checks.append(Check("residual", "largest relative residual of the steps", "solve",
                         residual, "", Zone.INFO, "above", None, None,
@@ -528,7 +551,7 @@ def _part_checks(scene: Any, run: PathRun, rules: Rules, kind: PartKind | None,
     checks.append(_stability_check(run))
     checks += _interference_checks(run, scene)
     checks += _contact_checks(run, settings)
-    if port is not None:
+    if port is not None and grips:
         g = grip_steps[grips[0]][-1]
         push = float(np.dot(g.force, _arrival(port)))
         note = ("the hand pushes the part onto the port" if push > 0 else
@@ -577,6 +600,22 @@ def bend_limit(part: Any, kind: PartKind | None) -> tuple[float | None, str, str
     return None, why, "", ""
 
 
+def centreline_bend_limit(part: Any, rules: Rules | None = None) -> float | None:
+    """The one bend limit [m] every output compares the centreline radius with: the one
+    the verdict uses (``bend_limit``: a datasheet's inside radius plus OD / 2, a kind's
+    fallback), by ``rules`` (default the bundled table); None where none is known. A
+    kind the table does not know takes the part's minimum as given."""
+    if rules is None:
+        from pliant.io.rules_file import bundled_rules  # noqa: PLC0415 (pydantic: on demand)
+
+        rules = bundled_rules()
+    try:
+        kind = rules.kind(part.kind)
+    except InputError:
+        return part.min_bend_radius
+    return bend_limit(part, kind)[0]
+
+
 def _bend_checks(run: PathRun, part: Any, kind: PartKind | None, rules: Rules, scene: Any,
                  grips: tuple[str, ...], port: Any) -> list[Check]:
     limit, how, source, provenance = bend_limit(part, kind)
@@ -598,7 +637,7 @@ def _bend_checks(run: PathRun, part: Any, kind: PartKind | None, rules: Rules, s
     straight = rules.fitting_straight * limit
     for k, eq in enumerate(run.equilibria):
         stations = [c.s for c in fixed]
-        if port is not None and k == len(run.equilibria) - 1:
+        if port is not None and grips and k == len(run.equilibria) - 1:
             stations.append(eq.loads[grips[0]].s)
         if not stations:
             continue
@@ -654,10 +693,13 @@ def _twist_checks(run: PathRun, part: Any, kind: PartKind | None, rules: Rules,
     if len(held) < 2:
         return []
     out = []
+    # The twist a torque of the part's moment scale EI / L gives over its length: what
+    # round-off in an angle [deg] is measured against.
+    turn = math.degrees(part.bending_stiffness / gj)
     if kind is not None and kind.hose:
         last = len(eqs) - 1
         fittings = sorted({c.s for c in scene.problem.conditions if c.name in scene.fixed}
-                          | ({eqs[-1].loads[grips[0]].s} if scene.path else set(held)))
+                          | ({eqs[-1].loads[run.grip].s} if scene.path else set(held)))
         spans = list(itertools.pairwise(fittings))
         if spans:
             twist = max((math.degrees(twist_angle(eqs[-1].s, eqs[-1].torque, gj, a, b))
@@ -665,13 +707,13 @@ def _twist_checks(run: PathRun, part: Any, kind: PartKind | None, rules: Rules,
             out.append(series_check("twist", "twist between the fittings, installed",
                                     "damage", [abs(twist)], "deg", "above",
                                     rules.twist_yellow, rules.twist_red, rules.twist.source,
-                                    rules.twist.provenance, steps=[last]))
+                                    rules.twist.provenance, steps=[last], scale=turn))
         angles = [abs(math.degrees(twist_angle(eq.s, eq.torque, gj, held[0], held[-1])))
                   for eq in eqs]
         out.append(series_check("twist along the path", "twist between the held ends",
                                 "damage", angles, "deg", "above", None, None,
                                 rules.twist.source, "computed",
-                                note="while handled; judged only installed"))
+                                note="while handled; judged only installed", scale=turn))
         return out
     limit = settings.max_twist_rate
     rates = [twist_rate(eq, gj) for eq in eqs]
@@ -679,7 +721,8 @@ def _twist_checks(run: PathRun, part: Any, kind: PartKind | None, rules: Rules,
                          "above", None if limit is None else 0.8 * limit, limit,
                          "the user's torsion rating" if limit else "no torsion rating given",
                          "user" if limit else "computed",
-                         note="" if limit else "give [evaluation] max_twist_rate to judge it")]
+                         note="" if limit else "give [evaluation] max_twist_rate to judge it",
+                         scale=turn / part.length)]
 
 
 def stretch_checks(run: PathRun, part: Any, rules: Rules) -> list[Check]:
@@ -778,6 +821,9 @@ def _contact_checks(run: PathRun, settings: EvaluationSettings) -> list[Check]:
 def _operators(scene: Any, run: PathRun, rules: Rules, settings: EvaluationSettings,
                grips: tuple[str, ...], grip_steps: dict[str, list[GripStep]],
                elements: int | None, search: bool) -> list[OperatorResult]:
+    if not grips:  # the part in its clamps: nothing for a hand to do
+        return [OperatorResult("no hand", _clamp_checks(scene, run),
+                               "no hand: the part in its clamps")]
     friction = rules.hand_friction
     wanted = settings.operator
     out: list[OperatorResult] = []
@@ -797,6 +843,28 @@ def _operators(scene: Any, run: PathRun, rules: Rules, settings: EvaluationSetti
                                   f"{settings.rating_force:g} N"))
     elif wanted == "auto" and all(o.zone == Zone.RED for o in out):
         out.append(_tool_needed(rules, settings, grips, grip_steps))
+    return out
+
+
+def _clamp_checks(scene: Any, run: PathRun) -> list[Check]:
+    """The force and moment each clamp (every condition that holds the part) takes, at
+    the worst step: reported, not judged (a clamp's rating is its datasheet's)."""
+    out = []
+    part = scene.problem.part
+    scales = {"force": part.bending_stiffness / part.length**2,
+              "moment": part.bending_stiffness / part.length}
+    for c in scene.problem.conditions:
+        if c.loads_only:
+            continue
+        for what, unit, attr in (("force", "N", "force"), ("moment", "N m", "moment")):
+            values = [float(np.linalg.norm(getattr(eq.loads[c.name], attr)))
+                      for eq in run.equilibria]
+            check = series_check(f"clamp {what}: {c.name}", f"{what} at {c.name}",
+                                 "ergonomics", values, unit, "above", None, None,
+                                 "the accurate model (the clamp's reaction)", "computed",
+                                 grip=c.name, note="compare it with the clamp's rating",
+                                 scale=scales[attr])
+            out.append(replace(check, zone=Zone.INFO))
     return out
 
 
@@ -870,6 +938,8 @@ def _verdict(run: PathRun, checks: list[Check],
     elif chosen is None:
         headline = ("FITS, BUT NO OPERATOR TRIED CAN DO IT: "
                     + ", ".join(f"{o.operator} is red" for o in operators))
+    elif chosen.operator == "no hand":
+        headline = "FITS in its clamps (no hand holds it)"
     else:
         headline = f"FITS with {chosen.summary}"
         tried = [o.operator for o in operators if not o.passes]

@@ -443,6 +443,9 @@ class Planner:
         self.settings = settings or PlanSettings()
         rules, grips, _ = prepare(scene, rules)
         self.rules = rules
+        if grip is None and not grips:
+            raise InputError("plan.grip", "no condition is held by a hand: give [path] grip, "
+                             "or hand = true on the [[condition]] to carry")
         self.grip = grip or grips[0]
         names = [c.name for c in scene.problem.conditions]
         if self.grip not in names:

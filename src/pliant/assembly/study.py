@@ -126,7 +126,7 @@ def evaluate_samples(spec: StudySpec, rows: list[tuple[int, list[float]]]
 
 def _record(ev: Any, voxel: float) -> tuple[dict[str, Any], np.ndarray]:
     run = ev.run
-    grip = ev.grips[0]
+    grip = ev.run.grip  # the hand's (or, a part in its clamps, the first clamp's)
     forces = [float(np.linalg.norm(eq.loads[grip].force)) for eq in run.equilibria]
     moments = [float(np.linalg.norm(eq.loads[grip].moment)) for eq in run.equilibria]
     nearest = min(run.steps, key=lambda r: r.clearance)

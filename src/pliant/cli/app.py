@@ -340,7 +340,9 @@ def run_scene(file: Path, out: Path, elements: int | None) -> None:
     record = {"schema_version": 1, "units": STEP_UNITS, **result.to_dict()}
     atomic_write(report, lambda h: h.write(_json.dumps(finite(record), indent=1).encode()),
                  "the report")
-    plot = plot_path(result, out / f"{stem}.png", problem.part.min_bend_radius)
+    from pliant.assembly.evaluate import centreline_bend_limit  # noqa: PLC0415
+
+    plot = plot_path(result, out / f"{stem}.png", centreline_bend_limit(problem.part))
     glb = export_scene(result.final, out / f"{stem}.glb")
     console.print(f"written: {report}, {plot}, {glb} (the last pose with the obstacles)")
 
@@ -416,7 +418,7 @@ def _evaluate_scene(file: Path, report: Path | None, json_out: Path | None,
         scene, rules=rules, elements=elements, on_step=step))
     from pliant.cli.report import print_path  # noqa: PLC0415
 
-    print_path(ev.run, problem.part, console)
+    print_path(ev.run, problem.part, console, rules=rules)
     print_evaluation(ev, console)
     written = []
     if json_out is not None:
@@ -426,11 +428,12 @@ def _evaluate_scene(file: Path, report: Path | None, json_out: Path | None,
     if report is not None:
         written.append(write_html(ev, report))
     if pictures is not None:
+        from pliant.assembly.evaluate import centreline_bend_limit  # noqa: PLC0415
         from pliant.cli.plot import plot_path  # noqa: PLC0415
         from pliant.io.mesh_export import export_scene  # noqa: PLC0415
 
         written.append(plot_path(ev.run, pictures.with_suffix(".png"),
-                                 problem.part.min_bend_radius))
+                                 centreline_bend_limit(problem.part, rules)))
         written.append(export_scene(ev.run.final, pictures.with_suffix(".glb")))
     if written:
         console.print("written: " + ", ".join(str(w) for w in written))

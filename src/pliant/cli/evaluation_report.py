@@ -17,10 +17,12 @@ from typing import Any
 
 import numpy as np
 from rich.console import Console
+from rich.markup import escape
 from rich.table import Table
 
 from pliant.assembly.checks import Zone
 from pliant.io.atomic import atomic_write
+from pliant.io.evaluation_file import column_unit
 
 COLOURS = {"green": "#1b7f3b", "yellow": "#b07d00", "red": "#c0262d", "unchecked": "#6b6b6b",
            "info": "#3d5a80"}
@@ -32,6 +34,11 @@ RICH = {"green": "green", "yellow": "yellow", "red": "bold red", "unchecked": "d
 def print_evaluation(ev: Any, console: Console | None = None) -> None:
     """The verdict, the operators tried and the red, yellow and unchecked items."""
     console = console or Console()
+    # The push that seats the part (its connector's own force included): the path's
+    # peak above is the grip's alone.
+    for c in ev.checks:
+        if c.rule == "insertion":
+            console.print(f"seating: {escape(c.sentence())}")
     v = ev.verdict
     style = "bold green" if v.passes else "bold red" if v.decided else "bold yellow"
     console.print(f"[{style}]{v.headline}[/{style}]")
@@ -109,7 +116,8 @@ def figures(ev: Any) -> list[tuple[str, str]]:
         force, moment = axes[0]
         for part, colour in (("axial", "tab:blue"), ("lateral", "tab:orange")):
             force.plot(steps, [r[f"{g} {part}"] for r in table], color=colour,
-                       label=f"{part} ({'pull +' if part == 'axial' else '|.|'})")
+                       label=("axial (+: a pull along the part; at the port, a push "
+                              "onto it)" if part == "axial" else "lateral |.|"))
         _limits(force, grip_checks.get(("grip: palm push", g)))
         force.set_ylabel("force [N]")
         force.set_title(f"force at {g}", fontsize=10)
@@ -128,22 +136,30 @@ def figures(ev: Any) -> list[tuple[str, str]]:
     if obstacles:
         fig, axes = _figure(plt)
         ax = axes[0][0]
+        clipped = False
         for name in obstacles:
             values = np.array([r[f"clearance {name}"] for r in table], float) * 1e3
-            ax.plot(steps, np.clip(values, -50, 300), label=name)
+            shown = np.clip(values, -50, 300)
+            clipped |= bool(np.any(shown != values))
+            ax.plot(steps, shown, label=name)
         margin = ev.run.margin * 1e3
         if margin:
             ax.axhline(margin, color=COLOURS["yellow"], ls="--", lw=1, label="margin")
         ax.axhline(0.0, color=COLOURS["red"], lw=1)
-        ax.set_ylabel("clearance [mm]")
+        # Where a curve leaves the axis it is drawn at its edge, and the axis says so.
+        ax.set_ylabel("clearance [mm]" + (" (clipped to -50...300)" if clipped else ""))
         ax.set_xlabel("step")
         ax.grid(alpha=0.3)
         ax.legend(fontsize=8, ncol=3)
-        out.append(("Clearance to each obstacle", inline_svg(fig, plt)))
+        out.append(("Clearance to each obstacle" + (
+            " (drawn from -50 to 300 mm: values beyond lie on the edge)" if clipped else ""),
+            inline_svg(fig, plt)))
     fig, axes = _figure(plt, 1, 2)
     bend, twist = axes[0]
+    straight = any(r["bend radius"] > 10.0 for r in table)
     bend.plot(steps, [min(r["bend radius"], 10.0) * 1e3 for r in table], color="tab:brown",
-              label="smallest bend radius")
+              label="smallest bend radius" + (" (10 m and over drawn at 10 m)" if straight
+                                              else ""))
     _limits(bend, by_rule.get("bend radius"), 1e3)
     bend.set_ylabel("radius [mm]")
     bend.set_title("bend radius (centreline)", fontsize=10)
@@ -269,6 +285,18 @@ def _num(value: Any, unit: str = "") -> str:
     return html.escape(str(value))
 
 
+def _cell(value: Any, column: str, unit: str) -> str:
+    """A step table's cell under its header's unit: lengths in mm, a clearance of 0 as
+    touching."""
+    if unit == "m" and isinstance(value, float) and math.isfinite(value):
+        if column.startswith("clearance") and value == 0.0:
+            return "0 (touching)"
+        return f"{value * 1e3:.4g}"
+    if isinstance(value, float) and math.isfinite(value):
+        return f"{value:.4g}"
+    return _num(value)
+
+
 def render_html(ev: Any) -> str:
     """The report as one HTML document."""
     from pliant import __version__  # noqa: PLC0415
@@ -330,19 +358,20 @@ def render_html(ev: Any) -> str:
     parts.append("<h2>Every step</h2><details><summary>the table (also in the CSV)</summary>"
                  "<div class=scroll><table><tr>")
     columns = list(ev.table[0]) if ev.table else []
-    parts += [f"<th>{e(c)}</th>" for c in columns]
+    units = {c: column_unit(c) for c in columns}  # the CSV's, lengths shown in mm
+    shown = {c: f" [{'mm' if u == 'm' else u}]" if u else "" for c, u in units.items()}
+    parts += [f"<th>{e(c)}{shown[c]}</th>" for c in columns]
     parts.append("</tr>")
-    metres = ("bend r", "clearance")  # the columns in metres
     for row in ev.table:
-        cells = "".join(
-            f"<td class=num>{_num(row.get(c), 'm' if c.startswith(metres) else '')}</td>"
-            for c in columns)
+        cells = "".join(f"<td class=num>{_cell(row.get(c), c, units[c])}</td>"
+                        for c in columns)
         parts.append(f"<tr>{cells}</tr>")
     parts.append("</table></div></details>")
     if ev.run.stopped:
         parts.append(f"<p><b>Stopped:</b> {e(ev.run.stopped)}</p>")
     parts.append("<p class=src>Forces are those the grip applies to the part, global frame; "
-                 "axial is the pull along the part's tangent at the grip (push negative). "
+                 "axial is the pull along the part's tangent at the grip (push negative; at "
+                 "the step that seats the part, a positive axial is the push onto the port). "
                  "Zones after EN 1005-3's risk multiplier; every threshold names its source "
                  "and can be replaced by your own table (<code>--rules</code>).</p>")
     parts.append("</main></body></html>")

@@ -189,7 +189,8 @@ def plot_path(run, path: str | Path, min_bend_radius: float | None = None) -> Pa
     clearance.legend(loc="best")
     bend.plot(progress, [r.bend_radius * 1e3 for r in steps], color="tab:brown")
     if min_bend_radius is not None:
-        bend.axhline(min_bend_radius * 1e3, color="tab:red", ls="--", label="part's minimum")
+        bend.axhline(min_bend_radius * 1e3, color="tab:red", ls="--",
+                     label="the part's limit (centreline)")
         bend.legend(loc="best")
     bend.set_ylabel("smallest bend radius [mm]")
     for ax in (clearance, bend):

@@ -72,7 +72,8 @@ def print_summary(eq: Result, seconds: float, console: Console | None = None,
     radius, at = eq.min_bend_radius()
     stable, eigen = eq.stability
     for warning in shape_warnings(bend_radius=radius, bend_at=at,
-                                  allowed=eq.problem.part.min_bend_radius, stable=stable,
+                                  allowed=_bend_limit(eq.problem.part),
+                                  stable=stable,
                                   eigenvalue=eigen,
                                   penetrations=() if report is None else report.penetrations):
         console.print(f"[red]warning[/red]: {escape(warning)}")
@@ -155,10 +156,10 @@ def _bend_radius_line(eq: Result) -> str:
     """The smallest bend radius, where, and against the part's minimum."""
     radius, at = eq.min_bend_radius()
     line = f"smallest bend radius = {_fmt(radius, 'm')} at s = {at:.4g} m"
-    allowed = eq.problem.part.min_bend_radius
+    allowed = _bend_limit(eq.problem.part)
     if allowed is not None:
         verdict = "[red]below[/red]" if radius < allowed else "above"
-        line += f" ({verdict} the part's minimum {allowed:g} m)"
+        line += f" ({verdict} the part's limit {_fmt(allowed, 'm')}, centreline)"
     return line
 
 
@@ -267,15 +268,24 @@ def print_interference(report: Any, console: Console | None = None) -> None:
                       f"{max(span.worst, 0.0) * 1e3:.2f} mm at s = {span.s_worst:.4g} m)")
 
 
-def print_path(run: Any, part: Any, console: Console | None = None, rows: int = 12) -> None:
-    """A manipulation's record (about ``rows`` steps) and its verdict."""
+def _bend_limit(part: Any, rules: Any = None) -> float | None:
+    """The verdict's own bend limit [m] (``evaluate.centreline_bend_limit``)."""
+    from pliant.assembly.evaluate import centreline_bend_limit  # noqa: PLC0415 (the rules)
+
+    return centreline_bend_limit(part, rules)
+
+
+def print_path(run: Any, part: Any, console: Console | None = None, rows: int = 12,
+               rules: Any = None) -> None:
+    """A manipulation's record (about ``rows`` steps) and its verdict; the bend limit by
+    ``rules`` (the scene's; default the bundled table)."""
     console = console or Console()
     # 80 columns: light rules, headers on two lines with their units, numbers right-aligned
     # and never wrapped, the obstacle's name cut to fit (the clearance table has it whole).
     pose = run.planned == 0  # a scene without a [path]: its one pose
-    table = Table(title="the pose: the grip's force and moment" if pose else
+    table = Table(title=f"the pose: the force and moment at {run.grip}" if pose else
                   f"along the path: {len(run.steps) - 1} of {count(run.planned, 'step')} "
-                  "solved; the grip's force and moment",
+                  f"solved; the force and moment at {run.grip}",
                   title_justify="left", box=box.SIMPLE_HEAD, pad_edge=False,
                   collapse_padding=True)
     for column, width in (("step", 4), (f"{run.grip}\nx y z [m]", 16), ("|F|\n[N]", 4),
@@ -307,9 +317,10 @@ def print_path(run: Any, part: Any, console: Console | None = None, rows: int = 
     line = (f"tightest bend: radius {tightest.bend_radius * 1e3:.1f} mm at s = "
             f"{tightest.bend_at:.3g} m" + ("" if pose else
                                            f" (progress {tightest.progress:.0%})"))
-    if part.min_bend_radius is not None:
-        line += (" [red]below[/red]" if tightest.bend_radius < part.min_bend_radius
-                 else " above") + f" the part's minimum {part.min_bend_radius * 1e3:g} mm"
+    limit = _bend_limit(part, rules)
+    if limit is not None:
+        line += (" [red]below[/red]" if tightest.bend_radius < limit
+                 else " above") + f" the part's limit {limit * 1e3:.3g} mm (centreline)"
     console.print(line)
     touching = [k for k, r in enumerate(run.steps) if r.contacts]
     inside = [k for k, r in enumerate(run.steps) if r.clearance < -1e-6]

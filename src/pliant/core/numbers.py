@@ -13,6 +13,18 @@ from collections.abc import Iterable
 
 ROUND_OFF = 1e-9
 
+# What a clearance resolves [m]: it is sampled on chords of the discretised neutral line,
+# which over a curved obstacle beside a contact read a micrometre or two; a gap below
+# this is touching, shown as 0 everywhere (the terminal, the page, the files, studies).
+TOUCHING = 1e-5
+
+
+def shown_clearance(gap: float, allowed: float = 0.0) -> float:
+    """A clearance [m] as every output shows it: 0 (touching) from ``-allowed`` (the
+    overlap the contact model allows) up to ``TOUCHING``, else as it is (negative:
+    inside the obstacle)."""
+    return 0.0 if -allowed <= gap < TOUCHING else float(gap)
+
 
 def clean(values: Iterable[float], scale: float = 0.0) -> list[float]:
     """The components as floats, those below ROUND_OFF of max(|vector|, scale) as 0."""

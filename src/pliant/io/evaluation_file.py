@@ -120,16 +120,22 @@ def write_csv(evaluation: Any, path: str | Path) -> Path:
 
 
 def _with_unit(column: str) -> str:
+    unit = column_unit(column)
+    return f"{column} [{unit}]" if unit else column
+
+
+def column_unit(column: str) -> str:
+    """The SI unit of a column of ``Evaluation.table`` ("" where it has none)."""
     last = column.rsplit(" ", 1)[-1]
     if last in ("Fx", "Fy", "Fz", "axial", "lateral") or column == "contact force":
-        return f"{column} [N]"
+        return "N"
     if last in ("Mx", "My", "Mz", "twist", "bending"):
-        return f"{column} [N m]"
+        return "N m"
     if column.startswith(("bend", "clearance")):
-        return f"{column} [m]"
+        return "m"
     if column == "twist rate":
-        return f"{column} [deg/m]"
-    return column
+        return "deg/m"
+    return ""
 
 
 def schema() -> dict[str, Any]:

@@ -180,6 +180,9 @@ class ConditionModel(_Strict):
     follower_moment: Vec3 | None = Field(None, description="follower moment in the section "
                                                            "frame (d1, d2, d3) [N m] (3D)")
     port: str | None = Field(None, description="at a [[port]]: its position and axis")
+    hand: bool = Field(False, description="a hand holds the part here: the evaluation "
+                       "judges it against hand capacities (a [path]'s grip always is one; "
+                       "without either, the part is judged in its clamps)")
     note: str = ""
 
     @model_validator(mode="after")
@@ -494,7 +497,8 @@ class Scene:
     the manipulation along its [path] (its steps, made by ``pliant.assembly`` from
     ``path_spec`` as the scene is loaded; empty without one) and the condition it
     carries (``grip``, None without a path), the clearance margin, ``fixed``: the conditions
-    a user does not move (at ports, and clips), how it is judged (``evaluation``) and
+    a user does not move (at ports, and clips), ``hands``: those a hand holds (the grip
+    besides), how it is judged (``evaluation``) and
     how a path for it is planned (``plan``)."""
 
     problem: Problem
@@ -508,12 +512,17 @@ class Scene:
     plan: PlanSettings = field(default_factory=PlanSettings)
     warnings: tuple[str, ...] = ()
     path_spec: PathSpec | None = None  # the [path] as given
+    hands: tuple[str, ...] = ()  # the conditions a hand holds (``hand = true``)
 
 
 # Part kinds whose bending stiffness a solid section of their material does not give.
 SECTION_MISLEADS = {
     "reinforced hose": "its braided or spiral plies make it many times stiffer in bending "
                        "than its rubber",
+    "coolant hose": "a coolant hose is plied (textile or aramid layers in its rubber), which "
+                    "makes it stiffer in bending than its rubber alone",
+    "metal hose": "its corrugations and braid make it far softer in bending than a solid "
+                  "tube of its metal",
     "multi-core cable": "its strands slide on each other, so it is far softer than a solid "
                         "section of its material",
     "coax": "its braid and dielectric do not bend as one solid section",
@@ -603,7 +612,9 @@ def scene_from_data(data: dict[str, Any], source: str = "<data>", base: Path | N
                            if c.port is not None) + tuple(c.name for c in model.clip),
                      model.evaluation.build(base), model.plan.build(),
                      _warnings(model, problem.part),
-                     model.path.build() if model.path is not None else None)
+                     model.path.build() if model.path is not None else None,
+                     tuple(c.name or f"condition{i + 1}" for i, c in enumerate(model.condition)
+                           if c.hand))
     except PliantError as err:
         raise FileFormatError(f"{source}: {err}") from None
 

@@ -20,7 +20,7 @@ from typing import Any
 import numpy as np
 
 from pliant.core.equilibrium import Equilibrium3D, Result
-from pliant.core.numbers import triple
+from pliant.core.numbers import shown_clearance, triple
 from pliant.core.problem import PROBE_SAG, WALL_COMPLIANCE
 from pliant.errors import InputError
 from pliant.scene.distance import Obstacle, field_of
@@ -122,8 +122,8 @@ def of_curve(s: np.ndarray, points: np.ndarray, radius: float,
             d, _ = field.query_one(k, dense, band=band)
         gap = d - radius
         k = int(np.argmin(gap))
-        clearances.append(Clearance(obstacle.name, float(gap[k]), float(ds[k]),
-                                    triple(dense[k])))
+        clearances.append(Clearance(obstacle.name, shown_clearance(float(gap[k]), deep),
+                                    float(ds[k]), triple(dense[k])))
         penetrations += _spans(obstacle.name, ds, gap, gap < -deep)
         too_close += _spans(obstacle.name, ds, gap, (gap >= -deep) & (gap < margin))
     return Interference(margin, tolerance, tuple(clearances), tuple(penetrations),

@@ -13,7 +13,7 @@ import math
 import os
 from collections.abc import Callable
 from pathlib import Path
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 from pydantic import BaseModel, ConfigDict, ValidationError
@@ -104,6 +104,7 @@ class ViewerState:
         self.original = {c.name: c for c in problem.conditions}
         self.modes = {c.name: grips.grip_mode(c, scene.fixed) for c in problem.conditions}
         self.radius = problem.part.drawn_radius
+        self.bend_limit = _bend_limit(scene)
         self._published = len(session.solves)
         self._searched = len(session.searches)
         self._meshes: list[P.ObstacleMesh] | None = None
@@ -309,7 +310,7 @@ class ViewerState:
             name=problem.name or self.path.stem, file=str(self.path.relative_to(self.root)),
             dimension=problem.dimension,
             part={"name": part.name, "length": part.length, "radius": self.radius,
-                  "min_bend_radius": part.min_bend_radius},
+                  "min_bend_radius": self.bend_limit},
             obstacles=self._meshes, grips=self.grips(), margin=self.scene.margin,
             envelopes=self.envelopes, path=self.path_play(),
             ports=[P.Port(name=name, position=[float(x) for x in port.position],
@@ -364,7 +365,7 @@ class ViewerState:
         fitted = getattr(result, "fitted", {})
         interference = self._interference(result.s, position, fitted)
         radius, s_radius = result.min_bend_radius
-        allowed = self.session.problem.part.min_bend_radius
+        allowed = self.bend_limit
         warnings = shape_warnings(bend_radius=radius, bend_at=s_radius, allowed=allowed,
                                   stable=result.stable, eigenvalue=result.smallest_eigenvalue,
                                   penetrations=interference.penetrations)
@@ -417,7 +418,7 @@ class ViewerState:
         tightest = 1.0 / curvature[i] if curvature.size and curvature[i] > 0 else np.inf
         warnings = shape_warnings(
             bend_radius=float(tightest), bend_at=float(s[i]) if s.size else 0.0,
-            allowed=self.session.problem.part.min_bend_radius,
+            allowed=self.bend_limit,
             penetrations=interference.penetrations, preview=True)
         return P.ServerFrame(
             seq=seq, index=frame.index, s=s.tolist(), curve=np.round(curve, 7).tolist(),
@@ -498,3 +499,15 @@ def _span(span) -> P.Span:
                   worst=span.worst)
 
 
+def _bend_limit(scene: Any) -> float | None:
+    """The part's centreline bend limit by the scene's rules: the one its verdict uses
+    (``evaluate.centreline_bend_limit``); the part's minimum where the rules cannot be
+    read (the verdict then says why)."""
+    from pliant.assembly.evaluate import centreline_bend_limit  # noqa: PLC0415
+    from pliant.io.rules_file import load_rules  # noqa: PLC0415
+
+    try:
+        rules = load_rules(scene.evaluation.rules)
+    except PliantError:
+        return scene.problem.part.min_bend_radius
+    return centreline_bend_limit(scene.problem.part, rules)

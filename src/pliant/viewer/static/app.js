@@ -473,7 +473,7 @@ function onAccurate(msg) {
   if (state.frame) drawTube(state.frame);
   const lines = [];
   if (msg.min_bend_radius !== null) lines.push(`tightest bend ${(msg.min_bend_radius * 1e3).toFixed(1)} mm, ${msg.min_bend_radius_s.toFixed(3)} m along the part` +
-    (msg.allowed_bend_radius ? ` (its minimum: ${(msg.allowed_bend_radius * 1e3).toFixed(0)} mm)` : ''));
+    (msg.allowed_bend_radius ? ` (its limit: ${(msg.allowed_bend_radius * 1e3).toFixed(0)} mm, centreline)` : ''));
   lines.push(msg.stable === false ? 'unstable: the part would snap into another shape'
     : msg.stable ? 'stable: it stays in this shape' : '');
   $('shape').innerHTML = lines.filter(Boolean).map((l) => `<div>${esc(l)}</div>`).join('');
