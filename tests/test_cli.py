@@ -72,13 +72,31 @@ def test_solve_prints_a_summary(tmp_path):
 
 
 def test_solve_json():
-    out = run("solve", str(EXAMPLES / "paper" / "case1.toml"), "--json")
+    out = run("solve", str(EXAMPLES / "paper" / "case1.toml"), "--json", "-")
     assert out.returncode == 0, out.stderr
     data = json.loads(out.stdout)
     assert data["loads"]["clamp"]["force"] == pytest.approx([0.0, -7.0], abs=1e-9)
     assert len(data["s"]) == len(data["x"]) == len(data["M"])
     assert data["units"]["force"] == "N"
     assert data["residual"] < 1e-9
+
+
+def test_every_json_option_takes_a_path_and_a_dash_for_standard_output(tmp_path):
+    """One convention on every surface (issue 61): ``--json PATH`` writes the file (the
+    words still on screen), ``--json -`` makes standard output the JSON alone; the same
+    answer either way."""
+    case1 = str(EXAMPLES / "paper" / "case1.toml")
+    out = run("solve", case1, "--json", str(tmp_path / "case1.json"))
+    assert out.returncode == 0, out.stderr
+    assert "reaction" in out.stdout and "JSON written to" in out.stdout
+    written = json.loads((tmp_path / "case1.json").read_text())
+    printed = json.loads(run("solve", case1, "--json", "-").stdout)
+    assert written["loads"] == printed["loads"] and written["s"] == printed["s"]
+    scene = str(EXAMPLES / "scenes" / "hose_past_post.toml")
+    out = run("evaluate", scene, "--json", "-")
+    data = json.loads(out.stdout)  # nothing but the JSON
+    assert data["schema_version"] == 1 and data["grips"] == ["hand"]
+    assert "FITS" in out.stderr or "DOES NOT FIT" in out.stderr
 
 
 @pytest.mark.parametrize("content,message", [
@@ -149,7 +167,7 @@ def test_solve_3d_with_plot_and_meshes(tmp_path):
     # The tube's volume: the hose's section times its length, within the polygon's loss.
     assert mesh.volume == pytest.approx(math.pi * 0.01**2 * 1.0, rel=0.03)
     out = cli("solve", str(EXAMPLES / "hoses" / "hose3d.toml"), "--mesh",
-              str(tmp_path / "hose.stl"), "--json", "--elements", "40")
+              str(tmp_path / "hose.stl"), "--json", "-", "--elements", "40")
     assert out.returncode == 0, out.stderr
     data = json.loads(out.stdout)
     assert data["dimension"] == 3 and data["stable"] is True
@@ -243,7 +261,7 @@ def test_solve_a_harness_reports_its_branches():
     assert out.returncode == 0, out.stderr
     assert "branch 'left branch'" in out.stdout and "left port" in out.stdout
     assert "stability: stable" in out.stdout  # the parts together: the coupled verdict
-    data = json.loads(run("solve", str(harness), "--json").stdout)
+    data = json.loads(run("solve", str(harness), "--json", "-").stdout)
     names = [b["name"] for b in data["branches"]]
     assert names == ["left branch", "right branch"]
     loads = {load["name"] for load in data["branches"][0]["loads"]}

@@ -229,7 +229,7 @@ def test_the_short_cable_example_reports_the_pull_and_the_strain_over_its_limit(
     from pliant.cli.app import app
 
     file = str(Path(__file__).resolve().parents[1] / "examples" / "cables" / "short_cable.toml")
-    out = CliRunner().invoke(app, ["solve", file, "--json"])
+    out = CliRunner().invoke(app, ["solve", file, "--json", "-"])
     assert out.exit_code == 0, out.output
     data = json.loads(out.output[out.output.index("{"):])
     stretch = data["stretch"]

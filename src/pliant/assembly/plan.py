@@ -86,7 +86,7 @@ from pliant.core.numbers import triple
 from pliant.core.planning import PlanSettings
 from pliant.core.problem import Problem
 from pliant.errors import ConvergenceError, InputError, PliantError, UnreachableTargetError
-from pliant.models import rod3d
+from pliant.models import clock, rod3d
 from pliant.scene.distance import DistanceField
 from pliant.scene.interference import of_equilibrium
 
@@ -352,7 +352,7 @@ class _Tree:
         """One step, followed from ``eq`` only: where its branch ends, the part would
         snap, and the step is refused rather than solved afresh."""
 
-        if time.perf_counter() > self.deadline:
+        if clock.now() > self.deadline:
             raise _Blocked("out of time")
         self.solves += 1
         try:
@@ -525,7 +525,9 @@ class Planner:
         when none is found; KeyboardInterrupt at once on Ctrl+C."""
         begin = time.perf_counter()
         tree = self.tree(goal)  # checks the port first
-        tree.deadline = begin + self.settings.budget
+        # The budget counts this thread's CPU time (``pliant.models.clock``): a loaded
+        # machine does not turn a slower search into a refusal.
+        tree.deadline = clock.now() + self.settings.budget
         tree.interrupted = False
         self.queries += 1
         previous = None
@@ -546,7 +548,7 @@ class Planner:
         best: Plan | None = None
         trees = paths = 0
         while paths < s.attempts:
-            left = tree.deadline - time.perf_counter()
+            left = tree.deadline - clock.now()
             if left <= 0 or (best is not None and left < 0.3 * s.budget / s.attempts):
                 break
             trees += 1
@@ -637,7 +639,7 @@ class Planner:
             planner.setGoalBias(s.goal_bias)
             setup.setPlanner(planner)
             status = setup.solve(ob.PlannerTerminationCondition(
-                lambda: time.perf_counter() > tree.deadline))
+                lambda: clock.now() > tree.deadline))
             if status and setup.haveExactSolutionPath():
                 path = setup.getSolutionPath()
                 nodes = [tree.nodes[_key(_point(path.getState(k)))]

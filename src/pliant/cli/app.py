@@ -176,7 +176,9 @@ def _elements(value: int | None) -> int | None:
 @app.command()
 def solve(
     file: Annotated[Path, typer.Argument(help="a problem file (TOML, SI units)")],
-    json: Annotated[bool, typer.Option("--json", help="print the full result as JSON")] = False,
+    json: Annotated[Path | None, typer.Option("--json", help="write the full result as "
+                                              "JSON to this file; - for standard output")]
+    = None,
     plot: Annotated[Path | None, typer.Option(help="draw the shape and its internal forces "
                                                    "to this PNG file")] = None,
     mesh: Annotated[Path | None, typer.Option(help="export the deformed tube (.glb, .gltf, "
@@ -191,8 +193,8 @@ def solve(
     """Solve a problem file (2D or 3D): shape, internal forces, reactions."""
     from pliant.cli.report import (  # noqa: PLC0415
         print_interference,
-        print_json,
         print_summary,
+        solve_json,
         timed_solve,
     )
 
@@ -209,28 +211,47 @@ def solve(
         from pliant.scene import interference  # noqa: PLC0415
 
         report = interference(eq, margin=scene.margin)
-    if json:
-        print_json(eq, seconds, report)
-    else:
+    quiet = _to_stdout(json)  # the JSON is standard output: nothing else is printed
+    if not quiet:
         print_summary(eq, seconds, report=report)
         if report is not None:
             print_interference(report)
+    if json is not None:
+        written = emit_json(solve_json(eq, seconds, report), json, "the result (JSON)")
+        if written is not None:
+            typer.echo(f"JSON written to {written}")
     if plot is not None:
         from pliant.cli.plot import plot_equilibrium  # noqa: PLC0415
 
         plot_equilibrium(eq, plot)
-        if not json:
+        if not quiet:
             typer.echo(f"plot written to {plot}")
     if mesh is not None:
         from pliant.io.mesh_export import export_mesh, part_radius  # noqa: PLC0415
 
         export_mesh(eq, mesh)
-        if not json:
+        if not quiet:
             note = "" if problem.part.outer_diameter else " (display radius: no outer_diameter)"
             typer.echo(f"mesh written to {mesh}, radius {part_radius(eq):.4g} m{note}")
 
 
-def all_equilibria(problem, as_json: bool, elements: int | None = None) -> None:
+def _to_stdout(target: Path | None) -> bool:
+    """Whether an output path is ``-``: standard output."""
+    return target is not None and str(target) == "-"
+
+
+def emit_json(text: str, target: Path, what: str) -> Path | None:
+    """JSON ``text`` to ``target``: standard output for ``-`` (None), else the file,
+    written atomically (its path). Every command's ``--json`` takes a path this way."""
+    if _to_stdout(target):
+        typer.echo(text)
+        return None
+    from pliant.io.atomic import atomic_write  # noqa: PLC0415
+
+    return atomic_write(target, lambda h: h.write(text.encode()), what)
+
+
+def all_equilibria(problem, as_json: Path | None, elements: int | None = None) -> None:
     """``pliant solve --all``: the equilibria the routes reach (2D or 3D), best first."""
     import time  # noqa: PLC0415
 
@@ -240,14 +261,17 @@ def all_equilibria(problem, as_json: bool, elements: int | None = None) -> None:
     start = time.perf_counter()
     found = dispatch.equilibria(problem, elements=elements)
     seconds = time.perf_counter() - start
-    if as_json:
+    if as_json is not None:
         import json as _json  # noqa: PLC0415
 
         from pliant.io.jsontext import finite  # noqa: PLC0415
 
-        typer.echo(_json.dumps(finite({"schema_version": 1, "seconds": seconds, "equilibria": [
-            {**eq.to_dict(), "potential_energy": potential_energy(eq)} for eq in found]})))
-        return
+        text = _json.dumps(finite({"schema_version": 1, "seconds": seconds, "equilibria": [
+            {**eq.to_dict(), "potential_energy": potential_energy(eq)} for eq in found]}))
+        written = emit_json(text, as_json, "the equilibria (JSON)")
+        if written is None:
+            return
+        typer.echo(f"JSON written to {written}")
     from rich.console import Console  # noqa: PLC0415
     from rich.table import Table  # noqa: PLC0415
 
@@ -354,7 +378,9 @@ def evaluate(
     report: Annotated[Path | None, typer.Option(help="write the self-contained HTML "
                                                      "report here")] = None,
     json: Annotated[Path | None, typer.Option("--json", help="write the evaluation as JSON "
-                                                             "(schema_version 1)")] = None,
+                                                             "(schema_version 1) to this "
+                                                             "file; - for standard output")]
+    = None,
     csv: Annotated[Path | None, typer.Option("--csv", help="write a row per step as CSV")]
     = None,
     rules: Annotated[Path | None, typer.Option(help="a rules table replacing the bundled "
@@ -405,7 +431,7 @@ def _evaluate_scene(file: Path, report: Path | None, json_out: Path | None,
 
     from pliant.assembly.evaluate import evaluate as evaluate_scene  # noqa: PLC0415
     from pliant.cli.evaluation_report import print_evaluation, write_html  # noqa: PLC0415
-    from pliant.io.evaluation_file import write_csv, write_json  # noqa: PLC0415
+    from pliant.io.evaluation_file import evaluation_json, write_csv  # noqa: PLC0415
     from pliant.io.rules_file import load_rules  # noqa: PLC0415
 
     scene = _load_scene(file)
@@ -413,7 +439,8 @@ def _evaluate_scene(file: Path, report: Path | None, json_out: Path | None,
         scene = replace(scene, evaluation=replace(scene.evaluation, operator=operator))
     rules = load_rules(rules_file if rules_file is not None else scene.evaluation.rules)
     problem = scene.problem
-    console = Console()
+    # With --json -, standard output is the JSON alone: the words go to standard error.
+    console = Console(stderr=_to_stdout(json_out))
     ev = _with_progress(console, scene, file, lambda step: evaluate_scene(
         scene, rules=rules, elements=elements, on_step=step))
     from pliant.cli.report import print_path  # noqa: PLC0415
@@ -422,7 +449,8 @@ def _evaluate_scene(file: Path, report: Path | None, json_out: Path | None,
     print_evaluation(ev, console)
     written = []
     if json_out is not None:
-        written.append(write_json(ev, json_out))
+        path = emit_json(evaluation_json(ev), json_out, "the evaluation (JSON)")
+        written += [path] if path is not None else []
     if csv_out is not None:
         written.append(write_csv(ev, csv_out))
     if report is not None:
@@ -611,7 +639,8 @@ def identify(
     file: Annotated[Path, typer.Argument(help="a stiffness test (TOML): a problem file with "
                                               "\\[identify] and \\[\\[measured]] tables")],
     json_out: Annotated[Path | None, typer.Option("--json", help="write the estimates, "
-                                                  "intervals and fit as JSON")] = None,
+                                                  "intervals and fit as JSON to this file; "
+                                                  "- for standard output")] = None,
     plot: Annotated[Path | None, typer.Option(help="draw measured against fitted (PNG)")]
     = None,
     part: Annotated[Path | None, typer.Option(help="write the fitted \\[part] entry "
@@ -629,7 +658,7 @@ def identify(
     from pliant.io.jsontext import finite  # noqa: PLC0415
 
     test, settings = load_test(file)
-    console = Console()
+    console = Console(stderr=_to_stdout(json_out))  # with --json -, the JSON alone on stdout
     from pliant.cli.report import count  # noqa: PLC0415
 
     console.print(f"[bold]{test.name}[/bold]: fitting {', '.join(test.unknowns)} to "
@@ -648,7 +677,8 @@ def identify(
         import json as _json  # noqa: PLC0415
 
         text = _json.dumps(finite({"schema_version": 1, **result.to_dict()}), indent=1)
-        written.append(atomic_write(json_out, lambda h: h.write(text.encode()), "the JSON"))
+        path = emit_json(text, json_out, "the JSON")
+        written += [path] if path is not None else []
     if plot is not None:
         written.append(plot_identification(result, plot))
     if part is not None:

@@ -214,7 +214,8 @@ def _print_others(eq: Result, console: Console) -> None:
             console.print(f"{kind} {name!r}: {rows}")
 
 
-def print_json(eq: Result, seconds: float, interference: Any = None) -> None:
+def solve_json(eq: Result, seconds: float, interference: Any = None) -> str:
+    """The answer of ``pliant solve`` as JSON text (non-finite numbers as null)."""
     data = eq.to_dict()
     if isinstance(eq, Equilibrium3D) and eq.verdict == "neutral":
         from pliant.models.rod3d.results import describe_mode  # noqa: PLC0415
@@ -229,7 +230,7 @@ def print_json(eq: Result, seconds: float, interference: Any = None) -> None:
                           "position": o.position.tolist()} for o in others]
     if interference is not None:
         data["interference"] = interference.to_dict()
-    print(json.dumps(finite(data), indent=1, allow_nan=False))
+    return json.dumps(finite(data), indent=1, allow_nan=False)
 
 
 def print_contacts(eq: Equilibrium3D, console: Console) -> None:

@@ -906,7 +906,7 @@ def follow(z0, density, stations, start, end, opts, longest, deadline):
 
     longest : the longest shooting interval (``Lowered.interval``, dimensionless), by
     which the path's forces are judged against ``opts[OPT_NODE_LIMIT]``.
-    deadline : ``time.perf_counter()`` past which the path stops (BUDGET, OUT_OF_TIME),
+    deadline : ``time.thread_time()`` past which the path stops (BUDGET, OUT_OF_TIME),
     looked at after every CLOCK_WORK of work (a heavy cable's path took seconds in one
     call, past any budget the caller checked between calls).
 
@@ -1008,7 +1008,7 @@ def follow(z0, density, stations, start, end, opts, longest, deadline):
         if work >= CLOCK_WORK:
             work = 0.0
             with objmode(now="float64"):
-                now = time.perf_counter()
+                now = time.thread_time()
             if now > deadline:
                 return (z, jac, density, stats, r, BUDGET, OUT_OF_TIME, t, iterations,
                         steps, crossings)
