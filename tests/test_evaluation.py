@@ -681,3 +681,71 @@ def test_a_connector_push_is_labelled_a_push_onto_the_port_and_printed():
     said = " ".join(console.export_text().split())
     assert "seating: push along stub's axis at the last step" in said
     assert "connector's own 60 N" in said
+
+
+# -- packaging rules per obstacle -----------------------------------------------------------
+def _beside(gap: float, extra: str, part: str = "") -> str:
+    """A straight part, clamped along x at its first end, a gap [m] under a ball of radius
+    0.1 m (the clearance worked by hand: the ball's centre at height 0.1 + 0.005 + gap
+    above the part's axis, its radius 5 mm)."""
+    return f"""
+name = "beside a ball"
+gravity = [0.0, 0.0, 0.0]
+margin = 0.005
+[part]
+name = "line"
+length = 1.0
+bending_stiffness = 1.0
+outer_diameter = 0.01
+{part}
+[solver]
+elements = 40
+[[condition]]
+name = "left"
+s = 0.0
+x = 0.0
+y = 0.0
+z = 0.0
+tangent = [1.0, 0.0, 0.0]
+normal = [0.0, 0.0, 1.0]
+[[obstacle]]
+name = "ball"
+shape = "sphere"
+radius = 0.1
+position = [0.5, 0.0, {0.105 + gap}]
+{extra}
+"""
+
+
+@pytest.mark.parametrize(("gap", "extra", "part", "zone"), [
+    (0.06, "temperature = 450.0", "max_temperature = 120.0", Zone.RED),    # < 76 mm
+    (0.06, "temperature = 450.0\nshielded = true", "max_temperature = 120.0", Zone.GREEN),
+    (0.045, "temperature = 450.0\nshielded = true", "max_temperature = 120.0", Zone.RED),
+    (0.06, "temperature = 100.0", "max_temperature = 120.0", Zone.GREEN),  # not too hot
+    (0.03, "moving = true", "", Zone.RED),                                 # < 50 mm
+    (0.08, "moving = true", "", Zone.GREEN),
+    (0.002, "edge = true", "", Zone.YELLOW),                               # the margin only
+    (0.002, "margin = 0.001\nedge = true", "", Zone.GREEN),                # its own margin
+    (0.06, "margin = 0.1", "", Zone.YELLOW),                               # its own margin
+])
+def test_each_obstacle_is_judged_by_its_own_packaging_rule(gap, extra, part, zone):
+    """A margin and a rule per obstacle (issue 61): hot surfaces above the part's limit
+    (76 mm unshielded, 51 mm shielded: Kenworth's table 9-1), moving parts (50 mm),
+    sharp edges, each obstacle's own margin; against a clearance worked by hand."""
+    ev = evaluate(parse_scene(_beside(gap, extra, part), "beside.toml"))
+    check = next(c for c in ev.checks if c.rule == "clearance: ball")
+    assert check.value == pytest.approx(gap, abs=1e-6)
+    assert check.zone == zone
+    if zone == Zone.RED:
+        assert not ev.verdict.passes and ev.verdict.headline.startswith("DOES NOT FIT")
+        assert check.provenance == "guideline"
+
+
+def test_a_part_resting_on_a_sharp_edge_is_red_and_a_hot_surface_needs_the_parts_limit():
+    ev = evaluate(parse_scene(_beside(0.0, "edge = true"), "edge.toml"))
+    check = next(c for c in ev.checks if c.rule == "clearance: ball")
+    assert check.value == 0.0 and check.zone == Zone.RED
+    assert "sharp edge" in check.note and "Hyundai" in check.source
+    ev = evaluate(parse_scene(_beside(0.06, "temperature = 450.0"), "hot.toml"))
+    heat = next(c for c in ev.items if c.rule == "heat: ball")
+    assert heat.zone == Zone.UNCHECKED and "max_temperature" in heat.note

@@ -44,8 +44,8 @@ from pliant.assembly.checks import (
 from pliant.assembly.path import PathRun, StepRecord, follow_path
 from pliant.core.equilibrium import Result, stretch_summary
 from pliant.core.events import HeldRigid, WarmStartLost, has
-from pliant.core.numbers import ROUND_OFF, clean, triple
-from pliant.core.rules import Capacity, EvaluationSettings, PartKind, Rules
+from pliant.core.numbers import ROUND_OFF, TOUCHING, clean, triple
+from pliant.core.rules import Capacity, EvaluationSettings, ObstacleRule, PartKind, Rules
 from pliant.errors import InputError
 
 SCHEMA_VERSION = 1
@@ -549,7 +549,7 @@ def _part_checks(scene: Any, run: PathRun, rules: Rules, kind: PartKind | None,
     checks += _twist_checks(run, part, kind, rules, settings, scene, grips)
     checks += stretch_checks(run, part, rules)
     checks.append(_stability_check(run))
-    checks += _interference_checks(run, scene)
+    checks += _interference_checks(run, scene, rules)
     checks += _contact_checks(run, settings)
     if port is not None and grips:
         g = grip_steps[grips[0]][-1]
@@ -788,17 +788,54 @@ def _stability_check(run: PathRun) -> Check:
                  "above", None, 0.0, source, "computed")
 
 
-def _interference_checks(run: PathRun, scene: Any) -> list[Check]:
+def _interference_checks(run: PathRun, scene: Any, rules: Rules) -> list[Check]:
+    """Each obstacle's clearance along the path: red inside it, yellow within its margin
+    (its own, else the scene's), and its packaging rule (``ObstacleRule``): red closer
+    than the table's clearance to a surface hotter than the part tolerates, or to a
+    moving part, and red resting on a sharp edge."""
     out = []
-    names = [o.name for o in scene.problem.obstacles]
-    source = "the scene's margin" if scene.margin else "no margin given"
-    for name in names:
+    pack = rules.packaging
+    part = scene.problem.part
+    for obstacle in scene.problem.obstacles:
+        name = obstacle.name
         values = [dict(r.clearances).get(name, math.inf) for r in run.steps]
+        rule = scene.obstacle_rules.get(name, ObstacleRule())
+        margin = scene.margin if rule.margin is None else rule.margin
+        own = rule.margin is not None
+        sources = [f"{'its' if own else 'the scene'}'s margin" if margin else
+                   "no margin given"]
+        red_at, said, provenance = -PENETRATION, [], "user" if margin else "computed"
+        if rule.temperature is not None:
+            limit = part.max_temperature
+            if limit is None:
+                out.append(Check(f"heat: {name}", f"heat of {name} ({rule.temperature:g} "
+                                 "degC) against the part's limit", "damage", math.nan, "",
+                                 Zone.UNCHECKED, "above", None, None, pack.hot.source,
+                                 pack.hot.provenance, note="give [part] max_temperature "
+                                 "(the datasheet's continuous service temperature)"))
+            elif rule.temperature > limit:
+                hot = pack.hot_shielded if rule.shielded else pack.hot_unshielded
+                red_at = max(red_at, hot)
+                said.append(f"{rule.temperature:g} degC, above the part's {limit:g} degC: "
+                            f"red closer than {hot * 1e3:g} mm"
+                            f"{' (shielded)' if rule.shielded else ''}")
+                sources.append(pack.hot.source)
+                provenance = pack.hot.provenance
+        if rule.moving:
+            red_at = max(red_at, pack.moving)
+            said.append(f"it moves: red closer than {pack.moving * 1e3:g} mm")
+            sources.append(pack.moving_sourced.source)
+            provenance = pack.moving_sourced.provenance
+        if rule.edge:
+            red_at = max(red_at, TOUCHING)  # touching (shown as 0) is red
+            said.append("a sharp edge: red where the part rests on it")
+            sources.append(pack.edge.source)
+            provenance = pack.edge.provenance
+        note = f"margin {margin * 1e3:g} mm; red inside the obstacle"
         out.append(series_check(
             f"clearance: {name}", f"clearance to {name}", "interference", values, "m",
-            "below", scene.margin if scene.margin > 0 else None, -PENETRATION, source,
-            "user" if scene.margin else "computed",
-            note=f"margin {scene.margin * 1e3:g} mm; red inside the obstacle"))
+            "below", margin if margin > max(red_at, 0.0) else None, red_at,
+            "; ".join(sources), provenance, note="; ".join([note, *said])))
     return out
 
 

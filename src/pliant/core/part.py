@@ -81,6 +81,9 @@ class Part:
         A cable's EA is far below its copper's (strands and lay); give a measured one.
     max_axial_strain : float or None, the axial strain the part tolerates (the damage
         rule of a part pulled taut)
+    max_temperature : float [degC] or None, the highest surface temperature the part
+        tolerates (its datasheet's continuous service temperature): the packaging rule
+        of hot obstacles
 
     The material frame (d1, d2, d3) is right-handed with d3 the tangent; a 2D problem is
     the 3D one in the plane z = 0 with d1 = +z, so that bending there is about d1.
@@ -102,6 +105,7 @@ class Part:
     poisson_ratio: float | None = None
     axial_stiffness: float | None = None
     max_axial_strain: float | None = None
+    max_temperature: float | None = None
     rest_knots: tuple[tuple[float, float], ...] = field(init=False, repr=False)
     rest_knots_2: tuple[tuple[float, float], ...] = field(init=False, repr=False)
     twist_knots: tuple[tuple[float, float], ...] = field(init=False, repr=False)

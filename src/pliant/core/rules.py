@@ -70,6 +70,33 @@ class PartKind:
 
 
 @dataclass(frozen=True)
+class ObstacleRule:
+    """What a packaging engineer says of one obstacle: its own clearance ``margin`` [m]
+    (None: the scene's), its surface ``temperature`` [degC] (None: not hot), whether a
+    heat ``shielded`` it, whether it is ``moving`` (a fan, a pulley, a shaft) and whether
+    it has a sharp ``edge`` the part must not rest on."""
+
+    margin: float | None = None
+    temperature: float | None = None
+    shielded: bool = False
+    moving: bool = False
+    edge: bool = False
+
+
+@dataclass(frozen=True)
+class Packaging:
+    """The table's clearances to hot obstacles (unshielded, shielded) and to moving ones
+    [m], and the sources of those and of the sharp-edge rule."""
+
+    hot_unshielded: float
+    hot_shielded: float
+    hot: Sourced
+    moving: float
+    moving_sourced: Sourced
+    edge: Sourced
+
+
+@dataclass(frozen=True)
 class Rules:
     """The whole table (see ``pliant/data/rules.toml`` for every field's meaning)."""
 
@@ -95,6 +122,7 @@ class Rules:
     twist_yellow: float
     twist_red: float
     twist: Sourced
+    packaging: Packaging
     stretch_margin: float = 1.25
     stretch: Sourced = Sourced("", "engineering choice")
     origin: str = "bundled"

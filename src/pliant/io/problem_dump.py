@@ -31,7 +31,7 @@ def dump_problem(problem: Problem, description: str = "", meshes: Path | None = 
               f"bending_stiffness = {_num(part.bending_stiffness)}",
               f"mass_per_length = {_num(part.mass_per_length)}"]
     for key in ("torsional_stiffness", "bending_stiffness_2", "min_bend_radius",
-                "poisson_ratio", "axial_stiffness", "max_axial_strain"):
+                "poisson_ratio", "axial_stiffness", "max_axial_strain", "max_temperature"):
         value = getattr(part, key)
         if value is not None:
             lines.append(f"{key} = {_num(value)}")

@@ -25,7 +25,7 @@ from pathlib import Path
 from typing import Any, Literal
 
 import numpy as np
-from pydantic import BaseModel, Field, ValidationError, model_validator
+from pydantic import BaseModel, Field, PrivateAttr, ValidationError, model_validator
 
 from pliant.core.conditions import Condition
 from pliant.core.loads import AddedMass, DistributedLoad, Load
@@ -33,7 +33,7 @@ from pliant.core.numbers import triple
 from pliant.core.part import Material, Part
 from pliant.core.planning import PathSpec, PlanSettings
 from pliant.core.problem import Problem
-from pliant.core.rules import EvaluationSettings
+from pliant.core.rules import EvaluationSettings, ObstacleRule
 from pliant.errors import FileFormatError, InputError, PliantError
 from pliant.io.problem_dump import dump_problem as dump_problem
 from pliant.io.problem_dump import with_path_table as with_path_table
@@ -97,6 +97,9 @@ class PartModel(_Strict):
         "not given: inextensible")
     max_axial_strain: float | None = Field(None, gt=0, description="the axial strain the "
                                            "part tolerates (0.01 = 1 %)")
+    max_temperature: float | None = Field(None, gt=-273.15, description="[degC] the "
+                                          "highest temperature the part tolerates (its "
+                                          "datasheet's continuous service temperature)")
 
     @model_validator(mode="after")
     def _stiffness_given(self) -> PartModel:
@@ -124,7 +127,8 @@ class PartModel(_Strict):
                   "rest_twist": knots(self.rest_twist),
                   "bending_stiffness_2": self.bending_stiffness_2,
                   "min_bend_radius": self.min_bend_radius, "kind": self.kind,
-                  "max_axial_strain": self.max_axial_strain}
+                  "max_axial_strain": self.max_axial_strain,
+                  "max_temperature": self.max_temperature}
         if isinstance(self.axial_stiffness, float):
             common["axial_stiffness"] = self.axial_stiffness
         if self.poisson_ratio is not None:
@@ -257,7 +261,20 @@ class ObstacleModel(_Strict):
     resolution: int = Field(64, ge=8, le=512, description="mesh: distance grid cells")
     friction: float = Field(0.0, ge=0, le=5, description="Coulomb's coefficient between "
                                                           "the obstacle and the part")
+    margin: float | None = Field(None, ge=0, description="the clearance wanted round this "
+                                 "obstacle [m] (default: the scene's)")
+    temperature: float | None = Field(None, gt=-273.15, description="its surface "
+                                      "temperature [degC] (an exhaust, a turbo)")
+    shielded: bool = Field(False, description="a heat shield or blanket covers it")
+    moving: bool = Field(False, description="it moves (a fan, a pulley, a shaft)")
+    edge: bool = Field(False, description="a sharp edge the part must not rest on")
     note: str = ""
+
+    @property
+    def rule(self) -> ObstacleRule:
+        """Its packaging rule (``pliant.core.rules.ObstacleRule``)."""
+        return ObstacleRule(self.margin, self.temperature, self.shielded, self.moving,
+                            self.edge)
 
     @model_validator(mode="after")
     def _shape_fields(self) -> ObstacleModel:
@@ -367,6 +384,7 @@ class ProblemFile(_Strict):
     load: list[LoadModel] = Field(default_factory=list)
     path: PathModel | None = None
     margin: float = Field(0.0, ge=0, description="clearance wanted round obstacles [m]")
+    _rules: dict[str, ObstacleRule] = PrivateAttr(default_factory=dict)  # by obstacle
     units: str | None = Field(None, description="the length unit of the CAD and mesh files "
                               "the scene reads, where they declare none (mm, cm, m, in); "
                               "the numbers in this file stay SI")
@@ -446,9 +464,12 @@ class ProblemFile(_Strict):
                 obstacles.append(o.build(base, self.units))
             except ValueError as err:
                 raise InputError(f"obstacle[{i}]", str(err)) from None
+            self._rules[o.name] = o.rule
         for i, c in enumerate(self.cad):
             try:
-                obstacles.extend(c.build(base, self.units))
+                solids = c.build(base, self.units)
+                obstacles.extend(solids)
+                self._rules.update({s.name: c.rule for s in solids})
             except InputError as err:
                 message = str(err).removeprefix(f"{err.field}: ")
                 raise InputError(f"cad[{i}].{err.field}", message) from None
@@ -513,6 +534,8 @@ class Scene:
     warnings: tuple[str, ...] = ()
     path_spec: PathSpec | None = None  # the [path] as given
     hands: tuple[str, ...] = ()  # the conditions a hand holds (``hand = true``)
+    # What a packaging engineer says of each obstacle, by name (those that say anything)
+    obstacle_rules: dict[str, ObstacleRule] = field(default_factory=dict)
 
 
 # Part kinds whose bending stiffness a solid section of their material does not give.
@@ -614,7 +637,8 @@ def scene_from_data(data: dict[str, Any], source: str = "<data>", base: Path | N
                      _warnings(model, problem.part),
                      model.path.build() if model.path is not None else None,
                      tuple(c.name or f"condition{i + 1}" for i, c in enumerate(model.condition)
-                           if c.hand))
+                           if c.hand),
+                     {k: r for k, r in model._rules.items() if r != ObstacleRule()})
     except PliantError as err:
         raise FileFormatError(f"{source}: {err}") from None
 

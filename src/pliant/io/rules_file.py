@@ -14,7 +14,7 @@ from typing import Literal
 
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
 
-from pliant.core.rules import Capacity, PartKind, Rules, Sourced
+from pliant.core.rules import Capacity, Packaging, PartKind, Rules, Sourced
 from pliant.errors import FileFormatError
 from pliant.io.tomlfile import field_path, read_toml
 
@@ -137,6 +137,21 @@ class StretchModel(_Strict):
     source: str = Field(min_length=1)
 
 
+class PackagingModel(_Strict):
+    hot_unshielded: float = Field(gt=0, description="[m] from a hot obstacle, unshielded")
+    hot_shielded: float = Field(gt=0, description="[m] from a hot obstacle behind a shield")
+    hot_source: str = Field(min_length=1)
+    moving: float = Field(gt=0, description="[m] from a moving obstacle")
+    moving_source: str = Field(min_length=1)
+    edge_source: str = Field(min_length=1)
+
+    def build(self) -> Packaging:
+        return Packaging(self.hot_unshielded, self.hot_shielded,
+                         Sourced(self.hot_source, "guideline"), self.moving,
+                         Sourced(self.moving_source, "guideline"),
+                         Sourced(self.edge_source, "guideline"))
+
+
 _STRETCH = StretchModel(margin=1.25, source=(
     "the part's max_axial_strain (its datasheet or a pull test) is red; yellow within 80 % "
     "of it, an engineering choice for model and parameter uncertainty"))
@@ -153,6 +168,7 @@ class RulesFile(_Strict):
     kink: KinkModel
     twist: TwistModel
     stretch: StretchModel = _STRETCH  # optional: tables written before it still load
+    packaging: PackagingModel | None = None  # optional: the bundled limits when left out
 
     @model_validator(mode="after")
     def _consistent(self) -> RulesFile:
@@ -194,7 +210,10 @@ class RulesFile(_Strict):
             twist_yellow=self.twist.yellow, twist_red=self.twist.red,
             twist=Sourced(self.twist.source, "standard"),
             stretch_margin=self.stretch.margin,
-            stretch=Sourced(self.stretch.source, "engineering choice"), origin=origin)
+            stretch=Sourced(self.stretch.source, "engineering choice"),
+            packaging=(bundled_rules().packaging if self.packaging is None
+                       else self.packaging.build()),
+            origin=origin)
 
 
 def parse_rules(text: str, source: str = "<string>") -> Rules:
