@@ -1,7 +1,7 @@
 """Build hook: a wheel carries the browser page's libraries (three.js and the WebXR
 emulator iwer, MIT-licensed, with their licences) copied from ``web/node_modules``, so
-that an installed pliant serves its page without npm. Everything else is in
-pyproject.toml."""
+that an installed pliant serves its page without npm, and the README's examples
+(``pliant examples`` copies them out). Everything else is in pyproject.toml."""
 
 from __future__ import annotations
 
@@ -41,4 +41,18 @@ class BuildWithPageLibraries(build_py):
                 shutil.copyfile(source / package / name, destination)
 
 
-setup(cmdclass={"build_py": BuildWithPageLibraries})
+class BuildWithExamples(BuildWithPageLibraries):
+    """And the README's examples into pliant/examples/ (``pliant examples`` copies them
+    out), links copied as the files they point to."""
+
+    def run(self) -> None:
+        super().run()
+        examples = Path(__file__).resolve().parent / "examples"
+        target = Path(self.build_lib) / "pliant" / "examples"
+        if examples.is_dir():
+            shutil.rmtree(target, ignore_errors=True)
+            shutil.copytree(examples, target, symlinks=False,
+                            ignore=shutil.ignore_patterns("__pycache__", "*.pyc"))
+
+
+setup(cmdclass={"build_py": BuildWithExamples})

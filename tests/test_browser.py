@@ -172,6 +172,15 @@ def test_the_panel_shows_the_poses_verdict_from_the_server(page):
     items = page.locator("#verdict-items li")
     assert items.count() == len(verdict["items"]) >= 1
     assert "bending moment at the hand" in page.inner_text("#verdict-items")
+    # One clearance (issue 61): the table is the accurate model's, as the verdict's, and
+    # says so; the real-time preview's only while the accurate answer is on its way.
+    page.wait_for_function("document.querySelector('#clearance-source').textContent"
+                           ".includes('accurate model')")
+    accurate = page.evaluate("window.pliant.state.accurate.interference.clearances")
+    shown = page.inner_text("#clearance")
+    for c in accurate:
+        value = "0 (touching)" if c["clearance"] == 0 else f"{c['clearance'] * 1e3:.1f} mm"
+        assert f"{c['obstacle']}\t{value}" in shown
 
 
 def test_the_page_plays_the_scenes_path_step_by_step(page):

@@ -329,3 +329,24 @@ def test_under_a_profiler_the_command_exits_as_usual(tmp_path):
                           "pliant.cli.app", "--version"], capture_output=True, text=True,
                          cwd=tmp_path, timeout=120)
     assert out.returncode == 0 and profile.stat().st_size > 0
+
+
+def test_the_examples_copy_out_to_a_folder_of_ones_own_and_run_there(tmp_path):
+    """``pliant examples`` (what a wheel's user has instead of the repository): every
+    example file, links copied as files, into a new folder; never over a folder that
+    holds anything; and a copied problem solves where it landed."""
+    out = run("examples", str(tmp_path / "ex"))
+    assert out.returncode == 0, out.stderr
+    ours = sorted(p.relative_to(EXAMPLES) for p in EXAMPLES.rglob("*") if p.is_file()
+                  and "__pycache__" not in p.parts)
+    theirs = sorted(p.relative_to(tmp_path / "ex") for p in (tmp_path / "ex").rglob("*")
+                    if p.is_file())
+    assert ours == theirs
+    engine = tmp_path / "ex" / "scenes" / "engine_bay.toml"
+    assert not engine.is_symlink() and engine.read_text() == (
+        EXAMPLES / "scenes" / "engine_bay.toml").read_text()
+    again = run("examples", str(tmp_path / "ex"))
+    assert again.returncode != 0 and "never writes over your files" in again.stderr
+    solved = run("solve", str(tmp_path / "ex" / "paper" / "case1.toml"), "--json", "-")
+    assert json.loads(solved.stdout)["loads"]["clamp"]["force"] == pytest.approx(
+        [0.0, -7.0], abs=1e-9)

@@ -70,6 +70,13 @@ def test_the_wheel_runs_the_demo_and_serves_the_page(installed, tmp_path):
         assert (tmp_path / "out" / f"engine_bay.{suffix}").stat().st_size > 0
     report = json.loads((tmp_path / "out" / "engine_bay.json").read_text())
     assert report["steps_solved"] == 101 and report["verdict"]["passes"]
+    # The README's examples travel with the wheel: copied out, the same files.
+    copied = subprocess.run([str(installed / "pliant"), "examples", "ex"], cwd=tmp_path,
+                            env=env, capture_output=True, text=True, timeout=120)
+    assert copied.returncode == 0, copied.stderr[-2000:]
+    for name in ("scenes/hose_past_post.toml", "scenes/engine_bay.toml",
+                 "cad/bracket_assembly.step", "identify/hose_bench.toml"):
+        assert (tmp_path / "ex" / name).read_bytes() == (ROOT / "examples" / name).read_bytes()
     # The page, with the three.js it carries (no web/node_modules out here).
     view = subprocess.Popen([str(installed / "pliant"), "view", "--port", "0"],
                             cwd=tmp_path, env=env, stdout=subprocess.PIPE,

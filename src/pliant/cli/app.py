@@ -707,6 +707,45 @@ def demo(
                     None, None, None, pictures=out / stem)
 
 
+def examples_folder() -> Path:
+    """The example scenes: those a wheel carries (``pliant/examples``, copied at build time
+    by setup.py), else the repository's ``examples`` (a development install)."""
+    bundled = Path(__file__).resolve().parents[1] / "examples"
+    if bundled.is_dir():
+        return bundled
+    return Path(__file__).resolve().parents[3] / "examples"
+
+
+@app.command()
+def examples(
+    out: Annotated[Path, typer.Argument(help="a new (or empty) folder to copy them into")]
+    = Path("pliant-examples"),
+) -> None:
+    """Copy the example scenes, problems and tests (the README's) into a folder of your
+    own, to run and to edit: the paper's cases, hoses, cables, harnesses, CAD, scenes and
+    stiffness tests."""
+    import shutil  # noqa: PLC0415
+
+    source = examples_folder()
+    if not source.is_dir():
+        raise PliantError(f"the examples are missing: {source}")
+    if out.exists() and (not out.is_dir() or any(out.iterdir())):
+        raise PliantError(f"{out}: exists and is not an empty folder; give a new one (pliant "
+                          "never writes over your files)")
+    partial = out.with_name(f".{out.name}.partial")
+    shutil.rmtree(partial, ignore_errors=True)
+    # Links (the demo scenes in the repository) are copied as the files they point to;
+    # a whole copy appears at once, or none.
+    shutil.copytree(source, partial, symlinks=False,
+                    ignore=shutil.ignore_patterns("__pycache__", "*.pyc"))
+    if out.exists():
+        out.rmdir()
+    partial.rename(out)
+    count = sum(1 for p in out.rglob("*.toml"))
+    typer.echo(f"{count} example files copied to {out}; try: pliant evaluate "
+               f"{out / 'scenes' / 'engine_bay.toml'}")
+
+
 @app.command()
 def view(
     scene: Annotated[Path | None, typer.Argument(help="a scene or problem file (TOML); "

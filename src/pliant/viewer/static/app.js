@@ -337,7 +337,10 @@ function onFrame(msg) {
   loading(null);
   const contacts = msg.contacts.map((p) => ({ point: p }));
   drawContacts(contacts.concat(state.accurate?.ok ? state.accurate.contacts : []));
-  showClearance(msg.interference);
+  // One clearance: the accurate model's while the preview has not drifted from it (it is
+  // the verdict's, rounded to what it resolves), else the preview's, labelled so.
+  if (state.accurate?.ok && msg.drift < FRESH_DRIFT) showClearance(state.accurate.interference, 'accurate');
+  else showClearance(msg.interference, 'real-time preview');
   showWarnings();
   showFreshness();
   $('frame-details').textContent = `real-time frame ${msg.index}: ${(msg.seconds * 1e3).toFixed(1)} ms` +
@@ -470,6 +473,7 @@ function onAccurate(msg) {
   drawFitted(msg.fitted || []);
   drawBranches(msg.branches || []);
   drawLoads(msg);
+  showClearance(msg.interference, 'accurate');
   if (state.frame) drawTube(state.frame);
   const lines = [];
   if (msg.min_bend_radius !== null) lines.push(`tightest bend ${(msg.min_bend_radius * 1e3).toFixed(1)} mm, ${msg.min_bend_radius_s.toFixed(3)} m along the part` +
@@ -592,7 +596,10 @@ function arrow(at, dir, length, colour, text, kind) {
   arrowGroup.add(helper);
 }
 
-function showClearance(report) {
+const FRESH_DRIFT = 0.002;  // of the length: the accurate answer still stands for the pose
+function showClearance(report, source) {
+  $('clearance-source').textContent = source === 'accurate'
+    ? 'the accurate model (as the verdict)' : 'the real-time preview (the accurate answer is on its way)';
   // Interference on the obstacles themselves, whatever the tube's colour map shows.
   const entered = new Set(report.penetrations.map((p) => p.obstacle));
   const near = new Set(report.too_close.map((p) => p.obstacle));
@@ -603,7 +610,7 @@ function showClearance(report) {
     const cls = c.clearance < -0.01 * state.scene.part.radius ? 'bad' : c.clearance < report.margin ? 'near' : '';
     const on = c.obstacle === state.highlighted ? ' on' : '';
     return `<tr class="${cls}${on}" data-obstacle="${esc(c.obstacle)}" title="show it in the view">` +
-      `<td>${esc(c.obstacle)}</td><td class="num">${(c.clearance * 1e3).toFixed(1)} mm</td>` +
+      `<td>${esc(c.obstacle)}</td><td class="num">${c.clearance === 0 ? '0 (touching)' : `${(c.clearance * 1e3).toFixed(1)} mm`}</td>` +
       `<td class="num">at s ${c.s.toFixed(3)} m</td></tr>`;
   });
   $('clearance').innerHTML = rows.length ? `<table>${rows.join('')}</table>` : '<span class="muted">no obstacles</span>';
