@@ -201,11 +201,24 @@ def test_the_page_plays_the_scenes_path_step_by_step(page):
         p.tangents = keep.map((k) => p.tangents[k]);
         return keep.length; })()""")
     seq = page.evaluate("window.pliant.state.seq")
+    solved = page.evaluate("window.pliant.state.accurates")
     page.click("#play")
     page.wait_for_function(f"document.querySelector('#path-step').textContent === "
-                           f"'played {steps} steps'", timeout=120_000)
+                           f"'played {steps} steps, each solved accurately'",
+                           timeout=240_000)
     page.wait_for_function("!window.pliant.state.inFlight && !window.pliant.state.queued")
     assert page.evaluate("window.pliant.state.seq") - seq == steps  # none skipped
+    # Every step shown was solved accurately, each from the one before (issue 61: the
+    # page solved 2 of 40), and the last answer is the last pose's, as pliant
+    # evaluate's last step: the same force at the hand.
+    assert page.evaluate("window.pliant.state.accurates") - solved >= steps
+    assert page.evaluate("window.pliant.state.accurate.index === "
+                         "window.pliant.state.frame.index")
+    loads = {x["name"]: x for x in page.evaluate("window.pliant.state.accurate.loads")}
+    from pliant.assembly.evaluate import evaluate
+
+    final = evaluate(scene, search=False).run.equilibria[-1].loads["hand"]
+    np.testing.assert_allclose(loads["hand"]["force"], final.force, rtol=1e-5, atol=1e-6)
     last = scene.path[-1].condition("hand")
     pose = page.evaluate("window.pliant.state.lastPose")
     np.testing.assert_allclose(pose["position"], last.position, atol=1e-6)

@@ -101,9 +101,10 @@ function onScene(msg) {
 
 // -- playing a scene's [path] ----------------------------------------------------------------
 // The grip is carried through the path's poses one at a time: the next pose is sent when
-// the server has answered the last (the part is followed step by step, as `pliant run`
-// does, never skipping a step), at most every 30 ms so that it can be watched.
-const player = { playing: false, k: 0, timer: null };
+// the server has answered the last with its accurate equilibrium (or said it has none):
+// every step shown is solved, each from the one before, as `pliant evaluate` follows the
+// path; at most every 30 ms so that it can be watched.
+const player = { playing: false, k: 0, timer: null, waiting: null };
 $('play').onclick = () => (player.playing ? stopPath() : playPath());
 function playPath() {
   const path = state.scene && state.scene.path;
@@ -111,6 +112,7 @@ function playPath() {
   if (!handle) return;
   player.playing = true;
   player.k = 0;
+  player.waiting = null;
   $('play').textContent = 'Stop';
   gizmo.attach(handle);
   playStep();
@@ -120,12 +122,20 @@ function stopPath(done = false) {
   clearTimeout(player.timer);
   $('play').textContent = 'Play path';
   const n = state.scene && state.scene.path ? state.scene.path.positions.length : 0;
-  $('path-step').textContent = done ? `played ${n} steps` : `stopped at step ${player.k} of ${n}`;
+  $('path-step').textContent = done ? `played ${n} steps, each solved accurately` : `stopped at step ${player.k} of ${n}`;
+}
+function answered(index) {
+  // The accurate answer (or its failure) of the pose of event ``index``, or a later one.
+  return (state.accurate && state.accurate.index >= index) || (state.failed && state.failed.index >= index);
 }
 function playStep() {
   if (!player.playing) return;
   if (state.inFlight) { player.timer = setTimeout(playStep, 10); return; }
+  if (player.waiting === null && player.k > 0 && state.frame) player.waiting = state.frame.index;
+  if (player.waiting !== null && !answered(player.waiting)) { player.timer = setTimeout(playStep, 10); return; }
+  player.waiting = null;
   const path = state.scene.path;
+  if (player.k >= path.positions.length) { stopPath(true); return; }
   const handle = state.grips.get(path.grip);
   const k = player.k;
   handle.position.set(...path.positions[k]);
@@ -133,7 +143,6 @@ function playStep() {
   moved(handle);
   player.k = k + 1;
   $('path-step').textContent = `step ${player.k} of ${path.positions.length}`;
-  if (player.k >= path.positions.length) { stopPath(true); return; }
   player.timer = setTimeout(playStep, 30);
 }
 
