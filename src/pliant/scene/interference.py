@@ -130,9 +130,12 @@ def of_curve(s: np.ndarray, points: np.ndarray, radius: float,
                         tuple(too_close))
 
 
+SAMPLES = 4  # points per element an answer's clearance is sampled at, on every surface
+
+
 def of_equilibrium(eq: Result, obstacles: tuple[Obstacle, ...] | None = None, *,
                    margin: float = 0.0, tolerance: float = 1e-6,
-                   subdivide: int = 8) -> Interference:
+                   subdivide: int = SAMPLES) -> Interference:
     """The interference of a 3D equilibrium with its problem's obstacles (or others).
     The tube's radius is the part's outer radius (0: a line, when it has none). A
     flexible part already fitted is measured as it is in this answer: deformed where
@@ -140,18 +143,29 @@ def of_equilibrium(eq: Result, obstacles: tuple[Obstacle, ...] | None = None, *,
     if not isinstance(eq, Equilibrium3D):
         raise InputError("eq", "interference is checked in 3D scenes; this is a 2D answer")
     obstacles = eq.problem.obstacles if obstacles is None else obstacles
-    s, points = eq.s, eq.position
-    if eq.contacts is not None and len(eq.contacts):
+    return of_answer(eq.s, eq.position, eq.contacts, eq.problem.part.tube_radius, obstacles,
+                     margin=margin, tolerance=tolerance, subdivide=subdivide,
+                     tubes=fitted_tubes(eq, obstacles))
+
+
+def of_answer(s: np.ndarray, points: np.ndarray, contacts: Any, radius: float,
+              obstacles: tuple[Obstacle, ...] | list[Obstacle], *, margin: float = 0.0,
+              tolerance: float = 1e-6, subdivide: int = SAMPLES,
+              tubes: dict[str, tuple[np.ndarray, float, float]] | None = None
+              ) -> Interference:
+    """The interference of an accurate answer (its neutral line ``points`` at ``s``, its
+    ``contacts``) as every surface reports it (the terminal, the files, the page): one
+    number for one clearance."""
+    if contacts is not None and len(contacts):
         # The touching points themselves (on the neutral line's straight pieces, so the
         # line is unchanged): where the part touches, its clearance is the contact's 0,
         # not what samples beside it read over a curved obstacle (a micrometre or two).
-        s = np.concatenate([s, eq.contacts.s])
-        points = np.concatenate([points, eq.contacts.point])
+        s = np.concatenate([s, contacts.s])
+        points = np.concatenate([points, contacts.point])
         order = np.argsort(s, kind="stable")
         s, points = s[order], points[order]
-    return of_curve(s, points, eq.problem.part.tube_radius, obstacles,
-                    margin=margin, tolerance=tolerance, subdivide=subdivide,
-                    tubes=fitted_tubes(eq, obstacles))
+    return of_curve(s, points, radius, obstacles, margin=margin, tolerance=tolerance,
+                    subdivide=subdivide, tubes=tubes)
 
 
 def fitted_tubes(eq: Equilibrium3D, obstacles) -> dict[str, tuple[np.ndarray, float, float]]:

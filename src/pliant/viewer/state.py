@@ -363,7 +363,7 @@ class ViewerState:
                                   force=c.force[k].tolist(), obstacle=c.obstacle[k])
                         for k in range(len(c))]
         fitted = getattr(result, "fitted", {})
-        interference = self._interference(result.s, position, fitted)
+        interference = self._interference(result.s, position, fitted, result.contacts)
         radius, s_radius = result.min_bend_radius
         allowed = self.bend_limit
         warnings = shape_warnings(bend_radius=radius, bend_at=s_radius, allowed=allowed,
@@ -429,17 +429,24 @@ class ViewerState:
             seconds=float(frame.seconds), warnings=warnings)
 
     def _interference(self, s: np.ndarray, points: np.ndarray,
-                      fitted: dict | None = None) -> P.Interference:
+                      fitted: dict | None = None, contacts: Any = False) -> P.Interference:
         """``fitted``: flexible parts already fitted as an accurate answer deformed them
-        (the real-time frames measure to them at rest, as their tubes are)."""
+        (the real-time frames measure to them at rest, as their tubes are). An accurate
+        answer (``contacts`` given, None where it touches nothing) is measured as the
+        CLI and the files measure it (``interference.of_answer``): one number for one
+        clearance; a real-time preview coarser, at the drawn radius."""
         obstacles = self.session.problem.obstacles
         if not obstacles:
             return P.Interference(margin=self.scene.margin, clearances=[], penetrations=[],
                                   too_close=[])
-        from pliant.scene.interference import of_curve  # noqa: PLC0415
+        from pliant.scene.interference import of_answer, of_curve  # noqa: PLC0415
 
-        report = of_curve(s, points, self.radius, obstacles, margin=self.scene.margin,
-                          tolerance=0.01 * self.radius, subdivide=2, tubes=fitted)
+        if contacts is not False:
+            report = of_answer(s, points, contacts, self.session.problem.part.tube_radius,
+                               obstacles, margin=self.scene.margin, tubes=fitted)
+        else:
+            report = of_curve(s, points, self.radius, obstacles, margin=self.scene.margin,
+                              tolerance=0.01 * self.radius, subdivide=2, tubes=fitted)
         return P.Interference(
             margin=report.margin,
             clearances=[P.Clearance(obstacle=c.obstacle, clearance=c.clearance, s=c.s,

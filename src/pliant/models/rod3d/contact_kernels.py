@@ -95,7 +95,16 @@ def contact_terms(X, gam, con, num, R, ab, want_jac, hand_over):
                       + normals[k1, 2] * normals[k, 2])
                 if c0 > 1.0 - 1e-14 and c1 > 1.0 - 1e-14:
                     continue
-            slid[k] = _slide(X, k, e, con, dist, normals, found, points, where)
+            # The normal turns along the element where its ends' normals differ: over a
+            # curved obstacle, or a mesh's facets that stand for one (a dense CAD
+            # mesh's faces may be smaller than the element, its slider's iterates then
+            # landing on a face where the local Hessian is 0).
+            bent = False
+            if k0 >= 0 and k1 >= 0 and found[k0] >= 0 and found[k0] == found[k1]:
+                c01 = (normals[k0, 0] * normals[k1, 0] + normals[k0, 1] * normals[k1, 1]
+                       + normals[k0, 2] * normals[k1, 2])
+                bent = c01 < math.cos(SLIDE_TURN)
+            slid[k] = _slide(X, k, e, con, dist, normals, found, points, where, bent)
             mode[e] = slid[k]
     takers = _hand_over(slid, mode, where, gam, probe_elem, con.slider, con.node_probe, slot)
     if hand_over:
@@ -176,7 +185,7 @@ ANCHORED, SLID, BOUND, DEFERS = 0, 1, 2, 3  # where _slide leaves a probe
 
 
 @njit(cache=True, inline="always")
-def _slide(X, k, e, con, dist, normals, found, points, where):
+def _slide(X, k, e, con, dist, normals, found, points, where, bent):
     """Element e's slider, its probe k: moved to the element's point nearest the
     obstacles (a 1D Newton on the squared distance along the element: exact in one step
     at a mesh's edge or vertex), its entries in dist, normals, found, points [m] and
@@ -222,7 +231,7 @@ def _slide(X, k, e, con, dist, normals, found, points, where):
     field = con.field
     n0, n1, n2 = normals[k, 0], normals[k, 1], normals[k, 2]
     p = points[k].copy()
-    turns = False
+    turns = bent  # the ends' normals differ (see the caller), else the local curvature
     settled = False
     # A safeguarded Newton: along a line the distance to a convex piece is convex, so
     # the sign of its slope brackets the nearest point; a step past the bracket tries

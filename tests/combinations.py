@@ -1,0 +1,426 @@
+"""Features where they meet (issue 61): scenes that combine two features at a time, each
+checked against a value pliant did not compute the same way (the primitive twin of a
+mesh, the frictionless limit, the condition a fixed clip stands for, the rigid limit of
+a fitted part, the inextensible limit, the planar model, the page against the CLI).
+
+Each case returns ``Outcome``: ``right`` (the check holds), ``wrong`` (it does not),
+``refused`` (a typed error: said, not wrong, but a combination that should work), or
+``fallback`` (the answer rests on a part held rigid, ``HeldRigid``). ``CASES`` lists
+them with ``fast`` for the CI subset; ``benchmarks/combinations.py`` runs them all and
+prints counts per pair.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+import pliant as pl
+from pliant.core.events import HeldRigid, has
+from pliant.errors import PliantError
+
+EXAMPLES = Path(__file__).resolve().parents[1] / "examples"
+
+
+@dataclass(frozen=True)
+class Outcome:
+    pair: tuple[str, str]
+    name: str
+    status: str  # right, wrong, refused, fallback
+    detail: str
+
+
+@dataclass(frozen=True)
+class Case:
+    pair: tuple[str, str]
+    name: str
+    run: Callable[[Path], tuple[bool, str]]
+    fast: bool
+
+
+def outcome(case: Case, folder: Path) -> Outcome:
+    """Run one case in ``folder`` (its files), its errors and fallbacks as statuses."""
+    try:
+        ok, detail = case.run(folder)
+    except _Fallback as err:
+        return Outcome(case.pair, case.name, "fallback", str(err))
+    except PliantError as err:
+        return Outcome(case.pair, case.name, "refused", f"{type(err).__name__}: {err}")
+    return Outcome(case.pair, case.name, "right" if ok else "wrong", detail)
+
+
+class _Fallback(Exception):
+    """An answer a case compared rested on a part held rigid."""
+
+
+def _no_fallback(*eqs) -> None:
+    for eq in eqs:
+        if has(eq.notes, HeldRigid):
+            raise _Fallback(next(n for n in eq.notes if isinstance(n, HeldRigid)))
+
+
+def _load(text: str, folder: Path, name: str = "scene.toml"):
+    from pliant.assembly.scenes import load_scene
+
+    path = folder / name
+    path.write_text(text)
+    return load_scene(path)
+
+
+def _solve(problem, elements: int = 60):
+    from pliant.models import rod3d
+
+    eq = rod3d.solve(problem, solver=rod3d.RodSolver(elements=elements))
+    _no_fallback(eq)
+    return eq
+
+
+# -- units x meshes ---------------------------------------------------------------------------
+HOSE_ON_BALL = """
+name = "hose on a ball"
+gravity = [0.0, 0.0, -9.81]
+{units}
+[part]
+name = "hose"
+length = 0.6
+outer_diameter = 0.01
+bending_stiffness = 0.05
+mass_per_length = 1.5
+[solver]
+elements = 60
+[[condition]]
+name = "clamp"
+s = 0.0
+x = 0.0
+y = 0.0
+z = 0.0
+tangent = [1.0, 0.0, 0.0]
+normal = [0.0, 0.0, 1.0]
+[[condition]]
+name = "hand"
+s = 0.6
+x = 0.5
+y = 0.0
+z = 0.0
+[[obstacle]]
+name = "ball"
+{ball}
+"""
+BALL_AT = (0.25, 0.0, -0.22)  # its top 2 cm under the clamp-to-hand line: the hose rests
+
+
+def _ball_mesh(folder: Path, subdivisions: int, unit: float, name: str) -> str:
+    """An icosphere ball as an OBJ file in ``unit`` [m], every digit written (an STL's
+    float32 would round the two units differently)."""
+    import trimesh
+
+    ball = trimesh.creation.icosphere(subdivisions=subdivisions, radius=0.1)
+    vertices = (ball.vertices + np.array(BALL_AT)) / unit
+    lines = [f"v {x!r} {y!r} {z!r}" for x, y, z in vertices.tolist()]
+    lines += [f"f {a + 1} {b + 1} {c + 1}" for a, b, c in ball.faces.tolist()]
+    (folder / name).write_text("\n".join(lines) + "\n")
+    return f'shape = "mesh"\nfile = "{name}"'
+
+
+def facet_angle(subdivisions: int) -> float:
+    """The largest angle [rad] between neighbouring faces' normals of an icosphere: how
+    far a facet's normal may lean from the sphere's, the first-order error of a
+    contact force's direction on it."""
+    import trimesh
+
+    ball = trimesh.creation.icosphere(subdivisions=subdivisions, radius=1.0)
+    return float(np.max(ball.face_adjacency_angles))
+
+
+def units_reach_meshes_once(folder: Path) -> tuple[bool, str]:
+    """A ball as a mesh file in millimetres under ``units = "mm"`` is the same obstacle
+    as the same ball written in metres (read in its own unit exactly once: the same
+    answer to round-off; scaled twice it would be a grain), and the hose resting on it
+    carries the primitive sphere's hand force to within the faceting's first-order
+    error (the facet angle)."""
+    sub = 4
+    mm = _load(HOSE_ON_BALL.format(units='units = "mm"',
+                                   ball=_ball_mesh(folder, sub, 1e-3, "mm.obj")),
+               folder, "mm.toml")
+    m = _load(HOSE_ON_BALL.format(units="", ball=_ball_mesh(folder, sub, 1.0, "m.obj")),
+              folder, "m.toml")
+    a, b = _solve(mm.problem), _solve(m.problem)
+    fa, fb = np.asarray(a.loads["hand"].force), np.asarray(b.loads["hand"].force)
+    if not np.allclose(fa, fb, rtol=1e-9, atol=1e-12):
+        return False, f"mm and m meshes differ: {fa} against {fb}"
+    if not len(a.contacts):
+        return False, "the hose does not rest on the mesh ball"
+    sphere = _load(HOSE_ON_BALL.format(
+        units='units = "mm"', ball=f'shape = "sphere"\nradius = 0.1\nposition = {list(BALL_AT)}'),
+        folder, "sphere.toml")
+    exact = np.asarray(_solve(sphere.problem).loads["hand"].force)
+    error = float(np.linalg.norm(fa - exact) / np.linalg.norm(exact))
+    return error < facet_angle(sub), (
+        f"mm = m to round-off; hand force off the primitive's by {error:.2%} (facet angle "
+        f"{facet_angle(sub):.3f} rad)")
+
+
+# -- mesh density x a path --------------------------------------------------------------------
+def _lowered(obstacle, steps: int):
+    from pliant.assembly.path import carry, follow_path
+    from pliant.core.planning import PathSpec
+
+    part = pl.Part(1.0, 0.05, mass_per_length=0.3, outer_diameter=0.02)
+    conditions = (pl.Condition(s=0.0, name="clamp", position=(0.0, 0.0, 0.0),
+                               tangent=(1.0, 0.0, 0.0), normal=(0.0, 0.0, 1.0)),
+                  pl.Condition(s=1.0, name="hand", position=(0.95, 0.0, 0.2)))
+    problem = pl.Problem(part, conditions, gravity=(0.0, 0.0, -9.81), obstacles=(obstacle,))
+    path = carry(problem, PathSpec("hand", ((0.95, 0.0, -0.15),), None, steps))
+    run = follow_path(problem, path, "hand", elements=100)
+    if run.stopped:
+        raise PliantError(run.stopped)
+    _no_fallback(*run.equilibria)
+    return np.asarray(run.equilibria[-1].loads["hand"].force)
+
+
+def _icosphere(subdivisions: int):
+    import trimesh
+
+    from pliant.scene.distance import Obstacle
+
+    ball = trimesh.creation.icosphere(subdivisions=subdivisions, radius=0.12)
+    return Obstacle.from_mesh("ball", ball.vertices, ball.faces, (0.6, 0.0, -0.16))
+
+
+def _path_over_mesh(subdivisions: tuple[int, ...], steps: int) -> tuple[bool, str]:
+    from pliant.scene.distance import Obstacle
+
+    exact = _lowered(Obstacle.sphere("ball", 0.12, (0.6, 0.0, -0.16)), steps)
+    errors = []
+    for sub in subdivisions:
+        force = _lowered(_icosphere(sub), steps)
+        errors.append(float(np.linalg.norm(force - exact) / np.linalg.norm(exact)))
+    ok = all(e < facet_angle(s) for e, s in zip(errors, subdivisions))
+    return ok, "hand force off the primitive's by " + ", ".join(
+        f"{e:.2%} ({20 * 4 ** s:,} triangles, facet angle {facet_angle(s):.3f})"
+        for e, s in zip(errors, subdivisions))
+
+
+def meshes_follow_a_path_as_their_primitive(folder: Path) -> tuple[bool, str]:
+    """A hose lowered over a ball in 50 steps: over icospheres of 1,280 and 5,120
+    triangles every step solves and the last hand force is the sphere's to within the
+    faceting's first-order error (the facet angle)."""
+    return _path_over_mesh((3, 4), 50)
+
+
+def dense_meshes_follow_a_path_as_their_primitive(folder: Path) -> tuple[bool, str]:
+    """The same path over 20,480 and 81,920 triangles (CAD is that fine or finer)."""
+    return _path_over_mesh((5, 6), 50)
+
+
+# -- clips --------------------------------------------------------------------------------------
+def _clip_scene(friction: float, steps: int = 8) -> str:
+    text = (EXAMPLES / "scenes" / "cable_through_clip.toml").read_text()
+    text = text.replace('kind = "sliding"', f'kind = "sliding"\nfriction = {friction!r}'
+                        if friction else 'kind = "sliding"')
+    return text.replace("steps = 30", f"steps = {steps}")
+
+
+def _carried(scene, elements: int = 80):
+    from pliant.assembly.path import follow_path
+
+    run = follow_path(scene.problem, scene.path, scene.grip, elements=elements)
+    if run.stopped:
+        raise PliantError(run.stopped)
+    _no_fallback(*run.equilibria)
+    return run
+
+
+def clip_friction_has_its_frictionless_limit(folder: Path) -> tuple[bool, str]:
+    """A sliding clip with a friction coefficient of 1e-3: the hand's force differs from
+    the frictionless clip's by no more than that coefficient times the clip's normal
+    reaction (what friction can add), at every step."""
+    free = _carried(_load(_clip_scene(0.0), folder, "free.toml"))
+    rough = _carried(_load(_clip_scene(1e-3), folder, "rough.toml"))
+    worst = 0.0
+    for a, b in zip(free.equilibria, rough.equilibria):
+        clip = float(np.linalg.norm(a.loads["sliding clip"].force))
+        change = float(np.linalg.norm(np.subtract(a.loads["hand"].force,
+                                                  b.loads["hand"].force)))
+        worst = max(worst, change / max(1e-3 * clip, 1e-12))
+    return worst <= 1.0, f"hand force change up to {worst:.2f} of mu |R_clip|"
+
+
+FIXED_AS_CLIP = """
+[[clip]]
+name = "clip"
+s = 0.4
+position = [0.38, 0.0, 0.05]
+axis = [1.0, 0.0, 0.0]
+normal = [0.0, 0.0, 1.0]
+"""
+FIXED_AS_CONDITION = """
+[[condition]]
+name = "clip"
+s = 0.4
+x = 0.38
+y = 0.0
+z = 0.05
+tangent = [1.0, 0.0, 0.0]
+normal = [0.0, 0.0, 1.0]
+"""
+
+
+def _cable(extra: str) -> str:
+    text = (EXAMPLES / "scenes" / "cable_through_clip.toml").read_text()
+    head = text[:text.index("[[clip]]")]
+    hand = text[text.index('[[condition]]\nname = "hand"'):text.index("[path]")]
+    return head + extra + hand
+
+
+def fixed_clip_is_the_condition_it_stands_for(folder: Path) -> tuple[bool, str]:
+    """A fixed clip with its normal is a condition holding position, axis and roll: the
+    same answer, to round-off, and the same reaction under its name."""
+    a = _solve(_load(_cable(FIXED_AS_CLIP), folder, "clip.toml").problem, 80)
+    b = _solve(_load(_cable(FIXED_AS_CONDITION), folder, "cond.toml").problem, 80)
+    diff = float(np.max(np.abs(a.position - b.position)))
+    force = float(np.linalg.norm(np.subtract(a.loads["clip"].force, b.loads["clip"].force)))
+    return diff < 1e-9 and force < 1e-7, f"shapes {diff:.1e} m apart, reactions {force:.1e} N"
+
+
+def turning_clip_takes_no_moment_about_its_axis(folder: Path) -> tuple[bool, str]:
+    """A turning clip lets the part turn about its axis: its moment about the axis is 0
+    (round-off of the part's moment scale EI / L), where the fixed one's is not."""
+    turning = FIXED_AS_CLIP.replace('normal = [0.0, 0.0, 1.0]\n', 'kind = "turning"\n')
+    a = _solve(_load(_cable(turning), folder, "turning.toml").problem, 80)
+    moment = float(np.dot(a.loads["clip"].moment, (1.0, 0.0, 0.0)))
+    scale = 0.05 / 0.8
+    return abs(moment) < 1e-9 * scale, f"moment about the axis {moment:.1e} N m"
+
+
+# -- fitted parts ---------------------------------------------------------------------------------
+def _fitted_scene(folder: Path, stiffness: float, flexible: bool):
+    hose = (EXAMPLES / "scenes" / "coolant_hose.toml").read_text().replace(
+        "bending_stiffness = 0.25", f"bending_stiffness = {stiffness!r}")
+    (folder / "hose.toml").write_text(hose)
+    line = (EXAMPLES / "scenes" / "line_over_hose.toml").read_text().replace(
+        'file = "coolant_hose.toml"', f'file = "hose.toml"\nflexible = {str(flexible).lower()}')
+    return _load(line, folder, "line.toml")
+
+
+def stiff_fitted_part_tends_to_the_rigid_limit(folder: Path) -> tuple[bool, str]:
+    """A fitted hose 100, 1,000 and 10,000 times stiffer than the coolant hose gives
+    way as 1 / EI: where the line touches it, the line's hand force approaches its
+    limit at first order (ten times nearer for ten times the stiffness). (Against the
+    hose held rigid, flexible = false, the twin is not the same shape: its tube is a
+    16-sided mesh.)"""
+    forces = []
+    for stiffness in (25.0, 250.0, 2500.0):
+        run = _carried(_fitted_scene(folder, stiffness, True), 60)
+        forces.append(run)
+    touching = [k for k, eq in enumerate(forces[-1].equilibria) if eq.fitted]
+    if not touching:
+        return False, "the line never touched the fitted hose"
+    k = touching[-1]
+    f = [np.asarray(r.equilibria[k].loads["hand"].force) for r in forces]
+    far, near = (float(np.linalg.norm(x - f[2]) / np.linalg.norm(f[2])) for x in f[:2])
+    ratio = far / max(near, 1e-300)
+    return 5.0 < ratio < 20.0, (f"step {k}: hand force {far:.1e} and {near:.1e} from the "
+                                f"stiffest's (ratio {ratio:.1f})")
+
+
+# -- stretch ------------------------------------------------------------------------------------
+def stretch_has_its_inextensible_limit(folder: Path) -> tuple[bool, str]:
+    """A part that stretches tends to the inextensible one as its axial stiffness grows,
+    at first order (its strain F / EA): the hand's force changes by ten times less for
+    ten times the stiffness, and by about the strain at EA = 1e6 N."""
+    text = (EXAMPLES / "hoses" / "hose3d.toml").read_text()
+    base = np.asarray(_solve(_load(text, folder, "inext.toml").problem).loads["hand"].force)
+    changes = []
+    for ea in (1e5, 1e6):
+        stretched = text.replace("[part]\n", f"[part]\naxial_stiffness = {ea!r}\n", 1)
+        force = _solve(_load(stretched, folder, "ext.toml").problem).loads["hand"].force
+        changes.append(float(np.linalg.norm(base - force) / np.linalg.norm(base)))
+    ratio = changes[0] / changes[1]
+    return 8.0 < ratio < 12.0 and changes[1] < 1e-5, (
+        f"hand force changes by {changes[0]:.1e} (EA 1e5 N) and {changes[1]:.1e} (1e6 N)")
+
+
+# -- 2D x 3D ------------------------------------------------------------------------------------
+def planar_problem_is_the_same_in_both_models(folder: Path) -> tuple[bool, str]:
+    """The paper's case 1 (a cantilever under a dead tip force and moment, bent through
+    a large angle) solved by the 2D elastica and by the 3D rod in the plane z = 0: the
+    same tip and the same clamp moment, to the 3D model's discretisation (second order:
+    400 elements)."""
+    from pliant.io.problem_file import load_problem
+
+    flat = load_problem(EXAMPLES / "paper" / "case1.toml")
+    eq2 = pl.solve(flat)
+    tip = next(c for c in flat.conditions if c.name == "tip load")
+    fx, fy = (float(f) for f in tip.force)
+    space = pl.Problem(flat.part, (
+        pl.Condition(s=0.0, name="clamp", position=(0.0, 0.0, 0.0), tangent=(1.0, 0.0, 0.0),
+                     normal=(0.0, 0.0, 1.0)),
+        pl.Condition(s=tip.s, name="tip load", force=(fx, fy, 0.0),
+                     moment=(0.0, 0.0, float(tip.moment)))), gravity=(0.0, 0.0, 0.0))
+    eq3 = _solve(space, 400)
+    end2 = np.asarray(eq2.position[-1], float)[:2]
+    end3 = np.asarray(eq3.position[-1])
+    moment2 = float(eq2.loads["clamp"].moment)
+    moment3 = float(eq3.loads["clamp"].moment[2])
+    tip_error = float(np.linalg.norm(end2 - end3[:2])) + abs(float(end3[2]))
+    moment_error = abs(moment2 - moment3) / abs(moment2)
+    return tip_error < 1e-4 and moment_error < 1e-4, (
+        f"tips {tip_error:.1e} m apart, clamp moments within {moment_error:.1e}")
+
+
+# -- the page x the CLI ---------------------------------------------------------------------------
+def page_and_cli_give_one_verdict(folder: Path) -> tuple[bool, str]:
+    """The browser environment's verdict of a scene's pose (``evaluate_pose`` on the
+    session's accurate answer) is ``pliant evaluate``'s of that pose: the same headline,
+    the same force at the hand and the same clearances."""
+    from pliant.assembly.evaluate import evaluate
+    from pliant.assembly.scenes import load_scene
+    from pliant.viewer.state import ViewerState
+
+    scene = load_scene(EXAMPLES / "scenes" / "hose_past_post.toml")
+    cli = evaluate(scene, search=False)
+    viewer = ViewerState(Path("hose_past_post.toml"), EXAMPLES / "scenes", live=False)
+    try:
+        from pliant.viewer import protocol
+
+        replies = viewer.handle(protocol.ClientHello(type="hello"))
+        accurate = [r for r in replies if r.type == "accurate"][-1]
+    finally:
+        viewer.close()
+    hand = next(x for x in accurate.loads if x.name == "hand")
+    force = float(np.linalg.norm(np.subtract(hand.force, cli.run.equilibria[0].loads["hand"]
+                                             .force)))
+    page = {c.obstacle: c.clearance for c in accurate.interference.clearances}
+    ours = dict(cli.run.steps[0].clearances)
+    same_clear = all(abs(page[k] - ours[k]) < 1e-9 for k in ours)
+    same = (accurate.verdict is not None and accurate.verdict.headline == cli.verdict.headline)
+    return same and force < 1e-6 and same_clear, (
+        f"headlines {'agree' if same else 'differ'}; hand force {force:.1e} N apart; "
+        f"clearances {'agree' if same_clear else 'differ'}")
+
+
+CASES = [
+    Case(("units", "mesh"), "units reach meshes once", units_reach_meshes_once, True),
+    Case(("mesh", "path"), "meshes follow a path as their primitive",
+         meshes_follow_a_path_as_their_primitive, True),
+    Case(("mesh", "path"), "dense meshes follow a path as their primitive",
+         dense_meshes_follow_a_path_as_their_primitive, False),
+    Case(("clip", "friction"), "friction has its frictionless limit",
+         clip_friction_has_its_frictionless_limit, True),
+    Case(("clip", "condition"), "a fixed clip is the condition it stands for",
+         fixed_clip_is_the_condition_it_stands_for, True),
+    Case(("clip", "twist"), "a turning clip takes no moment about its axis",
+         turning_clip_takes_no_moment_about_its_axis, True),
+    Case(("fitted part", "path"), "a stiff fitted part tends to the rigid limit",
+         stiff_fitted_part_tends_to_the_rigid_limit, False),
+    Case(("stretch", "hand"), "stretch has its inextensible limit",
+         stretch_has_its_inextensible_limit, True),
+    Case(("2D", "3D"), "a planar problem is the same in both models",
+         planar_problem_is_the_same_in_both_models, True),
+    Case(("page", "CLI"), "the page and the CLI give one verdict",
+         page_and_cli_give_one_verdict, True),
+]
