@@ -267,3 +267,19 @@ def test_the_progress_bar_runs_over_the_assemblys_triangles_once():
     with listening(lone):
         prepare_mesh(flat, np.arange(len(flat)).reshape(-1, 3), 16, cache=False)
     assert lone.totals == [len(mesh.tri)] and lone.done[-1] == pytest.approx(len(mesh.tri))
+
+
+def test_a_cad_tables_packaging_rule_reaches_each_of_its_solids(tmp_path):
+    """``[[cad]] temperature = ..., edge = true`` is the rule of every solid it brings
+    (named by its prefix), as an ``[[obstacle]]``'s is its own; one left without says
+    nothing."""
+    import trimesh
+
+    trimesh.creation.box(extents=(120.0, 40.0, 10.0)).export(tmp_path / "plate.stl")
+    scene = SCENE.replace('[[cad]]\nfile = "bracket_assembly.step"\n', "")
+    plates = PLATES.replace('name = "from cad"\n', 'name = "from cad"\ntemperature = 300.0\n'
+                            'edge = true\n')
+    built = parse_scene('units = "mm"\n' + scene + plates, "scene", tmp_path)
+    rule = built.obstacle_rules["from cad/plate"]
+    assert rule.temperature == 300.0 and rule.edge and not rule.moving
+    assert "from mesh" not in built.obstacle_rules

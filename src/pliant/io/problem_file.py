@@ -53,7 +53,7 @@ from pliant.io.scene_sections import (
     _given,
     _solid_vertices,
 )
-from pliant.io.sections import Vec3, _Strict, read_mesh
+from pliant.io.sections import PackagingFields, Vec3, _Strict, read_mesh
 from pliant.io.tomlfile import field_path, read_toml
 from pliant.util import progress
 
@@ -240,7 +240,7 @@ class ConditionModel(_Strict):
                          moment=moment, follower=follower)
 
 
-class ObstacleModel(_Strict):
+class ObstacleModel(PackagingFields):
     """[[obstacle]]: a rigid obstacle of the scene, placed by position and rotation
     (local to world, rows) or by axis (where its local z points: a cylinder's axis, a
     half-space's outward normal)."""
@@ -261,20 +261,7 @@ class ObstacleModel(_Strict):
     resolution: int = Field(64, ge=8, le=512, description="mesh: distance grid cells")
     friction: float = Field(0.0, ge=0, le=5, description="Coulomb's coefficient between "
                                                           "the obstacle and the part")
-    margin: float | None = Field(None, ge=0, description="the clearance wanted round this "
-                                 "obstacle [m] (default: the scene's)")
-    temperature: float | None = Field(None, gt=-273.15, description="its surface "
-                                      "temperature [degC] (an exhaust, a turbo)")
-    shielded: bool = Field(False, description="a heat shield or blanket covers it")
-    moving: bool = Field(False, description="it moves (a fan, a pulley, a shaft)")
-    edge: bool = Field(False, description="a sharp edge the part must not rest on")
     note: str = ""
-
-    @property
-    def rule(self) -> ObstacleRule:
-        """Its packaging rule (``pliant.core.rules.ObstacleRule``)."""
-        return ObstacleRule(self.margin, self.temperature, self.shielded, self.moving,
-                            self.edge)
 
     @model_validator(mode="after")
     def _shape_fields(self) -> ObstacleModel:

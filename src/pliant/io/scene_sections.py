@@ -16,13 +16,13 @@ from pliant.core.conditions import Condition
 from pliant.core.numbers import triple
 from pliant.core.planning import PathSpec, PlanSettings
 from pliant.core.problem import Problem
-from pliant.core.rules import EvaluationSettings, ObstacleRule
+from pliant.core.rules import EvaluationSettings
 from pliant.errors import InputError, PliantError
-from pliant.io.sections import Vec3, _referenced, _Strict
+from pliant.io.sections import PackagingFields, Vec3, _referenced, _Strict
 from pliant.util import progress
 
 
-class CadModel(_Strict):
+class CadModel(PackagingFields):
     """[[cad]]: obstacles from a CAD assembly (STEP, or glTF, OBJ, ...): one per solid,
     named by its product, or all merged into one."""
 
@@ -44,20 +44,7 @@ class CadModel(_Strict):
     rotation: tuple[Vec3, Vec3, Vec3] | None = None
     resolution: int = Field(64, ge=8, le=512, description="distance grid cells")
     friction: float = Field(0.0, ge=0, le=5)
-    margin: float | None = Field(None, ge=0, description="the clearance wanted round its "
-                                 "solids [m] (default: the scene's)")
-    temperature: float | None = Field(None, gt=-273.15, description="their surface "
-                                      "temperature [degC]")
-    shielded: bool = Field(False, description="a heat shield or blanket covers them")
-    moving: bool = Field(False, description="they move (a fan, a pulley, a shaft)")
-    edge: bool = Field(False, description="sharp edges the part must not rest on")
     note: str = ""
-
-    @property
-    def rule(self) -> ObstacleRule:
-        """Its solids' packaging rule (``pliant.core.rules.ObstacleRule``)."""
-        return ObstacleRule(self.margin, self.temperature, self.shielded, self.moving,
-                            self.edge)
 
     @model_validator(mode="after")
     def _merged_named(self) -> CadModel:

@@ -8,8 +8,9 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-from pydantic import BaseModel, ConfigDict, ValidationInfo, field_validator
+from pydantic import BaseModel, ConfigDict, Field, ValidationInfo, field_validator
 
+from pliant.core.rules import ObstacleRule
 from pliant.util import cache, progress
 
 Vec3 = tuple[float, float, float]
@@ -47,6 +48,25 @@ def _referenced(name: str | None, base: Path | None, what: str) -> Path:
         raise ValueError(f"file: no such {what} file {str(path)!r} (paths are relative "
                          "to the scene file)")
     return path
+
+
+class PackagingFields(_Strict):
+    """What a packaging engineer says of an obstacle (``[[obstacle]]``, or every solid of
+    a ``[[cad]]``): its own margin and its packaging rule (``ObstacleRule``)."""
+
+    margin: float | None = Field(None, ge=0, description="the clearance wanted round it "
+                                 "[m] (default: the scene's)")
+    temperature: float | None = Field(None, gt=-273.15, description="its surface "
+                                      "temperature [degC] (an exhaust, a turbo)")
+    shielded: bool = Field(False, description="a heat shield or blanket covers it")
+    moving: bool = Field(False, description="it moves (a fan, a pulley, a shaft)")
+    edge: bool = Field(False, description="a sharp edge the part must not rest on")
+
+    @property
+    def rule(self) -> ObstacleRule:
+        """Its packaging rule (``pliant.core.rules.ObstacleRule``)."""
+        return ObstacleRule(self.margin, self.temperature, self.shielded, self.moving,
+                            self.edge)
 
 
 def read_mesh(name: str | None, base: Path | None) -> tuple[np.ndarray, np.ndarray]:
