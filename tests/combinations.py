@@ -12,6 +12,7 @@ prints counts per pair.
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
@@ -78,19 +79,23 @@ def _solve(problem, elements: int = 60):
     return eq
 
 
-# -- units x meshes ---------------------------------------------------------------------------
-HOSE_ON_BALL = """
-name = "hose on a ball"
+# -- units x meshes, meshes x a path -------------------------------------------------------
+# A hose clamped along +x, its end carried sideways round a vertical post (radius 5 cm):
+# it wraps the post's side, every answer stable (a hose draped over a ball's top is
+# not: it would slide off sideways, and a faceted ball seats it where a sphere cannot,
+# so a ball is no twin for a mesh).
+HOSE_BY_POST = """
+name = "hose round a post"
 gravity = [0.0, 0.0, -9.81]
 {units}
 [part]
 name = "hose"
-length = 0.6
-outer_diameter = 0.01
+length = 1.0
+outer_diameter = 0.02
 bending_stiffness = 0.05
-mass_per_length = 1.5
+mass_per_length = 0.3
 [solver]
-elements = 60
+elements = 100
 [[condition]]
 name = "clamp"
 s = 0.0
@@ -101,119 +106,106 @@ tangent = [1.0, 0.0, 0.0]
 normal = [0.0, 0.0, 1.0]
 [[condition]]
 name = "hand"
-s = 0.6
-x = 0.5
-y = 0.0
+s = 1.0
+x = {x}
+y = {y}
 z = 0.0
 [[obstacle]]
-name = "ball"
-{ball}
+name = "post"
+{post}
 """
-BALL_AT = (0.25, 0.0, -0.22)  # its top 2 cm under the clamp-to-hand line: the hose rests
+POST_AT = (0.5, 0.08, 0.0)
+START, END = (0.95, 0.0), (0.9, 0.3)
 
 
-def _ball_mesh(folder: Path, subdivisions: int, unit: float, name: str) -> str:
-    """An icosphere ball as an OBJ file in ``unit`` [m], every digit written (an STL's
-    float32 would round the two units differently)."""
+def _post_mesh(folder: Path, sections: int, unit: float, name: str) -> str:
+    """A post as an OBJ file in ``unit`` [m], every digit written (an STL's float32
+    would round the two units differently)."""
     import trimesh
 
-    ball = trimesh.creation.icosphere(subdivisions=subdivisions, radius=0.1)
-    vertices = (ball.vertices + np.array(BALL_AT)) / unit
+    post = trimesh.creation.cylinder(radius=0.05, height=0.4, sections=sections)
+    vertices = (post.vertices + np.array(POST_AT)) / unit
     lines = [f"v {x!r} {y!r} {z!r}" for x, y, z in vertices.tolist()]
-    lines += [f"f {a + 1} {b + 1} {c + 1}" for a, b, c in ball.faces.tolist()]
+    lines += [f"f {a + 1} {b + 1} {c + 1}" for a, b, c in post.faces.tolist()]
     (folder / name).write_text("\n".join(lines) + "\n")
     return f'shape = "mesh"\nfile = "{name}"'
 
 
-def facet_angle(subdivisions: int) -> float:
-    """The largest angle [rad] between neighbouring faces' normals of an icosphere: how
-    far a facet's normal may lean from the sphere's, the first-order error of a
-    contact force's direction on it."""
-    import trimesh
+PRIMITIVE_POST = (f'shape = "cylinder"\nradius = 0.05\nlength = 0.4\n'
+                  f"position = {list(POST_AT)}")
 
-    ball = trimesh.creation.icosphere(subdivisions=subdivisions, radius=1.0)
-    return float(np.max(ball.face_adjacency_angles))
+
+def facet_angle(sections: int) -> float:
+    """The angle [rad] between neighbouring side faces' normals of a post of
+    ``sections``: how far a facet's normal may lean from the cylinder's, the first-order
+    error of a contact force's direction on it."""
+    return 2.0 * math.pi / sections
 
 
 def units_reach_meshes_once(folder: Path) -> tuple[bool, str]:
-    """A ball as a mesh file in millimetres under ``units = "mm"`` is the same obstacle
-    as the same ball written in metres (read in its own unit exactly once: the same
-    answer to round-off; scaled twice it would be a grain), and the hose resting on it
-    carries the primitive sphere's hand force to within the faceting's first-order
-    error (the facet angle)."""
-    sub = 4
-    mm = _load(HOSE_ON_BALL.format(units='units = "mm"',
-                                   ball=_ball_mesh(folder, sub, 1e-3, "mm.obj")),
-               folder, "mm.toml")
-    m = _load(HOSE_ON_BALL.format(units="", ball=_ball_mesh(folder, sub, 1.0, "m.obj")),
-              folder, "m.toml")
-    a, b = _solve(mm.problem), _solve(m.problem)
-    fa, fb = np.asarray(a.loads["hand"].force), np.asarray(b.loads["hand"].force)
-    if not np.allclose(fa, fb, rtol=1e-9, atol=1e-12):
-        return False, f"mm and m meshes differ: {fa} against {fb}"
-    if not len(a.contacts):
-        return False, "the hose does not rest on the mesh ball"
-    sphere = _load(HOSE_ON_BALL.format(
-        units='units = "mm"', ball=f'shape = "sphere"\nradius = 0.1\nposition = {list(BALL_AT)}'),
-        folder, "sphere.toml")
-    exact = np.asarray(_solve(sphere.problem).loads["hand"].force)
-    error = float(np.linalg.norm(fa - exact) / np.linalg.norm(exact))
-    return error < facet_angle(sub), (
-        f"mm = m to round-off; hand force off the primitive's by {error:.2%} (facet angle "
-        f"{facet_angle(sub):.3f} rad)")
+    """A post as a mesh file in millimetres under ``units = "mm"`` is the same obstacle
+    as the same post written in metres (read in its own unit exactly once: the same
+    path to round-off; scaled twice it would be a grain), and the hose carried round it
+    has the primitive cylinder's hand force at every step to within the faceting's
+    first-order error (the facet angle)."""
+    sections = 128
+    mm = _carried_round(folder, _post_mesh(folder, sections, 1e-3, "mm.obj"), "mm.toml",
+                        25, units='units = "mm"')
+    m = _carried_round(folder, _post_mesh(folder, sections, 1.0, "m.obj"), "m.toml", 25)
+    for a, b in zip(mm.steps, m.steps):
+        if not np.allclose(a.force, b.force, rtol=1e-9, atol=1e-12):
+            return False, f"mm and m meshes differ: {a.force} against {b.force}"
+    if not mm.steps[-1].contacts:
+        return False, "the hose does not press on the post"
+    exact = _carried_round(folder, PRIMITIVE_POST, "prim.toml", 25, units='units = "mm"')
+    error = max(float(np.linalg.norm(np.subtract(a.force, b.force)) / np.linalg.norm(a.force))
+                for a, b in zip(exact.steps, mm.steps))
+    return error < facet_angle(sections), (
+        f"mm = m to round-off; hand force off the primitive's by at most {error:.2%} "
+        f"(facet angle {facet_angle(sections):.3f} rad)")
 
 
-# -- mesh density x a path --------------------------------------------------------------------
-def _lowered(obstacle, steps: int):
-    from pliant.assembly.path import carry, follow_path
-    from pliant.core.planning import PathSpec
+def _carried_round(folder: Path, post: str, name: str, steps: int, units: str = ""):
+    from pliant.assembly.path import follow_path
 
-    part = pl.Part(1.0, 0.05, mass_per_length=0.3, outer_diameter=0.02)
-    conditions = (pl.Condition(s=0.0, name="clamp", position=(0.0, 0.0, 0.0),
-                               tangent=(1.0, 0.0, 0.0), normal=(0.0, 0.0, 1.0)),
-                  pl.Condition(s=1.0, name="hand", position=(0.95, 0.0, 0.2)))
-    problem = pl.Problem(part, conditions, gravity=(0.0, 0.0, -9.81), obstacles=(obstacle,))
-    path = carry(problem, PathSpec("hand", ((0.95, 0.0, -0.15),), None, steps))
-    run = follow_path(problem, path, "hand", elements=100)
+    text = HOSE_BY_POST.format(units=units, x=START[0], y=START[1], post=post)
+    text += f"[path]\ngrip = \"hand\"\nwaypoints = [[{END[0]}, {END[1]}, 0.0]]\nsteps = {steps}\n"
+    scene = _load(text, folder, name)
+    run = follow_path(scene.problem, scene.path, "hand", elements=100)
     if run.stopped:
         raise PliantError(run.stopped)
     _no_fallback(*run.equilibria)
-    return np.asarray(run.equilibria[-1].loads["hand"].force)
+    return run
 
 
-def _icosphere(subdivisions: int):
-    import trimesh
-
-    from pliant.scene.distance import Obstacle
-
-    ball = trimesh.creation.icosphere(subdivisions=subdivisions, radius=0.12)
-    return Obstacle.from_mesh("ball", ball.vertices, ball.faces, (0.6, 0.0, -0.16))
-
-
-def _path_over_mesh(subdivisions: tuple[int, ...], steps: int) -> tuple[bool, str]:
-    from pliant.scene.distance import Obstacle
-
-    exact = _lowered(Obstacle.sphere("ball", 0.12, (0.6, 0.0, -0.16)), steps)
+def _path_over_mesh(folder: Path, sections: tuple[int, ...], steps: int
+                    ) -> tuple[bool, str]:
+    exact = _carried_round(folder, PRIMITIVE_POST, "prim.toml", steps)
+    if not all(r.stable for r in exact.steps):
+        return False, "the primitive's path is not stable throughout: no twin"
     errors = []
-    for sub in subdivisions:
-        force = _lowered(_icosphere(sub), steps)
-        errors.append(float(np.linalg.norm(force - exact) / np.linalg.norm(exact)))
-    ok = all(e < facet_angle(s) for e, s in zip(errors, subdivisions))
-    return ok, "hand force off the primitive's by " + ", ".join(
-        f"{e:.2%} ({20 * 4 ** s:,} triangles, facet angle {facet_angle(s):.3f})"
-        for e, s in zip(errors, subdivisions))
+    for n in sections:
+        run = _carried_round(folder, _post_mesh(folder, n, 1.0, f"post{n}.obj"),
+                             f"post{n}.toml", steps)
+        errors.append(max(float(np.linalg.norm(np.subtract(a.force, b.force))
+                                / np.linalg.norm(a.force))
+                          for a, b in zip(exact.steps, run.steps)))
+    ok = all(e < facet_angle(n) for e, n in zip(errors, sections))
+    return ok, "hand force off the primitive's by at most " + ", ".join(
+        f"{e:.2%} ({n} sections, facet angle {facet_angle(n):.4f})"
+        for e, n in zip(errors, sections))
 
 
 def meshes_follow_a_path_as_their_primitive(folder: Path) -> tuple[bool, str]:
-    """A hose lowered over a ball in 50 steps: over icospheres of 1,280 and 5,120
-    triangles every step solves and the last hand force is the sphere's to within the
+    """A hose carried round a post in 25 steps: over posts of 32 and 128 sections every
+    step solves and the hand force is the cylinder's at every step to within the
     faceting's first-order error (the facet angle)."""
-    return _path_over_mesh((3, 4), 50)
+    return _path_over_mesh(folder, (32, 128), 25)
 
 
 def dense_meshes_follow_a_path_as_their_primitive(folder: Path) -> tuple[bool, str]:
-    """The same path over 20,480 and 81,920 triangles (CAD is that fine or finer)."""
-    return _path_over_mesh((5, 6), 50)
+    """The same path round posts of 1,024 and 4,096 sections (CAD is that fine)."""
+    return _path_over_mesh(folder, (1024, 4096), 25)
 
 
 # -- clips --------------------------------------------------------------------------------------
@@ -331,17 +323,19 @@ def stiff_fitted_part_tends_to_the_rigid_limit(folder: Path) -> tuple[bool, str]
 def stretch_has_its_inextensible_limit(folder: Path) -> tuple[bool, str]:
     """A part that stretches tends to the inextensible one as its axial stiffness grows,
     at first order (its strain F / EA): the hand's force changes by ten times less for
-    ten times the stiffness, and by about the strain at EA = 1e6 N."""
+    ten times the stiffness, and by about the strain at EA = 1e7 N (EA L^2 / EI = 2e8, a
+    steel cable's contrast, whose residual's round-off floor is above the default
+    tolerance: it used to be refused)."""
     text = (EXAMPLES / "hoses" / "hose3d.toml").read_text()
     base = np.asarray(_solve(_load(text, folder, "inext.toml").problem).loads["hand"].force)
     changes = []
-    for ea in (1e5, 1e6):
+    for ea in (1e6, 1e7):
         stretched = text.replace("[part]\n", f"[part]\naxial_stiffness = {ea!r}\n", 1)
         force = _solve(_load(stretched, folder, "ext.toml").problem).loads["hand"].force
         changes.append(float(np.linalg.norm(base - force) / np.linalg.norm(base)))
     ratio = changes[0] / changes[1]
-    return 8.0 < ratio < 12.0 and changes[1] < 1e-5, (
-        f"hand force changes by {changes[0]:.1e} (EA 1e5 N) and {changes[1]:.1e} (1e6 N)")
+    return 8.0 < ratio < 12.0 and changes[1] < 1e-6, (
+        f"hand force changes by {changes[0]:.1e} (EA 1e6 N) and {changes[1]:.1e} (1e7 N)")
 
 
 # -- 2D x 3D ------------------------------------------------------------------------------------
