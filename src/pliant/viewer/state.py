@@ -363,7 +363,7 @@ class ViewerState:
                                   force=c.force[k].tolist(), obstacle=c.obstacle[k])
                         for k in range(len(c))]
         fitted = getattr(result, "fitted", {})
-        interference = self._interference(result.s, position, fitted, result.contacts)
+        interference = self._accurate_interference(result, position, fitted)
         radius, s_radius = result.min_bend_radius
         allowed = self.bend_limit
         warnings = shape_warnings(bend_radius=radius, bend_at=s_radius, allowed=allowed,
@@ -413,7 +413,7 @@ class ViewerState:
         curve = np.asarray(rt.curve, float)
         s = np.asarray(rt.s_curve, float)
         curvature = _curvature(s, curve)
-        interference = self._interference(s, curve)
+        interference = self._preview_interference(s, curve)
         i = int(np.argmax(curvature)) if curvature.size else 0
         tightest = 1.0 / curvature[i] if curvature.size and curvature[i] > 0 else np.inf
         warnings = shape_warnings(
@@ -428,31 +428,31 @@ class ViewerState:
             drift=float(frame.drift.distance_to_accurate), pending=bool(frame.pending),
             seconds=float(frame.seconds), warnings=warnings)
 
-    def _interference(self, s: np.ndarray, points: np.ndarray,
-                      fitted: dict | None = None, contacts: Any = False) -> P.Interference:
-        """``fitted``: flexible parts already fitted as an accurate answer deformed them
-        (the real-time frames measure to them at rest, as their tubes are). An accurate
-        answer (``contacts`` given, None where it touches nothing) is measured as the
-        CLI and the files measure it (``interference.of_answer``): one number for one
-        clearance; a real-time preview coarser, at the drawn radius."""
+    def _accurate_interference(self, result: Any, position: np.ndarray,
+                               fitted: dict) -> P.Interference:
+        """An accurate answer's interference, measured as the CLI and the files measure it
+        (``interference.of_answer``: one number for one clearance), the flexible parts
+        already fitted as it deformed them (``fitted``)."""
+        from pliant.scene.interference import of_answer  # noqa: PLC0415
+
         obstacles = self.session.problem.obstacles
         if not obstacles:
-            return P.Interference(margin=self.scene.margin, clearances=[], penetrations=[],
-                                  too_close=[])
-        from pliant.scene.interference import of_answer, of_curve  # noqa: PLC0415
+            return _no_interference(self.scene.margin)
+        return _interference_message(of_answer(
+            result.s, position, result.contacts, self.session.problem.part.tube_radius,
+            obstacles, margin=self.scene.margin, tubes=fitted))
 
-        if contacts is not False:
-            report = of_answer(s, points, contacts, self.session.problem.part.tube_radius,
-                               obstacles, margin=self.scene.margin, tubes=fitted)
-        else:
-            report = of_curve(s, points, self.radius, obstacles, margin=self.scene.margin,
-                              tolerance=0.01 * self.radius, subdivide=2, tubes=fitted)
-        return P.Interference(
-            margin=report.margin,
-            clearances=[P.Clearance(obstacle=c.obstacle, clearance=c.clearance, s=c.s,
-                                    point=list(c.point)) for c in report.clearances],
-            penetrations=[_span(x) for x in report.penetrations],
-            too_close=[_span(x) for x in report.too_close])
+    def _preview_interference(self, s: np.ndarray, points: np.ndarray) -> P.Interference:
+        """A real-time frame's interference: coarser, at the drawn radius, the fitted
+        parts at rest (as their tubes are)."""
+        from pliant.scene.interference import of_curve  # noqa: PLC0415
+
+        obstacles = self.session.problem.obstacles
+        if not obstacles:
+            return _no_interference(self.scene.margin)
+        return _interference_message(of_curve(
+            s, points, self.radius, obstacles, margin=self.scene.margin,
+            tolerance=0.01 * self.radius, subdivide=2))
 
     def _condition(self, name: str) -> Condition:
         found = next((c for c in self.session.problem.conditions if c.name == name), None)
@@ -504,6 +504,21 @@ def _curvature(s: np.ndarray, curve: np.ndarray) -> np.ndarray:
 def _span(span) -> P.Span:
     return P.Span(obstacle=span.obstacle, s_start=span.s_start, s_end=span.s_end,
                   worst=span.worst)
+
+
+def _no_interference(margin: float) -> P.Interference:
+    """A scene without obstacles: nothing to clear."""
+    return P.Interference(margin=margin, clearances=[], penetrations=[], too_close=[])
+
+
+def _interference_message(report: Any) -> P.Interference:
+    """An interference report as the wire protocol carries it."""
+    return P.Interference(
+        margin=report.margin,
+        clearances=[P.Clearance(obstacle=c.obstacle, clearance=c.clearance, s=c.s,
+                                point=list(c.point)) for c in report.clearances],
+        penetrations=[_span(x) for x in report.penetrations],
+        too_close=[_span(x) for x in report.too_close])
 
 
 def _bend_limit(scene: Any) -> float | None:
