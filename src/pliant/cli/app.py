@@ -707,6 +707,67 @@ def demo(
                     None, None, None, pictures=out / stem)
 
 
+@app.command()
+def harness(
+    file: Annotated[Path, typer.Argument(help="a KBL harness file (VDA 4964, 2.3 or 2.4)")],
+    module: Annotated[list[str] | None, typer.Option(
+        help="build this module (a variant; id or part number; repeat for several): its "
+             "wires and what no module controls")] = None,
+    curves: Annotated[Path | None, typer.Option(help="write each segment's designed centre "
+                                                     "curve as CSV (metres), for the design "
+                                                     "tool")] = None,
+    glb: Annotated[Path | None, typer.Option(help="write the designed harness as tubes of "
+                                                  "the bundles' diameters (.glb)")] = None,
+    json: Annotated[Path | None, typer.Option("--json", help="write the import, each "
+                                                             "segment's properties with "
+                                                             "their sources and the checks "
+                                                             "as JSON; - for standard "
+                                                             "output")] = None,
+    all_segments: Annotated[bool, typer.Option("--all", help="list every segment, not only "
+                                                             "those a check flags")] = False,
+    strict: Annotated[bool, typer.Option(help="refuse a file that breaks its KBL "
+                                              "schema")] = False,
+    rules: Annotated[Path | None, typer.Option(help="a rules table replacing the bundled "
+                                                    "one (bend margins, fallback limits)")]
+    = None,
+) -> None:
+    """Read a harness's design data (KBL): every segment's bundle diameter, mass,
+    stiffness and bend limit with their sources, and the design's checks (curves that
+    miss their nodes or their length, bends tighter than the wires allow, bundles
+    larger than their reserved section, kinks at nodes). Exit status 1 when a check is
+    red."""
+    from rich.console import Console  # noqa: PLC0415
+
+    from pliant.assembly import harness as design  # noqa: PLC0415
+    from pliant.cli.harness_report import print_harness  # noqa: PLC0415
+    from pliant.io import harness_file  # noqa: PLC0415
+    from pliant.io.kbl import read_kbl  # noqa: PLC0415
+    from pliant.io.rules_file import load_rules  # noqa: PLC0415
+
+    console = Console(stderr=_to_stdout(json))
+    table = load_rules(rules)
+    model = read_kbl(file, strict=strict)
+    if module:
+        model = design.select(model, module)
+    props = design.properties(model, rules=table)
+    checks = design.design_checks(model, props, rules=table)
+    print_harness(console, model, props, checks, show_all=all_segments)
+    if curves is not None:
+        shapes = {k: (s.name, design.centre_curve(model, k)) for k, s in model.segments.items()}
+        console.print(f"centre curves: {harness_file.write_curves(curves, shapes)}")
+    if glb is not None:
+        tubes = {s.name: (design.centre_curve(model, k),
+                          0.5 * (props[k].diameter.value or 2e-3))
+                 for k, s in model.segments.items()}
+        console.print(f"tubes: {harness_file.write_tubes(glb, tubes)}")
+    if json is not None:
+        written = emit_json(harness_file.harness_json(model, props, checks), json,
+                            "the harness JSON")
+        if written is not None:
+            console.print(f"JSON: {written}")
+    raise typer.Exit(1 if any(c.zone.value == "red" for c in checks) else 0)
+
+
 def examples_folder() -> Path:
     """The example scenes: those a wheel carries (``pliant/examples``, copied at build time
     by setup.py), else the repository's ``examples`` (a development install)."""

@@ -1,0 +1,82 @@
+"""``pliant harness``'s terminal report: what the KBL file holds, each segment's derived
+properties with their sources, and the design checks, worst first."""
+
+from __future__ import annotations
+
+from collections import Counter
+from collections.abc import Mapping, Sequence
+
+from rich.console import Console
+from rich.table import Table
+
+from pliant.assembly.checks import Zone
+from pliant.core.harness import Harness
+from pliant.io.harness_file import counts
+
+_STYLE = {Zone.RED: "bold red", Zone.YELLOW: "yellow", Zone.GREEN: "green",
+          Zone.UNCHECKED: "magenta", Zone.INFO: ""}
+
+
+def _mm(value: float | None, digits: int = 1) -> str:
+    return "-" if value is None else f"{value * 1e3:.{digits}f}"
+
+
+def print_harness(console: Console, harness: Harness, props: Mapping, checks: Sequence,
+                  show_all: bool = False) -> None:
+    """The report. ``show_all``: every segment's row (else the ones a check flags)."""
+    n = counts(harness)
+    console.print(f"[bold]{harness.name}[/bold] {harness.part_number}  (KBL "
+                  f"{harness.version}, {harness.source})")
+    console.print(f"{n['nodes']} nodes, {n['segments']} segments "
+                  f"({harness.length:.3f} m designed), {n['routed_wires']} routed wires of "
+                  f"{n['wire_types']} types, {n['connectors']} connectors and terminals, "
+                  f"{n['fixings']} fixings ({n['fixing_assignments']} placed on segments), "
+                  f"{n['protections']} protections, {n['modules']} modules")
+    for note in harness.notes:
+        console.print(f"  note: {note}")
+
+    worst: dict[str, Zone] = {}
+    for c in checks:
+        key = c.where
+        if key not in worst or c.zone.rank > worst[key].rank:
+            worst[key] = c.zone
+    table = Table(title="segments (SI sources below)", show_lines=False)
+    for col in ("segment", "mm", "wires", "Ø mm", "g/m", "EI N mm²", "R min mm", "check"):
+        table.add_column(col, justify="left" if col == "segment" else "right")
+    shown = 0
+    for seg in harness.segments.values():
+        p = props[seg.id]
+        zone = worst.get(f"segment {seg.id}", Zone.GREEN)
+        if not show_all and zone in (Zone.GREEN, Zone.INFO):
+            continue
+        shown += 1
+        ei = p.bending_stiffness.value
+        mass = p.mass_per_length.value
+        table.add_row(seg.id, f"{seg.virtual_length * 1e3:.1f}", str(len(p.wires)),
+                      _mm(p.diameter.value), "-" if mass is None else f"{mass * 1e3:.1f}",
+                      "-" if ei is None else f"{ei * 1e6:.0f}", _mm(p.min_bend_radius.value),
+                      f"[{_STYLE[zone]}]{zone.value}[/]")
+    if shown:
+        console.print(table)
+    if not show_all:
+        console.print(f"{shown} of {len(harness.segments)} segments flagged by a check shown "
+                      "(--all: every segment)")
+
+    tally = Counter(c.zone for c in checks)
+    console.print("design checks: " + ", ".join(
+        f"[{_STYLE[z]}]{tally[z]} {z.value}[/]" for z in (Zone.RED, Zone.YELLOW, Zone.UNCHECKED,
+                                                           Zone.GREEN) if tally[z]))
+    for c in sorted(checks, key=lambda c: -c.zone.rank):
+        if c.zone.rank < Zone.YELLOW.rank:
+            break
+        console.print(f"  [{_STYLE[c.zone]}]{c.zone.value:6}[/] {c.where}: {c.what}: "
+                      f"{c.message}")
+    sources = sorted({d.source for p in props.values()
+                      for d in (p.diameter, p.mass_per_length, p.bending_stiffness,
+                                p.min_bend_radius) if d.source} |
+                     {c.source for c in checks if c.source})
+    console.print("sources:")
+    for s in sources[:12]:
+        console.print(f"  - {s}")
+    if len(sources) > 12:
+        console.print(f"  ... and {len(sources) - 12} more (--json lists each segment's)")

@@ -1,0 +1,340 @@
+"""KBL harness files in: every sample reads, its counts match the XML's own, units are
+honoured once, the centre curves' B-spline convention is decided from the data, bad
+files get typed errors naming the element, derived properties match a hand computation,
+and the design checks match an independent twin (the curves' analytic curvature)."""
+
+from __future__ import annotations
+
+import json
+import math
+import re
+import subprocess
+import sys
+import xml.etree.ElementTree as ET
+from pathlib import Path
+
+import numpy as np
+import pytest
+from scipy.interpolate import BSpline
+
+from pliant.assembly.checks import Zone
+from pliant.assembly.harness import (
+    PACKING,
+    centre_curve,
+    design_checks,
+    polyline_curvature,
+    properties,
+    select,
+    wire_bending_stiffness,
+)
+from pliant.core.harness import CLAMPED, UNCLAMPED
+from pliant.errors import FileFormatError, InputError
+from pliant.io.kbl import read_kbl
+
+KBL = Path(__file__).resolve().parents[1] / "examples" / "harness" / "kbl"
+GENERATOR = KBL / "kblxml_2.3sr-1_000971230_ltgs_generator_170718.kbl"
+MOTOR = KBL / "kblxml_2.3sr-1_000971619_ltgs_movo_170718.kbl"
+MAIN = KBL / "kblxml_2.4sr-1_tab016120_modulare_ltgs._160718.kbl"
+SAMPLES = sorted(KBL.glob("*.kbl"))
+NAMESPACE = "http://www.prostep.org/Car_electric_container/KBL2.3/KBLSchema"
+
+
+@pytest.fixture(scope="module")
+def main_harness():
+    return read_kbl(MAIN)
+
+
+def _count(text: str, tag: str) -> int:
+    """An element's occurrences, counted on the raw text (not through a parser)."""
+    return len(re.findall(rf"<{tag}[\s>]", text))
+
+
+def _in_harness(text: str) -> str:
+    """The Harness element's text (occurrences outside it belong to assembly parts)."""
+    return text[text.index("<Harness "):text.index("</Harness>")]
+
+
+@pytest.mark.parametrize("path", SAMPLES, ids=lambda p: p.name[:40])
+def test_every_sample_reads_with_the_xmls_own_counts(path, main_harness):
+    harness = main_harness if path == MAIN else read_kbl(path)
+    text = path.read_text(encoding="utf-8")
+    inside = _in_harness(text)
+    assert len(harness.nodes) == _count(text, "Node")
+    assert len(harness.segments) == _count(text, "Segment")
+    assert len(harness.wire_types) == _count(text, "General_wire")
+    assert len(harness.wires) == _count(inside, "General_wire_occurrence")
+    assert len(harness.fixings) == _count(inside, "Fixing_occurrence") + _count(
+        inside, "Accessory_occurrence")
+    assert len(harness.connectors) == _count(inside, "Connector_occurrence") + _count(
+        inside, "Special_terminal_occurrence")
+    assert len(harness.protections) == _count(inside, "Wire_protection_occurrence")
+    assert len(harness.modules) == _count(inside, "Module")
+    assert sum(len(s.fixings) for s in harness.segments.values()) == _count(
+        text, "Fixing_assignment")
+    # Lengths in metres: the file's Virtual_length values are mm.
+    lengths = [float(v) for v in re.findall(
+        r"<Virtual_length[^>]*>\s*<Unit_component>[^<]*</Unit_component>\s*"
+        r"<Value_component>([^<]+)</Value_component>", text)]
+    assert len(lengths) == len(harness.segments)
+    assert harness.length == pytest.approx(sum(lengths) * 1e-3, rel=1e-12)
+    assert harness.convention == UNCLAMPED
+
+
+def test_the_main_harness_is_what_its_readme_counts(main_harness):
+    # ../shared/harness/README.md: 184 nodes, 183 segments, 36.7 m, 98 wire types,
+    # 254 routed wires (routings), 141 connectors, 14 fixings (16 assignments),
+    # 105 protections, 34 modules.
+    h = main_harness
+    assert (len(h.nodes), len(h.segments), len(h.wire_types)) == (184, 183, 98)
+    assert round(h.length, 1) == 36.7
+    assert sum(1 for c in h.connectors.values() if not c.usage == "terminal") == 141
+    assert len(h.fixings) == 14 and len(h.protections) == 105 and len(h.modules) == 34
+    assert sum(len(s.fixings) for s in h.segments.values()) == 16
+    # Every routed connection reaches its wire (multicore cores reach their cable).
+    text = MAIN.read_text(encoding="utf-8")
+    assert _count(text, "Routing") == 254
+    routed = {w.id for w in h.wires.values() if w.segments}
+    assert len(routed) >= 200 and all(set(w.segments) <= set(h.segments)
+                                       for w in h.wires.values())
+    # The file breaks its schema once (an empty Modules list): read, and said.
+    assert any("schema" in n and "Modules" in n for n in h.notes)
+    with pytest.raises(FileFormatError, match="Harness_configuration"):
+        read_kbl(MAIN, strict=True)
+
+
+def _rescaled(path: Path, out: Path, prefix: str, factor: float) -> Path:
+    """The file with its length unit changed from mm to ``prefix`` metre: every length
+    value and coordinate times ``factor`` (mm per new unit, inverted), areas times
+    factor^2. Written with ElementTree, independently of the reader."""
+    ET.register_namespace("kbl", NAMESPACE)
+    ET.register_namespace("xsi", "http://www.w3.org/2001/XMLSchema-instance")
+    tree = ET.parse(path)
+    root = tree.getroot()
+    kinds = {}
+    for unit in root.findall("Unit"):
+        if unit.findtext("Si_unit_name") == "metre":
+            unit.find("Si_prefix").text = prefix
+            kinds[unit.get("id")] = 2 if unit.findtext("Si_dimension") == "square" else 1
+    for el in root.iter():
+        unit = el.find("Unit_component")
+        if unit is not None and unit.text in kinds:
+            value = el.find("Value_component")
+            value.text = repr(float(value.text) * factor ** kinds[unit.text])
+        if el.tag == "Cartesian_point":
+            for c in el.findall("Coordinates"):
+                c.text = repr(float(c.text) * factor)
+    tree.write(out, xml_declaration=True, encoding="UTF-8")
+    return out
+
+
+def test_a_file_in_centimetres_gives_the_same_harness_in_metres(tmp_path):
+    mm = read_kbl(GENERATOR)
+    cm = read_kbl(_rescaled(GENERATOR, tmp_path / "cm.kbl", "centi", 0.1))
+    for key, node in mm.nodes.items():
+        assert np.allclose(cm.nodes[key].position, node.position, rtol=1e-12, atol=0)
+    for key, seg in mm.segments.items():
+        other = cm.segments[key]
+        assert other.virtual_length == pytest.approx(seg.virtual_length, rel=1e-12)
+        assert other.cross_section_area == pytest.approx(seg.cross_section_area, rel=1e-12)
+        assert np.allclose(centre_curve(cm, key), centre_curve(mm, key), rtol=1e-9, atol=1e-12)
+    for key, t in mm.wire_types.items():
+        assert cm.wire_types[key].outside_diameter == pytest.approx(t.outside_diameter)
+        assert cm.wire_types[key].bend_radius == pytest.approx(t.bend_radius)
+        assert cm.wire_types[key].cross_section_area == pytest.approx(t.cross_section_area)
+    assert mm.wire_types["id_327_2"].outside_diameter == pytest.approx(5.1e-3)
+    assert mm.wire_types["id_327_2"].cross_section_area == pytest.approx(6e-6)
+    assert mm.wire_types["id_327_2"].mass_per_length == pytest.approx(0.068)
+
+
+def _minimal(curve_points: np.ndarray, degree: int, start, end, length_mm: float,
+             unit_name: str = "metre", version: str = "2.3 SR-1", start_node="Node_1") -> str:
+    """A small KBL file: two nodes, one segment with one centre curve."""
+    points = "".join(
+        f'<Cartesian_point id="P{i}">'
+        + "".join(f"<Coordinates>{float(c)!r}</Coordinates>" for c in p)
+        + "</Cartesian_point>" for i, p in enumerate([start, end, *curve_points]))
+    refs = " ".join(f"P{i + 2}" for i in range(len(curve_points)))
+    return f"""<?xml version="1.0" encoding="UTF-8"?>
+<kbl:KBL_container xmlns:kbl="{NAMESPACE}" id="C" version_id="{version}">{points}
+<Harness id="H"><Part_number>1</Part_number><Company_name>x</Company_name><Version>1</Version>
+<Abbreviation>x</Abbreviation><Description>test</Description><Project_number>x</Project_number>
+<Car_classification_level_2>x</Car_classification_level_2><Model_year>x</Model_year>
+<Content>harness complete set</Content></Harness>
+<Node id="Node_1"><Id>A</Id><Cartesian_point>P0</Cartesian_point></Node>
+<Node id="Node_2"><Id>B</Id><Cartesian_point>P1</Cartesian_point></Node>
+<Segment id="Segment_1"><Id>S</Id>
+<Virtual_length id="V1"><Unit_component>U1</Unit_component>
+<Value_component>{length_mm}</Value_component></Virtual_length>
+<End_node>Node_2</End_node><Start_node>{start_node}</Start_node>
+<Center_curve id="C1"><Degree>{degree}</Degree>
+<Control_points>{refs}</Control_points></Center_curve>
+</Segment>
+<Unit id="U1"><Si_unit_name>{unit_name}</Si_unit_name><Si_prefix>milli</Si_prefix></Unit>
+</kbl:KBL_container>"""
+
+
+def test_the_curve_convention_is_decided_from_the_data(tmp_path):
+    # A cubic Bezier (a clamped B-spline with 4 points) starts and ends at its end
+    # points; read unclamped it would not.
+    cp = np.array([[0.0, 0.0, 0.0], [30.0, 0.0, 0.0], [70.0, 20.0, 0.0], [100.0, 20.0, 0.0]])
+    path = tmp_path / "clamped.kbl"
+    path.write_text(_minimal(cp, 3, cp[0], cp[-1], 105.0))
+    harness = read_kbl(path)
+    assert harness.convention == CLAMPED
+    assert "clamped" in harness.notes[-1] and "1 of 1" in harness.notes[-1]
+    curve = centre_curve(harness, "Segment_1")
+    assert np.allclose(curve[0], cp[0] * 1e-3) and np.allclose(curve[-1], cp[-1] * 1e-3)
+    # The same points read as the samples are (unclamped) start elsewhere: the reader
+    # says which convention it took and on how many segments.
+    t = np.arange(8.0)
+    unclamped_start = BSpline(t, cp, 3)(3.0)
+    assert np.linalg.norm(unclamped_start - cp[0]) > 1.0
+
+
+def test_bad_files_get_typed_errors_naming_the_element(tmp_path):
+    cp = np.array([[0.0, 0.0, 0.0], [30.0, 0.0, 0.0], [70.0, 20.0, 0.0], [100.0, 20.0, 0.0]])
+    cases = {
+        "missing.kbl": (None, "no such file"),
+        "broken.kbl": ("<kbl:KBL_container", "not well-formed XML"),
+        "other.kbl": ('<?xml version="1.0"?><svg id="x"/>', "not a KBL_container"),
+        "node.kbl": (_minimal(cp, 3, cp[0], cp[-1], 105.0, start_node="Node_9"),
+                     r"Segment Segment_1\.Start_node: refers to 'Node_9'"),
+        "unit.kbl": (_minimal(cp, 3, cp[0], cp[-1], 105.0, unit_name="gram"),
+                     r"Segment Segment_1\.Virtual_length: its unit U1 \(milligram\) is not a "
+                     r"length"),
+        "version.kbl": (_minimal(cp, 3, cp[0], cp[-1], 105.0, version="9.9"),
+                        "version_id '9.9' is not one pliant reads"),
+    }
+    for name, (text, message) in cases.items():
+        path = tmp_path / name
+        if text is not None:
+            path.write_text(text)
+        with pytest.raises(FileFormatError, match=message) as info:
+            read_kbl(path)
+        assert name in str(info.value)
+
+
+def test_derived_properties_match_a_hand_computation():
+    # The generator cable's first segment carries three wires: two 0.5 mm2 of 1.6 mm
+    # (6 g/m, bend radius 4.8 mm) and one 6 mm2 of 5.1 mm (68 g/m, 15.3 mm), under a PET
+    # tape of 6 g/m from 4.5496 % of its length to its end.
+    harness = read_kbl(GENERATOR)
+    p = properties(harness)["Segment_1"]
+    assert len(p.wires) == 3
+    assert p.diameter.value == pytest.approx(math.sqrt((1.6**2 * 2 + 5.1**2) / PACKING) * 1e-3)
+    assert p.mass_per_length.value == pytest.approx((6 + 6 + 68 + 6 * (1 - 0.045496)) * 1e-3)
+    assert p.min_bend_radius.value == pytest.approx(15.3e-3)
+
+    def wire(area_mm2, od_mm):  # copper strands of 0.2 mm, PVC tube of 50 MPa
+        a, d = area_mm2 * 1e-6, od_mm * 1e-3
+        dc = math.sqrt(4 * a / math.pi)
+        return 110e9 * a * 0.2e-3**2 / 16 + 50e6 * math.pi * (d**4 - dc**4) / 64
+
+    assert p.bending_stiffness.value == pytest.approx(2 * wire(0.5, 1.6) + wire(6, 5.1))
+    assert wire_bending_stiffness(harness.wire_types["id_327_2"]) == pytest.approx(wire(6, 5.1))
+    assert "estimate" in p.bending_stiffness.source and "lower bound" in \
+        p.bending_stiffness.source
+    # A measured value for one wire type replaces that wire's share; for a segment, the
+    # whole value; an unknown name is refused.
+    measured = properties(harness, {"O1a2913741a": {"bending_stiffness": 0.01}})["Segment_1"]
+    assert measured.bending_stiffness.value == pytest.approx(2 * wire(0.5, 1.6) + 0.01)
+    assert "1 given" in measured.bending_stiffness.source
+    whole = properties(harness, {"Segment_1": {"bending_stiffness": 0.02}})["Segment_1"]
+    assert whole.bending_stiffness == type(whole.bending_stiffness)(0.02, "given")
+    with pytest.raises(InputError, match=r"overrides\.Segment_9"):
+        properties(harness, {"Segment_9": {"bending_stiffness": 0.02}})
+
+
+def test_polyline_curvature_is_the_circles():
+    for radius in (0.005, 0.02, 1.0):
+        angle = np.linspace(0.0, 2.0, 50)
+        points = radius * np.column_stack([np.cos(angle), np.sin(angle), 0.0 * angle])
+        assert np.allclose(polyline_curvature(points), 1.0 / radius, rtol=1e-9)
+    line = np.column_stack([np.linspace(0, 1, 9), np.zeros(9), np.zeros(9)])
+    assert np.all(polyline_curvature(line) == 0.0)
+
+
+def _analytic_tightest(harness, segment) -> float:
+    """The smallest radius of curvature along a segment's B-spline pieces, from the
+    spline's derivatives: |r' x r''| / |r'|^3."""
+    kmax = 0.0
+    for c in harness.segments[segment].curves:
+        spline = BSpline(c.knots(harness.convention), c.control_points, c.degree)
+        a, b = c.domain(harness.convention)
+        u = np.linspace(a, b, 20001)
+        d1, d2 = spline.derivative(1)(u), spline.derivative(2)(u)
+        k = np.linalg.norm(np.cross(d1, d2), axis=1) / np.linalg.norm(d1, axis=1) ** 3
+        kmax = max(kmax, float(k.max()))
+    return 1.0 / kmax
+
+
+def test_design_checks_match_the_curves_analytic_curvature():
+    harness = read_kbl(GENERATOR)
+    checks = design_checks(harness, properties(harness))
+    bends = {c.where: c for c in checks if c.what == "designed bend radius"}
+    assert len(bends) == 3
+    for seg in harness.segments:
+        check = bends[f"segment {seg}"]
+        assert check.value == pytest.approx(_analytic_tightest(harness, seg), rel=1e-3)
+        # and a third way: circles through three points of the curve 0.05 mm apart
+        fine = polyline_curvature(centre_curve(harness, seg, spacing=5e-5))
+        assert check.value == pytest.approx(1.0 / fine.max(), rel=0.01)
+        limit = check.limit
+        expected = (Zone.RED if check.value < limit else Zone.YELLOW
+                    if check.value < 1.2 * limit else Zone.GREEN)
+        assert check.zone == expected
+    # Segment 3 bends to 5.5 mm where its 6 mm2 wire allows 15.3 mm: red.
+    assert bends["segment Segment_3"].zone == Zone.RED
+    # Every curve is its designed length within 0.1 %.
+    lengths = [c for c in checks if c.what == "curve length / designed length"]
+    assert len(lengths) == 3 and all(c.zone == Zone.GREEN for c in lengths)
+
+
+def test_a_curve_that_misses_its_node_is_red_and_not_used():
+    harness = read_kbl(MOTOR)
+    checks = design_checks(harness, properties(harness))
+    missed = [c for c in checks if c.what == "centre curve at its nodes"]
+    assert [c.where for c in missed] == ["segment Segment_6"]
+    assert missed[0].zone == Zone.RED and missed[0].value == pytest.approx(0.050, abs=1e-4)
+    # Its curve is not judged for its bend; every other segment's is.
+    bends = {c.where for c in checks if c.what == "designed bend radius"}
+    assert "segment Segment_6" not in bends and len(bends) == 29
+
+
+def test_a_module_keeps_its_wires_and_what_no_module_controls(main_harness):
+    h = main_harness
+    module = next(iter(h.modules.values()))
+    variant = select(h, [module.part_number])
+    controlled = set().union(*(m.components for m in h.modules.values()))
+    expected = {k for k in h.wires if k in module.components or k not in controlled}
+    assert set(variant.wires) == expected
+    assert set(variant.segments) == {s for k in expected for s in h.wires[k].segments}
+    assert 0 < len(variant.segments) < len(h.segments)
+    assert all(s.start in variant.nodes and s.end in variant.nodes
+               for s in variant.segments.values())
+    with pytest.raises(InputError, match="not a module"):
+        select(h, ["no such module"])
+
+
+def test_pliant_harness_reports_checks_and_writes_curves_in_metres(tmp_path):
+    out = subprocess.run(
+        [sys.executable, "-m", "pliant.cli.app", "harness", str(GENERATOR), "--json", "-",
+         "--curves", str(tmp_path / "curves.csv"), "--glb", str(tmp_path / "h.glb")],
+        capture_output=True, text=True, timeout=300)
+    assert out.returncode == 1, out.stderr  # a red check: the 5.5 mm bend
+    doc = json.loads(out.stdout)
+    assert doc["harness"]["counts"]["segments"] == 3
+    assert doc["harness"]["curve_convention"] == "unclamped"
+    assert any(c["zone"] == "red" and c["where"] == "segment Segment_3"
+               for c in doc["design_checks"])
+    seg = next(s for s in doc["segments"] if s["id"] == "Segment_1")
+    assert seg["min_bend_radius_m"]["value"] == pytest.approx(0.0153)
+    assert "red" in out.stderr and "Segment_3" in out.stderr
+    rows = (tmp_path / "curves.csv").read_text().splitlines()
+    assert rows[0] == "segment,name,point,s_m,x_m,y_m,z_m"
+    harness = read_kbl(GENERATOR)
+    first = [r.split(",") for r in rows[1:] if r.startswith("Segment_1,")]
+    assert np.allclose([float(v) for v in first[0][4:]], harness.nodes["Node_1"].position)
+    assert float(first[-1][3]) == pytest.approx(harness.segments["Segment_1"].virtual_length,
+                                                rel=1e-3)
+    assert (tmp_path / "h.glb").stat().st_size > 1000
