@@ -338,3 +338,180 @@ def test_pliant_harness_reports_checks_and_writes_curves_in_metres(tmp_path):
     assert float(first[-1][3]) == pytest.approx(harness.segments["Segment_1"].virtual_length,
                                                 rel=1e-3)
     assert (tmp_path / "h.glb").stat().st_size > 1000
+
+
+# -- the installed harness -------------------------------------------------------------
+def _straight_harness(nodes: dict[str, tuple[float, float, float]],
+                      segments: list[tuple[str, str, str, float]], held: list[str]):
+    """A harness of straight-designed segments (no centre curves) carrying one wire of
+    2 mm (1 mm2, 20 g/m), with a placed connector at each ``held`` node."""
+    from pliant.core.harness import (
+        Connector,
+        Harness,
+        HarnessNode,
+        HarnessSegment,
+        Placement,
+        Wire,
+        WireType,
+    )
+
+    wire_type = WireType("T", "T1", "test wire", 2e-3, 1e-6, 5e-3, 0.02)
+    segs = {sid: HarnessSegment(sid, sid, a, b, length, ()) for sid, a, b, length in segments}
+    connectors = {f"C{n}": Connector(f"C{n}", f"C{n}", "", "",
+                                     Placement(nodes[n], (1.0, 0.0, 0.0), (0.0, 1.0, 0.0)), n)
+                  for n in held}
+    return Harness("test", "", "test", "2.4", UNCLAMPED,
+                   {n: HarnessNode(n, n, p) for n, p in nodes.items()}, segs,
+                   {"T": wire_type}, {"W": Wire("W", "W", "T", None, tuple(segs))}, {},
+                   connectors, {})
+
+
+def test_a_junction_where_one_part_runs_through_gives_the_one_parts_answer():
+    """The junction's twin: two segments joined straight, clamped at their far ends,
+    against one part of their length clamped the same way (same elements)."""
+    import pliant as pl
+    from pliant.assembly.harness_solve import solve_installed
+    from pliant.models import rod3d
+
+    harness = _straight_harness({"A": (0.0, 0.0, 0.0), "M": (0.2, 0.0, 0.0),
+                                 "B": (0.4, 0.0, 0.0)},
+                                [("S1", "A", "M", 0.24), ("S2", "M", "B", 0.24)], ["A", "B"])
+    props = properties(harness)
+    installed = solve_installed(harness, props)
+    part = installed.segments["S1"].equilibrium.problem.part
+    one = pl.Part(length=0.48, bending_stiffness=part.bending_stiffness,
+                  torsional_stiffness=part.torsional_stiffness,
+                  mass_per_length=part.mass_per_length, outer_diameter=part.outer_diameter,
+                  axial_stiffness=part.axial_stiffness)
+    ends = installed.segments["S1"].equilibrium.problem.conditions[0]
+    twin = rod3d.solve(pl.Problem(one, (
+        pl.clamp(0.0, (0.0, 0.0, 0.0), tangent=ends.tangent, normal=ends.normal, name="a"),
+        pl.clamp(0.48, (0.4, 0.0, 0.0), tangent=ends.tangent, normal=ends.normal, name="b")),
+        gravity=(0.0, 0.0, -9.81)), solver=rod3d.RodSolver(elements=24))
+    middle = twin.position[np.argmin(np.abs(twin.s - 0.24))]
+    sag = float(-twin.position[:, 2].min())
+    assert sag > 0.01  # a real slack sag, not a straight line
+    # The junction replaces one discrete joint of the single rod by a rigid one: its
+    # answer is the twin's within a small share of the sag.
+    assert np.linalg.norm(installed.junctions["M"] - middle) < 0.02 * sag
+    force_a = -np.asarray(twin.reactions["a"].force)
+    assert np.allclose(installed.held["connector at A"][0], force_a,
+                       atol=0.02 * np.linalg.norm(force_a))
+    # Each end carries half the weight (symmetry), and the junction balances.
+    assert installed.held["connector at A"][0][2] == pytest.approx(-installed.weight / 2,
+                                                                     rel=1e-6)
+    assert installed.balance <= 1e-7
+
+
+def test_the_installed_harnesses_balance_and_keep_their_design_data():
+    from pliant.assembly.harness_solve import solve_installed
+
+    for path in (GENERATOR, MOTOR):
+        harness = read_kbl(path)
+        installed = solve_installed(harness, properties(harness))
+        # Global balance: the loads on the connectors and fixings carry the weight.
+        total = sum(f for f, _ in installed.held.values())
+        assert np.allclose(total, [0.0, 0.0, -installed.weight], atol=1e-6 * installed.weight)
+        # Each junction's segments' end loads balance.
+        for node, position in installed.junctions.items():
+            force = np.zeros(3)
+            for seg_id, seg in harness.segments.items():
+                for end, at in ((0, seg.start), (1, seg.end)):
+                    if at == node:
+                        eq = installed.segments[seg_id].equilibrium
+                        force += np.asarray(next(ld.force for name, ld in eq.reactions.items()
+                                                 if name.startswith(("start ", "end ")[end])))
+                        assert np.allclose(eq.position[-1 if end else 0], position, atol=1e-9)
+            assert np.linalg.norm(force) <= 1e-6 * installed.weight
+        # Every connector end at its designed position within 0.1 mm; every rod its
+        # designed length within 0.1 %.
+        for connector in harness.connectors.values():
+            if connector.placement is None or not connector.node:
+                continue
+            for seg_id, seg in harness.segments.items():
+                if connector.node in (seg.start, seg.end):
+                    eq = installed.segments[seg_id].equilibrium
+                    end = eq.position[0 if seg.start == connector.node else -1]
+                    assert np.linalg.norm(end - harness.nodes[connector.node].position) < 1e-4
+        drawn = sum(float(np.linalg.norm(np.diff(s.equilibrium.position, axis=0),
+                                         axis=1).sum()) for s in installed.segments.values())
+        assert drawn == pytest.approx(harness.length, rel=1e-3)
+
+
+def test_a_harness_held_nowhere_is_refused_with_its_nodes():
+    from pliant.assembly.harness_solve import solve_installed
+    from pliant.errors import IllPosedProblemError
+
+    harness = _straight_harness({"A": (0.0, 0.0, 0.0), "B": (0.2, 0.0, 0.0)},
+                                [("S1", "A", "B", 0.25)], [])
+    with pytest.raises(IllPosedProblemError, match="held nowhere"):
+        solve_installed(harness, properties(harness))
+
+
+def test_a_moved_fixing_is_followed_warm_and_the_harness_still_balances():
+    from pliant.assembly.harness_solve import solve_installed
+
+    harness = read_kbl(GENERATOR)
+    props = properties(harness)
+    before = solve_installed(harness, props)
+    fixing = next(iter(harness.fixings.values())).name
+    after = solve_installed(harness, props, moved={fixing: (0.0, 0.0, 0.005)}, warm=before)
+    eq = after.segments["Segment_1"].equilibrium
+    clip = next(c for c in eq.problem.conditions if c.name == f"fixing {fixing}")
+    was = next(c for c in before.segments["Segment_1"].equilibrium.problem.conditions
+               if c.name == f"fixing {fixing}")
+    assert np.allclose(np.subtract(clip.position, was.position), (0.0, 0.0, 0.005))
+    at = eq.position[np.argmin(np.abs(eq.s - clip.s))]
+    assert np.allclose(at, clip.position, atol=1e-9)
+    total = sum(f for f, _ in after.held.values())
+    assert np.allclose(total, [0.0, 0.0, -after.weight], atol=1e-6 * after.weight)
+    assert after.balance <= 1e-7 and not np.allclose(after.held[f"fixing {fixing}"][0],
+                                                     before.held[f"fixing {fixing}"][0])
+
+
+def test_pliant_harness_solve_reports_the_installed_harness(tmp_path):
+    out = subprocess.run(
+        [sys.executable, "-m", "pliant.cli.app", "harness", str(GENERATOR), "--solve",
+         "--json", "-", "--curves", str(tmp_path / "installed.csv")],
+        capture_output=True, text=True, timeout=300)
+    assert out.returncode == 1, out.stderr  # the design's 5.5 mm bend is still red
+    doc = json.loads(out.stdout)
+    installed = doc["installed"]
+    assert installed["balance"] <= 1e-7 and len(installed["segments"]) == 3
+    total = np.sum([v["force_N"] for v in installed["held_loads"].values()], axis=0)
+    assert np.allclose(total, [0.0, 0.0, -installed["weight_N"]], atol=1e-5)
+    assert any(c["what"] == "installed bend radius" for c in doc["design_checks"])
+    assert "installed under gravity" in out.stderr
+    rows = (tmp_path / "installed.csv").read_text().splitlines()
+    first = [r.split(",") for r in rows[1:] if r.startswith("Segment_3,")]
+    # The installed curve, not the design: it sags away from the designed one.
+    harness = read_kbl(GENERATOR)
+    design = centre_curve(harness, "Segment_3")
+    middle = np.array([float(v) for v in first[len(first) // 2][4:]])
+    assert np.min(np.linalg.norm(design - middle, axis=1)) > 1e-3
+
+
+def test_the_junctions_jacobian_from_the_rods_newton_systems_matches_re_solving():
+    """The clamps' sensitivity from each segment's factorised Newton system against
+    forward differences that re-solve the segments (at a step small enough that the
+    stiff stretch of a short segment stays linear)."""
+    from pliant.assembly import harness_solve as hs
+
+    harness = read_kbl(MOTOR)
+    net = hs._Network(harness, properties(harness), hs.GRAVITY)
+    for seg_id in harness.segments:
+        net.eqs[seg_id] = net.solve_segment(seg_id, warm=False)
+    r = net.residual(net.eqs)
+    exact = hs._jacobian(net, r)
+    saved = hs.STEP_POSITION, hs.STEP_ROTATION
+    try:
+        hs.STEP_POSITION = hs.STEP_ROTATION = 1e-7
+        differences = hs.jacobian_by_differences(net, r)
+    finally:
+        hs.STEP_POSITION, hs.STEP_ROTATION = saved
+    assert np.abs(exact - differences).max() <= 5e-3 * np.abs(differences).max()
+    # A junction's own block is the heart of it: each to 1 % of its size.
+    for k in range(len(net.junctions)):
+        block = np.s_[6 * k:6 * k + 6, 6 * k:6 * k + 6]
+        assert np.abs(exact[block] - differences[block]).max() <= 0.01 * np.abs(
+            differences[block]).max()

@@ -64,6 +64,7 @@ class SegmentProperties:
     bending_stiffness: Derived  # [N m^2]
     torsional_stiffness: Derived  # [N m^2]
     min_bend_radius: Derived  # [m] to the bundle's centreline
+    axial_stiffness: Derived = Derived(None, "")  # [N] EA
 
 
 @dataclass(frozen=True)
@@ -81,15 +82,27 @@ class DesignCheck:
     name: str = ""  # the segment's or node's name in the design tool
 
 
+def wire_diameter(t: WireType) -> float | None:
+    """[m] its outside diameter, or a multicore's from its cores by the packing rule
+    (the file gives the cores' and not the sheath's)."""
+    if t.outside_diameter is not None:
+        return t.outside_diameter
+    if t.cores and len(t.core_diameters) == t.cores:
+        return max(max(t.core_diameters),
+                   math.sqrt(sum(d * d for d in t.core_diameters) / PACKING))
+    return None
+
+
 def _conductor_diameter(t: WireType) -> float:
     return math.sqrt(4.0 * (t.cross_section_area or 0.0) / math.pi)
 
 
 def wire_bending_stiffness(t: WireType) -> float | None:
     """[N m^2] the stated estimate for one wire (or multicore cable) type."""
-    if t.outside_diameter is None or t.cross_section_area is None:
+    d = wire_diameter(t)
+    if d is None or t.cross_section_area is None:
         return None
-    d, dc = t.outside_diameter, min(_conductor_diameter(t), t.outside_diameter)
+    dc = min(_conductor_diameter(t), d)
     return COPPER_E * t.cross_section_area * STRAND**2 / 16.0 + \
         INSULATION_E * math.pi * (d**4 - dc**4) / 64.0
 
@@ -97,20 +110,29 @@ def wire_bending_stiffness(t: WireType) -> float | None:
 def wire_torsional_stiffness(t: WireType) -> float | None:
     """[N m^2] strands twisting each about its own axis, the insulation a tube
     (G = E / 3, an incompressible polymer)."""
-    if t.outside_diameter is None or t.cross_section_area is None:
+    d = wire_diameter(t)
+    if d is None or t.cross_section_area is None:
         return None
-    d, dc = t.outside_diameter, min(_conductor_diameter(t), t.outside_diameter)
+    dc = min(_conductor_diameter(t), d)
     return COPPER_G * t.cross_section_area * STRAND**2 / 8.0 + \
         INSULATION_E / 3.0 * math.pi * (d**4 - dc**4) / 32.0
+
+
+def wire_axial_stiffness(t: WireType) -> float | None:
+    """[N] the copper's EA (the insulation's share is left out: 2000 times softer)."""
+    if t.cross_section_area is None:
+        return None
+    return COPPER_E * t.cross_section_area
 
 
 def wire_mass_per_length(t: WireType) -> Derived:
     """[kg/m] the file's, or copper and PVC by their sections and densities."""
     if t.mass_per_length is not None:
         return Derived(t.mass_per_length, "the file's Mass_information")
-    if t.outside_diameter is None or t.cross_section_area is None:
+    d = wire_diameter(t)
+    if d is None or t.cross_section_area is None:
         return Derived(None, "no mass, outside diameter or conductor section in the file")
-    outer = math.pi * t.outside_diameter**2 / 4.0
+    outer = math.pi * d**2 / 4.0
     return Derived(COPPER_DENSITY * t.cross_section_area
                    + INSULATION_DENSITY * max(outer - t.cross_section_area, 0.0),
                    "copper and PVC by their sections (no mass in the file)")
@@ -120,9 +142,10 @@ def _wire_bend_limit(t: WireType, rules) -> tuple[float | None, str]:
     if t.bend_radius is not None:
         return t.bend_radius, f"{t.part_number or t.id}'s Bend_radius"
     kind = rules.kinds.get("multi-core cable" if t.cores else "wire")
-    if kind is None or kind.fallback_od is None or t.outside_diameter is None:
+    d = wire_diameter(t)
+    if kind is None or kind.fallback_od is None or d is None:
         return None, ""
-    return kind.fallback_od * t.outside_diameter, (
+    return kind.fallback_od * d, (
         f"{t.part_number or t.id}: no Bend_radius; {kind.fallback_source}")
 
 
@@ -130,7 +153,8 @@ def properties(harness: Harness, overrides: Mapping[str, Mapping[str, float]] | 
                rules=None) -> dict[str, SegmentProperties]:
     """Each segment's derived properties. ``overrides``: by segment id or name, or by
     wire type id or part number, a mapping of ``bending_stiffness`` /
-    ``torsional_stiffness`` [N m^2], ``diameter`` [m] or ``mass_per_length`` [kg/m]
+    ``torsional_stiffness`` [N m^2], ``axial_stiffness`` [N], ``diameter`` [m] or
+    ``mass_per_length`` [kg/m]
     measured or given (a wire type's replace that wire's share)."""
     from pliant.io.rules_file import load_rules  # noqa: PLC0415 (pydantic: on use)
 
@@ -143,9 +167,10 @@ def properties(harness: Harness, overrides: Mapping[str, Mapping[str, float]] | 
             raise InputError(f"overrides.{key}", "not a segment or wire type of the harness")
         for name in values:
             if name not in ("bending_stiffness", "torsional_stiffness", "diameter",
-                            "mass_per_length"):
+                            "mass_per_length", "axial_stiffness"):
                 raise InputError(f"overrides.{key}.{name}", "give bending_stiffness, "
-                                 "torsional_stiffness, diameter or mass_per_length")
+                                 "torsional_stiffness, axial_stiffness, diameter or "
+                                 "mass_per_length")
     out = {}
     for seg in harness.segments.values():
         out[seg.id] = _segment(harness, seg, overrides, rules)
@@ -187,11 +212,13 @@ def _segment(harness: Harness, seg: HarnessSegment, overrides, rules) -> Segment
     if d is not None:
         diameter = Derived(d, "given")
     else:
-        ods = [t.outside_diameter for t in types if t.outside_diameter is not None]
+        ods = [od for od in (wire_diameter(t) for t in types) if od is not None]
         if types and len(ods) == len(types):
             squares = sum(od * od for od in ods)
+            cored = any(t.outside_diameter is None for t in types)
             diameter = Derived(max(max(ods), math.sqrt(squares / PACKING)),
-                               PACKING_SOURCE if len(types) > 1 else "its one wire's diameter")
+                               (PACKING_SOURCE if len(types) > 1 else "its one wire's diameter")
+                               + (" (a multicore cable's from its cores)" if cored else ""))
         elif seg.cross_section_area is not None:
             diameter = Derived(math.sqrt(4 * seg.cross_section_area / math.pi),
                                f"the file's {seg.cross_section_kind or ''} cross-section")
@@ -227,6 +254,11 @@ def _segment(harness: Harness, seg: HarnessSegment, overrides, rules) -> Segment
         stiffness.append(Derived(total, source if total is None else (
             STIFFNESS_SOURCE + (f" ({source})" if source else ""))))
 
+    ea, ea_source = per_wire("axial_stiffness", wire_axial_stiffness)
+    v = _given(overrides, seg_keys, "axial_stiffness")
+    axial = Derived(v, "given") if v is not None else Derived(
+        ea, ea_source if ea is None else "the sum of its wires' copper E A (E 110 GPa)"
+        + (f" ({ea_source})" if ea_source else ""))
     limits = [(_wire_bend_limit(t, rules), t) for t in types]
     known = [(r, s) for (r, s), _ in limits if r is not None]
     if known:
@@ -235,17 +267,18 @@ def _segment(harness: Harness, seg: HarnessSegment, overrides, rules) -> Segment
     else:
         bend = Derived(None, "no wire gives a bend radius or a diameter")
     return SegmentProperties(seg.id, tuple(w.id for w in wires), diameter, mass,
-                             stiffness[0], stiffness[1], bend)
+                             stiffness[0], stiffness[1], bend, axial)
 
 
 # -- the design's centre curves ---------------------------------------------------------
 def centre_curve(harness: Harness, segment: str, spacing: float = 2e-3) -> np.ndarray:
     """(n, 3) [m] points along a segment's designed centre curve, start node to end
-    node, about ``spacing`` apart (a straight line where it has no curve)."""
+    node, about ``spacing`` apart (a straight line where it has no curve, or a curve
+    that misses its nodes: ``design_checks`` says so)."""
     seg = harness.segments[segment]
     a = np.array(harness.nodes[seg.start].position)
     b = np.array(harness.nodes[seg.end].position)
-    if not seg.curves:
+    if not seg.curves or not curve_meets_nodes(seg, harness.nodes, harness.convention):
         count = max(2, int(math.ceil(np.linalg.norm(b - a) / spacing)) + 1)
         return a + np.linspace(0.0, 1.0, count)[:, None] * (b - a)
     pieces = []
@@ -288,11 +321,14 @@ def design_checks(harness: Harness, props: Mapping[str, SegmentProperties],
         if not meets:
             a = np.array(harness.nodes[seg.start].position)
             b = np.array(harness.nodes[seg.end].position)
-            miss = max(float(np.linalg.norm(pts[0] - a)), float(np.linalg.norm(pts[-1] - b)))
+            head = seg.curves[0].points(harness.convention, 2)[0]
+            tail = seg.curves[-1].points(harness.convention, 2)[-1]
+            miss = max(float(np.linalg.norm(head - a)), float(np.linalg.norm(tail - b)))
             out.append(DesignCheck(where, "centre curve at its nodes", miss, NODE_TOLERANCE,
                                    Zone.RED, f"its centre curve ends {miss * 1e3:.1f} mm from "
                                    "its node: the route was moved and the curve not updated "
-                                   "(re-route the segment); the curve is not used"))
+                                   "(re-route the segment); a straight line between its "
+                                   "nodes stands in for it"))
         else:
             ratio = length / seg.virtual_length - 1.0
             zone = Zone.GREEN if abs(ratio) <= LENGTH_TOLERANCE else Zone.YELLOW

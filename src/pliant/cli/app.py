@@ -727,6 +727,10 @@ def harness(
                                                              "those a check flags")] = False,
     strict: Annotated[bool, typer.Option(help="refuse a file that breaks its KBL "
                                               "schema")] = False,
+    solve: Annotated[bool, typer.Option(help="solve the installed harness under gravity "
+                                             "(connectors and fixings where the design "
+                                             "puts them) and judge it; --curves and --glb "
+                                             "then write its installed shape")] = False,
     rules: Annotated[Path | None, typer.Option(help="a rules table replacing the bundled "
                                                     "one (bend margins, fallback limits)")]
     = None,
@@ -752,16 +756,40 @@ def harness(
     props = design.properties(model, rules=table)
     checks = design.design_checks(model, props, rules=table)
     print_harness(console, model, props, checks, show_all=all_segments)
+    installed = None
+    if solve:
+        import time  # noqa: PLC0415
+
+        from pliant.assembly.harness_solve import (  # noqa: PLC0415
+            installed_checks,
+            solve_installed,
+        )
+        from pliant.cli.harness_report import print_installed  # noqa: PLC0415
+
+        began = time.perf_counter()
+        with console.status("solving the installed harness ..."):
+            installed = solve_installed(model, props)
+        after = installed_checks(installed, table)
+        print_installed(console, installed, after, time.perf_counter() - began,
+                        show_all=all_segments)
+        checks = checks + after
+
+    def shape(k: str):
+        if installed is not None:
+            return installed.segments[k].equilibrium.position
+        return design.centre_curve(model, k)
+
     if curves is not None:
-        shapes = {k: (s.name, design.centre_curve(model, k)) for k, s in model.segments.items()}
-        console.print(f"centre curves: {harness_file.write_curves(curves, shapes)}")
+        shapes = {k: (s.name, shape(k)) for k, s in model.segments.items()}
+        written_curves = harness_file.write_curves(curves, shapes)
+        console.print(f"{'installed' if installed else 'designed'} centre curves: "
+                      f"{written_curves}")
     if glb is not None:
-        tubes = {s.name: (design.centre_curve(model, k),
-                          0.5 * (props[k].diameter.value or 2e-3))
+        tubes = {s.name: (shape(k), 0.5 * (props[k].diameter.value or 2e-3))
                  for k, s in model.segments.items()}
         console.print(f"tubes: {harness_file.write_tubes(glb, tubes)}")
     if json is not None:
-        written = emit_json(harness_file.harness_json(model, props, checks), json,
+        written = emit_json(harness_file.harness_json(model, props, checks, installed), json,
                             "the harness JSON")
         if written is not None:
             console.print(f"JSON: {written}")

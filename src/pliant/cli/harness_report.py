@@ -6,6 +6,7 @@ from __future__ import annotations
 from collections import Counter
 from collections.abc import Mapping, Sequence
 
+import numpy as np
 from rich.console import Console
 from rich.table import Table
 
@@ -80,3 +81,46 @@ def print_harness(console: Console, harness: Harness, props: Mapping, checks: Se
         console.print(f"  - {s}")
     if len(sources) > 12:
         console.print(f"  ... and {len(sources) - 12} more (--json lists each segment's)")
+
+
+def print_installed(console: Console, installed, checks: Sequence, seconds: float,
+                    show_all: bool = False) -> None:
+    """The installed harness: how it was solved, each segment's deviation from its
+    design, its sag and tightest bend, and the loads on the connectors and fixings."""
+    n = len(installed.junctions)
+    console.print(f"[bold]installed under gravity[/bold]: {len(installed.segments)} segments, "
+                  f"{n} junctions balanced to {installed.balance:.1e} of the weight "
+                  f"({installed.weight:.2f} N) in {installed.iterations} Newton iterations, "
+                  f"{seconds:.1f} s")
+    for note in installed.notes:
+        console.print(f"  note: {note}")
+    worst: dict[str, Zone] = {}
+    for c in checks:
+        if c.where not in worst or c.zone.rank > worst[c.where].rank:
+            worst[c.where] = c.zone
+    table = Table(title="installed segments")
+    for col in ("segment", "off design mm", "sag mm", "R mm", "R min mm", "check"):
+        table.add_column(col, justify="left" if col == "segment" else "right")
+    shown = 0
+    for key, seg in installed.segments.items():
+        zone = worst.get(f"segment {key}", Zone.GREEN)
+        if not show_all and zone in (Zone.GREEN, Zone.INFO):
+            continue
+        shown += 1
+        table.add_row(key, f"{seg.deviation * 1e3:.1f}", f"{seg.sag * 1e3:.1f}",
+                      f"{seg.bend_radius * 1e3:.1f}", _mm(seg.bend_limit),
+                      f"[{_STYLE[zone]}]{zone.value}[/]")
+    if shown:
+        console.print(table)
+    worst_dev = max(installed.segments.values(), key=lambda s: s.deviation)
+    console.print(f"{shown} of {len(installed.segments)} segments flagged shown; the largest "
+                  f"deviation from the design: {worst_dev.deviation * 1e3:.1f} mm "
+                  f"(segment {worst_dev.segment})")
+    loads = sorted(installed.held.items(), key=lambda kv: -float(np.linalg.norm(kv[1][0])))
+    console.print("loads from the harness (largest first):")
+    for key, (force, moment) in loads[: None if show_all else 5]:
+        console.print(f"  {key}: {np.linalg.norm(force):.2f} N, {np.linalg.norm(moment):.3f} N m")
+    for c in checks:
+        if c.zone.rank >= Zone.YELLOW.rank:
+            console.print(f"  [{_STYLE[c.zone]}]{c.zone.value:6}[/] {c.where}: {c.what}: "
+                          f"{c.message}")

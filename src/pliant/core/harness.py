@@ -125,7 +125,7 @@ class WireType:
     """A wire (or a multicore cable) as a part: ``outside_diameter`` [m], conductor
     ``cross_section_area`` [m^2] (a multicore's: its cores' sum), the smallest
     ``bend_radius`` [m] it may be bent to, ``mass_per_length`` [kg/m] (None where the
-    file gives none), and for a multicore its ``cores`` count."""
+    file gives none), and for a multicore its ``cores`` count and their diameters."""
 
     id: str
     part_number: str
@@ -135,6 +135,7 @@ class WireType:
     bend_radius: float | None
     mass_per_length: float | None
     cores: int = 0
+    core_diameters: tuple[float, ...] = ()  # [m] a multicore's cores' outside diameters
 
 
 @dataclass(frozen=True)

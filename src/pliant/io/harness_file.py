@@ -23,9 +23,11 @@ def _derived(d) -> dict:
     return {"value": d.value, "source": d.source}
 
 
-def harness_json(harness: Harness, props: Mapping, checks: Sequence) -> str:
-    """The import's summary, each segment's properties (SI, with sources) and every
-    design check, as JSON text."""
+def harness_json(harness: Harness, props: Mapping, checks: Sequence,
+                 installed=None) -> str:
+    """The import's summary, each segment's properties (SI, with sources), every check
+    (the design's, and the installed harness's where it was solved) and the installed
+    answer, as JSON text."""
     doc = {
         "schema_version": SCHEMA_VERSION,
         "harness": {"name": harness.name, "part_number": harness.part_number,
@@ -47,6 +49,18 @@ def harness_json(harness: Harness, props: Mapping, checks: Sequence) -> str:
              "zone": c.zone.value, "message": c.message, "source": c.source}
             for c in checks],
     }
+    if installed is not None:
+        doc["installed"] = {
+            "iterations": installed.iterations, "balance": installed.balance,
+            "weight_N": installed.weight, "notes": list(installed.notes),
+            "junctions": {harness.nodes[k].name: list(map(float, p))
+                          for k, p in installed.junctions.items()},
+            "held_loads": {k: {"force_N": list(map(float, f)), "moment_N_m": list(map(float, m))}
+                           for k, (f, m) in installed.held.items()},
+            "segments": [{"id": k, "deviation_m": s.deviation, "sag_m": s.sag,
+                          "bend_radius_m": s.bend_radius, "bend_limit_m": s.bend_limit}
+                         for k, s in installed.segments.items()],
+        }
     return json.dumps(finite(doc), indent=1)
 
 

@@ -278,6 +278,7 @@ def _wire_types(reader: _Reader) -> dict[str, WireType]:
         key = el.get("id", "")
         where = f"General_wire {key}"
         cores = el.findall("Core")
+        core_ods: list[float | None] = []
         area = reader.value(el.find("Cross_section_area"), "area", where + ".Cross_section_area")
         bend = reader.value(el.find("Bend_radius"), "length", where + ".Bend_radius")
         if cores:
@@ -287,6 +288,8 @@ def _wire_types(reader: _Reader) -> dict[str, WireType]:
                 area = float(sum(core_areas))  # type: ignore[arg-type]
             core_bends = [reader.value(c.find("Bend_radius"), "length",
                                        f"Core {c.get('id')}.Bend_radius") for c in cores]
+            core_ods = [reader.value(c.find("Outside_diameter"), "length",
+                                     f"Core {c.get('id')}.Outside_diameter") for c in cores]
             if bend is None and any(b is not None for b in core_bends):
                 bend = max(b for b in core_bends if b is not None)
         out[key] = WireType(
@@ -294,7 +297,8 @@ def _wire_types(reader: _Reader) -> dict[str, WireType]:
             outside_diameter=reader.value(el.find("Outside_diameter"), "length",
                                           where + ".Outside_diameter"),
             cross_section_area=area, bend_radius=bend,
-            mass_per_length=_mass_per_length(reader, el, where), cores=len(cores))
+            mass_per_length=_mass_per_length(reader, el, where), cores=len(cores),
+            core_diameters=tuple(d for d in core_ods if d is not None) if cores else ())
     return out
 
 

@@ -1,0 +1,695 @@
+"""The installed harness: every segment a 3D rod, solved under gravity with its
+connectors and fixings held where the design puts them and its segments joined at their
+nodes.
+
+The network is solved by substructuring. Each junction (a node where segments meet
+that nothing holds) is a small rigid body of no size whose pose (position p_j, rotation
+R_j) is unknown; given those poses, every segment is a well-posed rod on its own: its
+ends clamped at its junctions' poses (each end turned from the junction's frame as the
+design turns it) or at its placed connector, its fixings holding its position and axis,
+a connector the design does not place left free. The junctions' equations are their
+balance: the forces and moments the segments' ends take from a junction sum to zero.
+The balance is the gradient of the harness's energy with respect to the junction
+poses (6 unknowns each): Levenberg-Marquardt's method on them, every step downhill in
+the energy, with the Jacobian assembled from each segment's clamp sensitivities (from
+its own factorised Newton system, ``rod3d.sensitivity``; forward differences that
+re-solve the segments are its tested twin) and Broyden's update between fresh ones,
+solves the network; every segment solve is pliant's accurate rod (``rod3d.solve``), so
+the answer is the same rod model as a single part, and the same rods join exactly where
+a single part would run through (tested against its one-part twin). The segments'
+natural shape is straight (a bundle taped on a formboard); the design is a route.
+"""
+
+from __future__ import annotations
+
+import itertools
+import math
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from pliant.assembly.harness import SegmentProperties, centre_curve, select
+from pliant.core.equilibrium import Equilibrium3D
+from pliant.core.harness import Harness, HarnessSegment
+from pliant.errors import ConvergenceError, IllPosedProblemError, PliantError
+
+ELEMENT_LENGTH = 0.02  # m: about this long, 4 to 30 elements per segment
+STEP_POSITION = 1e-6  # the twin Jacobian's differences, by the mean segment length
+STEP_ROTATION = 1e-6  # rad
+TOLERANCE = 1e-7  # the junctions' balance, by the weight (and weight x length) of all
+MAX_ITERATIONS = 200
+DESIGN_LENGTH = 0.01  # a design curve this far from its segment's length is no start
+GRAVITY = (0.0, 0.0, -9.81)
+_DEBUG = False
+
+
+@dataclass(frozen=True)
+class _End:
+    """A segment's end at a node: which end (0 its start, 1 its end), and its design
+    frame (3, 3) (columns d1, d2, d3 with d3 along the segment's arc length)."""
+
+    segment: str
+    end: int
+    frame: np.ndarray
+
+
+@dataclass
+class _Junction:
+    node: str
+    ends: list[_End]
+    position: np.ndarray  # (3,) [m], now
+    rotation: np.ndarray  # (3, 3), now: from the design frame ``base`` to the present
+    base: np.ndarray  # (3, 3): the first end's design frame
+
+
+@dataclass(frozen=True)
+class InstalledSegment:
+    """One segment installed: its equilibrium (``pliant.core.Equilibrium3D``), how far it
+    lies from its designed centre curve at the same arc length (largest distance [m] and
+    its largest drop below it [m]), and its tightest bend radius [m] against its limit."""
+
+    segment: str
+    equilibrium: Equilibrium3D
+    deviation: float
+    sag: float
+    bend_radius: float
+    bend_limit: float | None
+
+
+@dataclass(frozen=True)
+class Installed:
+    """The installed harness: each segment's answer, each junction's position [m], each
+    held point's load (name: (force (3,) [N], moment (3,) [N m]), the load the harness
+    puts on the connector or fixing), how many Newton iterations the junctions took and
+    their final balance (relative), and notes (free connectors, what was not solved)."""
+
+    harness: Harness
+    segments: dict[str, InstalledSegment]
+    junctions: dict[str, np.ndarray]
+    held: dict[str, tuple[np.ndarray, np.ndarray]]
+    iterations: int
+    balance: float
+    notes: tuple[str, ...] = field(default=())
+    rotations: dict[str, np.ndarray] = field(default_factory=dict, repr=False)
+    jacobian: np.ndarray | None = field(default=None, repr=False)  # for a warm re-solve
+
+    @property
+    def weight(self) -> float:
+        """The harness's weight [N]."""
+        g = float(np.linalg.norm(GRAVITY))
+        return float(sum(s.equilibrium.problem.part.mass_per_length
+                         * s.equilibrium.problem.part.length * g
+                         for s in self.segments.values()))
+
+
+def _rotation(v: np.ndarray) -> np.ndarray:
+    """exp of the skew matrix of a rotation vector v (Rodrigues)."""
+    angle = float(np.linalg.norm(v))
+    if angle < 1e-300:
+        return np.eye(3)
+    k = v / angle
+    K = np.array([[0.0, -k[2], k[1]], [k[2], 0.0, -k[0]], [-k[1], k[0], 0.0]])
+    return np.eye(3) + math.sin(angle) * K + (1.0 - math.cos(angle)) * K @ K
+
+
+def _transported_frames(points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Design frames (d1, d2, d3 as columns) at a curve's two ends, d3 along it and d1
+    carried by parallel transport (no twist along the design)."""
+    tangents = np.diff(points, axis=0)
+    tangents /= np.linalg.norm(tangents, axis=1)[:, None]
+    t0 = tangents[0]
+    trial = np.array([0.0, 0.0, 1.0]) if abs(t0[2]) < 0.9 else np.array([1.0, 0.0, 0.0])
+    d1 = trial - (trial @ t0) * t0
+    d1 /= np.linalg.norm(d1)
+    first = np.column_stack([d1, np.cross(t0, d1), t0])
+    for a, b in itertools.pairwise(tangents):
+        axis = np.cross(a, b)
+        s, c = float(np.linalg.norm(axis)), float(a @ b)
+        if s > 1e-15:
+            d1 = _rotation(axis / s * math.atan2(s, c)) @ d1
+        d1 -= (d1 @ b) * b
+        d1 /= np.linalg.norm(d1)
+    t1 = tangents[-1]
+    return first, np.column_stack([d1, np.cross(t1, d1), t1])
+
+
+def _vec3(v) -> tuple[float, float, float]:
+    return float(v[0]), float(v[1]), float(v[2])
+
+
+def _elements(length: float) -> int:
+    return int(min(30, max(4, math.ceil(length / ELEMENT_LENGTH))))
+
+
+class _Network:
+    """The harness's segments as rods and its junctions as unknown poses."""
+
+    def __init__(self, harness: Harness, props: Mapping[str, SegmentProperties],
+                 gravity: tuple[float, float, float],
+                 moved: Mapping[str, tuple[float, float, float]] | None = None) -> None:
+        import pliant as pl  # noqa: PLC0415 (the solver: only a solve needs it)
+
+        self.pl = pl
+        self.moved = dict(moved or {})
+        names = {f.name for f in harness.fixings.values()}
+        for name in self.moved:
+            if name not in names:
+                raise IllPosedProblemError(f"moved: {name!r} is not a fixing of the harness "
+                                           f"(its fixings: {', '.join(sorted(names)[:8])})")
+        self.harness = harness
+        self.gravity = gravity
+        self.notes: list[str] = []
+        held = {c.node for c in harness.connectors.values() if c.placement is not None and c.node}
+        self.design: dict[str, np.ndarray] = {}
+        ends: dict[str, list[_End]] = {}
+        self.frames: dict[tuple[str, int], np.ndarray] = {}
+        self.parts = {}
+        for seg in harness.segments.values():
+            pts = centre_curve(harness, seg.id)
+            self.design[seg.id] = pts
+            f0, f1 = _transported_frames(pts)
+            self.frames[(seg.id, 0)], self.frames[(seg.id, 1)] = f0, f1
+            ends.setdefault(seg.start, []).append(_End(seg.id, 0, f0))
+            ends.setdefault(seg.end, []).append(_End(seg.id, 1, f1))
+            self.parts[seg.id] = self._part(seg, props[seg.id])
+        self.held = held
+        self.junctions: list[_Junction] = []
+        self.free: set[str] = set()
+        for node, at in ends.items():
+            if node in held:
+                continue
+            if len(at) == 1:
+                self.free.add(node)
+                continue
+            base = at[0].frame
+            self.junctions.append(_Junction(node, at, np.array(harness.nodes[node].position),
+                                            np.eye(3), base))
+        self.at_node = {j.node: k for k, j in enumerate(self.junctions)}
+        self._check_held(ends)
+        lengths = [s.virtual_length for s in harness.segments.values()]
+        self.L_ref = float(np.mean(lengths))
+        g = float(np.linalg.norm(gravity))
+        weight = sum(p.mass_per_length * p.length for p in self.parts.values()) * g
+        self.F_ref = max(weight, 1e-6)
+        self.eqs: dict[str, Equilibrium3D] = {}
+        self._contributions: dict[int, tuple[Equilibrium3D, np.ndarray]] = {}
+
+    def _part(self, seg: HarnessSegment, p: SegmentProperties):
+        missing = [name for name, d in (("bending stiffness", p.bending_stiffness),
+                                        ("diameter", p.diameter),
+                                        ("mass per length", p.mass_per_length)) if d.value is None]
+        if missing:
+            raise IllPosedProblemError(
+                f"segment {seg.id} ({seg.name}): no {', '.join(missing)} ("
+                f"{p.bending_stiffness.source if p.bending_stiffness.value is None else ''}); "
+                "give it in the overrides")
+        return self.pl.Part(length=seg.virtual_length, name=seg.id,
+                            bending_stiffness=float(p.bending_stiffness.value),  # type: ignore[arg-type]
+                            torsional_stiffness=p.torsional_stiffness.value,
+                            mass_per_length=float(p.mass_per_length.value),  # type: ignore[arg-type]
+                            outer_diameter=p.diameter.value, kind="wire",
+                            axial_stiffness=p.axial_stiffness.value,
+                            min_bend_radius=p.min_bend_radius.value)
+
+    def _check_held(self, ends: dict[str, list[_End]]) -> None:
+        """Every connected piece of the harness must be held somewhere."""
+        seen: set[str] = set()
+        for start in ends:
+            if start in seen:
+                continue
+            piece, stack = set(), [start]
+            while stack:
+                node = stack.pop()
+                if node in piece:
+                    continue
+                piece.add(node)
+                for e in ends[node]:
+                    s = self.harness.segments[e.segment]
+                    stack += [s.start, s.end]
+            seen |= piece
+            segs = {e.segment for n in piece for e in ends[n]}
+            if not (piece & self.held) and not any(self.harness.segments[s].fixings
+                                                    for s in segs):
+                names = sorted(self.harness.nodes[n].name for n in piece)[:5]
+                raise IllPosedProblemError(
+                    f"the harness piece with nodes {', '.join(names)} is held nowhere: no "
+                    "placed connector and no fixing (place a connector in the design, or "
+                    "hold it with a fixing)")
+
+    # -- one segment's problem --------------------------------------------------------
+    def _end_condition(self, seg: HarnessSegment, end: int):
+        node = seg.start if end == 0 else seg.end
+        s = 0.0 if end == 0 else seg.virtual_length
+        name = f"{'start' if end == 0 else 'end'} {self.harness.nodes[node].name}"
+        if node in self.held:
+            frame = self.frames[(seg.id, end)]
+            position = np.array(self.harness.nodes[node].position)
+        elif node in self.at_node:
+            j = self.junctions[self.at_node[node]]
+            frame = j.rotation @ self.frames[(seg.id, end)]
+            position = j.position
+        else:
+            return None
+        return self.pl.clamp(s, _vec3(position), name=name,
+                             tangent=_vec3(frame[:, 2]),
+                             normal=_vec3(frame[:, 0]))
+
+    def problem(self, seg_id: str):
+        seg = self.harness.segments[seg_id]
+        conditions = [c for c in (self._end_condition(seg, 0), self._end_condition(seg, 1))
+                      if c is not None]
+        pts = self.design[seg_id]
+        arc = np.r_[0.0, np.cumsum(np.linalg.norm(np.diff(pts, axis=0), axis=1))]
+        for place in seg.fixings:
+            fixing = self.harness.fixings[place.fixing]
+            s = place.location * seg.virtual_length
+            if s <= 1e-9 * seg.virtual_length or s >= (1 - 1e-9) * seg.virtual_length:
+                s = min(max(s, 1e-3 * seg.virtual_length), (1 - 1e-3) * seg.virtual_length)
+            at = place.location * arc[-1]
+            k = int(np.clip(np.searchsorted(arc, at) - 1, 0, len(pts) - 2))
+            w = (at - arc[k]) / max(arc[k + 1] - arc[k], 1e-300)
+            point = (1 - w) * pts[k] + w * pts[k + 1]
+            tangent = pts[k + 1] - pts[k]
+            tangent /= np.linalg.norm(tangent)
+            point = point + np.asarray(self.moved.get(fixing.name, (0.0, 0.0, 0.0)), float)
+            conditions.append(self.pl.grip(s, _vec3(point),
+                                           name=f"fixing {fixing.name}",
+                                           tangent=_vec3(tangent)))
+        conditions.sort(key=lambda c: c.s)
+        return self.pl.Problem(self.parts[seg_id], tuple(conditions), gravity=self.gravity,
+                               name=seg_id)
+
+    def solve_segment(self, seg_id: str, warm: bool = True):
+        from pliant.models import rod3d  # noqa: PLC0415
+
+        problem = self.problem(seg_id)
+        solver = rod3d.RodSolver(elements=_elements(problem.part.length))
+        previous = self.eqs.get(seg_id) if warm else None
+        if previous is not None:
+            try:
+                return rod3d.solve(problem, solver=solver, warm_start=previous)
+            except PliantError:
+                pass
+        if previous is None:
+            try:  # from the design's shape, its stresses let go and its weight laid on
+                return _from_design(problem, self.design[seg_id], solver)
+            except PliantError:
+                pass
+        try:
+            return rod3d.solve(problem, solver=solver)
+        except ConvergenceError:
+            if previous is not None:
+                raise
+            # A cold start whose first route crosses a fold: the best equilibrium any
+            # route reaches (stable first, then the least energy).
+            found = rod3d.equilibria(problem, solver=solver, budget=5.0)
+            if not found:
+                raise
+            return found[0]
+
+    # -- the junctions' balance -------------------------------------------------------
+    def contribution(self, seg_id: str, eq: Equilibrium3D) -> np.ndarray:
+        """(6 J,) what one segment's ends add to the junctions' balance (scaled), kept
+        per answer: a Jacobian's column changes only its junction's segments'."""
+        key = id(eq)
+        hit = self._contributions.get(key)
+        if hit is not None and hit[0] is eq:
+            return hit[1]
+        out = np.zeros(6 * len(self.junctions))
+        seg = self.harness.segments[seg_id]
+        reactions = eq.reactions
+        for end, node in ((0, seg.start), (1, seg.end)):
+            k = self.at_node.get(node)
+            if k is None:
+                continue
+            name = f"{'start' if end == 0 else 'end'} {self.harness.nodes[node].name}"
+            load = reactions[name]
+            out[6 * k:6 * k + 3] += np.asarray(load.force) / self.F_ref
+            out[6 * k + 3:6 * k + 6] += np.asarray(load.moment) / (self.F_ref * self.L_ref)
+        if len(self._contributions) > 20 * len(self.harness.segments):
+            self._contributions.clear()
+        self._contributions[key] = (eq, out)
+        return out
+
+    def residual(self, eqs: Mapping[str, Equilibrium3D]) -> np.ndarray:
+        """(6 J,) each junction's balance: the forces and moments its segments' ends
+        take from it, by the harness's weight (and weight times its mean segment)."""
+        r = np.zeros(6 * len(self.junctions))
+        for seg_id, eq in eqs.items():
+            r += self.contribution(seg_id, eq)
+        return r
+
+    def energy(self, eqs: Mapping[str, Equilibrium3D]) -> float:
+        """All the segments' elastic (bending, twist and stretch) and weight's potential
+        energy [J]: the junctions' balance is its gradient."""
+        from pliant.core.equilibrium import potential_energy  # noqa: PLC0415
+
+        return float(sum(potential_energy(eq) for eq in eqs.values()))
+
+    def move(self, k: int, dq: np.ndarray) -> None:
+        j = self.junctions[k]
+        j.position = j.position + dq[:3] * self.L_ref
+        j.rotation = _rotation(dq[3:]) @ j.rotation
+
+    def segments_at(self, k: int) -> list[str]:
+        return sorted({e.segment for e in self.junctions[k].ends})
+
+
+def _from_design(problem, points: np.ndarray, solver) -> Equilibrium3D:
+    """A segment's equilibrium followed from its designed shape: that shape, made the
+    rod's rest shape and free of gravity, is an equilibrium (the clamps where it puts
+    its ends); the continuation then takes the rest shape to straight and the weight
+    from nothing to its own, while the clamps go to their poses (``Run.follow``)."""
+    from dataclasses import replace  # noqa: PLC0415
+
+    from pliant.errors import ConvergenceError as _Stop  # noqa: PLC0415
+    from pliant.models.continuation import Stalled  # noqa: PLC0415
+    from pliant.models.rod3d.kernels import FULL  # noqa: PLC0415
+    from pliant.models.rod3d.lowering import lower, qconj, qmul, quat_from_matrix  # noqa: PLC0415
+    from pliant.models.rod3d.results import build  # noqa: PLC0415
+    from pliant.models.rod3d.solver import Run  # noqa: PLC0415
+
+    arc = np.r_[0.0, np.cumsum(np.linalg.norm(np.diff(points, axis=0), axis=1))]
+    if abs(arc[-1] / problem.part.length - 1.0) > DESIGN_LENGTH:
+        raise _Stop("the design's curve is not the segment's length: no shape to start "
+                    "from", residual=math.inf)
+    rod = lower(problem, elements=solver.elements)
+
+    def design(s: np.ndarray) -> np.ndarray:  # s in [0, 1] along the design's length
+        x = np.clip(s, 0.0, 1.0) * arc[-1]
+        return np.column_stack([np.interp(x, arc, points[:, i]) for i in range(3)])
+
+    s_node, h, N = rod.s_node, rod.h, rod.h.shape[0]
+    chords = np.diff(design(s_node), axis=0)
+    d3_elem = chords / np.linalg.norm(chords, axis=1)[:, None]
+    eps = 1e-4
+    d3_frames = np.empty((rod.frame_s.shape[0], 3))
+    d3_frames[rod.elem_frame] = d3_elem
+    nodes = np.nonzero(rod.node_frame >= 0)[0]
+    for i in nodes:
+        a, b = design(np.array([s_node[i] - eps, s_node[i] + eps]))
+        t = b - a
+        d3_frames[rod.node_frame[i]] = t / np.linalg.norm(t)
+    # d1 carried along the frames by parallel transport; quaternions kept in one
+    # hemisphere (the discrete Darboux vector is 2/hh Im(conj(q_a) q_b)).
+    frames = np.empty((d3_frames.shape[0], 3, 3))
+    frames[0] = _transported_frames(points)[0]
+    frames[0] = np.column_stack([frames[0][:, 0], frames[0][:, 1], frames[0][:, 2]])
+    t0 = d3_frames[0]
+    d1 = frames[0][:, 0] - (frames[0][:, 0] @ t0) * t0
+    d1 /= np.linalg.norm(d1)
+    Q = np.empty((d3_frames.shape[0], 4))
+    prev_t = t0
+    for k, t in enumerate(d3_frames):
+        axis = np.cross(prev_t, t)
+        sn, c = float(np.linalg.norm(axis)), float(prev_t @ t)
+        if sn > 1e-15:
+            d1 = _rotation(axis / sn * math.atan2(sn, c)) @ d1
+        d1 = d1 - (d1 @ t) * t
+        d1 /= np.linalg.norm(d1)
+        q = quat_from_matrix(np.column_stack([d1, np.cross(t, d1), t]))
+        if k and q @ Q[k - 1] < 0.0:
+            q = -q
+        Q[k] = q
+        prev_t = t
+    X = np.empty((N + 1, 3))
+    X[0] = design(np.array([0.0]))[0] / rod.length
+    X[1:] = X[0] + np.cumsum(h[:, None] * d3_elem, axis=0)
+    k0 = np.array([2.0 / hh * qmul(qconj(a), b)[1:] for a, b, hh in
+                   zip(Q[:-1], Q[1:], rod.joint_hh)])
+    target = rod.target
+    st_pos = np.where(rod.st_pos_mask > 0, X[rod.st_node], 0.0)
+    st_tangent = np.where((rod.st_kind > 0)[:, None], d3_frames[rod.st_frame],
+                          target.st_tangent)
+    st_quat = target.st_quat.copy()
+    for k in range(st_quat.shape[0]):
+        if rod.st_kind[k] == FULL:
+            q = Q[rod.st_frame[k]]
+            st_quat[k] = q if q @ target.st_quat[k] >= 0.0 else -q
+    start = replace(target, fnode=np.zeros_like(target.fnode), st_pos=st_pos,
+                    st_tangent=st_tangent, st_quat=st_quat, joint_k0=k0)
+    run = Run(rod, solver)
+    state = (X, Q, np.zeros((N, 3)), np.zeros(rod.m), np.zeros(rod.islot.shape[0]))
+    try:
+        state = run.follow(start, target, state)
+    except Stalled as stall:
+        raise _Stop(f"from the design: {stall.reason}", residual=stall.residual) from None
+    return build(run, state, None)
+
+
+def solve_installed(harness: Harness, props: Mapping[str, SegmentProperties], *,
+                    modules: list[str] | None = None,
+                    gravity: tuple[float, float, float] = GRAVITY,
+                    moved: Mapping[str, tuple[float, float, float]] | None = None,
+                    warm: Installed | None = None) -> Installed:
+    """The harness installed under ``gravity``: see the module. ``moved``: fixings (by
+    name) displaced from their designed place [m]; ``warm``: an earlier answer of the
+    same harness to start from (a fixing moved, re-solved in a fraction of the cold
+    solve's time). Raises
+    ``ConvergenceError`` (naming the junction that would not balance) or
+    ``IllPosedProblemError`` (a piece held nowhere, a property missing)."""
+    if modules:
+        harness = select(harness, modules)
+    if moved and warm is None:  # as designed first, then the fixings moved from there
+        warm = solve_installed(harness, props, gravity=gravity)
+    net = _Network(harness, props, gravity, moved)
+    if warm is not None and set(warm.segments) == set(harness.segments) and \
+            set(warm.rotations) == {j.node for j in net.junctions}:
+        # From an earlier answer (a fixing moved): its junction poses and its segments'
+        # equilibria, each followed to its new targets.
+        for j in net.junctions:
+            j.position = np.array(warm.junctions[j.node], float)
+            j.rotation = np.array(warm.rotations[j.node], float)
+        for seg_id in harness.segments:
+            net.eqs[seg_id] = warm.segments[seg_id].equilibrium
+    else:
+        warm = None
+        for seg_id in harness.segments:
+            net.eqs[seg_id] = net.solve_segment(seg_id, warm=False)
+    if warm is not None and moved:
+        # The fixings moved as far as their segments follow at once (all the way first,
+        # halved where a segment cannot), the junctions balanced after each step.
+        target = dict(net.moved)
+        jac = warm.jacobian
+        iterations, done, step = 0, 0.0, 1.0
+        while done < 1.0:
+            t = min(1.0, done + step)
+            net.moved = {name: _vec3(np.asarray(v, float) * t) for name, v in target.items()}
+            kept = dict(net.eqs)
+            saved = [(j.position.copy(), j.rotation.copy()) for j in net.junctions]
+            try:
+                net.eqs = {seg_id: net.solve_segment(seg_id, warm=True)
+                           for seg_id in harness.segments}
+                count, r, jac = _balance(net, jac)
+            except PliantError:
+                net.eqs = kept
+                for j, (p, rot) in zip(net.junctions, saved):
+                    j.position, j.rotation = p, rot
+                step *= 0.5
+                if step < 1e-3:
+                    raise
+                continue
+            iterations += count
+            done = t
+    else:
+        iterations, r, jac = _balance(net, None)
+    return _installed(harness, net, iterations, float(np.abs(r).max(initial=0.0)), jac)
+
+
+def _balance(net: _Network, jac: np.ndarray | None) -> tuple[int, np.ndarray, np.ndarray | None]:
+    """Newton (Levenberg-Marquardt, downhill in the harness's energy) on the junction
+    poses from where they are: (iterations, the last balance, the last Jacobian)."""
+    harness = net.harness
+    n = len(net.junctions)
+    r = net.residual(net.eqs)
+    energy = net.energy(net.eqs)
+    iterations = 0
+    damping = 1e-6
+    fresh = 0  # Jacobians computed afresh (the rest are Broyden's updates)
+    updated = jac is not None  # an earlier answer's: refreshed where it misleads
+    while n and float(np.abs(r).max()) > TOLERANCE:
+        if iterations >= MAX_ITERATIONS:
+            worst = int(np.argmax(np.abs(r))) // 6
+            raise ConvergenceError(
+                f"the harness's junctions would not balance in {MAX_ITERATIONS} "
+                f"iterations (junction {harness.nodes[net.junctions[worst].node].name} "
+                f"off by {float(np.abs(r).max()):.2g} of the harness's weight)",
+                residual=float(np.abs(r).max()))
+        if jac is None:
+            jac = _jacobian(net, r)
+            fresh += 1
+            updated = False
+        hessian = 0.5 * (jac + jac.T)  # the balance is the energy's gradient
+        scale = float(np.abs(np.diag(hessian)).max(initial=1.0))
+        accepted = False
+        while damping < 1e8:
+            try:
+                dq = np.linalg.solve(hessian + damping * scale * np.eye(6 * n), -r)
+            except np.linalg.LinAlgError:
+                damping *= 10.0
+                continue
+            # No junction moves more than a quarter of the mean segment or turns 0.5 rad.
+            moves = np.abs(dq.reshape(n, 2, 3)).max(axis=2).max(axis=0)
+            dq *= 1.0 / max(1.0, moves[0] / 0.25, moves[1] / 0.5)
+            saved = [(j.position.copy(), j.rotation.copy()) for j in net.junctions]
+            for k in range(n):
+                net.move(k, dq[6 * k:6 * k + 6])
+            try:
+                trial = {s: net.solve_segment(s) for s in harness.segments}
+                r_new, e_new = net.residual(trial), net.energy(trial)
+            except PliantError:
+                r_new = None
+            # Downhill in the energy, or (near the answer, where the energy's change is
+            # below its round-off) a smaller imbalance.
+            if r_new is not None and (e_new < energy - 1e-12 * abs(energy) or (
+                    np.linalg.norm(r_new) < np.linalg.norm(r) and e_new <= energy
+                    + 1e-9 * abs(energy))):
+                # Broyden's update: the Jacobian taken along by this step's change.
+                jac = jac + np.outer(r_new - r - jac @ dq, dq) / float(dq @ dq)
+                updated = True
+                net.eqs, r, energy, accepted = trial, r_new, e_new, True
+                damping = max(damping / 4.0, 1e-9)
+                break
+            for j, (p, rot) in zip(net.junctions, saved):
+                j.position, j.rotation = p, rot
+            if updated:  # an updated Jacobian misled the step: a fresh one, same damping
+                jac = _jacobian(net, r)
+                fresh += 1
+                updated = False
+                hessian = 0.5 * (jac + jac.T)
+                scale = float(np.abs(np.diag(hessian)).max(initial=1.0))
+            else:
+                damping *= 8.0
+        iterations += 1
+        if _DEBUG:
+            print("step", iterations, float(np.abs(r).max()), energy, damping, fresh)
+        if not accepted:
+            raise ConvergenceError("the harness's junctions would not balance: no step "
+                                   "lowers the harness's energy from here",
+                                   residual=float(np.abs(r).max()))
+    return iterations, r, jac
+
+
+def _jacobian(net: _Network, r: np.ndarray) -> np.ndarray:
+    """d(balance)/d(junction poses): each segment's clamps' sensitivity from its own
+    factorised Newton system (``rod3d.sensitivity``), assembled; where one cannot be
+    had, that segment's columns by re-solving it (``jacobian_by_differences``)."""
+    from pliant.models.rod3d.sensitivity import clamp_sensitivity  # noqa: PLC0415
+
+    n = len(net.junctions)
+    jac = np.zeros((6 * n, 6 * n))
+    scale = np.r_[np.full(3, 1.0 / net.F_ref), np.full(3, 1.0 / (net.F_ref * net.L_ref))]
+    for seg_id, eq in net.eqs.items():
+        seg = net.harness.segments[seg_id]
+        ends = [(f"{'start' if end == 0 else 'end'} {net.harness.nodes[node].name}",
+                 net.at_node[node]) for end, node in ((0, seg.start), (1, seg.end))
+                if node in net.at_node]
+        if not ends:
+            continue
+        names = [name for name, _ in ends]
+        try:
+            sens = clamp_sensitivity(eq, names, names, net.L_ref)
+        except PliantError:
+            return jacobian_by_differences(net, r)
+        for a, (_, ka) in enumerate(ends):
+            for b, (_, kb) in enumerate(ends):
+                block = sens[6 * a:6 * a + 6, 6 * b:6 * b + 6] * scale[:, None]
+                jac[6 * ka:6 * ka + 6, 6 * kb:6 * kb + 6] += block
+    return jac
+
+
+def jacobian_by_differences(net: _Network, r: np.ndarray) -> np.ndarray:
+    """``_jacobian``'s twin by forward differences; a column re-solves only the segments
+    at its junction, and changes only their share of the balance."""
+    n = len(net.junctions)
+    jac = np.zeros((6 * n, 6 * n))
+    for k in range(n):
+        segs = net.segments_at(k)
+        base = sum(net.contribution(s, net.eqs[s]) for s in segs)
+        for c in range(6):
+            dq = np.zeros(6)
+            h = STEP_POSITION if c < 3 else STEP_ROTATION
+            dq[c] = h
+            saved = (net.junctions[k].position.copy(), net.junctions[k].rotation.copy())
+            net.move(k, dq)
+            moved = sum(net.contribution(s, net.solve_segment(s)) for s in segs)
+            jac[:, 6 * k + c] = (moved - base) / h
+            net.junctions[k].position, net.junctions[k].rotation = saved
+    return jac
+
+
+def _installed(harness: Harness, net: _Network, iterations: int, balance: float,
+               jac: np.ndarray | None) -> Installed:
+    segments = {}
+    held: dict[str, tuple[np.ndarray, np.ndarray]] = {}
+    down = np.asarray(net.gravity, float)
+    down = down / max(float(np.linalg.norm(down)), 1e-300)
+    for seg_id, eq in net.eqs.items():
+        design = net.design[seg_id]
+        arc = np.r_[0.0, np.cumsum(np.linalg.norm(np.diff(design, axis=0), axis=1))]
+        s = eq.s / eq.problem.part.length * arc[-1]
+        at_s = np.column_stack([np.interp(s, arc, design[:, i]) for i in range(3)])
+        offset = eq.position - at_s
+        radius, _ = eq.min_bend_radius()
+        segments[seg_id] = InstalledSegment(
+            seg_id, eq, float(np.linalg.norm(offset, axis=1).max()),
+            float(max(0.0, (offset @ down).max())), float(radius),
+            eq.problem.part.min_bend_radius)
+        for name, load in eq.reactions.items():
+            node_name = name.split(" ", 1)[1] if name.startswith(("start ", "end ")) else ""
+            if name.startswith("fixing ") or any(
+                    harness.nodes[n].name == node_name for n in net.held):
+                key = name if name.startswith("fixing ") else f"connector at {node_name}"
+                f, m = held.get(key, (np.zeros(3), np.zeros(3)))
+                # The load on the connector or fixing: the opposite of what it applies.
+                held[key] = (f - np.asarray(load.force), m - np.asarray(load.moment))
+    notes = []
+    if net.free:
+        notes.append(f"{len(net.free)} segment end(s) hang free: no placed connector at "
+                     + ", ".join(sorted(harness.nodes[n].name for n in net.free)[:6])
+                     + (" ..." if len(net.free) > 6 else ""))
+    return Installed(harness, segments, {j.node: j.position.copy() for j in net.junctions},
+                     held, iterations, balance, tuple(notes),
+                     {j.node: j.rotation.copy() for j in net.junctions}, jac)
+
+
+def installed_checks(installed: Installed, rules=None) -> list:
+    """The installed harness's checks (``assembly.harness.DesignCheck`` records): each
+    segment's tightest bend against its limit (the bend margin as in the A/D
+    evaluation), a segment pulled straight (no slack left: a harness too short), and
+    the load on each connector and fixing (reported: no public rule limits it)."""
+    from pliant.assembly.checks import Zone  # noqa: PLC0415
+    from pliant.assembly.harness import DesignCheck  # noqa: PLC0415
+    from pliant.io.rules_file import load_rules  # noqa: PLC0415
+
+    rules = rules or load_rules()
+    out = []
+    for seg_id, seg in installed.segments.items():
+        name = installed.harness.segments[seg_id].name
+        where = f"segment {seg_id}"
+        if seg.bend_limit is None:
+            out.append(DesignCheck(where, "installed bend radius", seg.bend_radius, None,
+                                   Zone.UNCHECKED, "no bend limit for its wires", name=name))
+        else:
+            zone = (Zone.RED if seg.bend_radius < seg.bend_limit else Zone.YELLOW
+                    if seg.bend_radius < rules.bend_margin * seg.bend_limit else Zone.GREEN)
+            out.append(DesignCheck(where, "installed bend radius", seg.bend_radius,
+                                   seg.bend_limit, zone,
+                                   f"tightest {seg.bend_radius * 1e3:.1f} mm against "
+                                   f"{seg.bend_limit * 1e3:.1f} mm",
+                                   rules.bend_margin_sourced.source, name=name))
+        eq = seg.equilibrium
+        chord = float(np.linalg.norm(eq.position[-1] - eq.position[0]))
+        ends_held = sum(1 for c in eq.problem.conditions if c.s in (0.0, eq.problem.part.length))
+        if ends_held == 2 and chord >= 0.999 * eq.problem.part.length:
+            out.append(DesignCheck(where, "slack", chord, eq.problem.part.length, Zone.YELLOW,
+                                   f"pulled straight: its ends {chord * 1e3:.1f} mm apart, it is "
+                                   f"{eq.problem.part.length * 1e3:.1f} mm long (no slack for "
+                                   "tolerances: lengthen it)", name=name))
+    for key, (force, moment) in installed.held.items():
+        out.append(DesignCheck(key, "load from the harness", float(np.linalg.norm(force)), None,
+                               Zone.INFO, f"{np.linalg.norm(force):.2f} N, "
+                               f"{np.linalg.norm(moment):.3f} N m (no public rule: compare "
+                               "with the connector's or clip's rating)"))
+    return out
