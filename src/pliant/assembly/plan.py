@@ -63,7 +63,6 @@ import json
 import math
 import signal
 import threading
-import time
 from collections import Counter
 from collections.abc import Callable
 from dataclasses import dataclass, field, replace
@@ -96,7 +95,8 @@ class NoPathError(PliantError):
 
     closest : the pose of the tree nearest the goal (a ``Pose``), distance : how far it
     is from the goal in the planner's metric [m], blocked : what rejected the motions
-    tried ({reason: count}), seconds : the time spent, solves : accurate solves made.
+    tried ({reason: count}), seconds : the time spent on the budget's clock (this
+    thread's CPU time, ``pliant.models.clock``), solves : accurate solves made.
     """
 
     def __init__(self, message: str, *, closest: Pose | None, distance: float,
@@ -523,7 +523,7 @@ class Planner:
     def plan(self, goal: str, *, on_progress: Callable[[str], None] | None = None) -> Plan:
         """A path for the grip to the port ``goal``; ``NoPathError`` within the budget
         when none is found; KeyboardInterrupt at once on Ctrl+C."""
-        begin = time.perf_counter()
+        begin = clock.now()  # the budget's clock: what ``seconds`` reports too
         tree = self.tree(goal)  # checks the port first
         # The budget counts this thread's CPU time (``pliant.models.clock``): a loaded
         # machine does not turn a slower search into a refusal.
@@ -579,7 +579,7 @@ class Planner:
                 break  # two trees, the same demand: the search has settled
             if best is None or result.cost < best.cost:
                 best = result
-        seconds = time.perf_counter() - begin
+        seconds = clock.now() - begin
         if tree.interrupted:
             raise KeyboardInterrupt
         if best is None:
@@ -765,7 +765,7 @@ class Planner:
         where = (f"closest pose reached {distance:.3f} m from the point before the port, "
                  f"at {closest}" if closest is not None else "no pose reached")
         return NoPathError(
-            f"no path found in {seconds:.1f} s ({solves} solves, seed "
+            f"no path found in {seconds:.1f} s of CPU ({solves} solves, seed "
             f"{self.settings.seed}); {where}; what blocked the motions tried: {why}. Give "
             "more time (--budget), allow contact (--allow-contact), or move what blocks it",
             closest=closest, distance=distance, blocked=blocked, seconds=seconds,
