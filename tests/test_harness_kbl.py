@@ -498,11 +498,11 @@ def test_the_junctions_jacobian_from_the_rods_newton_systems_matches_re_solving(
     from pliant.assembly import harness_solve as hs
 
     harness = read_kbl(MOTOR)
-    net = hs._Network(harness, properties(harness), hs.GRAVITY)
+    net = hs.Network(harness, properties(harness), hs.GRAVITY)
     for seg_id in harness.segments:
         net.eqs[seg_id] = net.solve_segment(seg_id, warm=False)
     r = net.residual(net.eqs)
-    exact = hs._jacobian(net, r)
+    exact = hs.jacobian(net, r)
     saved = hs.STEP_POSITION, hs.STEP_ROTATION
     try:
         hs.STEP_POSITION = hs.STEP_ROTATION = 1e-7

@@ -93,6 +93,7 @@ class Installed:
     notes: tuple[str, ...] = field(default=())
     rotations: dict[str, np.ndarray] = field(default_factory=dict, repr=False)
     jacobian: np.ndarray | None = field(default=None, repr=False)  # for a warm re-solve
+    prepared: tuple | None = field(default=None, repr=False)  # design curves and frames
 
     @property
     def weight(self) -> float:
@@ -113,16 +114,23 @@ def _rotation(v: np.ndarray) -> np.ndarray:
     return np.eye(3) + math.sin(angle) * K + (1.0 - math.cos(angle)) * K @ K
 
 
+def _first_frame(t0: np.ndarray) -> np.ndarray:
+    """The design frame at a curve's start: d3 its tangent, d1 the vertical (or x)
+    made normal to it."""
+    trial = np.array([0.0, 0.0, 1.0]) if abs(t0[2]) < 0.9 else np.array([1.0, 0.0, 0.0])
+    d1 = trial - (trial @ t0) * t0
+    d1 /= np.linalg.norm(d1)
+    return np.column_stack([d1, np.cross(t0, d1), t0])
+
+
 def _transported_frames(points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Design frames (d1, d2, d3 as columns) at a curve's two ends, d3 along it and d1
     carried by parallel transport (no twist along the design)."""
     tangents = np.diff(points, axis=0)
     tangents /= np.linalg.norm(tangents, axis=1)[:, None]
     t0 = tangents[0]
-    trial = np.array([0.0, 0.0, 1.0]) if abs(t0[2]) < 0.9 else np.array([1.0, 0.0, 0.0])
-    d1 = trial - (trial @ t0) * t0
-    d1 /= np.linalg.norm(d1)
-    first = np.column_stack([d1, np.cross(t0, d1), t0])
+    first = _first_frame(t0)
+    d1 = first[:, 0].copy()
     for a, b in itertools.pairwise(tangents):
         axis = np.cross(a, b)
         s, c = float(np.linalg.norm(axis)), float(a @ b)
@@ -142,12 +150,13 @@ def _elements(length: float) -> int:
     return int(min(30, max(4, math.ceil(length / ELEMENT_LENGTH))))
 
 
-class _Network:
+class Network:
     """The harness's segments as rods and its junctions as unknown poses."""
 
     def __init__(self, harness: Harness, props: Mapping[str, SegmentProperties],
                  gravity: tuple[float, float, float],
-                 moved: Mapping[str, tuple[float, float, float]] | None = None) -> None:
+                 moved: Mapping[str, tuple[float, float, float]] | None = None,
+                 prepared: tuple | None = None) -> None:
         import pliant as pl  # noqa: PLC0415 (the solver: only a solve needs it)
 
         self.pl = pl
@@ -166,9 +175,13 @@ class _Network:
         self.frames: dict[tuple[str, int], np.ndarray] = {}
         self.parts = {}
         for seg in harness.segments.values():
-            pts = centre_curve(harness, seg.id)
+            if prepared is not None and seg.id in prepared[0]:  # an earlier answer's
+                pts = prepared[0][seg.id]
+                f0, f1 = prepared[1][(seg.id, 0)], prepared[1][(seg.id, 1)]
+            else:
+                pts = centre_curve(harness, seg.id)
+                f0, f1 = _transported_frames(pts)
             self.design[seg.id] = pts
-            f0, f1 = _transported_frames(pts)
             self.frames[(seg.id, 0)], self.frames[(seg.id, 1)] = f0, f1
             ends.setdefault(seg.start, []).append(_End(seg.id, 0, f0))
             ends.setdefault(seg.end, []).append(_End(seg.id, 1, f1))
@@ -393,11 +406,10 @@ def _from_design(problem, points: np.ndarray, solver) -> Equilibrium3D:
         d3_frames[rod.node_frame[i]] = t / np.linalg.norm(t)
     # d1 carried along the frames by parallel transport; quaternions kept in one
     # hemisphere (the discrete Darboux vector is 2/hh Im(conj(q_a) q_b)).
-    frames = np.empty((d3_frames.shape[0], 3, 3))
-    frames[0] = _transported_frames(points)[0]
-    frames[0] = np.column_stack([frames[0][:, 0], frames[0][:, 1], frames[0][:, 2]])
+    step = points[1] - points[0]
+    head = _first_frame(step / np.linalg.norm(step))  # the clamps' frame at s = 0
     t0 = d3_frames[0]
-    d1 = frames[0][:, 0] - (frames[0][:, 0] @ t0) * t0
+    d1 = head[:, 0] - (head[:, 0] @ t0) * t0
     d1 /= np.linalg.norm(d1)
     Q = np.empty((d3_frames.shape[0], 4))
     prev_t = t0
@@ -453,7 +465,8 @@ def solve_installed(harness: Harness, props: Mapping[str, SegmentProperties], *,
         harness = select(harness, modules)
     if moved and warm is None:  # as designed first, then the fixings moved from there
         warm = solve_installed(harness, props, gravity=gravity)
-    net = _Network(harness, props, gravity, moved)
+    net = Network(harness, props, gravity, moved,
+                   None if warm is None else warm.prepared)
     if warm is not None and set(warm.segments) == set(harness.segments) and \
             set(warm.rotations) == {j.node for j in net.junctions}:
         # From an earlier answer (a fixing moved): its junction poses and its segments'
@@ -497,7 +510,7 @@ def solve_installed(harness: Harness, props: Mapping[str, SegmentProperties], *,
     return _installed(harness, net, iterations, float(np.abs(r).max(initial=0.0)), jac)
 
 
-def _balance(net: _Network, jac: np.ndarray | None) -> tuple[int, np.ndarray, np.ndarray | None]:
+def _balance(net: Network, jac: np.ndarray | None) -> tuple[int, np.ndarray, np.ndarray | None]:
     """Newton (Levenberg-Marquardt, downhill in the harness's energy) on the junction
     poses from where they are: (iterations, the last balance, the last Jacobian)."""
     harness = net.harness
@@ -517,7 +530,7 @@ def _balance(net: _Network, jac: np.ndarray | None) -> tuple[int, np.ndarray, np
                 f"off by {float(np.abs(r).max()):.2g} of the harness's weight)",
                 residual=float(np.abs(r).max()))
         if jac is None:
-            jac = _jacobian(net, r)
+            jac = jacobian(net, r)
             fresh += 1
             updated = False
         hessian = 0.5 * (jac + jac.T)  # the balance is the energy's gradient
@@ -554,7 +567,7 @@ def _balance(net: _Network, jac: np.ndarray | None) -> tuple[int, np.ndarray, np
             for j, (p, rot) in zip(net.junctions, saved):
                 j.position, j.rotation = p, rot
             if updated:  # an updated Jacobian misled the step: a fresh one, same damping
-                jac = _jacobian(net, r)
+                jac = jacobian(net, r)
                 fresh += 1
                 updated = False
                 hessian = 0.5 * (jac + jac.T)
@@ -571,7 +584,7 @@ def _balance(net: _Network, jac: np.ndarray | None) -> tuple[int, np.ndarray, np
     return iterations, r, jac
 
 
-def _jacobian(net: _Network, r: np.ndarray) -> np.ndarray:
+def jacobian(net: Network, r: np.ndarray) -> np.ndarray:
     """d(balance)/d(junction poses): each segment's clamps' sensitivity from its own
     factorised Newton system (``rod3d.sensitivity``), assembled; where one cannot be
     had, that segment's columns by re-solving it (``jacobian_by_differences``)."""
@@ -599,8 +612,8 @@ def _jacobian(net: _Network, r: np.ndarray) -> np.ndarray:
     return jac
 
 
-def jacobian_by_differences(net: _Network, r: np.ndarray) -> np.ndarray:
-    """``_jacobian``'s twin by forward differences; a column re-solves only the segments
+def jacobian_by_differences(net: Network, r: np.ndarray) -> np.ndarray:
+    """``jacobian``'s twin by forward differences; a column re-solves only the segments
     at its junction, and changes only their share of the balance."""
     n = len(net.junctions)
     jac = np.zeros((6 * n, 6 * n))
@@ -619,7 +632,7 @@ def jacobian_by_differences(net: _Network, r: np.ndarray) -> np.ndarray:
     return jac
 
 
-def _installed(harness: Harness, net: _Network, iterations: int, balance: float,
+def _installed(harness: Harness, net: Network, iterations: int, balance: float,
                jac: np.ndarray | None) -> Installed:
     segments = {}
     held: dict[str, tuple[np.ndarray, np.ndarray]] = {}
@@ -651,7 +664,8 @@ def _installed(harness: Harness, net: _Network, iterations: int, balance: float,
                      + (" ..." if len(net.free) > 6 else ""))
     return Installed(harness, segments, {j.node: j.position.copy() for j in net.junctions},
                      held, iterations, balance, tuple(notes),
-                     {j.node: j.rotation.copy() for j in net.junctions}, jac)
+                     {j.node: j.rotation.copy() for j in net.junctions}, jac,
+                     (net.design, net.frames))
 
 
 def installed_checks(installed: Installed, rules=None) -> list:
