@@ -515,3 +515,75 @@ def test_the_junctions_jacobian_from_the_rods_newton_systems_matches_re_solving(
         block = np.s_[6 * k:6 * k + 6, 6 * k:6 * k + 6]
         assert np.abs(exact[block] - differences[block]).max() <= 0.01 * np.abs(
             differences[block]).max()
+
+
+def test_a_floppy_segment_between_two_connectors_hangs_as_the_catenary():
+    """The heavy elastica's limit: a segment far longer than the bending length
+    sqrt(EI / H) hangs as the catenary (the clamps' boundary layers, 4 mm of a 0.5 m
+    span here, are the difference)."""
+    from scipy.optimize import brentq
+
+    from pliant.assembly.harness_solve import solve_installed
+
+    span, length, w = 0.5, 0.6, 0.02 * 9.81
+    harness = _straight_harness({"A": (0.0, 0.0, 0.0), "B": (span, 0.0, 0.0)},
+                                [("S", "A", "B", length)], ["A", "B"])
+    props = properties(harness, {"S": {"bending_stiffness": 1e-6, "mass_per_length": 0.02}})
+    installed = solve_installed(harness, props)
+    eq = installed.segments["S"].equilibrium
+    sag = -float(eq.position[:, 2].min())
+    c = brentq(lambda c: 2 * c * math.sinh(span / (2 * c)) - length, 0.01, 10.0)
+    catenary = c * (math.cosh(span / (2 * c)) - 1.0)
+    assert sag == pytest.approx(catenary, rel=0.02)
+    # The horizontal pull the connectors feel is the catenary's H = w c.
+    assert abs(installed.held["connector at A"][0][0]) == pytest.approx(w * c, rel=0.03)
+    assert installed.held["connector at A"][0][2] == pytest.approx(-w * length / 2, rel=1e-6)
+
+
+SCENE = KBL.parent / "generator_on_bracket.toml"
+
+
+def test_a_harness_in_a_scene_rests_on_its_obstacle_and_still_balances(tmp_path):
+    from pliant.assembly.harness_solve import installed_checks, solve_installed
+    from pliant.io.harness_scene import load_harness_scene
+
+    scene = load_harness_scene(SCENE)
+    (harness, modules), = scene.harnesses
+    assert modules == () and scene.margin == 0.005
+    props = properties(harness)
+    free = solve_installed(harness, props)
+    held = solve_installed(harness, props, obstacles=scene.obstacles, margin=scene.margin)
+    top = 0.4759
+    radius = held.segments["Segment_3"].equilibrium.problem.part.outer_diameter / 2
+    # Without the bracket the cable sags through its top; with it, it rests on it.
+    assert free.segments["Segment_3"].equilibrium.position[:, 2].min() - radius < top - 1e-3
+    eq = held.segments["Segment_3"].equilibrium
+    over = (np.abs(eq.position[:, 0] - 2.526) < 0.02) & (np.abs(eq.position[:, 1] - 0.135) < 0.02)
+    assert over.any() and (eq.position[over, 2] - radius).min() > top - 2e-4
+    lift = float(np.sum(eq.contacts.force[:, 2]))
+    assert lift > 0.0
+    # The connectors, the fixing and the bracket carry the weight together (the loads
+    # on the connectors and fixing are what the harness puts on them: the lift is less).
+    total = sum(f for f, _ in held.held.values())
+    assert total[2] - lift == pytest.approx(-held.weight, abs=1e-6 * held.weight)
+    checks = [c for c in installed_checks(held) if c.what == "clearance"]
+    resting = next(c for c in checks if c.where == "segment Segment_3")
+    assert resting.zone == Zone.YELLOW and resting.value == pytest.approx(0.0, abs=1e-5)
+    # The scene names its KBL file by a path of its own: a wrong one is said.
+    bad = tmp_path / "bad.toml"
+    bad.write_text(SCENE.read_text().replace("kbl/kblxml", "kbl/missing"))
+    from pliant.io.harness_scene import load_harness_scene as load
+
+    with pytest.raises(FileFormatError, match=r"harness\[0\]\.file: .*no such file"):
+        load(bad)
+
+
+def test_pliant_harness_reads_a_scene_and_reports_its_clearances():
+    out = subprocess.run([sys.executable, "-m", "pliant.cli.app", "harness", str(SCENE),
+                          "--json", "-"], capture_output=True, text=True, timeout=300)
+    assert out.returncode == 1, out.stderr  # the design's own red bend
+    doc = json.loads(out.stdout)
+    seg = next(s for s in doc["installed"]["segments"] if s["id"] == "Segment_3")
+    nearest = min(seg["interference"]["clearances"], key=lambda c: c["clearance"])
+    assert nearest["obstacle"] == "bracket" and abs(nearest["clearance"]) < 1e-5
+    assert "clearance mm" in out.stderr and "rests on it" in out.stderr

@@ -67,7 +67,8 @@ class _Junction:
 class InstalledSegment:
     """One segment installed: its equilibrium (``pliant.core.Equilibrium3D``), how far it
     lies from its designed centre curve at the same arc length (largest distance [m] and
-    its largest drop below it [m]), and its tightest bend radius [m] against its limit."""
+    its largest drop below it [m]), its tightest bend radius [m] against its limit, and
+    its clearance to the scene's obstacles (None without)."""
 
     segment: str
     equilibrium: Equilibrium3D
@@ -75,6 +76,7 @@ class InstalledSegment:
     sag: float
     bend_radius: float
     bend_limit: float | None
+    interference: object = None  # ``pliant.scene.interference.Interference`` or None
 
 
 @dataclass(frozen=True)
@@ -156,10 +158,11 @@ class Network:
     def __init__(self, harness: Harness, props: Mapping[str, SegmentProperties],
                  gravity: tuple[float, float, float],
                  moved: Mapping[str, tuple[float, float, float]] | None = None,
-                 prepared: tuple | None = None) -> None:
+                 prepared: tuple | None = None, obstacles: tuple = ()) -> None:
         import pliant as pl  # noqa: PLC0415 (the solver: only a solve needs it)
 
         self.pl = pl
+        self.obstacles = tuple(obstacles)
         self.moved = dict(moved or {})
         names = {f.name for f in harness.fixings.values()}
         for name in self.moved:
@@ -291,7 +294,7 @@ class Network:
                                            tangent=_vec3(tangent)))
         conditions.sort(key=lambda c: c.s)
         return self.pl.Problem(self.parts[seg_id], tuple(conditions), gravity=self.gravity,
-                               name=seg_id)
+                               name=seg_id, obstacles=self.obstacles)
 
     def solve_segment(self, seg_id: str, warm: bool = True):
         from pliant.models import rod3d  # noqa: PLC0415
@@ -454,19 +457,22 @@ def solve_installed(harness: Harness, props: Mapping[str, SegmentProperties], *,
                     modules: list[str] | None = None,
                     gravity: tuple[float, float, float] = GRAVITY,
                     moved: Mapping[str, tuple[float, float, float]] | None = None,
-                    warm: Installed | None = None) -> Installed:
+                    warm: Installed | None = None, obstacles: tuple = (),
+                    margin: float = 0.0) -> Installed:
     """The harness installed under ``gravity``: see the module. ``moved``: fixings (by
     name) displaced from their designed place [m]; ``warm``: an earlier answer of the
     same harness to start from (a fixing moved, re-solved in a fraction of the cold
-    solve's time). Raises
+    solve's time); ``obstacles``: the scene's (``pliant.scene.Obstacle``), each segment
+    in contact with them and its clearance reported against ``margin`` [m]. Raises
     ``ConvergenceError`` (naming the junction that would not balance) or
     ``IllPosedProblemError`` (a piece held nowhere, a property missing)."""
     if modules:
         harness = select(harness, modules)
     if moved and warm is None:  # as designed first, then the fixings moved from there
-        warm = solve_installed(harness, props, gravity=gravity)
+        warm = solve_installed(harness, props, gravity=gravity, obstacles=obstacles,
+                               margin=margin)
     net = Network(harness, props, gravity, moved,
-                   None if warm is None else warm.prepared)
+                  None if warm is None else warm.prepared, obstacles)
     if warm is not None and set(warm.segments) == set(harness.segments) and \
             set(warm.rotations) == {j.node for j in net.junctions}:
         # From an earlier answer (a fixing moved): its junction poses and its segments'
@@ -507,7 +513,8 @@ def solve_installed(harness: Harness, props: Mapping[str, SegmentProperties], *,
             done = t
     else:
         iterations, r, jac = _balance(net, None)
-    return _installed(harness, net, iterations, float(np.abs(r).max(initial=0.0)), jac)
+    return _installed(harness, net, iterations, float(np.abs(r).max(initial=0.0)), jac,
+                      margin)
 
 
 def _balance(net: Network, jac: np.ndarray | None) -> tuple[int, np.ndarray, np.ndarray | None]:
@@ -633,7 +640,7 @@ def jacobian_by_differences(net: Network, r: np.ndarray) -> np.ndarray:
 
 
 def _installed(harness: Harness, net: Network, iterations: int, balance: float,
-               jac: np.ndarray | None) -> Installed:
+               jac: np.ndarray | None, margin: float = 0.0) -> Installed:
     segments = {}
     held: dict[str, tuple[np.ndarray, np.ndarray]] = {}
     down = np.asarray(net.gravity, float)
@@ -645,10 +652,17 @@ def _installed(harness: Harness, net: Network, iterations: int, balance: float,
         at_s = np.column_stack([np.interp(s, arc, design[:, i]) for i in range(3)])
         offset = eq.position - at_s
         radius, _ = eq.min_bend_radius()
+        report = None
+        if net.obstacles:
+            from pliant.scene.interference import of_answer  # noqa: PLC0415
+
+            report = of_answer(eq.s, eq.position, eq.contacts,
+                                            eq.problem.part.drawn_radius,
+                                            net.obstacles, margin=margin)
         segments[seg_id] = InstalledSegment(
             seg_id, eq, float(np.linalg.norm(offset, axis=1).max()),
             float(max(0.0, (offset @ down).max())), float(radius),
-            eq.problem.part.min_bend_radius)
+            eq.problem.part.min_bend_radius, report)
         for name, load in eq.reactions.items():
             node_name = name.split(" ", 1)[1] if name.startswith(("start ", "end ")) else ""
             if name.startswith("fixing ") or any(
@@ -701,6 +715,19 @@ def installed_checks(installed: Installed, rules=None) -> list:
                                    f"pulled straight: its ends {chord * 1e3:.1f} mm apart, it is "
                                    f"{eq.problem.part.length * 1e3:.1f} mm long (no slack for "
                                    "tolerances: lengthen it)", name=name))
+        report = seg.interference
+        if report is not None:
+            nearest = report.smallest  # type: ignore[attr-defined]
+            if nearest is not None:
+                gap = float(nearest.clearance)
+                zone = (Zone.RED if report.penetrations  # type: ignore[attr-defined]
+                        else Zone.YELLOW if report.too_close  # type: ignore[attr-defined]
+                        else Zone.GREEN)
+                out.append(DesignCheck(
+                    where, "clearance", gap, report.margin, zone,  # type: ignore[attr-defined]
+                    f"{gap * 1e3:.1f} mm from {nearest.obstacle}" + (
+                        " (it rests on it)" if gap <= 1e-5 and zone != Zone.RED else ""),
+                    "the scene's margin", name=name))
     for key, (force, moment) in installed.held.items():
         out.append(DesignCheck(key, "load from the harness", float(np.linalg.norm(force)), None,
                                Zone.INFO, f"{np.linalg.norm(force):.2f} N, "

@@ -709,7 +709,10 @@ def demo(
 
 @app.command()
 def harness(
-    file: Annotated[Path, typer.Argument(help="a KBL harness file (VDA 4964, 2.3 or 2.4)")],
+    file: Annotated[Path, typer.Argument(help="a KBL harness file (VDA 4964, 2.3 or 2.4), "
+                                              "or a scene file (TOML) whose [[harness]] "
+                                              "names one among [[obstacle]] and [[cad]] "
+                                              "tables (solved there)")],
     module: Annotated[list[str] | None, typer.Option(
         help="build this module (a variant; id or part number; repeat for several): its "
              "wires and what no module controls")] = None,
@@ -750,7 +753,20 @@ def harness(
 
     console = Console(stderr=_to_stdout(json))
     table = load_rules(rules)
-    model = read_kbl(file, strict=strict)
+    obstacles: tuple = ()
+    margin = 0.0
+    if file.suffix.lower() == ".toml":  # a harness in a scene: solved among its obstacles
+        from pliant.io.harness_scene import load_harness_scene  # noqa: PLC0415
+
+        scene = load_harness_scene(file)
+        if len(scene.harnesses) > 1:
+            console.print(f"{file}: {len(scene.harnesses)} harnesses; this command judges "
+                          "the first (give each its own scene file)")
+        model, from_scene = scene.harnesses[0]
+        module = list(module or from_scene)
+        obstacles, margin, solve = scene.obstacles, scene.margin, True
+    else:
+        model = read_kbl(file, strict=strict)
     if module:
         model = design.select(model, module)
     props = design.properties(model, rules=table)
@@ -768,7 +784,7 @@ def harness(
 
         began = time.perf_counter()
         with console.status("solving the installed harness ..."):
-            installed = solve_installed(model, props)
+            installed = solve_installed(model, props, obstacles=obstacles, margin=margin)
         after = installed_checks(installed, table)
         print_installed(console, installed, after, time.perf_counter() - began,
                         show_all=all_segments)

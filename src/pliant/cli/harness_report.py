@@ -99,7 +99,11 @@ def print_installed(console: Console, installed, checks: Sequence, seconds: floa
         if c.where not in worst or c.zone.rank > worst[c.where].rank:
             worst[c.where] = c.zone
     table = Table(title="installed segments")
-    for col in ("segment", "off design mm", "sag mm", "R mm", "R min mm", "check"):
+    cols = ["segment", "off design mm", "sag mm", "R mm", "R min mm"]
+    scene = any(s.interference is not None for s in installed.segments.values())
+    if scene:
+        cols.append("clearance mm")
+    for col in [*cols, "check"]:
         table.add_column(col, justify="left" if col == "segment" else "right")
     shown = 0
     for key, seg in installed.segments.items():
@@ -107,9 +111,12 @@ def print_installed(console: Console, installed, checks: Sequence, seconds: floa
         if not show_all and zone in (Zone.GREEN, Zone.INFO):
             continue
         shown += 1
-        table.add_row(key, f"{seg.deviation * 1e3:.1f}", f"{seg.sag * 1e3:.1f}",
-                      f"{seg.bend_radius * 1e3:.1f}", _mm(seg.bend_limit),
-                      f"[{_STYLE[zone]}]{zone.value}[/]")
+        row = [key, f"{seg.deviation * 1e3:.1f}", f"{seg.sag * 1e3:.1f}",
+               f"{seg.bend_radius * 1e3:.1f}", _mm(seg.bend_limit)]
+        if scene:
+            near = seg.interference.smallest if seg.interference is not None else None
+            row.append("-" if near is None else f"{near.clearance * 1e3:.1f}")
+        table.add_row(*row, f"[{_STYLE[zone]}]{zone.value}[/]")
     if shown:
         console.print(table)
     worst_dev = max(installed.segments.values(), key=lambda s: s.deviation)

@@ -58,7 +58,9 @@ def harness_json(harness: Harness, props: Mapping, checks: Sequence,
             "held_loads": {k: {"force_N": list(map(float, f)), "moment_N_m": list(map(float, m))}
                            for k, (f, m) in installed.held.items()},
             "segments": [{"id": k, "deviation_m": s.deviation, "sag_m": s.sag,
-                          "bend_radius_m": s.bend_radius, "bend_limit_m": s.bend_limit}
+                          "bend_radius_m": s.bend_radius, "bend_limit_m": s.bend_limit,
+                          "interference": None if s.interference is None
+                          else s.interference.to_dict()}
                          for k, s in installed.segments.items()],
         }
     return json.dumps(finite(doc), indent=1)
