@@ -105,6 +105,7 @@ def test_recordings_round_trip_and_reject_bad_files(tmp_path):
         load_recording(bad)
 
 
+@pytest.mark.serial  # timed against a worker process: alone, not beside the parallel suite
 def test_live_frames_are_not_blocked_by_accurate_solves():
     """Live, the accurate model runs in a worker process: with every accurate solve
     taking tens of milliseconds (3D, 400 elements) and one almost always running, no

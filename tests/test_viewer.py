@@ -494,6 +494,7 @@ def test_random_messages_never_crash_the_server(server, raws):
         assert receive(ws, "scene")["name"] == "hose by a drum"
 
 
+@pytest.mark.serial  # timed against a worker process: alone, not beside the parallel suite
 def test_a_live_result_taken_in_by_a_move_still_reaches_the_page(folder):
     """Live: an answer the worker sends while the user drags is published by the next
     move's frame; that move's replies carry it (else the page would never see it)."""
@@ -519,6 +520,7 @@ def test_a_live_result_taken_in_by_a_move_still_reaches_the_page(folder):
         state.close()
 
 
+@pytest.mark.serial  # timed against a worker process: alone, not beside the parallel suite
 def test_live_answers_are_pushed_as_they_arrive(folder):
     """Live, the worker's answer calls the watcher (the server's wake-up) from the reader
     thread, with no poll of the session in between; what the server then takes is that

@@ -710,9 +710,9 @@ def demo(
 @app.command()
 def harness(
     file: Annotated[Path, typer.Argument(help="a KBL harness file (VDA 4964, 2.3 or 2.4), "
-                                              "or a scene file (TOML) whose [[harness]] "
-                                              "names one among [[obstacle]] and [[cad]] "
-                                              "tables (solved there)")],
+                                              "or a scene file (TOML) whose \\[\\[harness]] "
+                                              "names one among \\[\\[obstacle]] and "
+                                              "\\[\\[cad]] tables (solved there)")],
     module: Annotated[list[str] | None, typer.Option(
         help="build this module (a variant; id or part number; repeat for several): its "
              "wires and what no module controls")] = None,
