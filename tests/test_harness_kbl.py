@@ -587,3 +587,15 @@ def test_pliant_harness_reads_a_scene_and_reports_its_clearances():
     nearest = min(seg["interference"]["clearances"], key=lambda c: c["clearance"])
     assert nearest["obstacle"] == "bracket" and abs(nearest["clearance"]) < 1e-5
     assert "clearance mm" in out.stderr and "rests on it" in out.stderr
+
+
+def test_pliant_harness_lists_the_modules_a_variant_is_built_from(main_harness):
+    out = subprocess.run([sys.executable, "-m", "pliant.cli.app", "harness", str(MAIN),
+                          "--modules"], capture_output=True, text=True, timeout=300,
+                         env={**__import__("os").environ, "COLUMNS": "160"})
+    assert out.returncode == 0, out.stderr
+    assert "modules of MODULARE LTGS. (34)" in out.stdout
+    module = next(iter(main_harness.modules.values()))
+    wires = sum(1 for w in main_harness.wires if w in module.components)
+    row = next(line for line in out.stdout.splitlines() if module.part_number in line)
+    assert row.rstrip(" │").split()[-1] == str(wires)

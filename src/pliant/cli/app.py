@@ -728,6 +728,9 @@ def harness(
                                                              "output")] = None,
     all_segments: Annotated[bool, typer.Option("--all", help="list every segment, not only "
                                                              "those a check flags")] = False,
+    modules: Annotated[bool, typer.Option("--modules", help="list the harness's modules "
+                                                            "(the variants --module "
+                                                            "builds) and exit")] = False,
     strict: Annotated[bool, typer.Option(help="refuse a file that breaks its KBL "
                                               "schema")] = False,
     solve: Annotated[bool, typer.Option(help="solve the installed harness under gravity "
@@ -767,6 +770,11 @@ def harness(
         obstacles, margin, solve = scene.obstacles, scene.margin, True
     else:
         model = read_kbl(file, strict=strict)
+    if modules:
+        from pliant.cli.harness_report import print_modules  # noqa: PLC0415
+
+        print_modules(console, model)
+        return
     if module:
         model = design.select(model, module)
     props = design.properties(model, rules=table)

@@ -131,3 +131,19 @@ def print_installed(console: Console, installed, checks: Sequence, seconds: floa
         if c.zone.rank >= Zone.YELLOW.rank:
             console.print(f"  [{_STYLE[c.zone]}]{c.zone.value:6}[/] {c.where}: {c.what}: "
                           f"{c.message}")
+
+
+def print_modules(console: Console, harness: Harness) -> None:
+    """The harness's modules: each one's id, part number, description and how many of
+    the harness's wires it brings (``--module`` takes the id or the part number)."""
+    table = Table(title=f"modules of {harness.name} ({len(harness.modules)})")
+    for col in ("id", "part number", "description", "wires"):
+        table.add_column(col, justify="right" if col == "wires" else "left")
+    for m in harness.modules.values():
+        table.add_row(m.id, m.part_number or "-", m.description or "-",
+                      str(sum(1 for w in harness.wires if w in m.components)))
+    console.print(table)
+    controlled = set().union(*(m.components for m in harness.modules.values())) \
+        if harness.modules else set()
+    console.print(f"{sum(1 for w in harness.wires if w not in controlled)} wires belong to "
+                  "no module: every variant has them")
