@@ -599,3 +599,17 @@ def test_pliant_harness_lists_the_modules_a_variant_is_built_from(main_harness):
     wires = sum(1 for w in main_harness.wires if w in module.components)
     row = next(line for line in out.stdout.splitlines() if module.part_number in line)
     assert row.rstrip(" │").split()[-1] == str(wires)
+
+
+def test_pliant_harness_writes_a_self_contained_report(tmp_path):
+    report = tmp_path / "harness.html"
+    out = subprocess.run([sys.executable, "-m", "pliant.cli.app", "harness", str(SCENE),
+                          "--report", str(report)], capture_output=True, text=True,
+                         timeout=300)
+    assert out.returncode == 1, out.stderr
+    page = report.read_text()
+    assert page.startswith("<!doctype html>") and page.count("<svg") == 1
+    assert "The design has red checks." in page and "rests on it" in page
+    assert "connector at PNID1" in page and "Segment_3" in page
+    # Offline: nothing to fetch (the SVG's namespaces are names, not links).
+    assert "<script" not in page and 'src="http' not in page and "href=\"http" not in page

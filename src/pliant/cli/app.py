@@ -728,6 +728,10 @@ def harness(
                                                              "output")] = None,
     all_segments: Annotated[bool, typer.Option("--all", help="list every segment, not only "
                                                              "those a check flags")] = False,
+    report: Annotated[Path | None, typer.Option(help="write a self-contained HTML report "
+                                                     "(checks, views of the design and the "
+                                                     "installed harness, loads, sources)")]
+    = None,
     modules: Annotated[bool, typer.Option("--modules", help="list the harness's modules "
                                                             "(the variants --module "
                                                             "builds) and exit")] = False,
@@ -812,6 +816,10 @@ def harness(
         tubes = {s.name: (shape(k), 0.5 * (props[k].diameter.value or 2e-3))
                  for k, s in model.segments.items()}
         console.print(f"tubes: {harness_file.write_tubes(glb, tubes)}")
+    if report is not None:
+        from pliant.cli.harness_html import write_html  # noqa: PLC0415
+
+        console.print(f"report: {write_html(model, props, checks, installed, report)}")
     if json is not None:
         written = emit_json(harness_file.harness_json(model, props, checks, installed), json,
                             "the harness JSON")

@@ -1,0 +1,162 @@
+"""``pliant harness --report``: one self-contained HTML page (styles inline, drawings as
+inline SVG, it opens offline) with the harness's checks worst first, its views from
+above, the side and the front (the design dashed, the installed harness coloured by
+each segment's worst check), each segment's properties and answer, the loads on its
+connectors and fixings, and the sources of every number."""
+
+from __future__ import annotations
+
+import html
+from collections.abc import Mapping, Sequence
+from datetime import UTC, datetime
+from pathlib import Path
+
+import numpy as np
+
+from pliant.assembly.checks import Zone
+from pliant.cli.evaluation_report import COLOURS, STYLE, inline_svg
+from pliant.core.harness import Harness
+from pliant.io.atomic import atomic_write
+from pliant.io.harness_file import counts
+
+_VIEWS = (("from above (x, y)", 0, 1), ("from the side (x, z)", 0, 2),
+          ("from the front (y, z)", 1, 2))
+
+
+def _worst(checks: Sequence) -> dict[str, Zone]:
+    out: dict[str, Zone] = {}
+    for c in checks:
+        if c.where not in out or c.zone.rank > out[c.where].rank:
+            out[c.where] = c.zone
+    return out
+
+
+def views(harness: Harness, design: Mapping[str, np.ndarray], installed,
+          checks: Sequence) -> str:
+    """Three projections as one inline SVG: each segment's designed curve (grey,
+    dashed) and, where solved, its installed one in its worst check's colour; the
+    nodes with a placed connector as squares."""
+    import matplotlib  # noqa: PLC0415 (only a report draws)
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt  # noqa: PLC0415
+
+    worst = _worst(checks)
+    fig, axes = plt.subplots(1, 3, figsize=(11.0, 3.9))
+    for ax, (title, i, j) in zip(axes, _VIEWS):
+        for seg_id, pts in design.items():
+            p = pts * 1e3
+            ax.plot(p[:, i], p[:, j], color="#999999", lw=0.8, ls="--")
+            zone = worst.get(f"segment {seg_id}", Zone.GREEN)
+            colour = COLOURS.get(zone.value, "#1b7f3b")
+            if installed is not None:
+                q = installed.segments[seg_id].equilibrium.position * 1e3
+                ax.plot(q[:, i], q[:, j], color=colour, lw=1.6)
+            elif zone.rank >= Zone.YELLOW.rank:
+                ax.plot(p[:, i], p[:, j], color=colour, lw=1.6)
+        held = [c.node for c in harness.connectors.values() if c.placement and c.node]
+        if held:
+            xyz = np.array([harness.nodes[n].position for n in held if n in harness.nodes])
+            if xyz.size:
+                ax.plot(xyz[:, i] * 1e3, xyz[:, j] * 1e3, "s", ms=3, color="#3d5a80")
+        ax.set_title(title, fontsize=9)
+        ax.set_xlabel("xyz"[i] + " [mm]", fontsize=8)
+        ax.set_ylabel("xyz"[j] + " [mm]", fontsize=8)
+        ax.tick_params(labelsize=7)
+        ax.set_aspect("equal", adjustable="datalim")
+    fig.tight_layout()
+    return inline_svg(fig, plt)
+
+
+def render_html(harness: Harness, props: Mapping, checks: Sequence, installed=None) -> str:
+    """The report as one HTML document."""
+    from pliant import __version__  # noqa: PLC0415
+    from pliant.assembly.harness import centre_curve  # noqa: PLC0415
+
+    e = html.escape
+    n = counts(harness)
+    tally = {z: sum(1 for c in checks if c.zone == z) for z in Zone}
+    headline = ("The design has red checks." if tally[Zone.RED] else
+                "No check is red." if not tally[Zone.YELLOW] else
+                "No check is red; some are yellow.")
+    parts = [f"<!doctype html><html lang=en><head><meta charset=utf-8><title>pliant "
+             f"harness: {e(harness.name)}</title><style>{STYLE}</style></head><body><main>",
+             f"<h1>{e(harness.name)} {e(harness.part_number)}</h1>",
+             f"<div class=meta>KBL {e(harness.version)} · {e(harness.source)} · "
+             f"{n['nodes']} nodes, {n['segments']} segments ({harness.length:.3f} m), "
+             f"{n['routed_wires']} routed wires, {n['connectors']} connectors, "
+             f"{n['fixing_assignments']} fixings on segments · pliant {__version__} · "
+             f"{datetime.now(UTC):%Y-%m-%d %H:%M} UTC</div>",
+             f"<p><b>{headline}</b> " + ", ".join(
+                 f'{tally[z]} <span class="zone {z.value}">{z.value}</span>'
+                 for z in (Zone.RED, Zone.YELLOW, Zone.UNCHECKED, Zone.GREEN) if tally[z])
+             + "</p>"]
+    if harness.notes:
+        parts.append("<ul>" + "".join(f"<li>{e(x)}</li>" for x in harness.notes) + "</ul>")
+    if installed is not None:
+        parts.append(f"<p>Installed under gravity: {len(installed.junctions)} junctions "
+                     f"balanced to {installed.balance:.1e} of the weight "
+                     f"({installed.weight:.2f} N) in {installed.iterations} Newton "
+                     "iterations.</p>")
+    design = {k: centre_curve(harness, k) for k in harness.segments}
+    parts.append("<h2>Views</h2><p>Dashed: the design. Solid: "
+                 + ("the installed harness" if installed is not None
+                    else "segments flagged by a check")
+                 + ", coloured by its worst check. Squares: placed connectors.</p>")
+    parts.append(views(harness, design, installed, checks))
+    parts.append("<h2>Checks, worst first</h2><table><tr><th>zone</th><th>where</th>"
+                 "<th>what</th><th>finding</th><th>source</th></tr>")
+    for c in sorted(checks, key=lambda c: -c.zone.rank):
+        if c.zone.rank < Zone.YELLOW.rank:
+            continue
+        name = f"<br><small>{e(c.name)}</small>" if c.name else ""
+        parts.append(f'<tr><td><span class="zone {c.zone.value}">{c.zone.value}</span></td>'
+                     f"<td>{e(c.where)}{name}</td><td>{e(c.what)}</td><td>{e(c.message)}"
+                     f"</td><td>{e(c.source)}</td></tr>")
+    parts.append("</table>")
+    worst = _worst(checks)
+    parts.append("<h2>Segments</h2><table><tr><th>segment</th><th>length mm</th>"
+                 "<th>wires</th><th>diameter mm</th><th>mass g/m</th><th>EI N mm²</th>"
+                 "<th>R min mm</th>" + ("<th>off design mm</th><th>sag mm</th>"
+                                        "<th>R mm</th>" if installed is not None else "")
+                 + "<th>worst</th></tr>")
+    for seg in harness.segments.values():
+        p = props[seg.id]
+
+        def mm(v):
+            return "–" if v is None else f"{v * 1e3:.1f}"
+
+        ei = p.bending_stiffness.value
+        row = (f"<tr><td>{e(seg.id)}<br><small>{e(seg.name)}</small></td>"
+               f"<td>{seg.virtual_length * 1e3:.1f}</td><td>{len(p.wires)}</td>"
+               f"<td>{mm(p.diameter.value)}</td><td>{mm(p.mass_per_length.value)}</td>"
+               f"<td>{'–' if ei is None else f'{ei * 1e6:.0f}'}</td>"
+               f"<td>{mm(p.min_bend_radius.value)}</td>")
+        if installed is not None:
+            s = installed.segments[seg.id]
+            row += f"<td>{mm(s.deviation)}</td><td>{mm(s.sag)}</td><td>{mm(s.bend_radius)}</td>"
+        zone = worst.get(f"segment {seg.id}", Zone.GREEN).value
+        parts.append(row + f'<td><span class="zone {zone}">{zone}</span></td></tr>')
+    parts.append("</table>")
+    if installed is not None and installed.held:
+        parts.append("<h2>Loads the harness puts on its connectors and fixings</h2><table>"
+                     "<tr><th>where</th><th>force N</th><th>moment N m</th></tr>")
+        for key, (force, moment) in sorted(installed.held.items(),
+                                           key=lambda kv: -float(np.linalg.norm(kv[1][0]))):
+            parts.append(f"<tr><td>{e(key)}</td><td>{np.linalg.norm(force):.3g}</td>"
+                         f"<td>{np.linalg.norm(moment):.3g}</td></tr>")
+        parts.append("</table><p>No public rule limits them: compare with the connector's "
+                     "or clip's rating.</p>")
+    sources = sorted({d.source for p in props.values()
+                      for d in (p.diameter, p.mass_per_length, p.bending_stiffness,
+                                p.torsional_stiffness, p.min_bend_radius) if d.source}
+                     | {c.source for c in checks if c.source})
+    parts.append("<h2>Sources</h2><ul>" + "".join(f"<li>{e(s)}</li>" for s in sources)
+                 + "</ul></main></body></html>")
+    return "".join(parts)
+
+
+def write_html(harness: Harness, props: Mapping, checks: Sequence, installed,
+               path: str | Path) -> Path:
+    text = render_html(harness, props, checks, installed).encode()
+    return atomic_write(path, lambda h: h.write(text), "the report")
