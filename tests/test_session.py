@@ -292,13 +292,13 @@ def test_a_live_session_finds_and_chooses_through_its_worker():
     """The same search and choice through the worker process (its request protocol)."""
     with Session(TWO_SHAPES, live=True) as session:
         session.find_equilibria(budget=5.0)
-        session.poll()
-        found = session.wait(timeout=60.0)
+        session.poll()  # a frame: the answer may already be in, and taken in here
+        found = session.wait(timeout=60.0) or session.found
         assert found is not None and found.ok and len(found.options) >= 2
         assert session.found is found
         session.choose(1)
         session.poll()
-        chosen = session.wait(timeout=60.0)
+        chosen = session.wait(timeout=60.0) or session.accurate
         assert chosen is not None and chosen.ok
         assert np.abs(chosen.position - found.options[1].position).max() < 1e-12
 

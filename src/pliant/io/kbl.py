@@ -45,6 +45,7 @@ from pliant.core.harness import (
 from pliant.errors import FileFormatError
 
 NODE_TOLERANCE = 1e-4  # m: a centre curve ends at its node within this (0.1 mm)
+LARGEST = 1e4  # m: a coordinate or length beyond this is no vehicle's (a unit gone wrong)
 SCHEMAS = {"2.3": "kbl23_sr1.xsd", "2.4": "kbl24.xsd", "2.4 SR-1": "kbl24_sr1.xsd"}
 _XSI_TYPE = "{http://www.w3.org/2001/XMLSchema-instance}type"
 _PREFIX = {"": 1.0, "milli": 1e-3, "centi": 1e-2, "micro": 1e-6, "kilo": 1e3}
@@ -152,8 +153,12 @@ class _Reader:
         if unit.kind != kind:
             raise self.fail(where, f"its unit {unit_id} ({unit.text or 'unnamed'}) is not "
                             f"{_SHOWN.get(kind, kind)} (fix the Unit_component)")
-        return number(el.findtext("Value_component"), where + ".Value_component",
-                      self) * unit.factor
+        value = number(el.findtext("Value_component"), where + ".Value_component",
+                       self) * unit.factor
+        if kind == "length" and abs(value) > LARGEST:
+            raise self.fail(where, f"{value:g} m is longer than any harness (check the "
+                            "value and its unit)")
+        return value
 
     def point(self, key: str, where: str) -> np.ndarray:
         el = self.ref(where, key, ("Cartesian_point",))
@@ -162,7 +167,12 @@ class _Reader:
         if len(coords) != 3:
             raise self.fail(f"Cartesian_point {key}", f"{len(coords)} coordinates; a harness "
                             "point needs 3 (x, y, z)")
-        return np.array(coords) * self.length_unit
+        point = np.array(coords) * self.length_unit
+        if np.abs(point).max() > LARGEST:
+            raise self.fail(f"Cartesian_point {key}", f"{coords} is more than "
+                            f"{LARGEST / 1000:g} km from the origin: not a harness's point "
+                            "(check the file's length unit)")
+        return point
 
 
 def number(text: str | None, where: str, reader: _Reader) -> float:
@@ -183,10 +193,11 @@ def _vector(el: ET.Element, tag: str, reader: _Reader, where: str
     if len(parts) == 2:
         parts.append(0.0)
     v = np.array(parts[:3])
-    size = float(np.linalg.norm(v))
-    if size == 0.0:
+    big = float(np.abs(v).max())
+    if big == 0.0:
         return None
-    return tuple(float(x) for x in v / size)  # type: ignore[return-value]
+    v = v / big  # (a direction: its size does not matter, and squaring 1e308 overflows)
+    return tuple(float(x) for x in v / np.linalg.norm(v))  # type: ignore[return-value]
 
 
 def _ids(text: str | None) -> list[str]:
