@@ -283,7 +283,7 @@ def test_design_checks_match_the_curves_analytic_curvature():
         expected = (Zone.RED if check.value < limit else Zone.YELLOW
                     if check.value < 1.2 * limit else Zone.GREEN)
         assert check.zone == expected
-    # Segment 3 bends to 5.5 mm where its 6 mm2 wire allows 15.3 mm: red.
+    # Segment 3 bends to 5.4 mm where its 6 mm2 wire allows 15.3 mm: red.
     assert bends["segment Segment_3"].zone == Zone.RED
     # Every curve is its designed length within 0.1 %.
     lengths = [c for c in checks if c.what == "curve length / designed length"]
@@ -321,7 +321,7 @@ def test_pliant_harness_reports_checks_and_writes_curves_in_metres(tmp_path):
         [sys.executable, "-m", "pliant.cli.app", "harness", str(GENERATOR), "--json", "-",
          "--curves", str(tmp_path / "curves.csv"), "--glb", str(tmp_path / "h.glb")],
         capture_output=True, text=True, timeout=300)
-    assert out.returncode == 1, out.stderr  # a red check: the 5.5 mm bend
+    assert out.returncode == 1, out.stderr  # a red check: the 5.4 mm bend
     doc = json.loads(out.stdout)
     assert doc["harness"]["counts"]["segments"] == 3
     assert doc["harness"]["curve_convention"] == "unclamped"
@@ -474,7 +474,7 @@ def test_pliant_harness_solve_reports_the_installed_harness(tmp_path):
         [sys.executable, "-m", "pliant.cli.app", "harness", str(GENERATOR), "--solve",
          "--json", "-", "--curves", str(tmp_path / "installed.csv")],
         capture_output=True, text=True, timeout=300)
-    assert out.returncode == 1, out.stderr  # the design's 5.5 mm bend is still red
+    assert out.returncode == 1, out.stderr  # the design's 5.4 mm bend is still red
     doc = json.loads(out.stdout)
     installed = doc["installed"]
     assert installed["balance"] <= 1e-7 and len(installed["segments"]) == 3
