@@ -330,6 +330,8 @@ def test_pliant_harness_reports_checks_and_writes_curves_in_metres(tmp_path):
     seg = next(s for s in doc["segments"] if s["id"] == "Segment_1")
     assert seg["min_bend_radius_m"]["value"] == pytest.approx(0.0153)
     assert "red" in out.stderr and "Segment_3" in out.stderr
+    assert "verdict: red (the design): 1 red and 2 yellow checks (exit status 1)" in \
+        " ".join(out.stderr.split())
     rows = (tmp_path / "curves.csv").read_text().splitlines()
     assert rows[0] == "segment,name,point,s_m,x_m,y_m,z_m"
     harness = read_kbl(GENERATOR)

@@ -825,7 +825,17 @@ def harness(
                             "the harness JSON")
         if written is not None:
             console.print(f"JSON: {written}")
-    raise typer.Exit(1 if any(c.zone.value == "red" for c in checks) else 0)
+    reds = sum(c.zone.value == "red" for c in checks)
+    yellows = sum(c.zone.value == "yellow" for c in checks)
+    what = "the design and the installed harness" if installed is not None else "the design"
+    if reds:
+        console.print(f"verdict: [bold red]red[/] ({what}): {reds} red and {yellows} yellow "
+                      "checks (exit status 1)")
+    elif yellows:
+        console.print(f"verdict: [yellow]yellow[/] ({what}): no red check, {yellows} yellow")
+    else:
+        console.print(f"verdict: [green]green[/] ({what}): every check is green")
+    raise typer.Exit(1 if reds else 0)
 
 
 def examples_folder() -> Path:
