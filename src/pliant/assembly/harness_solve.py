@@ -45,7 +45,6 @@ TOLERANCE = 1e-7  # the junctions' balance, by the weight (and weight x length) 
 MAX_ITERATIONS = 200
 DESIGN_LENGTH = 0.01  # a design curve this far from its segment's length is no start
 GRAVITY = (0.0, 0.0, -9.81)
-_DEBUG = False
 
 
 @dataclass(frozen=True)
@@ -586,8 +585,6 @@ def _balance(net: Network, jac: np.ndarray | None) -> tuple[int, np.ndarray, np.
             else:
                 damping *= 8.0
         iterations += 1
-        if _DEBUG:
-            print("step", iterations, float(np.abs(r).max()), energy, damping, fresh)
         if not accepted:
             raise ConvergenceError("the harness's junctions would not balance: no step "
                                    "lowers the harness's energy from here",
