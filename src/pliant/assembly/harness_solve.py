@@ -22,7 +22,6 @@ natural shape is straight (a bundle taped on a formboard); the design is a route
 
 from __future__ import annotations
 
-import itertools
 import math
 from collections.abc import Mapping
 from dataclasses import dataclass, field
@@ -32,6 +31,7 @@ import numpy as np
 from pliant.assembly.harness import SegmentProperties, centre_curve, select
 from pliant.core.equilibrium import Equilibrium3D
 from pliant.core.harness import Harness, HarnessSegment
+from pliant.core.tube import rotation_minimizing_frames
 from pliant.errors import ConvergenceError, IllPosedProblemError, PliantError
 
 # m: elements about this long, 16 to 120 per segment. The tightest bend near a clamp
@@ -119,32 +119,11 @@ def _rotation(v: np.ndarray) -> np.ndarray:
     return np.eye(3) + math.sin(angle) * K + (1.0 - math.cos(angle)) * K @ K
 
 
-def _first_frame(t0: np.ndarray) -> np.ndarray:
-    """The design frame at a curve's start: d3 its tangent, d1 the vertical (or x)
-    made normal to it."""
-    trial = np.array([0.0, 0.0, 1.0]) if abs(t0[2]) < 0.9 else np.array([1.0, 0.0, 0.0])
-    d1 = trial - (trial @ t0) * t0
-    d1 /= np.linalg.norm(d1)
-    return np.column_stack([d1, np.cross(t0, d1), t0])
-
-
-def _transported_frames(points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Design frames (d1, d2, d3 as columns) at a curve's two ends, d3 along it and d1
-    carried by parallel transport (no twist along the design)."""
-    tangents = np.diff(points, axis=0)
-    tangents /= np.linalg.norm(tangents, axis=1)[:, None]
-    t0 = tangents[0]
-    first = _first_frame(t0)
-    d1 = first[:, 0].copy()
-    for a, b in itertools.pairwise(tangents):
-        axis = np.cross(a, b)
-        s, c = float(np.linalg.norm(axis)), float(a @ b)
-        if s > 1e-15:
-            d1 = _rotation(axis / s * math.atan2(s, c)) @ d1
-        d1 -= (d1 @ b) * b
-        d1 /= np.linalg.norm(d1)
-    t1 = tangents[-1]
-    return first, np.column_stack([d1, np.cross(t1, d1), t1])
+def _end_frames(points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Design frames (d1, d2, d3 as columns) at a curve's two ends: d3 along it, d1
+    carried by rotation-minimising (parallel) transport, no twist along the design."""
+    frames = rotation_minimizing_frames(points)
+    return frames[0], frames[-1]
 
 
 def _vec3(v) -> tuple[float, float, float]:
@@ -186,7 +165,7 @@ class Network:
                 f0, f1 = prepared[1][(seg.id, 0)], prepared[1][(seg.id, 1)]
             else:
                 pts = centre_curve(harness, seg.id)
-                f0, f1 = _transported_frames(pts)
+                f0, f1 = _end_frames(pts)
             self.design[seg.id] = pts
             self.frames[(seg.id, 0)], self.frames[(seg.id, 1)] = f0, f1
             ends.setdefault(seg.start, []).append(_End(seg.id, 0, f0))
@@ -312,7 +291,8 @@ class Network:
                 pass
         if previous is None:
             try:  # from the design's shape, its stresses let go and its weight laid on
-                return _from_design(problem, self.design[seg_id], solver)
+                return _from_design(problem, self.design[seg_id],
+                                    self.frames[(seg_id, 0)][:, 0], solver)
             except PliantError:
                 pass
         try:
@@ -375,14 +355,15 @@ class Network:
         return sorted({e.segment for e in self.junctions[k].ends})
 
 
-def _from_design(problem, points: np.ndarray, solver) -> Equilibrium3D:
+def _from_design(problem, points: np.ndarray, first_normal: np.ndarray,
+                 solver) -> Equilibrium3D:
     """A segment's equilibrium followed from its designed shape: that shape, made the
     rod's rest shape and free of gravity, is an equilibrium (the clamps where it puts
     its ends); the continuation then takes the rest shape to straight and the weight
-    from nothing to its own, while the clamps go to their poses (``Run.follow``)."""
+    from nothing to its own, while the clamps go to their poses (``Run.follow``).
+    ``first_normal``: the section's d1 at s = 0 (the start clamp's)."""
     from dataclasses import replace  # noqa: PLC0415
 
-    from pliant.errors import ConvergenceError as _Stop  # noqa: PLC0415
     from pliant.models.continuation import Stalled  # noqa: PLC0415
     from pliant.models.rod3d.kernels import FULL  # noqa: PLC0415
     from pliant.models.rod3d.lowering import lower, qconj, qmul, quat_from_matrix  # noqa: PLC0415
@@ -391,8 +372,8 @@ def _from_design(problem, points: np.ndarray, solver) -> Equilibrium3D:
 
     arc = np.r_[0.0, np.cumsum(np.linalg.norm(np.diff(points, axis=0), axis=1))]
     if abs(arc[-1] / problem.part.length - 1.0) > DESIGN_LENGTH:
-        raise _Stop("the design's curve is not the segment's length: no shape to start "
-                    "from", residual=math.inf)
+        raise ConvergenceError("the design's curve is not the segment's length: no shape "
+                               "to start from", residual=math.inf)
     rod = lower(problem, elements=solver.elements)
 
     def design(s: np.ndarray) -> np.ndarray:  # s in [0, 1] along the design's length
@@ -410,27 +391,15 @@ def _from_design(problem, points: np.ndarray, solver) -> Equilibrium3D:
         a, b = design(np.array([s_node[i] - eps, s_node[i] + eps]))
         t = b - a
         d3_frames[rod.node_frame[i]] = t / np.linalg.norm(t)
-    # d1 carried along the frames by parallel transport; quaternions kept in one
-    # hemisphere (the discrete Darboux vector is 2/hh Im(conj(q_a) q_b)).
-    step = points[1] - points[0]
-    head = _first_frame(step / np.linalg.norm(step))  # the clamps' frame at s = 0
-    t0 = d3_frames[0]
-    d1 = head[:, 0] - (head[:, 0] @ t0) * t0
-    d1 /= np.linalg.norm(d1)
+    # d1 carried along the frames by rotation-minimising transport from the start
+    # clamp's; quaternions kept in one hemisphere (the discrete Darboux vector is
+    # 2/hh Im(conj(q_a) q_b)).
+    frames = rotation_minimizing_frames(design(rod.frame_s), first_normal,
+                                        tangents=d3_frames)
     Q = np.empty((d3_frames.shape[0], 4))
-    prev_t = t0
-    for k, t in enumerate(d3_frames):
-        axis = np.cross(prev_t, t)
-        sn, c = float(np.linalg.norm(axis)), float(prev_t @ t)
-        if sn > 1e-15:
-            d1 = _rotation(axis / sn * math.atan2(sn, c)) @ d1
-        d1 = d1 - (d1 @ t) * t
-        d1 /= np.linalg.norm(d1)
-        q = quat_from_matrix(np.column_stack([d1, np.cross(t, d1), t]))
-        if k and q @ Q[k - 1] < 0.0:
-            q = -q
-        Q[k] = q
-        prev_t = t
+    for k, frame in enumerate(frames):
+        q = quat_from_matrix(frame)
+        Q[k] = -q if k and q @ Q[k - 1] < 0.0 else q
     X = np.empty((N + 1, 3))
     X[0] = design(np.array([0.0]))[0] / rod.length
     X[1:] = X[0] + np.cumsum(h[:, None] * d3_elem, axis=0)
@@ -452,7 +421,8 @@ def _from_design(problem, points: np.ndarray, solver) -> Equilibrium3D:
     try:
         state = run.follow(start, target, state)
     except Stalled as stall:
-        raise _Stop(f"from the design: {stall.reason}", residual=stall.residual) from None
+        raise ConvergenceError(f"from the design: {stall.reason}",
+                               residual=stall.residual) from None
     return build(run, state, None)
 
 
