@@ -23,10 +23,10 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from pliant.assembly.checks import Zone
+from pliant.assembly.checks import Zone, zone_of
 from pliant.core.harness import Harness, HarnessSegment, Wire, WireType
 from pliant.errors import InputError
-from pliant.io.kbl import NODE_TOLERANCE, curve_meets_nodes, curve_points
+from pliant.io.kbl import NODE_TOLERANCE, curve_meets_nodes
 
 PACKING = 0.75  # share of a round taped bundle's section its round wires fill
 PACKING_SOURCE = ("packing rule D = sqrt(sum d_i^2 / 0.75): round wires fill about 75 % of "
@@ -91,6 +91,23 @@ def wire_diameter(t: WireType) -> float | None:
         return max(max(t.core_diameters),
                    math.sqrt(sum(d * d for d in t.core_diameters) / PACKING))
     return None
+
+
+def worst_zones(checks: Iterable[DesignCheck]) -> dict[str, Zone]:
+    """Each checked place's (``where``) worst zone."""
+    out: dict[str, Zone] = {}
+    for c in checks:
+        if c.where not in out or c.zone.rank > out[c.where].rank:
+            out[c.where] = c.zone
+    return out
+
+
+def sources(props: Mapping[str, SegmentProperties], checks: Iterable[DesignCheck]) -> list[str]:
+    """Every source the derived properties and the checks name, once each, sorted."""
+    return sorted({d.source for p in props.values()
+                   for d in (p.diameter, p.mass_per_length, p.bending_stiffness,
+                             p.torsional_stiffness, p.min_bend_radius) if d.source}
+                  | {c.source for c in checks if c.source})
 
 
 def _conductor_diameter(t: WireType) -> float:
@@ -283,10 +300,10 @@ def centre_curve(harness: Harness, segment: str, spacing: float = 2e-3) -> np.nd
         return a + np.linspace(0.0, 1.0, count)[:, None] * (b - a)
     pieces = []
     for k, c in enumerate(seg.curves):
-        rough = curve_points(c, harness.convention, 32)
+        rough = c.points(harness.convention, 32)
         length = float(np.linalg.norm(np.diff(rough, axis=0), axis=1).sum())
         count = max(8, int(math.ceil(length / spacing)) + 1)
-        pts = curve_points(c, harness.convention, count)
+        pts = c.points(harness.convention, count)
         pieces.append(pts if k == 0 else pts[1:])
     return np.concatenate(pieces)
 
@@ -347,8 +364,7 @@ def design_checks(harness: Harness, props: Mapping[str, SegmentProperties],
                                        Zone.UNCHECKED, "no bend limit: "
                                        + p.min_bend_radius.source))
             else:
-                zone = (Zone.RED if radius < limit else
-                        Zone.YELLOW if radius < margin * limit else Zone.GREEN)
+                zone = zone_of(radius, margin * limit, limit, "below")
                 out.append(DesignCheck(
                     where, "designed bend radius", radius, limit, zone,
                     f"tightest {radius * 1e3:.1f} mm against {limit * 1e3:.1f} mm "

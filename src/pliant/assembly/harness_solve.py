@@ -658,7 +658,7 @@ def installed_checks(installed: Installed, rules=None) -> list:
     segment's tightest bend against its limit (the bend margin as in the A/D
     evaluation), a segment pulled straight (no slack left: a harness too short), and
     the load on each connector and fixing (reported: no public rule limits it)."""
-    from pliant.assembly.checks import Zone  # noqa: PLC0415
+    from pliant.assembly.checks import Zone, zone_of  # noqa: PLC0415
     from pliant.assembly.harness import DesignCheck  # noqa: PLC0415
     from pliant.io.rules_file import load_rules  # noqa: PLC0415
 
@@ -671,8 +671,8 @@ def installed_checks(installed: Installed, rules=None) -> list:
             out.append(DesignCheck(where, "installed bend radius", seg.bend_radius, None,
                                    Zone.UNCHECKED, "no bend limit for its wires", name=name))
         else:
-            zone = (Zone.RED if seg.bend_radius < seg.bend_limit else Zone.YELLOW
-                    if seg.bend_radius < rules.bend_margin * seg.bend_limit else Zone.GREEN)
+            zone = zone_of(seg.bend_radius, rules.bend_margin * seg.bend_limit,
+                           seg.bend_limit, "below")
             out.append(DesignCheck(where, "installed bend radius", seg.bend_radius,
                                    seg.bend_limit, zone,
                                    f"tightest {seg.bend_radius * 1e3:.1f} mm against "

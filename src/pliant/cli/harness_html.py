@@ -14,6 +14,7 @@ from pathlib import Path
 import numpy as np
 
 from pliant.assembly.checks import Zone
+from pliant.assembly.harness import sources, worst_zones
 from pliant.cli.evaluation_report import COLOURS, STYLE, inline_svg
 from pliant.core.harness import Harness
 from pliant.io.atomic import atomic_write
@@ -21,14 +22,6 @@ from pliant.io.harness_file import counts
 
 _VIEWS = (("from above (x, y)", 0, 1), ("from the side (x, z)", 0, 2),
           ("from the front (y, z)", 1, 2))
-
-
-def _worst(checks: Sequence) -> dict[str, Zone]:
-    out: dict[str, Zone] = {}
-    for c in checks:
-        if c.where not in out or c.zone.rank > out[c.where].rank:
-            out[c.where] = c.zone
-    return out
 
 
 def views(harness: Harness, design: Mapping[str, np.ndarray], installed,
@@ -41,7 +34,7 @@ def views(harness: Harness, design: Mapping[str, np.ndarray], installed,
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt  # noqa: PLC0415
 
-    worst = _worst(checks)
+    worst = worst_zones(checks)
     fig, axes = plt.subplots(1, 3, figsize=(11.0, 3.9))
     for ax, (title, i, j) in zip(axes, _VIEWS):
         for seg_id, pts in design.items():
@@ -114,7 +107,7 @@ def render_html(harness: Harness, props: Mapping, checks: Sequence, installed=No
                      f"<td>{e(c.where)}{name}</td><td>{e(c.what)}</td><td>{e(c.message)}"
                      f"</td><td>{e(c.source)}</td></tr>")
     parts.append("</table>")
-    worst = _worst(checks)
+    worst = worst_zones(checks)
     parts.append("<h2>Segments</h2><table><tr><th>segment</th><th>length mm</th>"
                  "<th>wires</th><th>diameter mm</th><th>mass g/m</th><th>EI N mm²</th>"
                  "<th>R min mm</th>" + ("<th>off design mm</th><th>sag mm</th>"
@@ -147,11 +140,8 @@ def render_html(harness: Harness, props: Mapping, checks: Sequence, installed=No
                          f"<td>{np.linalg.norm(moment):.3g}</td></tr>")
         parts.append("</table><p>No public rule limits them: compare with the connector's "
                      "or clip's rating.</p>")
-    sources = sorted({d.source for p in props.values()
-                      for d in (p.diameter, p.mass_per_length, p.bending_stiffness,
-                                p.torsional_stiffness, p.min_bend_radius) if d.source}
-                     | {c.source for c in checks if c.source})
-    parts.append("<h2>Sources</h2><ul>" + "".join(f"<li>{e(s)}</li>" for s in sources)
+    parts.append("<h2>Sources</h2><ul>" + "".join(f"<li>{e(s)}</li>"
+                                                  for s in sources(props, checks))
                  + "</ul></main></body></html>")
     return "".join(parts)
 

@@ -11,6 +11,7 @@ from rich.console import Console
 from rich.table import Table
 
 from pliant.assembly.checks import Zone
+from pliant.assembly.harness import sources, worst_zones
 from pliant.core.harness import Harness
 from pliant.io.harness_file import counts
 
@@ -36,11 +37,7 @@ def print_harness(console: Console, harness: Harness, props: Mapping, checks: Se
     for note in harness.notes:
         console.print(f"  note: {note}")
 
-    worst: dict[str, Zone] = {}
-    for c in checks:
-        key = c.where
-        if key not in worst or c.zone.rank > worst[key].rank:
-            worst[key] = c.zone
+    worst = worst_zones(checks)
     table = Table(title="segments (SI sources below)", show_lines=False)
     for col in ("segment", "mm", "wires", "Ø mm", "g/m", "EI N mm²", "R min mm", "check"):
         table.add_column(col, justify="left" if col == "segment" else "right")
@@ -72,15 +69,12 @@ def print_harness(console: Console, harness: Harness, props: Mapping, checks: Se
             break
         console.print(f"  [{_STYLE[c.zone]}]{c.zone.value:6}[/] {c.where}: {c.what}: "
                       f"{c.message}")
-    sources = sorted({d.source for p in props.values()
-                      for d in (p.diameter, p.mass_per_length, p.bending_stiffness,
-                                p.min_bend_radius) if d.source} |
-                     {c.source for c in checks if c.source})
+    named = sources(props, checks)
     console.print("sources:")
-    for s in sources[:12]:
+    for s in named[:12]:
         console.print(f"  - {s}")
-    if len(sources) > 12:
-        console.print(f"  ... and {len(sources) - 12} more (--json lists each segment's)")
+    if len(named) > 12:
+        console.print(f"  ... and {len(named) - 12} more (--json lists each segment's)")
 
 
 def print_installed(console: Console, installed, checks: Sequence, seconds: float,
@@ -94,10 +88,7 @@ def print_installed(console: Console, installed, checks: Sequence, seconds: floa
                   f"{seconds:.1f} s")
     for note in installed.notes:
         console.print(f"  note: {note}")
-    worst: dict[str, Zone] = {}
-    for c in checks:
-        if c.where not in worst or c.zone.rank > worst[c.where].rank:
-            worst[c.where] = c.zone
+    worst = worst_zones(checks)
     table = Table(title="installed segments")
     cols = ["segment", "off design mm", "sag mm", "R mm", "R min mm"]
     scene = any(s.interference is not None for s in installed.segments.values())

@@ -512,11 +512,6 @@ def _modules(reader: _Reader, harness: ET.Element) -> dict[str, Module]:
     return out
 
 
-def curve_points(curve: CentreCurve, convention: str, count: int = 64) -> np.ndarray:
-    """(count, 3) [m] points of one centre-curve piece, evenly in its parameter."""
-    return curve.points(convention, count)
-
-
 def _convention(segments: dict[str, HarnessSegment], nodes: dict[str, HarnessNode]
                 ) -> tuple[str, str]:
     """Which knot vector makes the centre curves start and end at their nodes."""
@@ -539,7 +534,7 @@ def curve_meets_nodes(segment: HarnessSegment, nodes: dict[str, HarnessNode],
     end node within ``NODE_TOLERANCE``."""
     if not segment.curves:
         return False
-    first = curve_points(segment.curves[0], convention, 2)[0]
-    last = curve_points(segment.curves[-1], convention, 2)[-1]
+    first = segment.curves[0].points(convention, 2)[0]
+    last = segment.curves[-1].points(convention, 2)[-1]
     return bool(np.linalg.norm(first - nodes[segment.start].position) <= NODE_TOLERANCE
                 and np.linalg.norm(last - nodes[segment.end].position) <= NODE_TOLERANCE)
