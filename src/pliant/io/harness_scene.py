@@ -24,9 +24,9 @@ from pydantic import Field, ValidationError
 
 from pliant.core.harness import Harness
 from pliant.core.rules import ObstacleRule
-from pliant.errors import FileFormatError, InputError, PliantError
+from pliant.errors import FileFormatError, PliantError
 from pliant.io.kbl import read_kbl
-from pliant.io.problem_file import ObstacleModel, read_text
+from pliant.io.problem_file import ObstacleModel, build_obstacles, check_names, read_text
 from pliant.io.scene_sections import CadModel
 from pliant.io.sections import _Strict
 from pliant.io.tomlfile import field_path, read_toml
@@ -86,25 +86,9 @@ def load_harness_scene(path: str | Path) -> HarnessScene:
         raise FileFormatError(f"{path}: {field_path(tuple(first['loc']))}: "
                               f"{first['msg'].removeprefix('Value error, ')}") from None
     base = path.parent
-    obstacles: list[Any] = []
-    rules: dict[str, ObstacleRule] = {}
     try:
-        for i, o in enumerate(model.obstacle):
-            try:
-                obstacles.append(o.build(base, model.units))
-            except ValueError as err:
-                if isinstance(err, PliantError):
-                    raise
-                raise InputError(f"obstacle[{i}]", str(err)) from None
-            rules[o.name] = o.rule
-        for i, c in enumerate(model.cad):
-            try:
-                solids = c.build(base, model.units)
-            except InputError as err:
-                raise InputError(f"cad[{i}].{err.field}",
-                                 str(err).removeprefix(f"{err.field}: ")) from None
-            obstacles.extend(solids)
-            rules.update({s.name: c.rule for s in solids})
+        obstacles, rules = build_obstacles(model.obstacle, model.cad, base, model.units)
+        check_names(obstacles)
     except PliantError as err:
         raise FileFormatError(f"{path}: {err}") from None
     harnesses = []

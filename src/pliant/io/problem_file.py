@@ -352,6 +352,41 @@ class LoadModel(_Strict):
                                start=self.start, end=self.end, name=name)
 
 
+def build_obstacles(obstacle: list[ObstacleModel], cad: list[CadModel], base: Path | None,
+                    units: str | None) -> tuple[list[Any], dict[str, ObstacleRule]]:
+    """A scene's ``[[obstacle]]`` and ``[[cad]]`` tables as obstacles (SI; a CAD or mesh
+    file in its declared unit, else ``units``) and the packaging rule of each, by name;
+    errors name the table and its index."""
+    obstacles: list[Any] = []
+    rules: dict[str, ObstacleRule] = {}
+    for i, o in enumerate(obstacle):
+        try:
+            obstacles.append(o.build(base, units))
+        except ValueError as err:
+            raise InputError(f"obstacle[{i}]", str(err)) from None
+        rules[o.name] = o.rule
+    for i, c in enumerate(cad):
+        try:
+            solids = c.build(base, units)
+            obstacles.extend(solids)
+            rules.update({s.name: c.rule for s in solids})
+        except InputError as err:
+            message = str(err).removeprefix(f"{err.field}: ")
+            raise InputError(f"cad[{i}].{err.field}", message) from None
+        except FileFormatError as err:
+            raise FileFormatError(f"cad[{i}]: {err}") from None
+        except ValueError as err:
+            raise InputError(f"cad[{i}]", str(err)) from None
+    return obstacles, rules
+
+
+def check_names(obstacles: list[Any]) -> None:
+    """Every obstacle of a scene has a name of its own."""
+    names = [o.name for o in obstacles]
+    if len(set(names)) != len(names):
+        raise InputError("obstacle", "two obstacles share a name; name each one apart")
+
+
 class ProblemFile(_Strict):
     """A whole problem file."""
 
@@ -445,33 +480,14 @@ class ProblemFile(_Strict):
 
     def _obstacles(self, base: Path | None, nested: bool,
                    settle: SettleFitted | None) -> list[Any]:
-        obstacles = []
-        for i, o in enumerate(self.obstacle):
-            try:
-                obstacles.append(o.build(base, self.units))
-            except ValueError as err:
-                raise InputError(f"obstacle[{i}]", str(err)) from None
-            self._rules[o.name] = o.rule
-        for i, c in enumerate(self.cad):
-            try:
-                solids = c.build(base, self.units)
-                obstacles.extend(solids)
-                self._rules.update({s.name: c.rule for s in solids})
-            except InputError as err:
-                message = str(err).removeprefix(f"{err.field}: ")
-                raise InputError(f"cad[{i}].{err.field}", message) from None
-            except FileFormatError as err:
-                raise FileFormatError(f"cad[{i}]: {err}") from None
-            except ValueError as err:
-                raise InputError(f"cad[{i}]", str(err)) from None
+        obstacles, rules = build_obstacles(self.obstacle, self.cad, base, self.units)
+        self._rules.update(rules)
         for i, a in enumerate([] if nested else self.assembled):
             try:
                 obstacles.append(a.build(base, settle))
             except ValueError as err:
                 raise InputError(f"assembled[{i}]", str(err)) from None
-        names = [o.name for o in obstacles]
-        if len(set(names)) != len(names):
-            raise InputError("obstacle", "two obstacles share a name; name each one apart")
+        check_names(obstacles)
         return obstacles
 
     def _place_on_solids(self, obstacles: list[Any]) -> list[Any]:
