@@ -24,6 +24,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "src"))
 
 from pliant.assembly.harness import design_checks, properties
 from pliant.assembly.harness_solve import solve_installed
+from pliant.errors import PliantError
 from pliant.io.kbl import read_kbl
 
 KBL = Path(__file__).resolve().parents[1] / "examples" / "harness" / "kbl"
@@ -75,14 +76,24 @@ def main() -> None:
         last = (label, harness, props, installed)
     assert last is not None
     label, harness, props, installed = last
-    fixing = next(iter(harness.fixings.values()), None)
-    if fixing is not None:
+    # Every fixing in turn moved 5 mm up from the cold answer, re-solved warm (the
+    # figure of one fixing hides the spread).
+    times = []
+    for fixing in harness.fixings.values():
         t0 = time.process_time()
-        moved = solve_installed(harness, props, moved={fixing.name: (0.0, 0.0, 0.005)},
-                                warm=installed)
+        try:
+            moved = solve_installed(harness, props, moved={fixing.name: (0.0, 0.0, 0.005)},
+                                    warm=installed)
+            outcome = f"{moved.iterations} iterations"
+        except PliantError as err:
+            outcome = f"not followed: {str(err)[:70]}"
         t1 = time.process_time()
+        times.append(t1 - t0)
         print(f"{label}: fixing {fixing.name} moved 5 mm up, re-solved warm in "
-              f"{t1 - t0:.2f} s CPU ({moved.iterations} iterations; goal 1 s)")
+              f"{t1 - t0:.2f} s CPU ({outcome}; goal 1 s)")
+    if times:
+        print(f"warm moves: median {np.median(times):.2f} s, largest {max(times):.2f} s of "
+              f"{len(times)}")
     peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
     print(f"peak memory {peak:.0f} MB (goal under 2048)")
 
