@@ -33,6 +33,7 @@ import numpy as np
 from pliant.assembly.variation import Variation, apply, nominal_values, parse_variation, plan
 from pliant.core.equilibrium import Equilibrium3D
 from pliant.errors import InputError, PliantError
+from pliant.io.jsonlines import JsonLines
 
 STUDY_VERSION = 1
 
@@ -171,6 +172,7 @@ class Store:
         self.folder = Path(folder)
         self.lines = self.folder / "samples.jsonl"
         self.voxels = self.folder / "voxels"
+        self.log = JsonLines(self.lines)
 
     def open(self, plan_record: dict[str, Any], restart: bool = False) -> set[int]:
         """Create or reopen the folder for ``plan_record``; the indices already done."""
@@ -194,39 +196,19 @@ class Store:
         return set()
 
     def _drop_torn_line(self) -> None:
-        """An interruption mid-write leaves a last line without its newline: cut it off,
-        so that the next line starts on its own (its sample is computed again)."""
-        if not self.lines.exists():
-            return
-        with open(self.lines, "rb+") as handle:
-            text = handle.read()
-            if text and not text.endswith(b"\n"):
-                handle.truncate(text.rfind(b"\n") + 1)
+        self.log.drop_torn()
 
     def add(self, record: dict[str, Any], voxels: np.ndarray | None) -> None:
         from pliant.io.atomic import atomic_write  # noqa: PLC0415
-        from pliant.io.jsontext import finite  # noqa: PLC0415
 
         if voxels is not None:
             path = self.voxels / f"{record['index']}.npy"
             atomic_write(path, lambda h: np.save(h, voxels), "a sample's voxels")
-        line = json.dumps(finite(record), allow_nan=False) + "\n"
-        with open(self.lines, "a", encoding="utf-8") as handle:
-            handle.write(line)
-            handle.flush()
-            os.fsync(handle.fileno())
+        self.log.append(record)
 
     def records(self) -> list[dict[str, Any]]:
         """Every complete line (the last one, if an interruption cut it, is left out)."""
-        if not self.lines.exists():
-            return []
-        out = {}
-        for line in self.lines.read_text(encoding="utf-8").splitlines():
-            try:
-                record = json.loads(line)
-            except json.JSONDecodeError:
-                continue
-            out[record["index"]] = record
+        out = {r["index"]: r for r in self.log.read()}
         return [out[k] for k in sorted(out)]
 
     def swept(self, indices: list[int]) -> np.ndarray:
@@ -325,24 +307,12 @@ def _run(spec: StudySpec, deviations: np.ndarray, todo: list[int], store: Store,
                 finished += 1
                 progress(finished)
         return 0
-    from distributed import Client, LocalCluster, as_completed  # noqa: PLC0415
+    from distributed import as_completed  # noqa: PLC0415
 
-    cluster = None
-    if scheduler is None:
-        n = workers or os.cpu_count() or 1
-        import dask  # noqa: PLC0415
+    from pliant.assembly.cluster import dask_client, worker_count  # noqa: PLC0415
 
-        # Without Dask's MALLOC_TRIM_THRESHOLD_ for its workers (see _heap_kept).
-        with dask.config.set({"distributed.nanny.pre-spawn-environ.MALLOC_TRIM_THRESHOLD_":
-                              None}):
-            cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=True,
-                                   host="127.0.0.1", dashboard_address=None,
-                                   silence_logs=40)
-        client = Client(cluster)
-    else:
-        client = Client(scheduler, timeout="30s")
-    try:
-        count = max(1, len(client.scheduler_info()["workers"]))
+    with dask_client(scheduler, workers) as client:
+        count = worker_count(client)
         size = batch or max(1, min(8, math.ceil(len(todo) / (4 * count))))
         batches = [todo[i:i + size] for i in range(0, len(todo), size)]
         remote = client.scatter(spec, broadcast=True)
@@ -362,10 +332,6 @@ def _run(spec: StudySpec, deviations: np.ndarray, todo: list[int], store: Store,
                 finished += 1
                 progress(finished)
         return count
-    finally:
-        client.close()
-        if cluster is not None:
-            cluster.close()
 
 
 # -- what it says -------------------------------------------------------------------------

@@ -635,6 +635,68 @@ def _plan_scene(file: Path, goal: str | None, out: Path, budget: float | None,
 
 
 @app.command()
+def sequence(
+    file: Annotated[Path, typer.Argument(help="a sequence file (TOML, SI units): a \\[\\[fit]] "
+                                              "table per part (its own scene file with its "
+                                              "\\[path]) and the obstacles they share")],
+    out: Annotated[Path, typer.Option(help="the search's folder: each operation judged, as "
+                                           "it comes (run again to resume), and the report")]
+    = Path("pliant-sequence"),
+    json: Annotated[Path | None, typer.Option("--json", help="write the search as JSON "
+                                                             "(schema_version 1) to this file; "
+                                                             "- for standard output")] = None,
+    report: Annotated[Path | None, typer.Option(help="write the HTML report here (default: "
+                                                     "OUT/report.html)")] = None,
+    exhaustive: Annotated[bool | None, typer.Option(
+        "--exhaustive/--prune", help="judge every operation of every order, or prune those a "
+        "failure already decides (default: the file's \\[sequence] exhaustive, else prune)")]
+    = None,
+    scheduler: Annotated[str | None, typer.Option(help="a Dask scheduler's address "
+                                                       "(tcp://HOST:PORT)")] = None,
+    workers: Annotated[int, typer.Option(help="local Dask worker processes (0: in this "
+                                              "process)")] = 0,
+    restart: Annotated[bool, typer.Option(help="discard the folder's operations and start "
+                                               "again")] = False,
+) -> None:
+    """In which order can the parts be fitted? Judge each part's operation (its path,
+    with the parts fitted before it in place, flexible) over the orders, pruning those a
+    failure decides; print the best order, why each other order fails and the
+    precedences found. Exit status 0 when an order fits every part, 1 when none does."""
+    from pliant.io.problem_file import read_text  # noqa: PLC0415
+
+    read_text(file)
+    _first_run_note()
+    from rich.console import Console  # noqa: PLC0415
+
+    from pliant.assembly.sequence import final_lines, load_sequence  # noqa: PLC0415
+    from pliant.assembly.sequence import sequence as search  # noqa: PLC0415
+    from pliant.cli.sequence_report import print_sequence, write_html  # noqa: PLC0415
+    from pliant.io.jsontext import finite  # noqa: PLC0415
+
+    console = Console(stderr=_to_stdout(json))
+    seq = load_sequence(file)
+    with console.status(f"judging the operations of {len(seq.fits)} parts…") as status:
+        result = search(seq, out=out, exhaustive=exhaustive, scheduler=scheduler,
+                        workers=workers, restart=restart,
+                        on_done=lambda op: status.update(
+                            f"judged {op['part']}"
+                            + (f" after {', '.join(op['prefix'])}" if op["prefix"] else "")))
+    print_sequence(result, console)
+    import json as _json  # noqa: PLC0415
+
+    written = []
+    if json is not None:
+        text = _json.dumps(finite(result.to_dict()), indent=1)
+        path = emit_json(text, json, "the search (JSON)")
+        written += [path] if path is not None else []
+    lines = final_lines(seq, result.best.parts) if result.best is not None else None
+    written.append(write_html(result, report or out / "report.html", lines,
+                              list(seq.obstacles)))
+    console.print("written: " + ", ".join(str(w) for w in written))
+    raise typer.Exit(0 if result.passes else 1)
+
+
+@app.command()
 def identify(
     file: Annotated[Path, typer.Argument(help="a stiffness test (TOML): a problem file with "
                                               "\\[identify] and \\[\\[measured]] tables")],

@@ -1,0 +1,44 @@
+"""The Dask cluster a distributed search runs on (variation studies, sequences): a
+``LocalCluster`` of single-threaded worker processes on 127.0.0.1 (no dashboard), or an
+existing scheduler's."""
+
+from __future__ import annotations
+
+import os
+from collections.abc import Iterator
+from contextlib import contextmanager
+from typing import Any
+
+
+@contextmanager
+def dask_client(scheduler: str | None, workers: int | None) -> Iterator[Any]:
+    """A ``distributed.Client``: to ``scheduler`` ("tcp://HOST:PORT") where given, else to
+    a local cluster of ``workers`` processes (default one per core), closed on exit."""
+    from distributed import Client, LocalCluster  # noqa: PLC0415 (heavy: on demand)
+
+    cluster = None
+    if scheduler is None:
+        n = workers or os.cpu_count() or 1
+        import dask  # noqa: PLC0415
+
+        # Without Dask's MALLOC_TRIM_THRESHOLD_ for its workers: glibc would hand freed
+        # memory back at once and map every large array afresh (see study._heap_kept).
+        with dask.config.set({"distributed.nanny.pre-spawn-environ.MALLOC_TRIM_THRESHOLD_":
+                              None}):
+            cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=True,
+                                   host="127.0.0.1", dashboard_address=None,
+                                   silence_logs=40)
+        client = Client(cluster)
+    else:
+        client = Client(scheduler, timeout="30s")
+    try:
+        yield client
+    finally:
+        client.close()
+        if cluster is not None:
+            cluster.close()
+
+
+def worker_count(client: Any) -> int:
+    """How many workers the client's cluster has (at least 1)."""
+    return max(1, len(client.scheduler_info()["workers"]))

@@ -1,0 +1,588 @@
+"""A/D sequences: in which order can several flexible parts be fitted, and why do the
+other orders fail?
+
+An order is a sequence of operations; each operation is one part carried along its own
+``[path]`` and judged by ``pliant.assembly.evaluate``, with the product's obstacles and
+every part fitted before it in the scene: a fitted part is a flexible obstacle
+(``FittedPart``: a part that touches it deforms it, and the two are solved together) in
+the shape it settles in once the fitter lets go (its last step's problem, the hand's
+other grips released, solved alone with the parts fitted before it as rigid tubes; the
+shape ``[[assembled]]`` parts take, so the same part fitted or assembled is one thing).
+
+The search goes forward, depth by depth, over the tree of prefixes: an operation is
+judged once for its prefix (the parts fitted before it, in their order) and reused by
+every order that shares that prefix. Pruning: an operation that fails names the fitted
+parts that make it fail (its ``blockers``: those it touches or comes within its margin
+of, or that a red check names; all of the prefix where none can be named; none where
+it fails alone). An operation of the same part after a prefix that holds all of some
+failure's blockers is not judged: it is pruned with that failure's reason. This rests
+on one assumption: a part fitted in the way stays in the way whatever else is fitted.
+``exhaustive=True`` prunes nothing (the slow twin the tests compare with).
+
+The operations of one depth run together, on Dask (the same local cluster or scheduler
+as ``pliant study``) or in this process (``workers=0``); each result is appended to the
+store's ``operations.jsonl`` as it arrives, so an interrupted search resumes with only
+what is missing, to the same answer (nothing in it is random).
+
+Costs of an order that passes, compared in turn: its worst zone (green before yellow),
+the operator its hardest operation needs (one hand, then two hands, then a tool or a
+robot), the peak hand demand (a capacity check's value over its red limit), the sum of
+the operations' peak demands. An operation is one continuous grip path: no re-grasp is
+modelled, so none is counted.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import itertools
+import json
+import math
+import time
+from collections.abc import Callable, Sequence
+from contextlib import ExitStack
+from dataclasses import dataclass, field, replace
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from pliant.errors import InputError, PliantError
+from pliant.io.jsonlines import JsonLines
+from pliant.io.sequence_file import Fit, SequenceScene
+
+SEQUENCE_VERSION = 1
+ZONES = ("green", "yellow", "red")  # an operation's worst zone, by rank
+
+
+# -- loading and composing --------------------------------------------------------------
+def load_sequence(path: str | Path) -> SequenceScene:
+    """Read a sequence file (``pliant.io.sequence_file``), its [[assembled]] parts
+    settled as a scene's are."""
+    from pliant.assembly.scenes import settle_fitted  # noqa: PLC0415
+    from pliant.io.sequence_file import load_sequence as read  # noqa: PLC0415
+
+    return read(path, settle=settle_fitted)
+
+
+def operation_scene(seq: SequenceScene, part: int, fitted: Sequence[Any] = ()) -> Any:
+    """The scene of fitting part ``part`` (its index) with ``fitted`` (obstacles of the
+    parts fitted before it) in place: its own file's scene with the sequence's obstacles,
+    their packaging rules and margin added and its [path] carried among them."""
+    from pliant.assembly.path import carry  # noqa: PLC0415
+
+    fit = seq.fits[part]
+    scene = fit.scene
+    problem = replace(scene.problem, obstacles=(*scene.problem.obstacles, *seq.obstacles,
+                                                *fitted))
+    margin = scene.margin if seq.margin is None else seq.margin
+    return replace(scene, problem=problem, margin=margin,
+                   obstacle_rules={**seq.obstacle_rules, **scene.obstacle_rules},
+                   path=carry(problem, scene.path_spec))
+
+
+def fitted_problem(seq: SequenceScene, part: int, before: Sequence[Any]) -> Any:
+    """The problem of part ``part`` once fitted after the parts whose (rigid)
+    obstacles are ``before``: its path's last step, the hand's other grips let go (the
+    grip that seated it stays: the port holds it there), named as the part."""
+    scene = operation_scene(seq, part, before)
+    last = scene.path[-1] if scene.path else scene.problem
+    hands = set(scene.hands) - {scene.grip}
+    return replace(last, conditions=tuple(c for c in last.conditions if c.name not in hands),
+                   name=seq.fits[part].name)
+
+
+_FITTED: dict[tuple, Any] = {}  # per process: each fitted part's obstacle, by prefix
+
+
+def fitted_obstacles(seq: SequenceScene, prefix: Sequence[int]) -> list[Any]:
+    """The obstacles of the parts of ``prefix`` (indices, in the order fitted), each
+    in the shape it settles in (see the module), solved once per process."""
+    from pliant.assembly.scenes import settle_fitted  # noqa: PLC0415
+
+    out: list[Any] = []
+    for k, part in enumerate(prefix):
+        key = (seq.key, tuple(prefix[:k + 1]))
+        fit = seq.fits[part]
+        if key not in _FITTED:
+            rigid = [replace(o, fitted=None) for o in out]
+            problem = fitted_problem(seq, part, rigid)
+            _FITTED[key] = settle_fitted(fit.name, problem, fit.elements, True, fit.friction)
+        obstacle = _FITTED[key]
+        out.append(obstacle if fit.flexible else replace(obstacle, fitted=None))
+    return out
+
+
+# -- one operation ----------------------------------------------------------------------
+def judge_operation(seq: SequenceScene, prefix: tuple[int, ...], part: int) -> dict[str, Any]:
+    """Fit part ``part`` after ``prefix``: its evaluation as a record (JSON-ready). A
+    failure to solve is a record too (status "error", the fitted parts as blockers):
+    a search never stops on one operation."""
+    from pliant.assembly.evaluate import evaluate  # noqa: PLC0415 (loads the kernels)
+
+    fit = seq.fits[part]
+    start = time.process_time()
+    names = [seq.fits[i].name for i in prefix]
+    record: dict[str, Any] = {"part": fit.name, "prefix": names}
+    try:
+        fitted = fitted_obstacles(seq, prefix)
+        scene = operation_scene(seq, part, fitted)
+        ev = evaluate(scene, elements=fit.elements)
+        record.update(_judged(ev, fit, names, scene.margin))
+    except (PliantError, ValueError, ArithmeticError) as err:
+        record.update(status="error", passes=False, decided=True, zone="red",
+                      operator=None, headline=f"not judged: {err}", reasons=[str(err)],
+                      blockers=names, demand=None, peak_force=None, steps=0,
+                      planned=0, stopped=str(err), notes=[])
+    record["seconds"] = time.process_time() - start
+    return record
+
+
+def _judged(ev: Any, fit: Fit, fitted: list[str], margin: float) -> dict[str, Any]:
+    """An evaluation's record: its verdict, costs, and the fitted parts it blames."""
+    from pliant.assembly.checks import Zone  # noqa: PLC0415
+
+    v = ev.verdict
+    chosen = ev.chosen
+    pool = ev.checks + (chosen.checks if chosen else [])
+    judged = [c for c in pool if c.zone in (Zone.GREEN, Zone.YELLOW, Zone.RED)]
+    zone = max((ZONES.index(c.zone.value) for c in judged), default=0)
+    demand = max((c.ratio for c in (chosen.checks if chosen else [])
+                  if c.family == "ergonomics" and math.isfinite(c.ratio)), default=0.0)
+    forces = [r.force_norm for r in ev.run.steps]
+    notes = [str(n) for n in _fallbacks(ev)]
+    # A verdict that rests on a fallback passes nothing and prunes nothing: undecided.
+    status = "undecided" if not v.decided else "passes" if v.passes else "fails"
+    return {"status": status, "passes": status == "passes",
+            "decided": bool(v.decided), "zone": ZONES[zone],
+            "operator": v.operator, "headline": v.headline, "reasons": list(v.reasons[:6]),
+            "blockers": [] if status != "fails" else _blockers(ev, fitted, margin),
+            "demand": float(demand), "peak_force": float(max(forces, default=0.0)),
+            "steps": len(ev.run.steps), "planned": ev.run.planned,
+            "stopped": ev.run.stopped, "notes": notes,
+            "clearance": {name: _smallest(ev.run, name) for name in fitted}}
+
+
+def _fallbacks(ev: Any) -> list[str]:
+    """What the operation's answer did not judge: its unchecked items (a part held
+    rigid where it could not be solved together, a stability a static test does not
+    decide, a rule missing a value) and a verdict that rests on a fallback."""
+    from pliant.assembly.checks import Zone  # noqa: PLC0415
+
+    out = [c.sentence() for c in ev.items if c.zone == Zone.UNCHECKED]
+    if not ev.verdict.decided:
+        out.append("the verdict is undecided: it rests on a fallback")
+    return out
+
+
+def _smallest(run: Any, name: str) -> float:
+    """The smallest clearance [m] to obstacle ``name`` along the run."""
+    return min((dict(r.clearances).get(name, math.inf) for r in run.steps),
+               default=math.inf)
+
+
+def _blockers(ev: Any, fitted: list[str], margin: float) -> list[str]:
+    """The fitted parts a failing operation blames: those a red check names, those the
+    part touches or comes within the margin of (at any step; where the path stopped,
+    at its last step solved), else all of them (the cause cannot be named)."""
+    from pliant.assembly.checks import Zone  # noqa: PLC0415
+
+    if not fitted:
+        return []
+    named = {n for c in ev.checks if c.zone == Zone.RED
+             for n in fitted if c.rule.endswith(f": {n}")}
+    near = {n for n in fitted if _smallest(ev.run, n) <= max(margin, 1e-6)}
+    for eq in ev.run.equilibria:
+        if eq.contacts is not None:
+            near |= set(eq.contacts.by_obstacle()) & set(fitted)
+    found = named | near
+    return [n for n in fitted if n in found] or list(fitted)
+
+
+# -- the store --------------------------------------------------------------------------
+class Store:
+    """A search's folder: ``sequence.json`` (the files' digest) and ``operations.jsonl``
+    (a line per operation judged, appended as each arrives)."""
+
+    def __init__(self, folder: str | Path) -> None:
+        self.folder = Path(folder)
+        self.log = JsonLines(self.folder / "operations.jsonl")
+
+    def open(self, seq: SequenceScene, restart: bool = False) -> dict[tuple, dict]:
+        """Create or reopen the folder for ``seq``: the operations already judged, by
+        (prefix names, part name)."""
+        from pliant.io.atomic import atomic_write  # noqa: PLC0415
+
+        self.folder.mkdir(parents=True, exist_ok=True)
+        meta = self.folder / "sequence.json"
+        key = _store_key(seq)
+        if meta.exists() and not restart:
+            try:
+                old = json.loads(meta.read_text(encoding="utf-8"))
+            except (OSError, json.JSONDecodeError):
+                old = {}
+            if old.get("key") != key:
+                raise InputError("out", f"{self.folder} holds the search of other files (or "
+                                 "another pliant); choose another folder, or --restart")
+            self.log.drop_torn()
+            return {_op_key(r): r for r in self.log.read()}
+        if self.log.path.exists():
+            self.log.path.unlink()
+        text = json.dumps({"key": key, "sequence": seq.source,
+                           "version": SEQUENCE_VERSION}, indent=1).encode()
+        atomic_write(meta, lambda h: h.write(text), "the search's key")
+        return {}
+
+    def add(self, record: dict[str, Any]) -> None:
+        self.log.append(record)
+
+
+def _store_key(seq: SequenceScene) -> str:
+    from pliant import __version__  # noqa: PLC0415
+
+    return hashlib.sha256(f"{seq.key}|{__version__}|{SEQUENCE_VERSION}".encode()).hexdigest()
+
+
+def _op_key(record: dict[str, Any]) -> tuple:
+    return (tuple(record["prefix"]), record["part"])
+
+
+# -- the search -------------------------------------------------------------------------
+@dataclass
+class Order:
+    """One order, judged: its parts (names), whether every operation passes, its
+    operations' records as far as they go (the last one the failing or pruned one), and
+    for an order that passes its cost (see the module)."""
+
+    parts: tuple[str, ...]
+    passes: bool
+    operations: list[dict[str, Any]]
+    cost: tuple[float, ...] = ()
+
+    @property
+    def failing(self) -> dict[str, Any] | None:
+        return None if self.passes else self.operations[-1]
+
+    def why(self) -> str:
+        """The first failing operation and its reason, in words."""
+        op = self.failing
+        if op is None:
+            return "every operation passes"
+        where = f"fitting {op['part']}" + (f" after {', '.join(op['prefix'])}"
+                                           if op["prefix"] else " (first)")
+        blame = (f" ({', '.join(op['blockers'])} in the way)" if op.get("blockers") else "")
+        pruned = ""
+        if op["status"] == "pruned":
+            seen = op["pruned_by"][:-1]
+            pruned = f"; pruned: it fails {'after ' + ', '.join(seen) if seen else 'alone'}"
+        return f"{where} fails{blame}{pruned}: {_reason(op)}"
+
+    def to_dict(self) -> dict[str, Any]:
+        return {"parts": list(self.parts), "passes": self.passes,
+                "cost": list(self.cost), "why": self.why(),
+                "operations": [_op_key(o)[1] for o in self.operations]}
+
+
+@dataclass
+class Precedence:
+    """A precedence found: ``first`` must be fitted before ``then`` (any one of them,
+    where several block it together), and why (the failure it rests on)."""
+
+    first: str
+    then: tuple[str, ...]
+    reason: str
+
+    def sentence(self) -> str:
+        them = " and ".join(self.then)
+        return f"{self.first} before {them}: with {them} fitted first, {self.reason}"
+
+    def to_dict(self) -> dict[str, Any]:
+        return {"first": self.first, "then": list(self.then), "reason": self.reason,
+                "sentence": self.sentence()}
+
+
+@dataclass
+class SequenceResult:
+    """The search as run: every order (the best first: passing ones by cost, then the
+    failing ones), the operations judged (by (prefix, part)), how many were judged in
+    this run, reused from the store and pruned, the precedences found, on how many
+    workers, in how many seconds (wall, this process)."""
+
+    name: str
+    source: str
+    parts: tuple[str, ...]
+    orders: list[Order]
+    operations: dict[tuple, dict[str, Any]]
+    judged: int
+    reused: int
+    pruned: int
+    precedences: list[Precedence]
+    exhaustive: bool
+    workers: int
+    seconds: float
+    folder: Path | None = None
+    notes: list[str] = field(default_factory=list)
+
+    @property
+    def best(self) -> Order | None:
+        return self.orders[0] if self.orders and self.orders[0].passes else None
+
+    @property
+    def passes(self) -> bool:
+        return self.best is not None
+
+    def to_dict(self) -> dict[str, Any]:
+        best = self.best
+        return {"schema_version": 1, "name": self.name, "sequence": self.source,
+                "parts": list(self.parts), "passes": self.passes,
+                "best": None if best is None else best.to_dict(),
+                "orders": [o.to_dict() for o in self.orders],
+                "operations": [op for _, op in sorted(self.operations.items())],
+                "precedences": [p.to_dict() for p in self.precedences],
+                "judged": self.judged, "reused": self.reused, "pruned": self.pruned,
+                "exhaustive": self.exhaustive, "workers": self.workers,
+                "seconds": self.seconds, "notes": self.notes,
+                "cost": ["worst zone (0 green, 1 yellow)",
+                         "operator (0 one hand, 1 two hands, 2 tool or robot)",
+                         "peak hand demand (value over red limit)",
+                         "sum of the operations' peak demands"],
+                "units": {"peak_force": "N", "clearance": "m", "seconds": "s (CPU)"}}
+
+
+def sequence(seq: SequenceScene | str | Path, *, out: str | Path | None = None,
+             exhaustive: bool | None = None, scheduler: str | None = None,
+             workers: int | None = 0, restart: bool = False,
+             on_done: Callable[[dict[str, Any]], None] | None = None) -> SequenceResult:
+    """Search the orders of a sequence file's parts (see the module). ``out``: the
+    store's folder (None: nothing kept); ``workers``: 0 judges in this process, None or
+    N on a local Dask cluster of that many processes, ``scheduler`` an existing one's;
+    ``on_done`` is called with each operation's record as it arrives."""
+    if not isinstance(seq, SequenceScene):
+        seq = load_sequence(seq)
+    exhaustive = seq.exhaustive if exhaustive is None else exhaustive
+    started = time.perf_counter()
+    store = Store(out) if out is not None else None
+    ops: dict[tuple, dict[str, Any]] = store.open(seq, restart) if store else {}
+    names = tuple(f.name for f in seq.fits)
+    with ExitStack() as stack:
+        client = None
+        if workers != 0 or scheduler is not None:
+            from pliant.assembly.cluster import dask_client  # noqa: PLC0415
+
+            client = stack.enter_context(dask_client(scheduler, workers))
+        ops, counts = _search(seq, ops, exhaustive, client, store, on_done)
+    orders = _orders(names, ops)
+    judged, reused, pruned, used = counts
+    result = SequenceResult(seq.name, seq.source, names, orders, ops, judged, reused, pruned,
+                            _precedences(ops, names), exhaustive, used,
+                            time.perf_counter() - started, store.folder if store else None)
+    result.notes = _notes(ops)
+    return result
+
+
+def _search(seq: SequenceScene, ops: dict[tuple, dict[str, Any]], exhaustive: bool,
+            client: Any, store: Store | None,
+            on_done: Callable[[dict[str, Any]], None] | None
+            ) -> tuple[dict[tuple, dict[str, Any]], tuple[int, int, int, int]]:
+    """The forward search, depth by depth (see the module): every operation's record
+    by (prefix, part), and (judged, reused, pruned, workers used)."""
+    names = tuple(f.name for f in seq.fits)
+    n = len(names)
+    reused = judged = pruned = 0
+    used = 0
+    alive: list[tuple[int, ...]] = [()]
+    for depth in range(n):
+        # Pruning at this depth rests on the failures of the depths before it only
+        # (whatever a resumed store holds, and in whatever order the operations came
+        # back: the search is the same on any number of workers).
+        failures = [op for op in ops.values()
+                    if op["status"] in ("fails", "error") and len(op["prefix"]) < depth]
+        todo: list[tuple[tuple[int, ...], int]] = []
+        for prefix in alive:
+            for part in range(n):
+                if part in prefix:
+                    continue
+                key = (tuple(names[i] for i in prefix), names[part])
+                if key in ops and ops[key]["status"] not in ("pruned", "not judged"):
+                    reused += 1
+                    continue
+                rule = None if exhaustive else _pruned_by(failures, names[part],
+                                                          {names[i] for i in prefix})
+                if rule is not None:
+                    ops[key] = _pruned_record(key, rule)
+                    pruned += 1
+                else:
+                    todo.append((prefix, part))
+        results, used = _judge_all(seq, todo, client, used)
+        for record in results:
+            ops[_op_key(record)] = record
+            judged += 1
+            if store is not None:
+                store.add(record)
+            if on_done is not None:
+                on_done(record)
+        nxt = []
+        for prefix in alive:
+            for part in range(n):
+                if part in prefix:
+                    continue
+                key = (tuple(names[i] for i in prefix), names[part])
+                if ops[key]["passes"]:
+                    nxt.append((*prefix, part))
+        alive = nxt
+    return ops, (judged, reused, pruned, used)
+
+
+def _pruned_by(failures: list[dict[str, Any]], part: str, fitted: set[str]
+               ) -> dict[str, Any] | None:
+    """The failure of ``part`` whose blockers are all among ``fitted`` (the one found
+    with the fewest blockers), or None."""
+    found = [f for f in failures if f["part"] == part and set(f["blockers"]) <= fitted]
+    return min(found, key=lambda f: (len(f["blockers"]), len(f["prefix"]), f["prefix"]),
+               default=None)
+
+
+def _pruned_record(key: tuple, rule: dict[str, Any]) -> dict[str, Any]:
+    prefix, part = key
+    because = (f"it fails with {', '.join(rule['blockers'])} fitted (found after "
+               f"{', '.join(rule['prefix'])})" if rule["blockers"]
+               else "it fails with nothing else fitted")
+    return {"part": part, "prefix": list(prefix), "status": "pruned", "passes": False,
+            "decided": rule["decided"], "zone": rule["zone"], "operator": None,
+            "headline": f"pruned, not judged: {because}: {rule['headline']}",
+            "reasons": rule["reasons"], "blockers": rule["blockers"], "demand": None,
+            "peak_force": None, "steps": 0, "planned": 0, "stopped": None, "notes": [],
+            "pruned_by": [*rule["prefix"], rule["part"]], "seconds": 0.0}
+
+
+def _judge_all(seq: SequenceScene, todo: list[tuple[tuple[int, ...], int]], client: Any,
+               used: int) -> tuple[list[dict[str, Any]], int]:
+    """Judge the operations ``todo`` (in this process without a Dask ``client``): their
+    records, in ``todo``'s order, and the workers used."""
+    if not todo:
+        return [], used
+    if client is None:
+        return [judge_operation(seq, prefix, part) for prefix, part in todo], max(used, 1)
+    from pliant.assembly.cluster import worker_count  # noqa: PLC0415
+
+    count = worker_count(client)
+    futures = [client.submit(_remote_judge, seq.source, seq.key, prefix, part,
+                             pure=False, retries=1) for prefix, part in todo]
+    out = []
+    for (prefix, part), future in zip(todo, futures, strict=True):
+        try:
+            out.append(future.result())
+        except Exception as err:  # a worker lost: the operation is said, not judged
+            out.append({"part": seq.fits[part].name,
+                        "prefix": [seq.fits[i].name for i in prefix],
+                        "status": "not judged", "passes": False, "decided": False,
+                        "zone": "red",
+                        "operator": None, "headline": f"the worker failed: {err}",
+                        "reasons": [f"{type(err).__name__}: {err}"],
+                        "blockers": [seq.fits[i].name for i in prefix], "demand": None,
+                        "peak_force": None, "steps": 0, "planned": 0, "stopped": None,
+                        "notes": [], "seconds": 0.0})
+    return out, max(used, count)
+
+
+_LOADED: dict[tuple[str, str], SequenceScene] = {}  # per worker process
+
+
+def _remote_judge(source: str, key: str, prefix: tuple[int, ...], part: int
+                  ) -> dict[str, Any]:
+    """A worker's operation: the sequence file read once per process (and checked to be
+    the version the search started from)."""
+    if (source, key) not in _LOADED:
+        seq = load_sequence(source)
+        if seq.key != key:
+            raise InputError("sequence", f"{source} changed while the search ran; run it "
+                             "again")
+        _LOADED[(source, key)] = seq
+    return judge_operation(_LOADED[(source, key)], prefix, part)
+
+
+def _orders(names: tuple[str, ...], ops: dict[tuple, dict[str, Any]]) -> list[Order]:
+    """Every order of the parts, each walked to its end or its first failing (or
+    pruned) operation; passing orders first, by cost, then failing ones, the later
+    they fail the earlier (then by name)."""
+    out = []
+    for perm in itertools.permutations(names):
+        done = []
+        passes = True
+        for k, part in enumerate(perm):
+            op = ops[(tuple(perm[:k]), part)]
+            done.append(op)
+            if not op["passes"]:
+                passes = False
+                break
+        cost: tuple[float, ...] = ()
+        if passes:
+            cost = (float(max(ZONES.index(o["zone"]) for o in done)),
+                    float(max(_operator_rank(o["operator"]) for o in done)),
+                    max(o["demand"] or 0.0 for o in done),
+                    math.fsum(o["demand"] or 0.0 for o in done))  # (any order: one sum)
+        out.append(Order(perm, passes, done, cost))
+    out.sort(key=lambda o: (not o.passes, o.cost if o.passes else (-len(o.operations),),
+                            o.parts))
+    return out
+
+
+def _operator_rank(operator: str | None) -> int:
+    """One hand 0, two hands 1, a tool or robot 2 (none that passes: 3)."""
+    if operator is None:
+        return 3
+    if operator.startswith("one hand") or operator == "no hand":
+        return 0
+    if operator.startswith("two hands"):
+        return 1
+    return 2
+
+
+def _precedences(ops: dict[tuple, dict[str, Any]], names: tuple[str, ...]
+                 ) -> list[Precedence]:
+    """The precedences the failures show: a part that fits with nothing else fitted
+    but fails once some parts are (its blockers) must go before them (before any one
+    of them, where several block it together); the smallest blocking sets only."""
+    alone = {part: ops.get(((), part)) for part in names}
+    found: dict[tuple[str, tuple[str, ...]], str] = {}
+    for (_prefix, part), op in sorted(ops.items()):
+        first = alone.get(part)
+        if op["status"] not in ("fails", "error") or not op["blockers"]:
+            continue
+        if first is None or not first["passes"]:
+            continue
+        key = (part, tuple(sorted(op["blockers"])))
+        found.setdefault(key, _short(op))
+    keys = [k for k in found if not any(o[0] == k[0] and set(o[1]) < set(k[1])
+                                        for o in found)]
+    return [Precedence(p, then, found[(p, then)]) for p, then in sorted(keys)]
+
+
+def _short(op: dict[str, Any]) -> str:
+    return f"fitting {op['part']} fails: {_reason(op)}"
+
+
+def _reason(op: dict[str, Any]) -> str:
+    """An operation's failure in a clause: its first red reason, else its headline."""
+    red = next((r.removeprefix("[red] ") for r in op["reasons"] if r.startswith("[red]")),
+               None)
+    return red or op["headline"]
+
+
+def _notes(ops: dict[tuple, dict[str, Any]]) -> list[str]:
+    """What any operation's answer rests on that a solver gave up on, said once each."""
+    out = []
+    for (prefix, part), op in sorted(ops.items()):
+        for note in op.get("notes", []):
+            where = f"{part}" + (f" after {', '.join(prefix)}" if prefix else " (first)")
+            out.append(f"{where}: {note}")
+    return out
+
+
+def final_lines(seq: SequenceScene, order: Sequence[str]) -> list[tuple[str, np.ndarray]]:
+    """Each part of ``order`` in the shape it settles in once fitted: (name, (N+1, 3)
+    neutral line [m]), for the report's picture."""
+    prefix = [seq.index(name) for name in order]
+    fitted_obstacles(seq, prefix)
+    return [(seq.fits[i].name, np.asarray(_FITTED[(seq.key, tuple(prefix[:k + 1]))]
+                                          .fitted.rest_line))
+            for k, i in enumerate(prefix)]
