@@ -48,7 +48,7 @@ import numpy as np
 
 from pliant.errors import InputError, PliantError
 from pliant.io.jsonlines import JsonLines
-from pliant.io.sequence_file import Fit, SequenceScene
+from pliant.io.sequence_file import SequenceScene
 
 SEQUENCE_VERSION = 1
 ZONES = ("green", "yellow", "red")  # an operation's worst zone, by rank
@@ -127,38 +127,36 @@ def judge_operation(seq: SequenceScene, prefix: tuple[int, ...], part: int) -> d
         fitted = fitted_obstacles(seq, prefix)
         scene = operation_scene(seq, part, fitted)
         ev = evaluate(scene, elements=fit.elements)
-        record.update(_judged(ev, fit, names, scene.margin))
+        record.update(_judged(ev, names, scene.margin))
     except (PliantError, ValueError, ArithmeticError) as err:
-        record.update(status="error", passes=False, decided=True, zone="red",
-                      operator=None, headline=f"not judged: {err}", reasons=[str(err)],
-                      blockers=names, demand=None, peak_force=None, steps=0,
-                      planned=0, stopped=str(err), notes=[])
+        record = _unjudged(fit.name, names, "error", f"not judged: {err}", [str(err)],
+                           names, stopped=str(err))
     record["seconds"] = time.process_time() - start
     return record
 
 
-def _judged(ev: Any, fit: Fit, fitted: list[str], margin: float) -> dict[str, Any]:
+def _judged(ev: Any, fitted: list[str], margin: float) -> dict[str, Any]:
     """An evaluation's record: its verdict, costs, and the fitted parts it blames."""
     from pliant.assembly.checks import Zone  # noqa: PLC0415
+    from pliant.assembly.evaluate import worst_zone  # noqa: PLC0415
 
     v = ev.verdict
     chosen = ev.chosen
-    pool = ev.checks + (chosen.checks if chosen else [])
-    judged = [c for c in pool if c.zone in (Zone.GREEN, Zone.YELLOW, Zone.RED)]
-    zone = max((ZONES.index(c.zone.value) for c in judged), default=0)
-    demand = max((c.ratio for c in (chosen.checks if chosen else [])
+    own = chosen.checks if chosen else []
+    zone = worst_zone([c for c in ev.checks + own
+                       if c.zone in (Zone.GREEN, Zone.YELLOW, Zone.RED)])
+    demand = max((c.ratio for c in own
                   if c.family == "ergonomics" and math.isfinite(c.ratio)), default=0.0)
     forces = [r.force_norm for r in ev.run.steps]
-    notes = [str(n) for n in _fallbacks(ev)]
     # A verdict that rests on a fallback passes nothing and prunes nothing: undecided.
     status = "undecided" if not v.decided else "passes" if v.passes else "fails"
     return {"status": status, "passes": status == "passes",
-            "decided": bool(v.decided), "zone": ZONES[zone],
+            "decided": bool(v.decided), "zone": zone.value,
             "operator": v.operator, "headline": v.headline, "reasons": list(v.reasons[:6]),
             "blockers": [] if status != "fails" else _blockers(ev, fitted, margin),
             "demand": float(demand), "peak_force": float(max(forces, default=0.0)),
             "steps": len(ev.run.steps), "planned": ev.run.planned,
-            "stopped": ev.run.stopped, "notes": notes,
+            "stopped": ev.run.stopped, "notes": _fallbacks(ev),
             "clearance": {name: _smallest(ev.run, name) for name in fitted}}
 
 
@@ -396,22 +394,20 @@ def _search(seq: SequenceScene, ops: dict[tuple, dict[str, Any]], exhaustive: bo
         # back: the search is the same on any number of workers).
         failures = [op for op in ops.values()
                     if op["status"] in ("fails", "error") and len(op["prefix"]) < depth]
+        children = [(prefix, part, (tuple(names[i] for i in prefix), names[part]))
+                    for prefix in alive for part in range(n) if part not in prefix]
         todo: list[tuple[tuple[int, ...], int]] = []
-        for prefix in alive:
-            for part in range(n):
-                if part in prefix:
-                    continue
-                key = (tuple(names[i] for i in prefix), names[part])
-                if key in ops and ops[key]["status"] not in ("pruned", "not judged"):
-                    reused += 1
-                    continue
-                rule = None if exhaustive else _pruned_by(failures, names[part],
-                                                          {names[i] for i in prefix})
-                if rule is not None:
-                    ops[key] = _pruned_record(key, rule)
-                    pruned += 1
-                else:
-                    todo.append((prefix, part))
+        for prefix, part, key in children:
+            if key in ops and ops[key]["status"] not in ("pruned", "not judged"):
+                reused += 1
+                continue
+            rule = None if exhaustive else _pruned_by(failures, names[part],
+                                                      {names[i] for i in prefix})
+            if rule is not None:
+                ops[key] = _pruned_record(key, rule)
+                pruned += 1
+            else:
+                todo.append((prefix, part))
         results, used = _judge_all(seq, todo, client, used)
         for record in results:
             ops[_op_key(record)] = record
@@ -420,15 +416,7 @@ def _search(seq: SequenceScene, ops: dict[tuple, dict[str, Any]], exhaustive: bo
                 store.add(record)
             if on_done is not None:
                 on_done(record)
-        nxt = []
-        for prefix in alive:
-            for part in range(n):
-                if part in prefix:
-                    continue
-                key = (tuple(names[i] for i in prefix), names[part])
-                if ops[key]["passes"]:
-                    nxt.append((*prefix, part))
-        alive = nxt
+        alive = [(*prefix, part) for prefix, part, key in children if ops[key]["passes"]]
     return ops, (judged, reused, pruned, used)
 
 
@@ -446,12 +434,21 @@ def _pruned_record(key: tuple, rule: dict[str, Any]) -> dict[str, Any]:
     because = (f"it fails with {', '.join(rule['blockers'])} fitted (found after "
                f"{', '.join(rule['prefix'])})" if rule["blockers"]
                else "it fails with nothing else fitted")
-    return {"part": part, "prefix": list(prefix), "status": "pruned", "passes": False,
-            "decided": rule["decided"], "zone": rule["zone"], "operator": None,
-            "headline": f"pruned, not judged: {because}: {rule['headline']}",
-            "reasons": rule["reasons"], "blockers": rule["blockers"], "demand": None,
-            "peak_force": None, "steps": 0, "planned": 0, "stopped": None, "notes": [],
-            "pruned_by": [*rule["prefix"], rule["part"]], "seconds": 0.0}
+    return _unjudged(part, list(prefix), "pruned",
+                     f"pruned, not judged: {because}: {rule['headline']}", rule["reasons"],
+                     rule["blockers"], decided=rule["decided"], zone=rule["zone"],
+                     pruned_by=[*rule["prefix"], rule["part"]])
+
+
+def _unjudged(part: str, prefix: list[str], status: str, headline: str, reasons: list[str],
+              blockers: list[str], **fields: Any) -> dict[str, Any]:
+    """The record of an operation with no evaluation of its own (an error, a pruned
+    one, a lost worker's): red, no operator, no figures; ``fields`` add or replace."""
+    return {"part": part, "prefix": prefix, "status": status, "passes": False,
+            "decided": True, "zone": "red", "operator": None, "headline": headline,
+            "reasons": reasons, "blockers": blockers, "demand": None, "peak_force": None,
+            "steps": 0, "planned": 0, "stopped": None, "notes": [], "seconds": 0.0,
+            **fields}
 
 
 def _judge_all(seq: SequenceScene, todo: list[tuple[tuple[int, ...], int]], client: Any,
@@ -472,15 +469,10 @@ def _judge_all(seq: SequenceScene, todo: list[tuple[tuple[int, ...], int]], clie
         try:
             out.append(future.result())
         except Exception as err:  # a worker lost: the operation is said, not judged
-            out.append({"part": seq.fits[part].name,
-                        "prefix": [seq.fits[i].name for i in prefix],
-                        "status": "not judged", "passes": False, "decided": False,
-                        "zone": "red",
-                        "operator": None, "headline": f"the worker failed: {err}",
-                        "reasons": [f"{type(err).__name__}: {err}"],
-                        "blockers": [seq.fits[i].name for i in prefix], "demand": None,
-                        "peak_force": None, "steps": 0, "planned": 0, "stopped": None,
-                        "notes": [], "seconds": 0.0})
+            names = [seq.fits[i].name for i in prefix]
+            out.append(_unjudged(seq.fits[part].name, names, "not judged",
+                                 f"the worker failed: {err}",
+                                 [f"{type(err).__name__}: {err}"], names, decided=False))
     return out, max(used, count)
 
 
