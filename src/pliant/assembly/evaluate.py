@@ -304,6 +304,8 @@ class OperatorResult:
     second_hand_forces: dict[int, tuple[float, float, float]] = field(default_factory=dict)
     rating: tuple[float, float] | None = None
     solves: int = 0
+    # each hand's access along the path, by grip (``pliant.assembly.access.Access``)
+    access: dict[str, list[Any]] = field(default_factory=dict)
 
     @property
     def zone(self) -> Zone:
@@ -320,7 +322,9 @@ class OperatorResult:
                                        for k, v in self.second_hand_forces.items()},
                 "rating": None if self.rating is None else {"force": self.rating[0],
                                                             "moment": self.rating[1]},
-                "solves": self.solves, "checks": [c.to_dict() for c in self.checks]}
+                "solves": self.solves, "checks": [c.to_dict() for c in self.checks],
+                "access": {g: [a.to_dict() for a in steps]
+                           for g, steps in self.access.items()}}
 
 
 @dataclass
@@ -867,8 +871,10 @@ def _operators(scene: Any, run: PathRun, rules: Rules, settings: EvaluationSetti
     rows = hand_rows(rules, settings, settings.hold)
     if wanted in ("auto", "one hand"):
         checks = [c for g in grips for c in hand_checks(g, grip_steps[g], rows, friction)]
-        out.append(OperatorResult("one hand", checks, "one hand" if len(grips) == 1 else
-                                  "one hand at each of " + ", ".join(grips)))
+        one = OperatorResult("one hand", checks, "one hand" if len(grips) == 1 else
+                             "one hand at each of " + ", ".join(grips))
+        _with_access(one, run, rules, settings, grips)
+        out.append(one)
     if wanted == "two hands" or (wanted == "auto" and out[0].zone == Zone.RED):
         out += _two_hands(scene, run, rules, settings, grips, grip_steps, elements, search)
     if wanted in ("tool", "robot"):
@@ -921,13 +927,65 @@ def _two_hands(scene: Any, run: PathRun, rules: Rules, settings: EvaluationSetti
                                   note=note if share < 1 else "")
     out = [OperatorResult("two hands side by side", checks,
                           "two hands side by side at " + ", ".join(grips))]
+    _with_access(out[0], run, rules, settings, grips, hands=2)
     # Side by side passes: no need to look for where else the second hand could go.
     if len(grips) == 1 and search and not out[0].passes:
         placed = place_second_hand(scene, run, rules, settings, grips[0], grip_steps[grips[0]],
                                    elements or scene.solver.elements)
         if placed is not None:
+            _with_access(placed, run, rules, settings, grips)
+            if placed.second_hand_s is not None:
+                _with_access(placed, run, rules, settings, (SECOND_HAND,),
+                             at=placed.second_hand_s)
             out.append(placed)
     return out
+
+
+SECOND_HAND = "second hand"
+
+
+def _with_access(op: OperatorResult, run: PathRun, rules: Rules,
+                 settings: EvaluationSettings, grips: tuple[str, ...], hands: int = 1,
+                 at: float | None = None) -> None:
+    """Add to ``op`` the access of a hand (``hands`` side by side) at each of ``grips``
+    along the path (``at``: at that arc length [m] instead of the grip's), a check each
+    (``pliant.assembly.access``): red where no approach fits round the part."""
+    env = rules.access
+    if env is None or not run.equilibria:
+        return
+    from pliant.assembly.access import hand_access  # noqa: PLC0415
+
+    for g in grips:
+        steps = [hand_access(eq, eq.loads[g].s if at is None else at, env, settings.hold,
+                             hands) for eq in run.equilibria]
+        op.access[g] = steps
+        op.checks.append(access_check(g, steps, env, hands))
+
+
+def access_check(grip: str, steps: list[Any], env: Any, hands: int = 1) -> Check:
+    """The hand's access at ``grip`` along the path as a check, its worst step's best
+    approach and what bounds it in the note."""
+    values = [a.clearance for a in steps]
+    k = int(np.argmin(values))
+    worst = steps[k]
+    who = "two hands side by side" if hands == 2 else "the hand"
+    if worst.clearance < 0.0:
+        note = (f"no approach fits {who} and forearm round the part at s = {worst.s:.3g} m: "
+                f"the best, from {_direction(worst.approach)}, needs "
+                f"{-worst.clearance * 1e3:.0f} mm more room, bound by {worst.bound_by}")
+    else:
+        note = (f"best approach from {_direction(worst.approach)}, bound by "
+                f"{worst.bound_by}")
+    note += f"; envelope of a large hand (95th percentile man), {env.directions} approaches"
+    return series_check("access: hand", f"room for {who} at {grip}", "ergonomics", values,
+                        "m", "below", env.allowance if env.allowance > 0 else None, 0.0,
+                        env.sourced.source, env.sourced.provenance, grip=grip,
+                        where=[a.s for a in steps], note=note)
+
+
+def _direction(v: tuple[float, float, float]) -> str:
+    """A unit direction in words: the approach's, the side the forearm comes from."""
+    return "(" + ", ".join(f"{c:+.2f}" for c in v) + ")"
 
 
 def _tool_needed(rules: Rules, settings: EvaluationSettings, grips: tuple[str, ...],
@@ -953,6 +1011,10 @@ def _verdict(run: PathRun, checks: list[Check],
     reasons = [f"[{c.zone.value}] {c.sentence()}"
                for group in (checks, ops.checks if ops is not None else [])
                for c in worst_first(group) if c.zone in (Zone.RED, Zone.YELLOW)]
+    # why each operator tried before the one chosen is red: its worst item
+    if chosen is not None:
+        reasons += [f"[red] {o.operator}: {worst_first(o.checks)[0].sentence()}"
+                    for o in operators[:operators.index(chosen)] if o.checks]
     # No verdict rests on a fallback: a red item stands only where it is red at a step
     # that was solved as the system it is; otherwise the operation is undecided.
     held = set(held_rigid_steps(run))

@@ -97,6 +97,31 @@ class Packaging:
 
 
 @dataclass(frozen=True)
+class HandEnvelope:
+    """The space a fitter's hand and forearm take round a part they hold (the rules
+    table's ``[access]``; ``pliant.assembly.access`` checks it), sized for the large
+    hand that must fit: breadth across the knuckles and thickness at the metacarpals
+    [m] (a pinch: two fingertips' breadth and a finger's thickness), from the part's axis
+    to the wrist (``palm``) and on to the elbow (``forearm``) [m], the forearm's section
+    (breadth, thickness) [m] at the wrist and at the elbow, a glove's thickness [m],
+    the movement allowance [m] under which access is yellow, and the approach directions
+    tried round the part."""
+
+    breadth: float
+    thickness: float
+    pinch_breadth: float
+    pinch_thickness: float
+    palm: float
+    forearm: float
+    wrist: tuple[float, float]
+    elbow: tuple[float, float]
+    glove: float
+    allowance: float
+    directions: int
+    sourced: Sourced
+
+
+@dataclass(frozen=True)
 class Rules:
     """The whole table (see ``pliant/data/rules.toml`` for every field's meaning)."""
 
@@ -125,6 +150,7 @@ class Rules:
     packaging: Packaging
     stretch_margin: float = 1.25
     stretch: Sourced = Sourced("", "engineering choice")
+    access: HandEnvelope | None = None  # None: the hand's access is not checked
     origin: str = "bundled"
 
     def kind(self, name: str | None, field: str = "part.kind") -> PartKind | None:

@@ -50,6 +50,14 @@ class RatingModel(_Model):
     moment: float = Field(description="[N m]")
 
 
+class AccessModel(_Model):
+    clearance: float = Field(description="[m] the best approach's room; negative: none fits")
+    approach: list[float] = Field(description="(3,) the forearm's direction from the part")
+    bound_by: str = Field(description="what is nearest the best approach's envelope")
+    centre: list[float] = Field(description="(3,) [m] the hand's centre on the part")
+    s: float = Field(description="[m] the hand's centre's arc length")
+
+
 class OperatorModel(_Model):
     operator: str
     zone: Zone
@@ -61,6 +69,9 @@ class OperatorModel(_Model):
     rating: RatingModel | None
     solves: int
     checks: list[CheckModel]
+    access: dict[str, list[AccessModel]] = Field(
+        default_factory=dict, description="grip -> the hand's access at each step "
+        "(pliant.assembly.access)")
 
 
 class VerdictModel(_Model):

@@ -12,9 +12,9 @@ from importlib import resources
 from pathlib import Path
 from typing import Literal
 
-from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
+from pydantic import BaseModel, ConfigDict, Field, PositiveFloat, ValidationError, model_validator
 
-from pliant.core.rules import Capacity, Packaging, PartKind, Rules, Sourced
+from pliant.core.rules import Capacity, HandEnvelope, Packaging, PartKind, Rules, Sourced
 from pliant.errors import FileFormatError
 from pliant.io.tomlfile import field_path, read_toml
 
@@ -152,6 +152,38 @@ class PackagingModel(_Strict):
                          Sourced(self.edge_source, "guideline"))
 
 
+class AccessModel(_Strict):
+    breadth: float = Field(gt=0, description="[m] across the knuckles")
+    breadth_source: str = Field(min_length=1)
+    thickness: float = Field(gt=0, description="[m] at the metacarpals")
+    thickness_source: str = Field(min_length=1)
+    pinch_breadth: float = Field(gt=0, description="[m] two fingertips side by side")
+    pinch_thickness: float = Field(gt=0, description="[m] a finger's")
+    pinch_source: str = Field(min_length=1)
+    palm: float = Field(gt=0, description="[m] from the part's axis to the wrist")
+    forearm: float = Field(gt=0, description="[m] from the wrist to the elbow")
+    wrist: tuple[PositiveFloat, PositiveFloat] = Field(description="[m] (breadth, thickness)")
+    elbow: tuple[PositiveFloat, PositiveFloat] = Field(description="[m] (breadth, thickness)")
+    arm_source: str = Field(min_length=1)
+    glove: float = Field(ge=0, description="[m] a glove's thickness")
+    allowance: float = Field(ge=0, description="[m] yellow within it")
+    allowance_source: str = Field(min_length=1)
+    directions: int = Field(ge=4, le=360)
+    provenance: str = Field(min_length=1)
+
+    def build(self) -> HandEnvelope:
+        source = "; ".join([f"hand breadth {self.breadth * 1e3:g} mm: {self.breadth_source}",
+                            f"hand thickness {self.thickness * 1e3:g} mm: "
+                            f"{self.thickness_source}",
+                            f"pinch: {self.pinch_source}", f"forearm: {self.arm_source}",
+                            f"allowance {self.allowance * 1e3:g} mm: {self.allowance_source}"])
+        return HandEnvelope(self.breadth, self.thickness, self.pinch_breadth,
+                            self.pinch_thickness, self.palm, self.forearm,
+                            (self.wrist[0], self.wrist[1]), (self.elbow[0], self.elbow[1]),
+                            self.glove,
+                            self.allowance, self.directions, Sourced(source, self.provenance))
+
+
 _STRETCH = StretchModel(margin=1.25, source=(
     "the part's max_axial_strain (its datasheet or a pull test) is red; yellow within 80 % "
     "of it, an engineering choice for model and parameter uncertainty"))
@@ -169,6 +201,7 @@ class RulesFile(_Strict):
     twist: TwistModel
     stretch: StretchModel = _STRETCH  # optional: tables written before it still load
     packaging: PackagingModel | None = None  # optional: the bundled limits when left out
+    access: AccessModel | None = None  # optional: the bundled hand when left out
 
     @model_validator(mode="after")
     def _consistent(self) -> RulesFile:
@@ -213,6 +246,8 @@ class RulesFile(_Strict):
             stretch=Sourced(self.stretch.source, "engineering choice"),
             packaging=(bundled_rules().packaging if self.packaging is None
                        else self.packaging.build()),
+            access=(self.access.build() if self.access is not None
+                    else None if origin == "bundled rules" else bundled_rules().access),
             origin=origin)
 
 
