@@ -84,9 +84,8 @@ def stability() -> None:
     from pliant.models.lanczos import softest_mode
     from pliant.models.rod3d import RodSolver, kernels
     from pliant.models.rod3d.solver import Run
-    from pliant.models.rod3d.stability import _stability_arpack
+    from pliant.models.rod3d.stability import _stability_arpack, shift_bound
     from pliant.models.rod3d.stability import metric as _metric
-    from pliant.models.rod3d.stability import shift_bound
 
     scene = load_scene(SCENE)
     run = follow_path(scene.problem, scene.path, scene.grip, margin=scene.margin,

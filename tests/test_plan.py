@@ -274,3 +274,38 @@ def test_the_path_table_reads_back_whatever_the_grip_is_called(found):
     assert doc["path"]["grip"] == odd.grip
     assert doc["path"]["waypoints"] == [list(map(float, f"{x:.6g} {y:.6g} {z:.6g}".split()))
                                         for x, y, z in (p.position for p in result.poses)]
+
+
+@pytest.mark.parametrize(("gap", "blocked"), [(0.04, True), (0.2, False)])
+def test_the_planner_carries_the_hands_envelope_with_the_part(gap, blocked):
+    """A pose whose hand sits between two walls 40 mm apart (parallel to the part, the
+    part clear of both by more than the margin) is refused for want of room for the
+    hand, and one between walls wide enough for it is not."""
+    from pliant.assembly.plan import _Blocked
+    from pliant.models import rod3d
+    from pliant.scene.distance import Obstacle
+
+    scene = load_scene(EXAMPLE)
+    hand = scene.problem.condition("hand")
+    t = np.asarray(hand.tangent)
+    n = np.array([0.866025, 0.5, 0.0])  # horizontal, square to the part there
+    frame = np.column_stack([t, n, np.cross(t, n)])
+    walls = tuple(Obstacle.box(name, (0.4, 0.2, 0.4),
+                               np.asarray(hand.position) + side * (gap / 2 + 0.1) * n,
+                               frame) for name, side in (("left wall", 1), ("right wall", -1)))
+    problem = replace(scene.problem, obstacles=scene.problem.obstacles + walls)
+    scene = replace(scene, problem=problem)
+    if blocked:  # the start pose itself: refused before any search, saying why
+        with pytest.raises(InputError, match=r"no room for the hand \((left|right) wall\); "
+                           "move the grip's start where a hand fits"):
+            Planner(scene, PlanSettings()).tree("port")
+        return
+    tree = Planner(scene, PlanSettings()).tree("port")
+    eq = rod3d.solve(problem, solver=rod3d.RodSolver(elements=scene.solver.elements))
+    tree.check_step(eq)
+    narrow = replace(problem, obstacles=scene.problem.obstacles[:-2] + tuple(
+        replace(w, translation=w.translation - np.sign(w.translation @ n - hand.position @ n)
+                * (gap / 2 - 0.02) * n) for w in walls))
+    eq = rod3d.solve(narrow, solver=rod3d.RodSolver(elements=scene.solver.elements))
+    with pytest.raises(_Blocked, match=r"no room for the hand \((left|right) wall\)"):
+        tree.check_step(eq)

@@ -70,6 +70,7 @@ from typing import Any
 
 import numpy as np
 
+from pliant.assembly.access import hand_access
 from pliant.assembly.checks import tube_section
 from pliant.assembly.evaluate import (
     PENETRATION,
@@ -347,6 +348,12 @@ class _Tree:
             for name, f in eq.contacts.by_obstacle().items():
                 if float(np.linalg.norm(f)) > limit:
                     raise _Blocked(f"contact force from {name}")
+        # the hand moves with the part: its envelope must fit round it from some side
+        if self.rules.access is not None:
+            room = hand_access(eq, eq.loads[self.grip].s, self.rules.access,
+                               self.scene.evaluation.hold)
+            if room.clearance < 0.0:
+                raise _Blocked(f"no room for the hand ({room.bound_by})")
 
     def _solve(self, problem: Problem, eq: Equilibrium3D) -> Equilibrium3D:
         """One step, followed from ``eq`` only: where its branch ends, the part would
@@ -510,9 +517,11 @@ class Planner:
                 if eq.stable is False:
                     raise _Blocked("it is unstable: the part would not stay in it")
             except _Blocked as why:
+                fix = ("move the grip's start where a hand fits round the part"
+                       if why.reason.startswith("no room for the hand") else
+                       "move the grip's start, or plan with allow_contact (--allow-contact)")
                 raise InputError("plan", f"the start pose is not acceptable: {why.reason}; "
-                                 "move the grip's start, or plan with allow_contact "
-                                 "(--allow-contact)") from None
+                                 f"{fix}") from None
             self._start_eq = eq
         tree.root = _Node(start, self._start_eq, tree.demand(self._start_eq))
         tree.nodes[_key((*start.position, 0.0, 0.0))] = tree.root
