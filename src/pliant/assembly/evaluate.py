@@ -306,6 +306,8 @@ class OperatorResult:
     solves: int = 0
     # each hand's access along the path, by grip (``pliant.assembly.access.Access``)
     access: dict[str, list[Any]] = field(default_factory=dict)
+    # the worker's reach to each grip along the path (``pliant.assembly.posture.Reach``)
+    reach: dict[str, list[Any]] = field(default_factory=dict)
 
     @property
     def zone(self) -> Zone:
@@ -324,7 +326,8 @@ class OperatorResult:
                                                             "moment": self.rating[1]},
                 "solves": self.solves, "checks": [c.to_dict() for c in self.checks],
                 "access": {g: [a.to_dict() for a in steps]
-                           for g, steps in self.access.items()}}
+                           for g, steps in self.access.items()},
+                "reach": {g: [r.to_dict() for r in steps] for g, steps in self.reach.items()}}
 
 
 @dataclass
@@ -874,6 +877,7 @@ def _operators(scene: Any, run: PathRun, rules: Rules, settings: EvaluationSetti
         one = OperatorResult("one hand", checks, "one hand" if len(grips) == 1 else
                              "one hand at each of " + ", ".join(grips))
         _with_access(one, run, rules, settings, grips)
+        _with_reach(one, run, rules, scene, grips)
         out.append(one)
     if wanted == "two hands" or (wanted == "auto" and out[0].zone == Zone.RED):
         out += _two_hands(scene, run, rules, settings, grips, grip_steps, elements, search)
@@ -928,6 +932,7 @@ def _two_hands(scene: Any, run: PathRun, rules: Rules, settings: EvaluationSetti
     out = [OperatorResult("two hands side by side", checks,
                           "two hands side by side at " + ", ".join(grips))]
     _with_access(out[0], run, rules, settings, grips, hands=2)
+    _with_reach(out[0], run, rules, scene, grips)
     # Side by side passes: no need to look for where else the second hand could go.
     if len(grips) == 1 and search and not out[0].passes:
         placed = place_second_hand(scene, run, rules, settings, grips[0], grip_steps[grips[0]],
@@ -937,6 +942,7 @@ def _two_hands(scene: Any, run: PathRun, rules: Rules, settings: EvaluationSetti
             if placed.second_hand_s is not None:
                 _with_access(placed, run, rules, settings, (SECOND_HAND,),
                              at=placed.second_hand_s)
+            _with_reach(placed, run, rules, scene, grips, second=placed.second_hand_s)
             out.append(placed)
     return out
 
@@ -960,6 +966,68 @@ def _with_access(op: OperatorResult, run: PathRun, rules: Rules,
                              hands) for eq in run.equilibria]
         op.access[g] = steps
         op.checks.append(access_check(g, steps, env, hands))
+
+
+def _with_reach(op: OperatorResult, run: PathRun, rules: Rules, scene: Any,
+                grips: tuple[str, ...], second: float | None = None) -> None:
+    """Add to ``op`` the scene's worker's reach to each hand's grip along the path
+    (``second``: the placed second hand's arc length [m], the other arm), with its
+    trunk bend and upper-arm elevation, a check each (``pliant.assembly.posture``)."""
+    worker = getattr(scene, "worker", None)
+    if worker is None or rules.body is None or rules.posture is None or not run.equilibria:
+        return
+    from pliant.assembly.posture import Figure, up_of  # noqa: PLC0415
+
+    figure = Figure(worker, rules.body, up_of(scene.problem))
+    eqs = run.equilibria
+
+    def point(eq: Any, s: float) -> np.ndarray:
+        return eq.position[int(np.argmin(np.abs(eq.s - s)))]
+
+    spots = [(g, [point(eq, eq.loads[g].s) for eq in eqs]) for g in grips]
+    if second is not None:
+        spots.append((SECOND_HAND, [point(eq, second) for eq in eqs]))
+    other = "left" if worker.side == "right" else "right"
+    sides = [worker.side] * len(spots)
+    if len(spots) == 2:  # each hand takes the grip on its side, at the start
+        right = np.cross(figure.facing, figure.up)
+        first_right = (spots[0][1][0] - spots[1][1][0]) @ right >= 0.0
+        sides = ["right", "left"] if first_right else ["left", "right"]
+    elif len(spots) > 2:
+        sides = [worker.side] + [other] * (len(spots) - 1)
+    for (g, points), side in zip(spots, sides):
+        steps = [figure.reach(p, side) for p in points]
+        op.reach[g] = steps
+        op.checks += reach_checks(g, steps, rules, figure)
+
+
+def reach_checks(grip: str, steps: list[Any], rules: Rules, figure: Any) -> list[Check]:
+    """The worker's reach to ``grip`` along the path as three checks: the grip beyond
+    the arm's reach (red: out of reach even bent 90 degrees, by how much), the trunk
+    bend it takes and the upper arm's elevation (the ``[posture]`` zones)."""
+    assert rules.body is not None and rules.posture is not None
+    w = figure.worker
+    who = (f"a {w.percentile:g}th percentile {'man' if w.sex == 'men' else 'woman'} "
+           f"({rules.body.population}), {w.posture}")
+    side = steps[0].side
+    worst = max(steps, key=lambda r: r.excess)
+    bent = max(r.trunk for r in steps)
+    note = f"{who}, {side} hand: arm's reach {worst.arm * 1e3:.0f} mm; " + (
+        f"out of reach by {worst.excess * 1e3:.0f} mm even bent {worst.trunk:.0f} deg"
+        if worst.excess > 0 else f"reached with the trunk bent up to {bent:.0f} deg"
+        if bent > 0 else f"{-worst.excess * 1e3:.0f} mm to spare at its farthest")
+    body, zones = rules.body.sourced, rules.posture
+    out = [series_check("reach", f"the grip beyond the {side} arm's reach at {grip}",
+                        "ergonomics", [r.excess for r in steps], "m", "above", None, 0.0,
+                        body.source, body.provenance, grip=grip, note=note)]
+    for what, key, limits in (("trunk bend", "trunk", zones.trunk),
+                              ("upper-arm elevation", "upper_arm", zones.upper_arm)):
+        values = [getattr(r, key) for r in steps]
+        out.append(series_check(
+            f"posture: {key}", f"{what} to reach {grip} ({side} hand)", "ergonomics",
+            values, "deg", "above", limits[0], limits[1], zones.sourced.source,
+            zones.sourced.provenance, grip=grip, note=who))
+    return out
 
 
 def access_check(grip: str, steps: list[Any], env: Any, hands: int = 1) -> Check:

@@ -122,6 +122,35 @@ class HandEnvelope:
 
 
 @dataclass(frozen=True)
+class Body:
+    """A population's body sizes (the rules table's ``[body]``): stature and
+    shoulder-grip length (acromion to the centre of a gripped rod, arm straight) as
+    (mean, SD) [m] per sex, and the heights and lengths the reach model needs as
+    fractions of stature (shoulder, hip, knee, shoulder breadth, upper arm)."""
+
+    population: str
+    stature: dict[str, tuple[float, float]]
+    shoulder_grip: dict[str, tuple[float, float]]
+    shoulder_height: float
+    hip_height: float
+    knee_height: float
+    shoulder_breadth: float
+    upper_arm: float
+    sourced: Sourced
+
+
+@dataclass(frozen=True)
+class PostureZones:
+    """Where a held posture turns yellow and red (the rules table's ``[posture]``):
+    upper-arm elevation and trunk inclination [deg] (yellow above the first, red above
+    the second)."""
+
+    upper_arm: tuple[float, float]
+    trunk: tuple[float, float]
+    sourced: Sourced
+
+
+@dataclass(frozen=True)
 class Rules:
     """The whole table (see ``pliant/data/rules.toml`` for every field's meaning)."""
 
@@ -151,6 +180,8 @@ class Rules:
     stretch_margin: float = 1.25
     stretch: Sourced = Sourced("", "engineering choice")
     access: HandEnvelope | None = None  # None: the hand's access is not checked
+    body: Body | None = None  # None: no reach or posture is judged
+    posture: PostureZones | None = None
     origin: str = "bundled"
 
     def kind(self, name: str | None, field: str = "part.kind") -> PartKind | None:

@@ -58,6 +58,17 @@ class AccessModel(_Model):
     s: float = Field(description="[m] the hand's centre's arc length")
 
 
+class ReachModel(_Model):
+    excess: float = Field(description="[m] beyond the arm's reach; negative: within it")
+    trunk: float = Field(description="[deg] the trunk bend it takes")
+    upper_arm: float = Field(description="[deg] the upper arm's elevation from hanging")
+    distance: float = Field(description="[m] shoulder to grip")
+    arm: float = Field(description="[m] the arm's reach")
+    shoulder: list[float] = Field(description="(3,) [m]")
+    elbow: list[float] = Field(description="(3,) [m]")
+    side: Literal["right", "left"]
+
+
 class OperatorModel(_Model):
     operator: str
     zone: Zone
@@ -72,6 +83,9 @@ class OperatorModel(_Model):
     access: dict[str, list[AccessModel]] = Field(
         default_factory=dict, description="grip -> the hand's access at each step "
         "(pliant.assembly.access)")
+    reach: dict[str, list[ReachModel]] = Field(
+        default_factory=dict, description="grip -> the worker's reach to it at each step "
+        "(pliant.assembly.posture), where the scene has a [worker]")
 
 
 class VerdictModel(_Model):

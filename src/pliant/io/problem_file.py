@@ -34,6 +34,7 @@ from pliant.core.part import Material, Part
 from pliant.core.planning import PathSpec, PlanSettings
 from pliant.core.problem import Problem
 from pliant.core.rules import EvaluationSettings, ObstacleRule
+from pliant.core.worker import Worker
 from pliant.errors import FileFormatError, InputError, PliantError
 from pliant.io.problem_dump import dump_problem as dump_problem
 from pliant.io.problem_dump import with_path_table as with_path_table
@@ -49,6 +50,7 @@ from pliant.io.scene_sections import (
     PortModel,
     RatingModel,
     SettleFitted,
+    WorkerModel,
     _end_face_centre,
     _given,
     _solid_vertices,
@@ -412,6 +414,7 @@ class ProblemFile(_Strict):
                               "the numbers in this file stay SI")
     evaluation: EvaluationModel = Field(default_factory=EvaluationModel)
     plan: PlanModel = Field(default_factory=PlanModel)
+    worker: WorkerModel | None = None
 
     @property
     def dimension(self) -> int:
@@ -539,6 +542,7 @@ class Scene:
     hands: tuple[str, ...] = ()  # the conditions a hand holds (``hand = true``)
     # What a packaging engineer says of each obstacle, by name (those that say anything)
     obstacle_rules: dict[str, ObstacleRule] = field(default_factory=dict)
+    worker: Worker | None = None  # who does it and where they stand ([worker])
 
 
 # Part kinds whose bending stiffness a solid section of their material does not give.
@@ -577,7 +581,7 @@ def _unknown_key(loc: tuple) -> str:
         "assembled": AssembledModel, "port": PortModel, "clip": ClipModel,
         "junction": JunctionModel, "junction.branch": BranchModel,
         "path": PathModel, "evaluation": EvaluationModel, "solver": SolverModel,
-        "plan": PlanModel, "part.material": MaterialModel,
+        "plan": PlanModel, "part.material": MaterialModel, "worker": WorkerModel,
         "evaluation.rating": RatingModel}
     table = ".".join(names[:-1])
     model = tables.get(table, ProblemFile if not table else None)
@@ -641,7 +645,8 @@ def scene_from_data(data: dict[str, Any], source: str = "<data>", base: Path | N
                      model.path.build() if model.path is not None else None,
                      tuple(c.name or f"condition{i + 1}" for i, c in enumerate(model.condition)
                            if c.hand),
-                     {k: r for k, r in model._rules.items() if r != ObstacleRule()})
+                     {k: r for k, r in model._rules.items() if r != ObstacleRule()},
+                     None if model.worker is None else model.worker.build())
     except PliantError as err:
         raise FileFormatError(f"{source}: {err}") from None
 

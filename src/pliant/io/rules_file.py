@@ -14,7 +14,16 @@ from typing import Literal
 
 from pydantic import BaseModel, ConfigDict, Field, PositiveFloat, ValidationError, model_validator
 
-from pliant.core.rules import Capacity, HandEnvelope, Packaging, PartKind, Rules, Sourced
+from pliant.core.rules import (
+    Body,
+    Capacity,
+    HandEnvelope,
+    Packaging,
+    PartKind,
+    PostureZones,
+    Rules,
+    Sourced,
+)
 from pliant.errors import FileFormatError
 from pliant.io.tomlfile import field_path, read_toml
 
@@ -184,6 +193,58 @@ class AccessModel(_Strict):
                             self.allowance, self.directions, Sourced(source, self.provenance))
 
 
+Pair = tuple[PositiveFloat, PositiveFloat]
+
+
+class BodyModel(_Strict):
+    population: str = Field(min_length=1)
+    stature_men: Pair = Field(description="[m] (mean, SD)")
+    stature_women: Pair = Field(description="[m] (mean, SD)")
+    shoulder_grip_men: Pair = Field(description="[m] (mean, SD)")
+    shoulder_grip_women: Pair = Field(description="[m] (mean, SD)")
+    source: str = Field(min_length=1)
+    shoulder_height: float = Field(gt=0, lt=1, description="of stature")
+    hip_height: float = Field(gt=0, lt=1, description="of stature")
+    knee_height: float = Field(gt=0, lt=1, description="of stature")
+    shoulder_breadth: float = Field(gt=0, lt=1, description="of stature")
+    upper_arm: float = Field(gt=0, lt=1, description="of stature")
+    proportions_source: str = Field(min_length=1)
+
+    @model_validator(mode="after")
+    def _ordered(self) -> BodyModel:
+        if not self.knee_height < self.hip_height < self.shoulder_height:
+            raise ValueError("knee_height < hip_height < shoulder_height (of stature)")
+        return self
+
+    def build(self) -> Body:
+        return Body(self.population,
+                    {"men": self.stature_men, "women": self.stature_women},
+                    {"men": self.shoulder_grip_men, "women": self.shoulder_grip_women},
+                    self.shoulder_height, self.hip_height, self.knee_height,
+                    self.shoulder_breadth, self.upper_arm,
+                    Sourced(f"{self.source}; {self.proportions_source}", "published table"))
+
+
+class PostureModel(_Strict):
+    upper_arm: Pair = Field(description="[deg] yellow above, red above")
+    trunk: Pair = Field(description="[deg] yellow above, red above")
+    source: str = Field(min_length=1)
+    provenance: str = Field(min_length=1)
+
+    @model_validator(mode="after")
+    def _ordered(self) -> PostureModel:
+        for name in ("upper_arm", "trunk"):
+            low, high = getattr(self, name)
+            if low >= high:
+                raise ValueError(f"{name}: the yellow onset must be below the red one")
+        return self
+
+    def build(self) -> PostureZones:
+        return PostureZones((self.upper_arm[0], self.upper_arm[1]),
+                            (self.trunk[0], self.trunk[1]),
+                            Sourced(self.source, self.provenance))
+
+
 _STRETCH = StretchModel(margin=1.25, source=(
     "the part's max_axial_strain (its datasheet or a pull test) is red; yellow within 80 % "
     "of it, an engineering choice for model and parameter uncertainty"))
@@ -202,6 +263,8 @@ class RulesFile(_Strict):
     stretch: StretchModel = _STRETCH  # optional: tables written before it still load
     packaging: PackagingModel | None = None  # optional: the bundled limits when left out
     access: AccessModel | None = None  # optional: the bundled hand when left out
+    body: BodyModel | None = None  # optional: the bundled population when left out
+    posture: PostureModel | None = None  # optional: the bundled zones when left out
 
     @model_validator(mode="after")
     def _consistent(self) -> RulesFile:
@@ -248,6 +311,10 @@ class RulesFile(_Strict):
                        else self.packaging.build()),
             access=(self.access.build() if self.access is not None
                     else None if origin == "bundled rules" else bundled_rules().access),
+            body=(self.body.build() if self.body is not None
+                  else None if origin == "bundled rules" else bundled_rules().body),
+            posture=(self.posture.build() if self.posture is not None
+                     else None if origin == "bundled rules" else bundled_rules().posture),
             origin=origin)
 
 

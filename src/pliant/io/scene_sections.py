@@ -17,6 +17,7 @@ from pliant.core.numbers import triple
 from pliant.core.planning import PathSpec, PlanSettings
 from pliant.core.problem import Problem
 from pliant.core.rules import EvaluationSettings
+from pliant.core.worker import Worker
 from pliant.errors import InputError, PliantError
 from pliant.io.sections import PackagingFields, Vec3, _referenced, _Strict
 from pliant.util import progress
@@ -345,6 +346,21 @@ class EvaluationModel(_Strict):
             rating_moment=self.rating.moment if self.rating else None, port=self.port,
             connector_force=self.connector_force, max_twist_rate=self.max_twist_rate,
             max_contact_force=self.max_contact_force, rules=rules)
+
+
+class WorkerModel(_Strict):
+    """[worker]: who does the operation and where (see ``pliant.core.worker.Worker``)."""
+
+    position: Vec3 = Field(description="[m] on the floor, between the feet")
+    facing: Vec3 = (1.0, 0.0, 0.0)
+    posture: Literal["standing", "kneeling"] = "standing"
+    sex: Literal["men", "women"] = "women"
+    percentile: float = Field(5.0, ge=1, le=99, description="of stature and reach")
+    side: Literal["right", "left"] = "right"
+
+    def build(self) -> Worker:
+        return Worker(triple(self.position), triple(self.facing), self.posture, self.sex,
+                      self.percentile, self.side)
 
 
 class PlanModel(_Strict):

@@ -1,0 +1,154 @@
+"""Reach and posture: whether the scene's worker (``[worker]``) can reach each grip from
+where they stand, how far they must bend the trunk to, and how high the upper arm is
+raised; each judged by the rules table's ``[posture]`` zones (ISO 11226).
+
+The body is a stick figure sized from the rules table's ``[body]``: stature and
+shoulder-grip length (the arm's reach to the centre of a gripped rod, straight) at the
+worker's percentile of their sex's table, the shoulder, hip and knee heights, the
+shoulder breadth and the upper arm as fractions of stature (Drillis and Contini). The
+worker stands where ``[worker]`` puts them, facing its way; the trunk pivots forward at
+the hip, the shoulders square to the facing (a grip to the side is that much farther:
+turning or side-bending is not modelled); kneeling lowers hip and shoulder by the knee
+height. The trunk bend is the least that
+brings the grip within the arm's reach (none where it already is; a grip out of reach
+even bent 90 degrees is red, by how much). The arm is two segments, shoulder to elbow
+and elbow to grip, with the elbow as low as it can hang (the comfortable choice a
+planner of postures makes first); the upper-arm elevation is the angle of shoulder to
+elbow from hanging straight down.
+
+Not modelled: stepping, turning or leaning on something, the trunk's twist and side
+bend, the wrist's angles, and capacities scaled by posture.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from statistics import NormalDist
+from typing import Any
+
+import numpy as np
+
+from pliant.core.rules import Body
+from pliant.core.worker import Worker
+from pliant.errors import InputError
+
+BEND_STEP = 0.5  # deg: the trunk bends tried, before bisection
+MOST_BEND = 90.0  # deg
+
+
+@dataclass(frozen=True)
+class Reach:
+    """One hand at one step: how far beyond the arm's reach the grip is at the trunk bend
+    found (negative: within it by that much) [m], that bend and the upper-arm elevation
+    [deg], the shoulder-to-grip distance and the arm's reach [m], and where the shoulder
+    and elbow are (global frame) [m]."""
+
+    excess: float
+    trunk: float
+    upper_arm: float
+    distance: float
+    arm: float
+    shoulder: tuple[float, float, float]
+    elbow: tuple[float, float, float]
+    side: str
+
+    def to_dict(self) -> dict[str, Any]:
+        return {"excess": self.excess, "trunk": self.trunk, "upper_arm": self.upper_arm,
+                "distance": self.distance, "arm": self.arm, "shoulder": list(self.shoulder),
+                "elbow": list(self.elbow), "side": self.side}
+
+
+class Figure:
+    """The worker's stick figure: where the hip is, how long the trunk and the arm are,
+    which way is up, forward and right."""
+
+    def __init__(self, worker: Worker, body: Body, up: np.ndarray) -> None:
+        z = NormalDist().inv_cdf(worker.percentile / 100.0)
+        mean, sd = body.stature[worker.sex]
+        self.stature = mean + z * sd
+        mean, sd = body.shoulder_grip[worker.sex]
+        self.arm = mean + z * sd
+        self.upper = body.upper_arm * self.stature
+        self.up = up / np.linalg.norm(up)
+        facing = np.asarray(worker.facing, float)
+        facing = facing - (facing @ self.up) * self.up
+        if np.linalg.norm(facing) < 1e-9:
+            raise InputError("worker.facing", "give the direction the worker faces, not "
+                             "straight up or down")
+        self.facing = facing / np.linalg.norm(facing)
+        drop = body.knee_height * self.stature if worker.posture == "kneeling" else 0.0
+        self.hip = (np.asarray(worker.position, float)
+                    + (body.hip_height * self.stature - drop) * self.up)
+        self.trunk = (body.shoulder_height - body.hip_height) * self.stature
+        self.half_breadth = 0.5 * body.shoulder_breadth * self.stature
+        self.worker = worker
+
+    def shoulder(self, side: str, bend: float) -> np.ndarray:
+        """The shoulder ``side`` with the trunk bent forward ``bend`` [deg]."""
+        b = math.radians(bend)
+        right = np.cross(self.facing, self.up)
+        lateral = self.half_breadth * (1.0 if side == "right" else -1.0)
+        return (self.hip + self.trunk * (math.cos(b) * self.up + math.sin(b) * self.facing)
+                + lateral * right)
+
+    def reach(self, hand, side: str) -> Reach:
+        """The least trunk bend that brings ``hand`` [m] within the arm's reach, and the
+        arm's posture there (see the module)."""
+        hand = np.asarray(hand, float)
+
+        def gap(bend: float) -> float:
+            return float(np.linalg.norm(hand - self.shoulder(side, bend))) - self.arm
+
+        bends = np.arange(0.0, MOST_BEND + BEND_STEP / 2, BEND_STEP)
+        gaps = np.array([gap(b) for b in bends])
+        inside = np.nonzero(gaps <= 0.0)[0]
+        if inside.size == 0:
+            bend = float(bends[int(np.argmin(gaps))])
+        elif inside[0] == 0:
+            bend = 0.0
+        else:
+            lo, hi = float(bends[inside[0] - 1]), float(bends[inside[0]])
+            for _ in range(40):  # bisection to a hair of a degree
+                mid = 0.5 * (lo + hi)
+                lo, hi = (lo, mid) if gap(mid) <= 0.0 else (mid, hi)
+            bend = hi
+        shoulder = self.shoulder(side, bend)
+        elbow = self.elbow(shoulder, hand)
+        down = -self.up
+        arm_dir = (elbow - shoulder) / np.linalg.norm(elbow - shoulder)
+        elevation = math.degrees(math.acos(max(-1.0, min(1.0, float(arm_dir @ down)))))
+        distance = float(np.linalg.norm(hand - shoulder))
+        return Reach(distance - self.arm, bend, elevation, distance, self.arm,
+                     _triple(shoulder), _triple(elbow), side)
+
+    def elbow(self, shoulder: np.ndarray, hand: np.ndarray) -> np.ndarray:
+        """The elbow as low as it can hang with the upper arm from ``shoulder`` and the
+        forearm to ``hand`` (the arm straight towards the hand where it does not reach)."""
+        a, b = self.upper, self.arm - self.upper
+        along = hand - shoulder
+        d = float(np.linalg.norm(along))
+        if d < 1e-9:
+            return shoulder - a * self.up
+        u = along / d
+        if d >= a + b or d <= abs(a - b):
+            return shoulder + a * u
+        x = (a * a - b * b + d * d) / (2.0 * d)
+        rho = math.sqrt(max(a * a - x * x, 0.0))
+        down = -self.up - float(-self.up @ u) * u
+        n = np.linalg.norm(down)
+        w = down / n if n > 1e-9 else np.cross(u, self.facing) / max(
+            np.linalg.norm(np.cross(u, self.facing)), 1e-12)
+        return shoulder + x * u + rho * w
+
+
+def up_of(problem: Any) -> np.ndarray:
+    """Up: against gravity where the problem has it, else +z."""
+    g = np.asarray(getattr(problem, "gravity", None) or (0.0, 0.0, 0.0), float)
+    if g.shape == (3,) and np.linalg.norm(g) > 0:
+        return -g / np.linalg.norm(g)
+    return np.array([0.0, 0.0, 1.0])
+
+
+def _triple(v: np.ndarray) -> tuple[float, float, float]:
+    return float(v[0]), float(v[1]), float(v[2])

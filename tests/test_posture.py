@@ -1,0 +1,186 @@
+"""Reach and posture (issue 56, item 3): the worker's stick figure against closed forms
+(the arm's reach at a percentile of the cited table, the least trunk bend that brings a
+grip within reach, the elbow's lowest place), and through the evaluation (a grip out of
+reach is red and says by how much, each hand its own arm, the JSON, a bad [worker])."""
+
+from __future__ import annotations
+
+import json
+import math
+from dataclasses import replace
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from pliant.assembly.checks import Zone
+from pliant.assembly.evaluate import evaluate
+from pliant.assembly.posture import Figure
+from pliant.assembly.scenes import load_scene, parse_scene
+from pliant.core.worker import Worker
+from pliant.errors import FileFormatError, InputError
+from pliant.io.evaluation_file import EvaluationReport
+from pliant.io.rules_file import bundled_rules
+
+BODY = bundled_rules().body
+UP = np.array([0.0, 0.0, 1.0])
+EXAMPLES = Path(__file__).resolve().parents[1] / "examples"
+
+
+def figure(**kw) -> Figure:
+    return Figure(Worker((0.0, 0.0, 0.0), (1.0, 0.0, 0.0), **kw), BODY, UP)
+
+
+@pytest.mark.parametrize(("sex", "percentile", "table"), [
+    ("men", 5, 0.610), ("men", 50, 0.665), ("men", 95, 0.715), ("women", 5, 0.555),
+    ("women", 50, 0.600)])
+def test_the_arm_reach_is_the_cited_tables_percentile(sex, percentile, table):
+    """Bodyspace's shoulder-grip length (British adults 19 to 65): the figure's arm at a
+    percentile (mean + z SD) is the table's value there, to the table's own rounding:
+    its percentiles and mean to 5 mm (2.5 mm each) and its SD to 1 mm (times z = 1.645:
+    0.8 mm), 5.8 mm at most."""
+    assert figure(sex=sex, percentile=percentile).arm == pytest.approx(table, abs=0.0058)
+
+
+def test_a_grip_within_reach_ahead_of_the_shoulder_needs_no_bend_and_the_elbow_hangs():
+    """Straight ahead of the right shoulder at its height, nearer than the arm's reach:
+    upright, and the upper arm's elevation is that of the elbow's lowest place on its
+    circle: atan(x / rho), x = (a^2 - b^2 + d^2) / 2d along the reach, rho across."""
+    f = figure()
+    right = np.cross(f.facing, f.up)
+    shoulder = f.hip + f.trunk * UP + f.half_breadth * right
+    d = 0.8 * f.arm
+    got = f.reach(shoulder + d * f.facing, "right")
+    a, b = f.upper, f.arm - f.upper
+    x = (a * a - b * b + d * d) / (2 * d)
+    assert got.trunk == 0.0
+    assert got.excess == pytest.approx(d - f.arm, abs=1e-12)
+    assert got.upper_arm == pytest.approx(math.degrees(math.atan2(x, math.sqrt(a * a - x * x))),
+                                          abs=1e-9)
+    assert np.linalg.norm(np.subtract(got.elbow, got.shoulder)) == pytest.approx(a)
+    assert np.linalg.norm(shoulder + d * f.facing - got.elbow) == pytest.approx(b)
+
+
+@pytest.mark.parametrize("posture", ["standing", "kneeling"])
+def test_the_least_trunk_bend_that_reaches_is_the_closed_form(posture):
+    """A grip at hip height straight ahead of the hip, x from it: bent theta forward, the
+    right shoulder is at (T sin theta, h, T cos theta) from the hip, so it reaches where
+    x^2 - 2 x T sin theta + T^2 + h^2 = L^2."""
+    f = figure(posture=posture)
+    T, h, L = f.trunk, f.half_breadth, f.arm
+    x = 0.9
+    got = f.reach(f.hip + x * f.facing, "right")
+    expected = math.degrees(math.asin((x * x + T * T + h * h - L * L) / (2 * x * T)))
+    assert got.trunk == pytest.approx(expected, abs=1e-6)
+    assert got.excess == pytest.approx(0.0, abs=1e-9)
+    stature = BODY.stature["women"][0] - 1.6448536 * BODY.stature["women"][1]
+    drop = BODY.knee_height * stature if posture == "kneeling" else 0.0
+    assert f.hip[2] == pytest.approx(BODY.hip_height * stature - drop, abs=1e-6)
+
+
+def test_out_of_reach_even_bent_over_by_the_closed_form():
+    f = figure()
+    x = f.trunk + f.arm + 0.25
+    got = f.reach(f.hip + x * f.facing, "right")
+    assert got.trunk == 90.0
+    assert got.excess == pytest.approx(math.hypot(x - f.trunk, f.half_breadth) - f.arm,
+                                       abs=1e-9)
+
+
+def test_a_larger_worker_reaches_farther():
+    hand = figure().hip + np.array([0.95, 0.0, 0.1])
+    small = figure(sex="women", percentile=5).reach(hand, "right")
+    large = figure(sex="men", percentile=95).reach(hand, "right")
+    assert large.trunk < small.trunk
+
+
+# -- through the evaluation -----------------------------------------------------------------
+SCENE = """
+name = "a hose held by one hand, a worker in front"
+gravity = [0.0, 0.0, -9.81]
+[part]
+name = "hose"
+length = 0.6
+outer_diameter = 0.016
+inner_diameter = 0.010
+min_bend_radius = 0.05
+[part.material]
+name = "EPDM"
+youngs_modulus = 8.0e6
+density = 1150.0
+poisson_ratio = 0.49
+[[condition]]
+name = "hand"
+hand = true
+s = 0.3
+x = 0.0
+y = 0.0
+z = 1.0
+tangent = [0.0, 1.0, 0.0]
+normal = [0.0, 0.0, 1.0]
+[worker]
+position = [{x}, 0.0, 0.0]
+facing = [-1.0, 0.0, 0.0]
+{more}
+"""
+
+
+def _reach(result, operator="one hand"):
+    op = next(o for o in result.operators if o.operator == operator)
+    return {c.rule: c for c in op.checks}, op
+
+
+def test_a_grip_out_of_reach_is_red_and_says_by_how_much():
+    far = 2.0
+    result = evaluate(parse_scene(SCENE.format(x=far, more="")), search=False)
+    checks, op = _reach(result)
+    reach = checks["reach"]
+    assert reach.zone is Zone.RED
+    got = op.reach["hand"][0]
+    # nearest with the trunk pointing at the grip: the shoulder T from the hip towards
+    # it, the right shoulder h aside (the grip is in the worker's mid-plane)
+    f = Figure(Worker((far, 0.0, 0.0), (-1.0, 0.0, 0.0)), BODY, UP)
+    rise, x = 1.0 - f.hip[2], far
+    assert got.trunk == pytest.approx(math.degrees(math.atan2(x, rise)), abs=0.5)
+    expected = math.hypot(math.hypot(x, rise) - f.trunk, f.half_breadth) - f.arm
+    assert got.excess == pytest.approx(expected, abs=1e-4)
+    assert f"out of reach by {got.excess * 1e3:.0f} mm" in reach.note
+    assert "5th percentile woman" in reach.note
+    assert reach.source == BODY.sourced.source
+    assert result.verdict.operator not in ("one hand", "two hands side by side")
+    data = json.loads(json.dumps(result.to_dict()))
+    EvaluationReport.model_validate(data)
+    assert data["operators"][0]["reach"]["hand"][0]["excess"] == pytest.approx(got.excess)
+
+
+def test_a_grip_at_chest_height_in_front_is_green():
+    result = evaluate(parse_scene(SCENE.format(x=0.35, more="")), search=False)
+    checks, op = _reach(result)
+    assert checks["reach"].zone is Zone.GREEN
+    assert checks["posture: trunk"].value == 0.0
+    assert checks["posture: upper_arm"].zone in (Zone.GREEN, Zone.YELLOW)
+    # kneeling, the same grip is higher above the shoulder: the arm rises
+    kneeling = evaluate(parse_scene(SCENE.format(x=0.35, more='posture = "kneeling"')),
+                        search=False)
+    assert (_reach(kneeling)[1].reach["hand"][0].upper_arm
+            > op.reach["hand"][0].upper_arm)
+
+
+def test_two_grips_each_take_the_arm_on_their_side():
+    scene = load_scene(EXAMPLES / "hoses" / "two_hands.toml")
+    # the worker faces -y from y = 0.8: +x is their left
+    worker = Worker((0.35, 0.8, -0.9), (0.0, -1.0, 0.0), sex="men", percentile=50)
+    result = evaluate(replace(scene, worker=worker), search=False)
+    op = result.operators[0]
+    assert op.reach["left hand"][0].side == "right"  # at x = 0.15: the worker's right
+    assert op.reach["right hand"][0].side == "left"
+
+
+def test_a_bad_worker_is_refused_naming_the_field():
+    with pytest.raises(FileFormatError, match=r"worker\.posture"):
+        parse_scene(SCENE.format(x=1.0, more='posture = "crouching"'))
+    with pytest.raises(FileFormatError, match=r"worker\.percentile"):
+        parse_scene(SCENE.format(x=1.0, more="percentile = 100"))
+    with pytest.raises(InputError, match=r"worker\.facing"):
+        evaluate(parse_scene(SCENE.format(x=1.0, more="").replace(
+            "facing = [-1.0, 0.0, 0.0]", "facing = [0.0, 0.0, 1.0]")), search=False)
