@@ -996,7 +996,7 @@ def _with_reach(op: OperatorResult, run: PathRun, rules: Rules, scene: Any,
     elif len(spots) > 2:
         sides = [worker.side] + [other] * (len(spots) - 1)
     for (g, points), side in zip(spots, sides):
-        steps = [figure.reach(p, side) for p in points]
+        steps = [figure.reach(p, side, rules.posture) for p in points]
         op.reach[g] = steps
         op.checks += reach_checks(g, steps, rules, figure)
 

@@ -9,9 +9,11 @@ shoulder breadth and the upper arm as fractions of stature (Drillis and Contini)
 worker stands where ``[worker]`` puts them, facing its way; the trunk pivots forward at
 the hip, the shoulders square to the facing (a grip to the side is that much farther:
 turning or side-bending is not modelled); kneeling lowers hip and shoulder by the knee
-height. The trunk bend is the least that
-brings the grip within the arm's reach (none where it already is; a grip out of reach
-even bent 90 degrees is red, by how much). The arm is two segments, shoulder to elbow
+height. The trunk bends at least as far as brings the grip within the arm's reach (none
+where it already is; a grip out of reach even bent 90 degrees is red, by how much), and
+further where that lowers the arm enough: the bend kept is the one whose worse of trunk
+bend and upper-arm elevation, each over its red onset, is smallest (on a 0.5 degree
+grid): the posture least at risk by the zones it is judged by. The arm is two segments, shoulder to elbow
 and elbow to grip, with the elbow as low as it can hang (the comfortable choice a
 planner of postures makes first); the upper-arm elevation is the angle of shoulder to
 elbow from hanging straight down.
@@ -29,7 +31,7 @@ from typing import Any
 
 import numpy as np
 
-from pliant.core.rules import Body
+from pliant.core.rules import Body, PostureZones
 from pliant.core.worker import Worker
 from pliant.errors import InputError
 
@@ -92,10 +94,10 @@ class Figure:
         return (self.hip + self.trunk * (math.cos(b) * self.up + math.sin(b) * self.facing)
                 + lateral * right)
 
-    def reach(self, hand, side: str) -> Reach:
-        """The least trunk bend that brings ``hand`` [m] within the arm's reach, and the
-        arm's posture there (see the module)."""
-        hand = np.asarray(hand, float)
+    def least_bend(self, hand: np.ndarray, side: str) -> float:
+        """The least forward trunk bend [deg] that brings ``hand`` within the arm's reach
+        (to a hair of a degree); where none does, the bend that brings it nearest (to
+        ``BEND_STEP``)."""
 
         def gap(bend: float) -> float:
             return float(np.linalg.norm(hand - self.shoulder(side, bend))) - self.arm
@@ -104,23 +106,45 @@ class Figure:
         gaps = np.array([gap(b) for b in bends])
         inside = np.nonzero(gaps <= 0.0)[0]
         if inside.size == 0:
-            bend = float(bends[int(np.argmin(gaps))])
-        elif inside[0] == 0:
-            bend = 0.0
-        else:
-            lo, hi = float(bends[inside[0] - 1]), float(bends[inside[0]])
-            for _ in range(40):  # bisection to a hair of a degree
-                mid = 0.5 * (lo + hi)
-                lo, hi = (lo, mid) if gap(mid) <= 0.0 else (mid, hi)
-            bend = hi
+            return float(bends[int(np.argmin(gaps))])
+        if inside[0] == 0:
+            return 0.0
+        lo, hi = float(bends[inside[0] - 1]), float(bends[inside[0]])
+        for _ in range(40):  # bisection
+            mid = 0.5 * (lo + hi)
+            lo, hi = (lo, mid) if gap(mid) <= 0.0 else (mid, hi)
+        return hi
+
+    def posture(self, hand: np.ndarray, side: str, bend: float) -> Reach:
+        """The arm's posture reaching ``hand`` with the trunk bent ``bend`` [deg]."""
         shoulder = self.shoulder(side, bend)
         elbow = self.elbow(shoulder, hand)
-        down = -self.up
         arm_dir = (elbow - shoulder) / np.linalg.norm(elbow - shoulder)
-        elevation = math.degrees(math.acos(max(-1.0, min(1.0, float(arm_dir @ down)))))
+        elevation = math.degrees(math.acos(max(-1.0, min(1.0, float(arm_dir @ -self.up)))))
         distance = float(np.linalg.norm(hand - shoulder))
         return Reach(distance - self.arm, bend, elevation, distance, self.arm,
                      _triple(shoulder), _triple(elbow), side)
+
+    def reach(self, hand, side: str, zones: PostureZones | None = None) -> Reach:
+        """The posture that reaches ``hand`` [m]: with ``zones``, the trunk bend from the
+        least that reaches (``least_bend``) to 90 degrees that keeps the worse of trunk
+        bend and upper-arm elevation, each over its red onset, smallest (bending more
+        lowers the arm); without, the least bend."""
+        hand = np.asarray(hand, float)
+        least = self.least_bend(hand, side)
+        best = self.posture(hand, side, least)
+        if zones is None or best.excess > 0.0:
+            return best
+
+        def cost(r: Reach) -> float:
+            return max(r.trunk / zones.trunk[1], r.upper_arm / zones.upper_arm[1])
+
+        for bend in np.arange(math.ceil(least / BEND_STEP) * BEND_STEP, MOST_BEND + 1e-9,
+                              BEND_STEP):
+            tried = self.posture(hand, side, float(bend))
+            if cost(tried) < cost(best):
+                best = tried
+        return best
 
     def elbow(self, shoulder: np.ndarray, hand: np.ndarray) -> np.ndarray:
         """The elbow as low as it can hang with the upper arm from ``shoulder`` and the
