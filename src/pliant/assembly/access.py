@@ -52,18 +52,21 @@ SELF = "the part itself"
 @dataclass(frozen=True)
 class Access:
     """The hand at one step: the best approach's clearance [m] (negative: no approach
-    fits, by that much), its direction (unit, global frame), what bounds it, and the
-    hand's centre on the part [m] (its arc length ``s``)."""
+    fits, by that much), its direction (unit, global frame), what bounds it, the hand's
+    centre on the part [m] (its arc length ``s``) and how far the envelope reaches out
+    along the approach [m]."""
 
     clearance: float
     approach: tuple[float, float, float]
     bound_by: str
     centre: tuple[float, float, float]
     s: float
+    reach: float = 0.0  # m: the envelope from the part's axis out to the elbow
 
     def to_dict(self) -> dict[str, Any]:
         return {"clearance": self.clearance, "approach": list(self.approach),
-                "bound_by": self.bound_by, "centre": list(self.centre), "s": self.s}
+                "bound_by": self.bound_by, "centre": list(self.centre), "s": self.s,
+                "reach": self.reach}
 
 
 def _frame(t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -207,7 +210,7 @@ def hand_access(eq: Any, s: float, env: HandEnvelope, hold: str = "power grip",
         line_by.reshape(n_dir, LINES)[r, int(np.argmin(per_line[r]))])
     name = SELF if by == -2 else (field.obstacles[by].name if by >= 0 else "nothing")
     return Access(float(per_dir[r]), _triple(a[r]), name, _triple(centre),
-                  float(nodes_s[k]))
+                  float(nodes_s[k]), shape.reach)
 
 
 def _triple(v: np.ndarray) -> tuple[float, float, float]:

@@ -13,10 +13,10 @@ height. The trunk bends at least as far as brings the grip within the arm's reac
 where it already is; a grip out of reach even bent 90 degrees is red, by how much), and
 further where that lowers the arm enough: the bend kept is the one whose worse of trunk
 bend and upper-arm elevation, each over its red onset, is smallest (on a 0.5 degree
-grid): the posture least at risk by the zones it is judged by. The arm is two segments, shoulder to elbow
-and elbow to grip, with the elbow as low as it can hang (the comfortable choice a
-planner of postures makes first); the upper-arm elevation is the angle of shoulder to
-elbow from hanging straight down.
+grid): the posture least at risk by the zones it is judged by. The arm is two
+segments, shoulder to elbow and elbow to grip, with the elbow as low as it can hang (the
+comfortable choice a planner of postures makes first); the upper-arm elevation is the
+angle of shoulder to elbow from hanging straight down.
 
 Not modelled: stepping, turning or leaning on something, the trunk's twist and side
 bend, the wrist's angles, and capacities scaled by posture.
@@ -43,8 +43,8 @@ MOST_BEND = 90.0  # deg
 class Reach:
     """One hand at one step: how far beyond the arm's reach the grip is at the trunk bend
     found (negative: within it by that much) [m], that bend and the upper-arm elevation
-    [deg], the shoulder-to-grip distance and the arm's reach [m], and where the shoulder
-    and elbow are (global frame) [m]."""
+    [deg], the shoulder-to-grip distance and the arm's reach [m], and where the shoulder,
+    elbow, hip and feet are (global frame) [m]: the stick figure a report draws."""
 
     excess: float
     trunk: float
@@ -54,11 +54,14 @@ class Reach:
     shoulder: tuple[float, float, float]
     elbow: tuple[float, float, float]
     side: str
+    hip: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    feet: tuple[float, float, float] = (0.0, 0.0, 0.0)
 
     def to_dict(self) -> dict[str, Any]:
         return {"excess": self.excess, "trunk": self.trunk, "upper_arm": self.upper_arm,
                 "distance": self.distance, "arm": self.arm, "shoulder": list(self.shoulder),
-                "elbow": list(self.elbow), "side": self.side}
+                "elbow": list(self.elbow), "side": self.side, "hip": list(self.hip),
+                "feet": list(self.feet)}
 
 
 class Figure:
@@ -123,7 +126,8 @@ class Figure:
         elevation = math.degrees(math.acos(max(-1.0, min(1.0, float(arm_dir @ -self.up)))))
         distance = float(np.linalg.norm(hand - shoulder))
         return Reach(distance - self.arm, bend, elevation, distance, self.arm,
-                     _triple(shoulder), _triple(elbow), side)
+                     _triple(shoulder), _triple(elbow), side, _triple(self.hip),
+                     _triple(np.asarray(self.worker.position, float)))
 
     def reach(self, hand, side: str, zones: PostureZones | None = None) -> Reach:
         """The posture that reaches ``hand`` [m]: with ``zones``, the trunk bend from the

@@ -56,6 +56,7 @@ class AccessModel(_Model):
     bound_by: str = Field(description="what is nearest the best approach's envelope")
     centre: list[float] = Field(description="(3,) [m] the hand's centre on the part")
     s: float = Field(description="[m] the hand's centre's arc length")
+    reach: float = Field(0.0, description="[m] the envelope's reach out along the approach")
 
 
 class ReachModel(_Model):
@@ -67,6 +68,8 @@ class ReachModel(_Model):
     shoulder: list[float] = Field(description="(3,) [m]")
     elbow: list[float] = Field(description="(3,) [m]")
     side: Literal["right", "left"]
+    hip: list[float] = Field(default_factory=list, description="(3,) [m]")
+    feet: list[float] = Field(default_factory=list, description="(3,) [m] on the floor")
 
 
 class OperatorModel(_Model):
