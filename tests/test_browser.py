@@ -397,6 +397,41 @@ def test_the_page_draws_a_harness_with_its_branches(browser):
         assert np.all(lo - 0.01 <= trunk_end) and np.all(trunk_end <= hi + 0.01)
 
 
+def test_the_page_draws_the_hands_and_the_worker_the_verdict_judged(browser):
+    """A scene with a worker and two hands: the verdict carries each hand's envelope and
+    the worker's arm to each grip, and the page draws them where the verdict has them
+    (the ring round the hand's centre, the forearm out along the approach, the stick
+    figure from the feet to the grip)."""
+    scene = Path(__file__).resolve().parents[1] / "examples" / "hoses" / "two_hands.toml"
+    with scene_page(browser, scene) as page:
+        page.wait_for_function("window.pliant.state.accurate.verdict?.worker.length === 2",
+                               timeout=60_000)
+        verdict = page.evaluate("window.pliant.state.accurate.verdict")
+        drawn = page.evaluate("""() => {
+            const g = window.pliant.world.getObjectByName('bodies');
+            return g.children.map((m) => {
+                m.geometry.computeBoundingBox();
+                const b = m.geometry.boundingBox;
+                return {name: m.name, at: m.position.toArray(), lo: b.min.toArray(),
+                        hi: b.max.toArray()};
+            });
+        }""")
+    by_name = {d["name"]: d for d in drawn}
+    assert len(verdict["hands"]) == 2 and len(drawn) == 6
+    for h in verdict["hands"]:
+        ring = by_name[f"hand {h['grip']}"]
+        np.testing.assert_allclose(ring["at"], h["centre"], atol=1e-9)
+        assert ring["hi"][0] == pytest.approx(h["ring"], rel=1e-6)
+        arm = by_name[f"forearm {h['grip']}"]
+        middle = np.array(h["centre"]) + 0.5 * h["reach"] * np.array(h["approach"])
+        np.testing.assert_allclose(arm["at"], middle, atol=1e-9)
+    for w in verdict["worker"]:
+        line = by_name[f"worker {w['grip']}"]
+        chain = np.array(w["chain"])
+        np.testing.assert_allclose(line["lo"], chain.min(axis=0), atol=1e-6)
+        np.testing.assert_allclose(line["hi"], chain.max(axis=0), atol=1e-6)
+
+
 def test_the_page_draws_a_fitted_part_as_the_accurate_answer_has_it(browser):
     """A scene with a flexible part already fitted: each accurate answer carries that
     part's neutral line and the page redraws its obstacle as a tube along it."""

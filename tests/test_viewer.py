@@ -564,6 +564,12 @@ def test_the_page_gets_the_poses_verdict_by_the_same_rules_as_pliant_evaluate(st
     assert verdict.headline == ev.verdict.headline
     assert [i.text for i in verdict.items] == [c.sentence(with_step=False)
                                                for c in ev.items]
+    # the hand it judged, to draw: the same access as the API's
+    (hand,) = verdict.hands
+    access = ev.chosen.access["hand"][0]
+    assert hand.grip == "hand" and hand.clearance == pytest.approx(access.clearance)
+    assert hand.centre == pytest.approx(list(access.centre))
+    assert verdict.worker == []  # no [worker] in this scene
     # A hose whose datasheet asks for more than the shape's bend is judged red, live.
     (folder / "stiff.toml").write_text(SCENE.replace("min_bend_radius = 0.08",
                                                      "min_bend_radius = 0.5"))

@@ -62,11 +62,12 @@ class Access:
     centre: tuple[float, float, float]
     s: float
     reach: float = 0.0  # m: the envelope from the part's axis out to the elbow
+    ring: float = 0.0  # m: the radius of the hand round the part
 
     def to_dict(self) -> dict[str, Any]:
         return {"clearance": self.clearance, "approach": list(self.approach),
                 "bound_by": self.bound_by, "centre": list(self.centre), "s": self.s,
-                "reach": self.reach}
+                "reach": self.reach, "ring": self.ring}
 
 
 def _frame(t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -210,7 +211,7 @@ def hand_access(eq: Any, s: float, env: HandEnvelope, hold: str = "power grip",
         line_by.reshape(n_dir, LINES)[r, int(np.argmin(per_line[r]))])
     name = SELF if by == -2 else (field.obstacles[by].name if by >= 0 else "nothing")
     return Access(float(per_dir[r]), _triple(a[r]), name, _triple(centre),
-                  float(nodes_s[k]), shape.reach)
+                  float(nodes_s[k]), shape.reach, shape.ring_radius)
 
 
 def _triple(v: np.ndarray) -> tuple[float, float, float]:

@@ -57,6 +57,7 @@ class AccessModel(_Model):
     centre: list[float] = Field(description="(3,) [m] the hand's centre on the part")
     s: float = Field(description="[m] the hand's centre's arc length")
     reach: float = Field(0.0, description="[m] the envelope's reach out along the approach")
+    ring: float = Field(0.0, description="[m] the hand's radius round the part")
 
 
 class ReachModel(_Model):

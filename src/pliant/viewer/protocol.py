@@ -211,16 +211,45 @@ class VerdictItem(BaseModel):
     source: str
 
 
+class HandShape(BaseModel):
+    """A hand's envelope as the verdict judged it (``pliant.assembly.access``): its
+    centre on the part [m], the best approach (unit), how far the forearm reaches out
+    along it and the ring's radius round the part [m], the room left (negative: none
+    fits) [m], what bounds it and the access check's zone."""
+
+    grip: str
+    centre: list[float]
+    approach: list[float]
+    reach: float
+    ring: float
+    clearance: float
+    bound_by: str
+    zone: Literal["green", "yellow", "red", "unchecked", "info"]
+
+
+class WorkerShape(BaseModel):
+    """The worker reaching a grip (``pliant.assembly.posture``): the stick figure's
+    points [m] (feet, hip, shoulder, elbow, grip), the arm's side and the worst zone of
+    its reach and posture checks."""
+
+    grip: str
+    chain: list[list[float]]
+    side: Literal["right", "left"]
+    zone: Literal["green", "yellow", "red", "unchecked", "info"]
+
+
 class Verdict(BaseModel):
     """The A/D evaluation of the pose (``pliant.assembly.evaluate_pose``, the same rules
-    as ``pliant evaluate``): whether it passes, in plain words, the operator it needs and
-    the items to act on."""
+    as ``pliant evaluate``): whether it passes, in plain words, the operator it needs,
+    the items to act on, and the hands and worker it judged (to draw)."""
 
     passes: bool
     headline: str
     operator: str | None
     zone: Literal["green", "yellow", "red", "unchecked", "info"]
     items: list[VerdictItem] = []
+    hands: list[HandShape] = []
+    worker: list[WorkerShape] = []
 
 
 class FittedShape(BaseModel):

@@ -8,7 +8,7 @@ import * as THREE from 'three';
 import { message } from './protocol.js';
 import { $, esc, fixed, fmt, interp, slug } from './util.js';
 import {
-  FORCE, INSIDE, MOMENT, OBSTACLE, PORT, TOO_CLOSE, arrowGroup, branchGroup, camera,
+  FORCE, INSIDE, MOMENT, OBSTACLE, PORT, TOO_CLOSE, arrowGroup, bodyGroup, branchGroup, camera,
   contactGroup, drawTriad, envelopeGroup, frameOn, gizmo, gripGroup, label, labels,
   obstacleGroup, renderer, resize, scene, setView, taskGroup, tubeMaterial, world,
 } from './view.js';
@@ -495,12 +495,42 @@ function onAccurate(msg) {
     (msg.smallest_eigenvalue !== null && msg.smallest_eigenvalue !== undefined
       ? `; smallest eigenvalue ${msg.smallest_eigenvalue.toExponential(2)} N m` : '');
   showVerdict(msg.verdict);
+  drawBodies(msg.verdict);
   showWarnings();
   showFreshness();
   if (state.equilibria) onEquilibria(state.equilibria);  // which one is shown now
 }
 
 $('envelope').addEventListener('change', (e) => { envelopeGroup.visible = e.target.checked; });
+$('bodies').addEventListener('change', (e) => { bodyGroup.visible = e.target.checked; });
+
+// The hands and the worker the verdict judged, drawn as judged: each hand's ring round
+// the part and its forearm out along the best approach (in its access zone's colour),
+// the worker's stick figure (feet, hip, shoulder, elbow, grip) in its posture's.
+const ZONE = { green: 0x1b7f3b, yellow: 0xb07d00, red: 0xc0262d, unchecked: 0x6b6b6b, info: 0x3d5a80 };
+function drawBodies(verdict) {
+  for (const child of [...bodyGroup.children]) { child.geometry?.dispose(); child.material?.dispose(); }
+  bodyGroup.clear();
+  if (!verdict) return;
+  for (const h of verdict.hands) {
+    const material = new THREE.MeshStandardMaterial({ color: ZONE[h.zone], transparent: true, opacity: 0.35 });
+    const ring = new THREE.Mesh(new THREE.SphereGeometry(h.ring, 24, 16), material);
+    ring.position.set(...h.centre);
+    ring.name = `hand ${h.grip}`;
+    const along = new THREE.Vector3(...h.approach);
+    const arm = new THREE.Mesh(new THREE.CylinderGeometry(0.03, 0.045, h.reach, 20), material.clone());
+    arm.position.copy(new THREE.Vector3(...h.centre).addScaledVector(along, h.reach / 2));
+    arm.quaternion.setFromUnitVectors(new THREE.Vector3(0, 1, 0), along);
+    arm.name = `forearm ${h.grip}`;
+    bodyGroup.add(ring, arm);
+  }
+  for (const w of verdict.worker) {
+    const geometry = new THREE.BufferGeometry().setFromPoints(w.chain.map((p) => new THREE.Vector3(...p)));
+    const line = new THREE.Line(geometry, new THREE.LineBasicMaterial({ color: ZONE[w.zone] }));
+    line.name = `worker ${w.grip}`;
+    bodyGroup.add(line);
+  }
+}
 
 // The pose's A/D verdict, judged on the server by the same rules as `pliant evaluate`:
 // the page only shows it.

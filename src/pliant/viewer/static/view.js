@@ -58,6 +58,10 @@ export const contactGroup = new THREE.Group(); world.add(contactGroup);
 export const taskGroup = new THREE.Group(); taskGroup.name = 'task'; world.add(taskGroup);
 export const PORT = 0x00838f;
 
+// The hands' envelopes and the worker the verdict judged (pliant.assembly.access, posture).
+export const bodyGroup = new THREE.Group();
+bodyGroup.name = 'bodies';
+world.add(bodyGroup);
 export const branchGroup = new THREE.Group();
 branchGroup.name = 'branches';
 world.add(branchGroup);
