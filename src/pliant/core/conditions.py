@@ -85,6 +85,9 @@ class Condition:
     force : (Fx, Fy[, Fz]) [N], applied force on the part; entries None where not given;
         with ``follower=True`` in the local frame (2D: tangential, normal; 3D: d1, d2, d3)
     moment : float [N m] (2D) or (3,) [N m] (3D), applied moment on the part
+    grip_length : float [m], a hand holding the part straight over this length from the
+        end at s (0 or L) inwards, not at a point: its force and moment are the hand's
+        whole wrench, about the middle of that stretch (``Problem.held_lengths``)
     """
 
     s: float
@@ -96,10 +99,16 @@ class Condition:
     follower: bool = False
     tangent: Vector | None = None
     normal: Vector | None = None
+    grip_length: float = 0.0
 
     def __post_init__(self) -> None:
         label = self.name or "condition"
         set_ = object.__setattr__
+        grip_length = _finite_or_none(f"{label}.grip_length", self.grip_length)
+        if grip_length is None or grip_length < 0.0:
+            raise InputError(f"{label}.grip_length", "give the length of part the hand "
+                             "holds [m], 0 for a point (or a hand's breadth, about 0.095)")
+        set_(self, "grip_length", grip_length)
         s = _finite_or_none(f"{label}.s", self.s)
         if s is None:
             raise InputError(f"{label}.s", "give the station's arc length in m")

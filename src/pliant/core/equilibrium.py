@@ -240,6 +240,28 @@ class StationLoad:
                 "moment": moment, "prescribed": list(self.prescribed)}
 
 
+def held_over_length(loads: dict[str, StationLoad], problem: Any) -> dict[str, StationLoad]:
+    """The loads with each hand held over a length (``Condition.grip_length``) as the
+    hand's whole wrench: the force its heel's clamp gives (which carries the stretch in
+    the hand too), the moment carried to the middle of the stretch, and that middle's
+    s."""
+    held = getattr(problem, "held_lengths", ())
+    if not held:
+        return loads
+    out = dict(loads)
+    for name, middle, lever in held:
+        load = out.get(name)
+        if load is None:
+            continue
+        f = np.asarray(load.force, float)
+        if len(lever) == 3:
+            moment: Any = np.asarray(load.moment, float) + np.cross(lever, f)
+        else:
+            moment = float(load.moment) + lever[0] * f[1] - lever[1] * f[0]
+        out[name] = StationLoad(name, middle, f, moment, load.prescribed)
+    return out
+
+
 @dataclass(frozen=True, eq=False)
 class Samples:
     """The arrays of an equilibrium along s (see ``Equilibrium``)."""
@@ -344,7 +366,7 @@ class Equilibrium:
 
     @property
     def loads(self) -> dict[str, StationLoad]:
-        return self.samples.loads
+        return held_over_length(self.samples.loads, self.problem)
 
     @property
     def reactions(self) -> dict[str, StationLoad]:
@@ -559,7 +581,7 @@ class Equilibrium3D:
 
     @property
     def loads(self) -> dict[str, StationLoad]:
-        return self.samples.loads
+        return held_over_length(self.samples.loads, self.problem)
 
     @property
     def contacts(self) -> Contacts:

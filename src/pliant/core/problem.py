@@ -282,6 +282,10 @@ class Problem:
     pivots: tuple[PivotClip, ...] = ()
     loads: tuple[Load, ...] = ()
     stations: tuple = field(init=False, repr=False, compare=False)
+    # The conditions held over a length (a hand's breadth at an end): (name, the middle
+    # of the stretch's s [m], the lever from that middle to where the station holds the
+    # part [m]) each, for ``held_over_length``.
+    held_lengths: tuple = field(init=False, repr=False, compare=False)
     distributed: tuple[DistributedLoad, ...] = field(init=False, repr=False, compare=False)
     dimension: int = field(init=False, repr=False, compare=False)
     # The dead load [N/m] on every metre of the part, global frame: its weight (mass per
@@ -389,7 +393,9 @@ class Problem:
             d for ld in loads for d in ld.distributed(gravity)))
         self._split_loads()
         merge = _merge if dimension == 2 else _merge3
-        object.__setattr__(self, "stations", merge(conditions, length))
+        held, at_heel = _held_over_length(conditions, length, dimension)
+        object.__setattr__(self, "held_lengths", held)
+        object.__setattr__(self, "stations", merge(at_heel, length))
         self._check_rigid_motion()
         self._check_reach()
 
@@ -414,6 +420,14 @@ class Problem:
                 partial.append(ld)
         object.__setattr__(self, "dead_load_per_length", tuple(total))
         object.__setattr__(self, "partial_loads", tuple(partial))
+
+    @property
+    def model_conditions(self) -> tuple[Condition, ...]:
+        """The conditions as the models hold the part: each held over a length
+        (``Condition.grip_length``) at its heel (see ``_held_over_length``)."""
+        if not self.held_lengths:
+            return self.conditions
+        return tuple(c for st in self.stations for c in st.conditions)
 
     @property
     def held_stations(self) -> int:
@@ -489,6 +503,49 @@ class Problem:
 
 
 MAX_STRETCH = 0.1  # the largest chord strain an extensible part is asked to take
+
+
+def _held_over_length(conditions: tuple[Condition, ...], length: float, dimension: int
+                      ) -> tuple[tuple, tuple[Condition, ...]]:
+    """A hand holding the part straight over ``grip_length`` from an end is, for the
+    models, a clamp where the stretch it holds starts (its heel: the same axis, the
+    position ``grip_length`` back along it), the stretch inside the hand carried by that
+    clamp. (Two clamps at both ends of a straight inextensible stretch would leave its
+    tension undetermined.) Returns ((name, s of the stretch's middle, lever from that
+    middle to the heel) per such condition, the conditions with each moved to its
+    heel)."""
+    held, out = [], []
+    for c in conditions:
+        if not c.grip_length:
+            out.append(c)
+            continue
+        grip = c.grip_length
+        label = f"{c.name}.grip_length"
+        at_end = abs(c.s - length) <= 1e-9 * length
+        if not (at_end or abs(c.s) <= 1e-9 * length):
+            raise InputError(label, "a hand over a length is modelled at an end of the part "
+                             "(s = 0 or s = L) for now; elsewhere give grip_length = 0 (a "
+                             "point)")
+        if not grip < length:
+            raise InputError(label, f"{grip} m is not shorter than the part ({length} m)")
+        axis = (c.tangent if dimension == 3 else None if c.angle is None
+                else (math.cos(c.angle), math.sin(c.angle)))
+        if axis is None or any(v is None for v in c.position):
+            raise InputError(label, "a hand over a length holds the part's position and "
+                             "axis there: give the position and the tangent (2D: angle)")
+        inward = -1.0 if at_end else 1.0
+        heel = tuple(float(p) + inward * grip * float(a)  # type: ignore[arg-type]
+                     for p, a in zip(c.position, axis))
+        s_heel = c.s + inward * grip
+        for other in conditions:
+            if other is not c and min(s_heel, c.s) < other.s < max(s_heel, c.s) + 1e-12:
+                raise InputError(label, f"{other.name} at s = {other.s:g} m is inside the "
+                                 f"stretch the hand holds ({min(s_heel, c.s):g} to "
+                                 f"{max(s_heel, c.s):g} m); shorten grip_length or move it")
+        held.append((c.name, c.s + 0.5 * inward * grip,
+                     tuple(0.5 * inward * grip * float(a) for a in axis)))  # type: ignore[arg-type]
+        out.append(replace(c, s=s_heel, position=heel, grip_length=0.0))
+    return tuple(held), tuple(out)
 
 
 def _named(c: Condition, index: int) -> Condition:

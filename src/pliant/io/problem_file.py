@@ -186,6 +186,8 @@ class ConditionModel(_Strict):
     follower_moment: Vec3 | None = Field(None, description="follower moment in the section "
                                                            "frame (d1, d2, d3) [N m] (3D)")
     port: str | None = Field(None, description="at a [[port]]: its position and axis")
+    grip_length: float = Field(0.0, ge=0, description="[m] a hand holds the part straight "
+                               "over this length from the end at s (s = 0 or L); 0: a point")
     hand: bool = Field(False, description="a hand holds the part here: the evaluation "
                        "judges it against hand capacities (a [path]'s grip always is one; "
                        "without either, the part is judged in its clamps)")
@@ -222,7 +224,8 @@ class ConditionModel(_Strict):
             planar: tuple[float | None, ...] = ((self.Ft or 0.0, self.Fn or 0.0) if follower
                                                 else (self.Fx, self.Fy))
             return Condition(s=self.s, name=name, position=(self.x, self.y), angle=self.angle,
-                             force=planar, moment=self.moment, follower=follower)
+                             force=planar, moment=self.moment, follower=follower,
+                             grip_length=self.grip_length)
         if self.angle is not None or self.Ft is not None or self.Fn is not None:
             raise ValueError("angle, Ft and Fn are 2D; in 3D give tangent (and normal), "
                              "follower_force and follower_moment")
@@ -239,7 +242,7 @@ class ConditionModel(_Strict):
         return Condition(s=self.s, name=name, position=(self.x, self.y, self.z),
                          tangent=self.tangent, normal=self.normal,
                          force=force if force is not None else (None, None, None),
-                         moment=moment, follower=follower)
+                         moment=moment, follower=follower, grip_length=self.grip_length)
 
 
 class ObstacleModel(PackagingFields):

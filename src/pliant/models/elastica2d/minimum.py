@@ -53,7 +53,7 @@ MAX_TURN = 1.0  # rad: the largest change of an element's angle in one SQP step 
 
 def applicable(problem: Problem) -> bool:
     """Whether the problem is one this route can minimise (see the module)."""
-    conds = problem.conditions
+    conds = problem.model_conditions
     if problem.part.axial_stiffness is not None or any(c.follower for c in conds) or any(
             ld.follower for ld in problem.distributed):
         return False
@@ -107,7 +107,7 @@ class Discrete:
         self.angle: list[tuple[int, float]] = []  # interior: constraints
         self.ends: list[tuple[int, float]] = []  # at an end: a half element's bending
         self.node_of: dict[int, int] = {}
-        for index, c in enumerate(problem.conditions):
+        for index, c in enumerate(problem.model_conditions):
             k = int(round(c.s / L * n))
             self.node_of[index] = k
             for i in range(2):
@@ -963,7 +963,7 @@ class Minimum:
         beyond = np.zeros((n + 1, 2))
         beyond[:-1] = np.cumsum(force[::-1], axis=0)[::-1][1:]
         loads = {}
-        for index, c in enumerate(problem.conditions):
+        for index, c in enumerate(problem.model_conditions):
             k = disc.node_of[index]
             applied = [float(c.force[i] or 0.0) * L**2 / EI
                        if c.force and c.force[i] is not None else 0.0 for i in range(2)]

@@ -314,7 +314,7 @@ def equilibrium_error(eq) -> float:
         after = np.zeros(3) if station >= L * (1 - 1e-12) else H[near[-1], 3:]
         jump = before - load - after
         errors.append(float(np.max(np.abs(jump) / scale[3:])))
-    for c in problem.conditions:
+    for c in problem.model_conditions:
         k = int(np.argmin(np.abs(s - c.s)))
         for i in range(2):
             if c.position[i] is not None:

@@ -238,7 +238,7 @@ class RealtimeModel:
     # -- targets ---------------------------------------------------------------------------
     def targets(self, problem: Problem) -> np.ndarray:
         """The grips' right-hand sides (dimensionless) for a problem with the same grips."""
-        by_name = {c.name: c for c in problem.conditions}
+        by_name = {c.name: c for c in problem.model_conditions}
         out = np.zeros(self.con_row.shape[0])
         for k in range(out.shape[0]):
             row = self.rows[self.con_row[k]]
@@ -399,7 +399,7 @@ def _grip_rows(problem: Problem) -> tuple[GripRow, ...]:
     L = problem.part.length
     dim = problem.dimension
     rows: list[GripRow] = []
-    for cond in problem.conditions:
+    for cond in problem.model_conditions:
         coords = tuple(c for c in range(dim) if cond.position[c] is not None)
         if coords:
             rows.append(GripRow(cond.name, "position", cond.s / L, coords))
