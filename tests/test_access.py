@@ -259,3 +259,27 @@ def bundled_text() -> str:
     from importlib import resources
 
     return resources.files("pliant.data").joinpath("rules.toml").read_text("utf-8")
+
+
+def test_walls_as_millimetre_meshes_give_their_primitive_twins_room(tmp_path):
+    """The walls as STL meshes in millimetres (``units = "mm"``, read once into metres):
+    the hand's room between them is the boxes' (its primitive twin), through evaluate."""
+    gap = 0.12
+    for name, _side in (("left", 1), ("right", -1)):
+        box = trimesh.creation.box(extents=(2000.0, 500.0, 2000.0))  # mm
+        box.export(tmp_path / f"{name}.stl")
+    text = SCENE.format(od=OD, left=gap / 2 + 0.25, right=-gap / 2 - 0.25, extra="")
+    meshes = text
+    for name, side in (("left", 1), ("right", -1)):
+        y = side * (gap / 2 + 0.25)
+        meshes = meshes.replace(
+            f'name = "{name} wall"\nshape = "box"\nsize = [2.0, 0.5, 2.0]\n'
+            f'position = [0.3, {y}, 0.0]',
+            f'name = "{name} wall"\nshape = "mesh"\nfile = "{name}.stl"\n'
+            f'position = [0.3, {y}, 0.0]')
+    assert meshes.count('shape = "mesh"') == 2
+    (tmp_path / "mesh.toml").write_text('units = "mm"\n' + meshes)
+    twin, _ = _access(evaluate(parse_scene(text), search=False))
+    mesh, _ = _access(evaluate(load_scene(tmp_path / "mesh.toml"), search=False))
+    assert mesh.value == pytest.approx(twin.value, abs=1e-9)
+    assert mesh.zone is twin.zone is Zone.GREEN
