@@ -283,3 +283,24 @@ def test_walls_as_millimetre_meshes_give_their_primitive_twins_room(tmp_path):
     mesh, _ = _access(evaluate(load_scene(tmp_path / "mesh.toml"), search=False))
     assert mesh.value == pytest.approx(twin.value, abs=1e-9)
     assert mesh.zone is twin.zone is Zone.GREEN
+
+
+def test_a_fitted_part_through_the_hand_is_red_and_what_a_sequence_blames(tmp_path):
+    """The fitted cable crossing 30 mm above the held hose, where the hand closes round
+    it: no approach fits, the cable bounds it, and a sequence's failing operation blames
+    the cable (``sequence._blockers``) though the hose keeps clear of it."""
+    from pliant.assembly.sequence import _blockers
+
+    taut = (CABLE.replace("x = 0.35", "x = 0.3").replace("z = 0.045", "z = 0.03")
+            .replace("y = -0.25", "y = -0.2502").replace("y = 0.24", "y = 0.2502")
+            .replace("outer_diameter = 0.01", "outer_diameter = 0.01\naxial_stiffness = 1e5"))
+    assert taut.count("0.2502") == 2
+    (tmp_path / "cable.toml").write_text(taut)  # pulled straight across the hand
+    text = SCENE.format(od=OD, left=0.4, right=-0.4, extra="")
+    (tmp_path / "scene.toml").write_text(text.replace(
+        "[part]", '[[assembled]]\nname = "cable"\nfile = "cable.toml"\n\n[part]', 1))
+    ev = evaluate(load_scene(tmp_path / "scene.toml"), search=False)
+    check, op = _access(ev)
+    assert check.zone is Zone.RED and op.access["hand"][0].bound_by == "cable"
+    assert min(r.clearance for r in ev.run.steps) > 0.0  # the hose itself is clear
+    assert _blockers(ev, ["cable"], 0.0) == ["cable"]

@@ -179,15 +179,22 @@ def _smallest(run: Any, name: str) -> float:
 
 
 def _blockers(ev: Any, fitted: list[str], margin: float) -> list[str]:
-    """The fitted parts a failing operation blames: those a red check names, those the
-    part touches or comes within the margin of (at any step; where the path stopped,
-    at its last step solved), else all of them (the cause cannot be named)."""
+    """The fitted parts a failing operation blames: those a red check names, those in
+    the way of the hand where no hand operator fits, those the part touches or comes
+    within the margin of (at any step; where the path stopped, at its last step solved),
+    else all of them (the cause cannot be named)."""
     from pliant.assembly.checks import Zone  # noqa: PLC0415
 
     if not fitted:
         return []
     named = {n for c in ev.checks if c.zone == Zone.RED
              for n in fitted if c.rule.endswith(f": {n}")}
+    # a fitted part in the way of the hand (``pliant.assembly.access``) where no hand
+    # operator could get round the part
+    if all(not o.passes for o in ev.operators if o.access):
+        for op in ev.operators:
+            for g, steps in op.access.items():
+                named |= {a.bound_by for a in steps if a.clearance < 0.0} & set(fitted)
     near = {n for n in fitted if _smallest(ev.run, n) <= max(margin, 1e-6)}
     for eq in ev.run.equilibria:
         if eq.contacts is not None:
