@@ -193,7 +193,7 @@ def _blockers(ev: Any, fitted: list[str], margin: float) -> list[str]:
     # operator could get round the part
     if all(not o.passes for o in ev.operators if o.access):
         for op in ev.operators:
-            for g, steps in op.access.items():
+            for steps in op.access.values():
                 named |= {a.bound_by for a in steps if a.clearance < 0.0} & set(fitted)
     near = {n for n in fitted if _smallest(ev.run, n) <= max(margin, 1e-6)}
     for eq in ev.run.equilibria:
