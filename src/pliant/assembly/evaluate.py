@@ -498,7 +498,9 @@ def _grips(scene: Any, settings: EvaluationSettings) -> tuple[str, ...]:
                                  f"{', '.join(names)}")
         return tuple(settings.grips)
     if scene.grip:
-        return (scene.grip, *(h for h in scene.hands if h != scene.grip))
+        # the hands a [path] carries with its grip are hands too
+        carried = scene.path_spec.carry if scene.path_spec is not None else ()
+        return tuple(dict.fromkeys((scene.grip, *carried, *scene.hands)))
     # Without a path, only the conditions declared held by a hand are hands: a part
     # clamped at both ends is judged in its clamps, not as held by a hand at each.
     return tuple(scene.hands)

@@ -18,6 +18,7 @@ from typing import Any
 
 import numpy as np
 
+from pliant.core.conditions import Condition
 from pliant.core.equilibrium import Equilibrium3D
 from pliant.core.events import WarmStartLost, events, has
 from pliant.core.numbers import triple
@@ -146,6 +147,7 @@ def carry(problem: Problem, path: PathSpec | None) -> list[Problem]:
                 else None)
     if float(np.linalg.norm(np.diff(points, axis=0), axis=1).sum()) == 0.0:
         raise InputError("path.waypoints", "the path has no length: move the grip")
+    carried = carried_conditions(problem, path.carry, path.grip)
     problems = []
     for where, direction in along_legs(points, tangents, path.steps):
         changes: dict[str, Any] = {"position": tuple(float(x) for x in where)}
@@ -155,8 +157,67 @@ def carry(problem: Problem, path: PathSpec | None) -> list[Problem]:
                 changes["normal"] = None  # the hand's roll follows the turn
         conditions = list(problem.conditions)
         conditions[index] = replace(grip, **changes)
+        moved = carry_with(grip, where, direction, carried)
+        conditions = [moved.get(c.name, c) for c in conditions]
         problems.append(replace(problem, conditions=tuple(conditions)))
     return problems
+
+
+def carried_conditions(problem: Problem, names: tuple[str, ...], grip: str
+                       ) -> list[Condition]:
+    """The conditions a [path] carries with its grip, each checked: another condition of
+    the problem that holds a whole position (InputError naming ``path.carry``)."""
+    out = []
+    for name in names:
+        found = next((c for c in problem.conditions if c.name == name), None)
+        if found is None or name == grip:
+            raise InputError("path.carry", f"{name!r} is not another condition of the "
+                             "problem; name the hands carried with the grip")
+        if any(v is None for v in found.position):
+            raise InputError("path.carry", f"{name!r} must hold x, y and z to be carried")
+        out.append(found)
+    return out
+
+
+def carry_with(grip: Condition, where: Any, direction: Any,
+               carried: list[Condition]) -> dict[str, Condition]:
+    """The carried conditions where the grip's move from its own pose to (``where``,
+    ``direction``) takes them as one rigid body: turned by the least rotation from the
+    grip's axis to ``direction`` (none without axes) about the grip, then moved with it."""
+    if not carried:
+        return {}
+    turn = (rotation_between(np.asarray(grip.tangent, float), np.asarray(direction, float))
+            if direction is not None and grip.tangent is not None else np.eye(3))
+    origin, target = np.asarray(grip.position, float), np.asarray(where, float)
+    out = {}
+    for c in carried:
+        changes: dict[str, Any] = {"position": tuple(
+            float(x) for x in target + turn @ (np.asarray(c.position, float) - origin))}
+        for key in ("tangent", "normal"):
+            value = getattr(c, key)
+            if value is not None:
+                changes[key] = tuple(float(x) for x in turn @ np.asarray(value, float))
+        out[c.name] = replace(c, **changes)
+    return out
+
+
+def rotation_between(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """The least rotation (3, 3) taking unit a to unit b (Rodrigues; a half turn about an
+    axis square to a)."""
+    a = a / np.linalg.norm(a)
+    b = b / np.linalg.norm(b)
+    axis = np.cross(a, b)
+    sin, cos = float(np.linalg.norm(axis)), float(a @ b)
+    if sin < 1e-12:
+        if cos > 0:
+            return np.eye(3)
+        helper = np.eye(3)[int(np.argmin(np.abs(a)))]
+        k = np.cross(a, helper)
+        k /= np.linalg.norm(k)
+        return 2.0 * np.outer(k, k) - np.eye(3)
+    k = axis / sin
+    K = np.array([[0.0, -k[2], k[1]], [k[2], 0.0, -k[0]], [-k[1], k[0], 0.0]])
+    return np.eye(3) + sin * K + (1.0 - cos) * (K @ K)
 
 
 def along_legs(points: np.ndarray, tangents: np.ndarray | None,

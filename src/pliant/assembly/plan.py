@@ -80,7 +80,7 @@ from pliant.assembly.evaluate import (
     prepare,
     twist_rate,
 )
-from pliant.assembly.path import along_legs, follow_path, slerp
+from pliant.assembly.path import along_legs, carried_conditions, carry_with, follow_path, slerp
 from pliant.core.equilibrium import Equilibrium3D
 from pliant.core.numbers import triple
 from pliant.core.planning import PlanSettings
@@ -148,6 +148,7 @@ class Plan:
     nodes: int
     steps: int
     reused: int = 0
+    carry: tuple[str, ...] = ()  # the hands carried with the grip
 
     def path_table(self) -> str:
         """The path as a scene's [path] table (TOML): a waypoint and the hand's axis at
@@ -161,7 +162,9 @@ class Plan:
             f"grip = {json.dumps(self.grip, ensure_ascii=False)}",  # TOML's escapes too
             "waypoints = [", *[f"    {vec(p.position)}," for p in self.poses], "]",
             "tangents = [", *[f"    {vec(p.tangent)}," for p in self.poses], "]",
-            f"steps = {self.steps}", ""])
+            f"steps = {self.steps}",
+            *([f"carry = {json.dumps(list(self.carry), ensure_ascii=False)}"]
+              if self.carry else []), ""])
 
     @property
     def cost(self) -> tuple[float, float]:
@@ -304,24 +307,28 @@ class _Tree:
 
     def problem_at(self, position, tangent) -> Problem:
         """The scene's problem with the grip at ``position`` holding the axis ``tangent``
-        (its roll follows the turn, as along a scene's [path])."""
+        (its roll follows the turn, as along a scene's [path]), the hands it carries
+        moved with it as one rigid carrier."""
         problem = self.scene.problem
+        grip = problem.condition(self.grip)
+        carried = carry_with(grip, position, tangent,
+                             [problem.condition(n) for n in self.settings.carry])
 
         def moved(c):
             if c.name != self.grip:
-                return c
+                return carried.get(c.name, c)
             return replace(c, position=tuple(map(float, position)), normal=None,
                            tangent=tuple(map(float, tangent)))
         return replace(problem, conditions=tuple(moved(c) for c in problem.conditions))
 
     def demand(self, eq: Equilibrium3D) -> float:
-        """The largest ratio of a hand demand at the grip to its red onset."""
+        """The largest ratio of a hand demand at the grip (and the hands it carries) to
+        its red onset."""
 
         settings = self.scene.evaluation
-        wrench = grip_step(eq, self.grip).wrench
         rows = hand_rows(self.rules, settings, settings.hold)
-        return max(wrench.demand(r.demand, self.rules.hand_friction) / r.yellow
-                   for r in rows)
+        return max(grip_step(eq, g).wrench.demand(r.demand, self.rules.hand_friction)
+                   / r.yellow for g in (self.grip, *self.settings.carry) for r in rows)
 
     def check_step(self, eq: Equilibrium3D, near_port: bool = False) -> None:
         """Raise ``_Blocked`` naming why the step ``eq`` is not acceptable."""
@@ -348,12 +355,13 @@ class _Tree:
             for name, f in eq.contacts.by_obstacle().items():
                 if float(np.linalg.norm(f)) > limit:
                     raise _Blocked(f"contact force from {name}")
-        # the hand moves with the part: its envelope must fit round it from some side
+        # the hands move with the part: each envelope must fit round it from some side
         if self.rules.access is not None:
-            room = hand_access(eq, eq.loads[self.grip].s, self.rules.access,
-                               self.scene.evaluation.hold)
-            if room.clearance < 0.0:
-                raise _Blocked(f"no room for the hand ({room.bound_by})")
+            for g in (self.grip, *self.settings.carry):
+                room = hand_access(eq, eq.loads[g].s, self.rules.access,
+                                   self.scene.evaluation.hold)
+                if room.clearance < 0.0:
+                    raise _Blocked(f"no room for the hand ({room.bound_by})")
 
     def _solve(self, problem: Problem, eq: Equilibrium3D) -> Equilibrium3D:
         """One step, followed from ``eq`` only: where its branch ends, the part would
@@ -462,6 +470,7 @@ class Planner:
         if condition.tangent is None or any(v is None for v in condition.position):
             raise InputError("plan.grip", f"{self.grip!r} must hold x, y, z and a tangent "
                              "(the hand's pose) to be planned for")
+        carried_conditions(scene.problem, self.settings.carry, self.grip)
         if not any(c.name != self.grip and all(v is not None for v in c.position)
                    for c in scene.problem.conditions):
             raise InputError("plan", "nothing else holds the part in place: a plan carries "
@@ -699,8 +708,9 @@ class Planner:
         problem = self.scene.problem
         grip = problem.condition(self.grip)
         for c in problem.conditions:
-            if c.name == self.grip or any(v is None for v in c.position):
-                continue
+            if (c.name == self.grip or c.name in self.settings.carry
+                    or any(v is None for v in c.position)):
+                continue  # (a carried hand keeps its place on the carrier)
             if np.linalg.norm(p - np.asarray(c.position)) > 0.98 * abs(grip.s - c.s):
                 return False
         field_ = self._hand_field()
@@ -753,11 +763,14 @@ class Planner:
         grip = problem.condition(self.grip)
         points, reach = [np.asarray(grip.position), goal], []
         for c in problem.conditions:
-            if c.name != self.grip and all(v is not None for v in c.position):
+            if (c.name != self.grip and c.name not in self.settings.carry
+                    and all(v is not None for v in c.position)):
                 points.append(np.asarray(c.position))
                 reach.append(abs(grip.s - c.s))
         pts = np.array(points)
-        return pts.min(axis=0) - min(reach), pts.max(axis=0) + min(reach)
+        # carried by both hands, the part goes where the carrier takes it
+        margin = min(reach) if reach else problem.part.length
+        return pts.min(axis=0) - margin, pts.max(axis=0) + margin
 
     def _failure(self, tree: _Tree, goal: np.ndarray, seconds: float,
                  solves: int) -> NoPathError:
@@ -794,7 +807,7 @@ class Planner:
                           elements=self.solver.elements)
         demands = [tree.demand(eq) for eq in run.equilibria]
         return Plan(self.grip, goal, poses, problems, run, max(demands, default=math.inf),
-                    demands, 0.0, 0, 0, 0, 0, steps)
+                    demands, 0.0, 0, 0, 0, 0, steps, carry=self.settings.carry)
 
 
     def _breaks(self, tree: _Tree, result: Plan, seated: Pose) -> str | None:

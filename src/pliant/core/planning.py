@@ -14,12 +14,17 @@ from pliant.errors import InputError
 class PathSpec:
     """A manipulation as a scene file gives it: the condition ``grip`` carried from where
     the file puts it through ``waypoints`` (m, straight legs), its axis turned toward
-    ``tangents`` when given, in ``steps`` equal steps of arc length."""
+    ``tangents`` when given, in ``steps`` equal steps of arc length; the conditions in
+    ``carry`` (other hands) carried with it as one rigid carrier: moved as the grip
+    moves, turned by the least rotation that takes the grip's first axis to its axis
+    there."""
 
     grip: str
     waypoints: tuple[tuple[float, float, float], ...]
     tangents: tuple[tuple[float, float, float], ...] | None
     steps: int
+    # other hands carried with the grip as one rigid carrier (both hands carrying)
+    carry: tuple[str, ...] = ()
 
 
 @dataclass(frozen=True)
@@ -42,7 +47,8 @@ class PlanSettings:
     a tree whose path cannot be finished into the port is followed by another); simplify: shortcut
     the found path; elements: the accurate model's
     resolution (default the scene's); goal: the port to seat the part's end in (a
-    scene's [plan] goal; the command line's --goal overrides it)."""
+    scene's [plan] goal; the command line's --goal overrides it); carry: other hands
+    carried with the grip as one rigid carrier (both hands carrying; see ``PathSpec``)."""
 
     budget: float = 30.0
     seed: int = 1
@@ -58,6 +64,7 @@ class PlanSettings:
     simplify: bool = True
     elements: int | None = None
     goal: str | None = None
+    carry: tuple[str, ...] = ()
 
     def __post_init__(self) -> None:
         for key in ("budget", "step", "turn", "reach", "goal_tolerance"):

@@ -298,6 +298,8 @@ class PathModel(_Strict):
     waypoints: list[Vec3] = Field(min_length=1)
     tangents: list[Vec3] | None = None
     steps: int = Field(50, ge=1, le=100000)
+    carry: list[str] = Field(default_factory=list, description="other hands carried with "
+                             "the grip as one rigid carrier (both hands carrying)")
 
     @model_validator(mode="after")
     def _same_length(self) -> PathModel:
@@ -309,7 +311,7 @@ class PathModel(_Strict):
         return PathSpec(self.grip, tuple(tuple(w) for w in self.waypoints),  # type: ignore[misc]
                         None if self.tangents is None
                         else tuple(tuple(t) for t in self.tangents),  # type: ignore[misc]
-                        self.steps)
+                        self.steps, tuple(self.carry))
 
 
 class RatingModel(_Strict):
@@ -374,9 +376,11 @@ class PlanModel(_Strict):
     attempts: int = Field(3, ge=1, le=100)
     step: float = Field(0.03, gt=0, description="[m]")
     turn: float = Field(15.0, gt=0, le=90, description="[deg]")
+    carry: list[str] = Field(default_factory=list, description="other hands carried with "
+                             "the grip as one rigid carrier")
 
     def build(self) -> PlanSettings:
         return PlanSettings(budget=self.budget, seed=self.seed, step=self.step,
                             turn=self.turn, approach=self.approach,
                             allow_contact=self.allow_contact, attempts=self.attempts,
-                            goal=self.goal)
+                            goal=self.goal, carry=tuple(self.carry))
