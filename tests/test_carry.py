@@ -108,3 +108,21 @@ def test_the_planner_moves_the_carried_hand_with_the_grip_and_writes_it(tmp_path
     (tmp_path / "bad.toml").write_text(bad)
     with pytest.raises(FileFormatError, match=r"path\.carry"):
         load_scene(tmp_path / "bad.toml")
+
+
+def test_the_planner_carries_the_hose_by_both_ends_past_the_post_where_one_hand_cannot():
+    """The issue's figure: carrying both ends, OMPL's search finds a way over the post
+    into the bench port (every step followed again, the carried hand at the end where
+    the carrier took it); carrying one end, with the other left where it started, no
+    way is found within the budget."""
+    from pliant.assembly.plan import NoPathError, plan
+
+    scene = load_scene(EXAMPLE)
+    both = plan(scene, "bench port", replace(scene.plan, budget=60.0, attempts=1))
+    assert both.run.complete and both.carry == ("left hand",)
+    assert min(dict(r.clearances)["post"] for r in both.run.steps) >= scene.margin
+    end = both.run.equilibria[-1]
+    np.testing.assert_allclose(end.position[-1], (0.8, 0.9, 0.7), atol=1e-6)
+    np.testing.assert_allclose(end.position[0], (0.0, 0.9, 0.7), atol=1e-6)  # carried
+    with pytest.raises(NoPathError):
+        plan(scene, "bench port", replace(scene.plan, carry=(), budget=6.0, attempts=1))
