@@ -297,3 +297,82 @@ def test_a_bad_sequence_file_is_refused_naming_the_field(tmp_path, text, where):
     with pytest.raises(FileFormatError, match=r"bad\.toml") as err:
         load_sequence(path)
     assert where in str(err.value)
+
+
+FAR_CABLE = """
+name = "a short cable far away"
+gravity = [0.0, 0.0, -9.81]
+[part]
+name = "cable"
+length = 0.3
+outer_diameter = 0.006
+bending_stiffness = 0.05
+mass_per_length = 0.05
+[solver]
+elements = 30
+[[condition]]
+name = "clip"
+s = 0.0
+x = 2.0
+y = 0.0
+z = 0.5
+tangent = [1.0, 0.0, 0.0]
+normal = [0.0, 0.0, 1.0]
+[[condition]]
+name = "hand"
+s = 0.3
+x = 2.25
+y = 0.0
+z = 0.4
+tangent = [1.0, 0.0, 0.0]
+[path]
+grip = "hand"
+waypoints = [[2.25, 0.05, 0.4]]
+steps = 3
+"""
+
+
+def test_a_part_without_a_path_is_planned_in_each_operation(tmp_path):
+    """The hose round its post has no [path], only a [plan] goal: each operation plans
+    it among the parts fitted before (here a cable far away, which changes nothing: the
+    same seeded plan in both orders), every planned path followed and judged, and once
+    fitted it sits seated at its port."""
+    from pliant.assembly.sequence import seated
+
+    scenes = Path(__file__).resolve().parents[1] / "examples" / "scenes"
+    (tmp_path / "hose.toml").write_text((scenes / "hose_past_post.toml").read_text())
+    (tmp_path / "cable.toml").write_text(FAR_CABLE)
+    path = tmp_path / "planned.toml"
+    path.write_text('name = "planned"\n[[fit]]\nname = "hose"\nfile = "hose.toml"\n'
+                    '[[fit]]\nname = "cable"\nfile = "cable.toml"\n')
+    result = sequence(path, out=tmp_path / "s", workers=0)
+    assert {o.parts for o in result.orders if o.passes} == {("hose", "cable"),
+                                                            ("cable", "hose")}
+    records = [json.loads(line) for line in (tmp_path / "s" / "operations.jsonl")
+               .read_text().splitlines()]
+    hose = [r for r in records if r["part"] == "hose"]
+    assert len(hose) == 2 and all(r["status"] == "passes" for r in hose)
+    assert all(r["plan"]["waypoints"] > 0 for r in hose)
+    assert hose[0]["plan"]["waypoints"] == hose[1]["plan"]["waypoints"]
+    seq = load_sequence(path)
+    port = seq.fits[0].scene.ports["port"]
+    done = seated(seq.fits[0].scene).condition("hand")
+    np.testing.assert_allclose(done.position, port.position, atol=1e-12)
+    np.testing.assert_allclose(done.tangent, -np.asarray(port.axis), atol=1e-6)
+
+
+def test_a_path_that_cannot_be_planned_fails_blaming_the_parts_in_its_way():
+    """Where no path is found, the operation fails and blames the fitted parts the
+    rejected motions name (all of them where none is named)."""
+    from pliant.assembly.plan import NoPathError
+    from pliant.assembly.sequence import _unplanned
+
+    err = NoPathError("no path found", closest=None, distance=0.2, seconds=6.0, solves=90,
+                      blocked={"clearance to cable": 30, "no room for the hand (cable)": 4,
+                               "a fold (the part would snap to another shape)": 2})
+    record = _unplanned(err, ["line", "cable"])
+    assert record["status"] == "fails" and record["blockers"] == ["cable"]
+    assert record["reasons"][0] == "[red] no path found: clearance to cable (30 motions)"
+    unnamed = NoPathError("no path found", closest=None, distance=0.2, seconds=6.0,
+                          solves=90, blocked={"bend radius below 58 mm": 9})
+    assert _unplanned(unnamed, ["line", "cable"])["blockers"] == ["line", "cable"]

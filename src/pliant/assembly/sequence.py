@@ -85,10 +85,29 @@ def fitted_problem(seq: SequenceScene, part: int, before: Sequence[Any]) -> Any:
     obstacles are ``before``: its path's last step, the hand's other grips let go (the
     grip that seated it stays: the port holds it there), named as the part."""
     scene = operation_scene(seq, part, before)
-    last = scene.path[-1] if scene.path else scene.problem
+    last = scene.path[-1] if scene.path else seated(scene)
     hands = set(scene.hands) - {scene.grip}
     return replace(last, conditions=tuple(c for c in last.conditions if c.name not in hands),
                    name=seq.fits[part].name)
+
+
+def seated(scene: Any) -> Any:
+    """The problem of a part whose path is planned, seated: its grip (the hand the
+    planner carries) at its [plan] goal's port, holding the port's axis (the part's end
+    going in), the hands it carries along where the carrier takes them."""
+    from pliant.assembly.evaluate import prepare  # noqa: PLC0415
+    from pliant.assembly.path import carry_with  # noqa: PLC0415
+
+    _, grips, _ = prepare(scene, None)
+    grip = scene.problem.condition(scene.grip or grips[0])
+    port = scene.ports[scene.plan.goal]
+    axis = -np.asarray(port.axis, float) / np.linalg.norm(port.axis)
+    moved = carry_with(grip, port.position, axis,
+                       [scene.problem.condition(n) for n in scene.plan.carry])
+    moved[grip.name] = replace(grip, position=tuple(map(float, port.position)),
+                               tangent=tuple(map(float, axis)), normal=None)
+    return scene.problem.with_conditions(moved.get(c.name, c)
+                                         for c in scene.problem.conditions)
 
 
 _FITTED: dict[tuple, Any] = {}  # per process: each fitted part's obstacle, by prefix
@@ -126,7 +145,23 @@ def judge_operation(seq: SequenceScene, prefix: tuple[int, ...], part: int) -> d
     try:
         fitted = fitted_obstacles(seq, prefix)
         scene = operation_scene(seq, part, fitted)
-        ev = evaluate(scene, elements=fit.elements)
+        run = None
+        if not scene.path:  # planned here, among the parts fitted before
+            from pliant.assembly.plan import NoPathError, plan  # noqa: PLC0415
+
+            settings = replace(scene.plan, elements=fit.elements)
+            try:
+                found = plan(scene, scene.plan.goal, settings)
+            except NoPathError as err:
+                record.update(_unplanned(err, names))
+                record["seconds"] = time.process_time() - start
+                return record
+            scene = replace(scene, grip=found.grip, path=found.path)
+            run = found.run
+            record["plan"] = {"waypoints": len(found.poses), "steps": found.steps,
+                                 "solves": found.solves, "seconds": found.seconds,
+                                 "peak_demand": found.peak_demand}
+        ev = evaluate(scene, elements=fit.elements, run=run)
         record.update(_judged(ev, names, scene.margin))
     except (PliantError, ValueError, ArithmeticError) as err:
         record = _unjudged(fit.name, names, "error", f"not judged: {err}", [str(err)],
@@ -158,6 +193,21 @@ def _judged(ev: Any, fitted: list[str], margin: float) -> dict[str, Any]:
             "steps": len(ev.run.steps), "planned": ev.run.planned,
             "stopped": ev.run.stopped, "notes": _fallbacks(ev),
             "clearance": {name: _smallest(ev.run, name) for name in fitted}}
+
+
+def _unplanned(err: Any, fitted: list[str]) -> dict[str, Any]:
+    """The record of an operation whose path could not be planned: it fails, blaming
+    the fitted parts the rejected motions name (all of them where none is named)."""
+    reasons = " ".join(err.blocked)
+    named = [n for n in fitted if n in reasons]
+    return {"status": "fails", "passes": False, "decided": True, "zone": "red",
+            "operator": None, "headline": f"DOES NOT FIT: no path planned ({err})",
+            "reasons": [f"[red] no path found: {r} ({k} motions)"
+                        for r, k in list(err.blocked.items())[:5]],
+            "blockers": named or list(fitted), "demand": 0.0, "peak_force": 0.0,
+            "steps": 0, "planned": 0, "plan": {"failed": str(err)}, "stopped": str(err),
+            "notes": [],
+            "clearance": {}}
 
 
 def _fallbacks(ev: Any) -> list[str]:

@@ -173,7 +173,8 @@ def load_sequence(path: str | Path, settle: SettleFitted | None = None) -> Seque
 
 def _fit(f: FitModel, i: int, base: Path, settle: SettleFitted | None,
          digest: Any) -> Fit:
-    """One [[fit]] table's part, its scene file read (a 3D scene with a [path])."""
+    """One [[fit]] table's part, its scene file read (a 3D scene with a [path], or a
+    [plan] goal: its path is then planned in each operation)."""
     try:
         file = _referenced(f.file, base, "scene")
     except ValueError as err:
@@ -185,8 +186,14 @@ def _fit(f: FitModel, i: int, base: Path, settle: SettleFitted | None,
         raise InputError(f"fit[{i}].file", f"{str(file)!r} is a 2D problem; parts fitted in "
                          "a sequence are 3D (give gravity and conditions three components)")
     if scene.path_spec is None:
-        raise InputError(f"fit[{i}].file", f"{str(file)!r} has no [path]: give the fitter's "
-                         "path in it (find one with `pliant plan` first)")
+        goal = scene.plan.goal
+        if goal is None:
+            raise InputError(f"fit[{i}].file", f"{str(file)!r} has no [path] and no [plan] "
+                             "goal: give the fitter's path, or the port to plan one into "
+                             "(planned in each operation, with the parts fitted before)")
+        if goal not in scene.ports:
+            raise InputError(f"fit[{i}].file", f"{str(file)!r}: [plan] goal {goal!r} is no "
+                             f"[[port]] of it; known: {', '.join(scene.ports) or 'none'}")
     return Fit(f.name, file, scene, f.elements or scene.solver.elements, f.flexible,
                f.friction)
 
