@@ -304,3 +304,24 @@ def test_a_fitted_part_through_the_hand_is_red_and_what_a_sequence_blames(tmp_pa
     assert check.zone is Zone.RED and op.access["hand"][0].bound_by == "cable"
     assert min(r.clearance for r in ev.run.steps) > 0.0  # the hose itself is clear
     assert _blockers(ev, ["cable"], 0.0) == ["cable"]
+
+
+def test_a_bent_wrist_reaches_down_a_slanted_bore():
+    """A bore slanted 20 degrees along the part: square to the part no forearm gets down
+    it; with the approach also tilted 20 degrees along the part (a bent wrist) the
+    forearm goes down its axis, and the room is the upright bore's closed form."""
+    from dataclasses import replace as swap
+
+    sections, diameter, slant = 256, 0.12, math.radians(20.0)
+    bore = trimesh.creation.annulus(r_min=diameter / 2, r_max=diameter / 2 + 0.2,
+                                    height=1.2, sections=sections)
+    turn = np.array([[math.cos(slant), 0.0, math.sin(slant)], [0.0, 1.0, 0.0],
+                     [-math.sin(slant), 0.0, math.cos(slant)]])
+    well = Obstacle.from_mesh("bore", bore.vertices, bore.faces, position=(0.5, 0.0, 0.0),
+                              rotation=turn)
+    square = hand_access(straight((well,)), 0.5, ENV)
+    bent = hand_access(straight((well,)), 0.5, swap(ENV, tilts=(0.0, 20.0, -20.0)))
+    apothem = diameter / 2 * math.cos(math.pi / sections)
+    assert square.clearance < 0.0
+    assert bent.clearance == pytest.approx(apothem - ENV.elbow[0] / 2, abs=2e-4)
+    np.testing.assert_allclose(bent.approach, turn @ [0.0, 0.0, 1.0], atol=1e-9)

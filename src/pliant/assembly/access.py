@@ -14,7 +14,8 @@ distance field's value at its axis points less their radius:
   forearm's length; the section's breadth lies along the part (the knuckles' line), its
   thickness across. The slab is three lines of balls across its breadth.
 
-Every approach direction round the part is tried (``HandEnvelope.directions`` of them):
+Every approach direction round the part is tried (``HandEnvelope.directions`` of them,
+at each of its ``tilts`` along the part: a bent wrist; square to the part by default):
 the hand's access at a step is the clearance of the best one, and what bounds it. Red
 where no approach fits (a negative clearance), yellow within the movement allowance.
 Obstacles, fitted parts (their tubes at rest) and the held part's own spans all count,
@@ -115,13 +116,14 @@ class _Shape:
         return centre + along[:, None] * t, np.full(u.shape, self.ring_radius)
 
     def slab(self, across: np.ndarray, a: np.ndarray, u: np.ndarray, centre: np.ndarray,
-             t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+             b: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Points (n, k, 3) and radii (n, k) of slab lines at fractions ``across`` (n,)
-        of its breadth, out along approaches a (n, 3), at u (n, k)."""
+        of its breadth, out along approaches a (n, 3), its breadth along b (n, 3), at u
+        (n, k)."""
         x = u * self.reach
         breadth, thick = self.section(x)
         offset = across[:, None] * np.maximum(breadth - thick, 0.0) / 2.0
-        pts = centre + offset[..., None] * t + x[..., None] * a[:, None, :]
+        pts = centre + offset[..., None] * b[:, None, :] + x[..., None] * a[:, None, :]
         return pts, thick / 2.0
 
 
@@ -145,7 +147,13 @@ def hand_access(eq: Any, s: float, env: HandEnvelope, hold: str = "power grip",
     t /= np.linalg.norm(t)
     n0, n1 = _frame(t)
     angles = 2.0 * math.pi * np.arange(env.directions) / env.directions
-    a = np.cos(angles)[:, None] * n0 + np.sin(angles)[:, None] * n1
+    square = np.cos(angles)[:, None] * n0 + np.sin(angles)[:, None] * n1
+    # each tilt of the forearm along the part (a bent wrist), its breadth kept square
+    # to the forearm in the plane of the part's axis
+    a = np.concatenate([math.cos(math.radians(tilt)) * square
+                        + math.sin(math.radians(tilt)) * t for tilt in env.tilts])
+    b = t - (a @ t)[:, None] * a
+    b /= np.linalg.norm(b, axis=1)[:, None]
     # the part's own spans away from the hand (past its ends by a ring's diameter, where
     # the part running straight on is a hand's thickness clear of the ring), near enough
     keep = np.abs(nodes_s - s_c) > half + 2.0 * shape.ring_radius
@@ -170,13 +178,13 @@ def hand_access(eq: Any, s: float, env: HandEnvelope, hold: str = "power grip",
     # The ring (which does not depend on the approach) and the slab's lines, every
     # approach at once, sampled coarsely in one query; then the lines that can decide
     # the best approach refined round their closest sample.
-    n_dir = env.directions
+    n_dir = a.shape[0]
     pair_dir = np.repeat(np.arange(n_dir), LINES)
     pair_across = np.tile(shape.across, n_dir)
     count = max(2, int(math.ceil(shape.reach / SPACING)) + 1)
     grid = np.broadcast_to(np.linspace(0.0, 1.0, count), (pair_dir.size, count))
     ring_pts, ring_rad = shape.ring(np.linspace(0.0, 1.0, RING), centre, t)
-    slab_pts, slab_rad = shape.slab(pair_across, a[pair_dir], grid, centre, t)
+    slab_pts, slab_rad = shape.slab(pair_across, a[pair_dir], grid, centre, b[pair_dir])
     val, who = clearance(np.concatenate([ring_pts, slab_pts.reshape(-1, 3)]),
                          np.concatenate([ring_rad, slab_rad.ravel()]))
     i = int(np.argmin(val[:RING]))
@@ -195,7 +203,7 @@ def hand_access(eq: Any, s: float, env: HandEnvelope, hold: str = "power grip",
         grid = np.clip(line_u[pick, None] + span * np.linspace(-1.0, 1.0, 9)[None, :],
                        0.0, 1.0)
         val, who = clearance(*shape.slab(pair_across[pick], a[pair_dir[pick]], grid,
-                                         centre, t))
+                                         centre, b[pair_dir[pick]]))
         j = np.argmin(val, axis=1)
         got = val[np.arange(pick.size), j]
         better = got < line_best[pick]

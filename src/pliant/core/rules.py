@@ -104,8 +104,8 @@ class HandEnvelope:
     [m] (a pinch: two fingertips' breadth and a finger's thickness), from the part's axis
     to the wrist (``palm``) and on to the elbow (``forearm``) [m], the forearm's section
     (breadth, thickness) [m] at the wrist and at the elbow, a glove's thickness [m],
-    the movement allowance [m] under which access is yellow, and the approach directions
-    tried round the part."""
+    the movement allowance [m] under which access is yellow, the approach directions
+    tried round the part and the tilts [deg] of each along the part (a bent wrist)."""
 
     breadth: float
     thickness: float
@@ -119,6 +119,7 @@ class HandEnvelope:
     allowance: float
     directions: int
     sourced: Sourced
+    tilts: tuple[float, ...] = (0.0,)  # deg: the forearm tilted along the part
 
 
 @dataclass(frozen=True)

@@ -178,7 +178,15 @@ class AccessModel(_Strict):
     allowance: float = Field(ge=0, description="[m] yellow within it")
     allowance_source: str = Field(min_length=1)
     directions: int = Field(ge=4, le=360)
+    tilts: list[float] = Field(default_factory=lambda: [0.0], min_length=1,
+                               description="[deg] the forearm tilted along the part")
     provenance: str = Field(min_length=1)
+
+    @model_validator(mode="after")
+    def _tilts(self) -> AccessModel:
+        if not all(-80.0 <= t <= 80.0 for t in self.tilts):
+            raise ValueError("tilts: each within -80 to 80 degrees of square to the part")
+        return self
 
     def build(self) -> HandEnvelope:
         source = "; ".join([f"hand breadth {self.breadth * 1e3:g} mm: {self.breadth_source}",
@@ -190,7 +198,8 @@ class AccessModel(_Strict):
                             self.pinch_thickness, self.palm, self.forearm,
                             (self.wrist[0], self.wrist[1]), (self.elbow[0], self.elbow[1]),
                             self.glove,
-                            self.allowance, self.directions, Sourced(source, self.provenance))
+                            self.allowance, self.directions, Sourced(source, self.provenance),
+                            tuple(self.tilts))
 
 
 Pair = tuple[PositiveFloat, PositiveFloat]
