@@ -172,6 +172,12 @@ def test_the_panel_shows_the_poses_verdict_from_the_server(page):
     items = page.locator("#verdict-items li")
     assert items.count() == len(verdict["items"]) >= 1
     assert "bending moment at the hand" in page.inner_text("#verdict-items")
+    # the solver's details name the stability test's smallest eigenvalue
+    value = page.evaluate("window.pliant.state.accurate.smallest_eigenvalue")
+    assert value > 0
+    details = page.evaluate("document.querySelector('#accurate-details').textContent")
+    shown = float(details.split("smallest eigenvalue ")[1].split()[0])
+    assert shown == pytest.approx(value, rel=0.01)  # three figures
     # One clearance (issue 61): the table is the accurate model's, as the verdict's, and
     # says so; the real-time preview's only while the accurate answer is on its way.
     page.wait_for_function("document.querySelector('#clearance-source').textContent"

@@ -570,6 +570,10 @@ def test_the_page_gets_the_poses_verdict_by_the_same_rules_as_pliant_evaluate(st
     assert hand.grip == "hand" and hand.clearance == pytest.approx(access.clearance)
     assert hand.centre == pytest.approx(list(access.centre))
     assert verdict.worker == []  # no [worker] in this scene
+    # the solver's details the page shows: the stability test's smallest eigenvalue,
+    # the API's own (the field the page read had not been sent before)
+    assert accurate.stable is True and accurate.smallest_eigenvalue > 0
+    assert accurate.smallest_eigenvalue == pytest.approx(api.smallest_eigenvalue)
     # A hose whose datasheet asks for more than the shape's bend is judged red, live.
     (folder / "stiff.toml").write_text(SCENE.replace("min_bend_radius = 0.08",
                                                      "min_bend_radius = 0.5"))

@@ -285,6 +285,7 @@ class ServerAccurate(_Message):
     min_bend_radius_s: float | None = None
     allowed_bend_radius: float | None = None
     stable: bool | None = None
+    smallest_eigenvalue: float | None = None  # [N m] the stability test's (None: not run)
     residual: float | None = None
     iterations: int = 0
     solve_seconds: float = 0.0

@@ -375,7 +375,8 @@ class ViewerState:
             curvature=result.curvature.tolist(), bending_moment=result.bending_moment.tolist(),
             loads=loads, contacts=contacts, interference=interference,
             min_bend_radius=radius, min_bend_radius_s=s_radius, allowed_bend_radius=allowed,
-            stable=result.stable, residual=result.residual, iterations=result.iterations,
+            stable=result.stable, smallest_eigenvalue=_finite(result.smallest_eigenvalue),
+            residual=result.residual, iterations=result.iterations,
             solve_seconds=result.solve_seconds, warnings=warnings, notes=list(result.notes),
             verdict=verdict,
             fitted=[P.FittedShape(name=name, position=np.round(line, 6).tolist(), radius=r)
@@ -565,3 +566,8 @@ def _bodies(ev: Any, pose: Any) -> tuple[list[P.HandShape], list[P.WorkerShape]]
                            [float(v) for v in grip]],
             side=r.side, zone=zone_of(g, ("reach", "posture"))))
     return hands, workers
+
+
+def _finite(value: Any) -> float | None:
+    """A number the page can show, or None (not known, or not finite)."""
+    return float(value) if value is not None and math.isfinite(value) else None

@@ -74,6 +74,7 @@ export const SERVER = Object.freeze({
     "min_bend_radius_s",
     "allowed_bend_radius",
     "stable",
+    "smallest_eigenvalue",
     "residual",
     "iterations",
     "solve_seconds",
