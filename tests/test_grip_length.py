@@ -58,6 +58,11 @@ def test_a_hand_over_a_length_is_its_twin_clamped_where_the_stretch_starts(dim):
                                atol=1e-7 * scale)
     np.testing.assert_allclose(a.loads["clamp"].moment, b.loads["clamp"].moment,
                                atol=1e-7 * scale * L)
+    if dim == 3:
+        # its error estimate compares like with like (the heel's clamp in both twins of
+        # Richardson's rule), as small as the point-clamped twin's
+        assert a.reaction_error < 3 * b.reaction_error + 1e-4
+        assert not any("reactions may be off" in n for n in a.notes)
     if dim == 3:  # nodes every 5 mm in both: the same shape node by node
         inside = a.s <= L - grip + 1e-12
         shape = np.column_stack([np.interp(a.s[inside], b.s, b.position[:, k])
@@ -169,3 +174,22 @@ def test_a_scene_path_and_evaluation_with_the_hand_over_a_length(tmp_path):
         replace(c, grip_length=0.0) for c in scene.problem.conditions))
     eq = rod3d.solve(point.problem, solver=rod3d.RodSolver(elements=80))
     assert eq.loads["hand"].s == L
+
+
+def test_a_2d_hand_over_a_length_warm_starts_and_passes_the_independent_check():
+    """Moved in steps, the 2D model warm-starts from each answer (its unknowns read at
+    the heel the model holds), and each answer passes the independent integration
+    check of its equations and its stations' jumps (``reference.equilibrium_error``)."""
+    from pliant.models.elastica2d.reference import equilibrium_error
+
+    part = pl.Part(0.8, 0.5, mass_per_length=2.0 / G)
+
+    def at(x):
+        return pl.Problem(part, (pl.clamp(0.0, (0.0, 0.0), 0.5), held(0.8, (x, 0.1), 0.095, 2)),
+                          gravity=(0.0, -G))
+    start = elastica2d.solve(at(0.6))
+    steps = list(elastica2d.trace([at(0.62), at(0.64), at(0.66)], start=start))
+    assert len(steps) == 3
+    for eq in (start, *steps):
+        assert equilibrium_error(eq) < 1e-7
+        assert not any("solved from" in n for n in eq.notes)  # warm, not started over

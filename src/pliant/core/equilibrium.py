@@ -240,6 +240,13 @@ class StationLoad:
                 "moment": moment, "prescribed": list(self.prescribed)}
 
 
+def model_loads(eq: Any) -> dict[str, StationLoad]:
+    """The loads at the stations the model holds (a hand over a length at its heel, not
+    as ``loads`` reports it): what a warm start and a check against the model read."""
+    samples = getattr(eq, "samples", None)
+    return samples.loads if samples is not None else eq.loads
+
+
 def held_over_length(loads: dict[str, StationLoad], problem: Any) -> dict[str, StationLoad]:
     """The loads with each hand held over a length (``Condition.grip_length``) as the
     hand's whole wrench: the force its heel's clamp gives (which carries the stretch in

@@ -19,7 +19,7 @@ from typing import Any
 import numpy as np
 
 from pliant.core.conditions import Condition
-from pliant.core.equilibrium import Result
+from pliant.core.equilibrium import Result, model_loads
 from pliant.core.events import PlanarRoute, WarmStartLost, has
 from pliant.core.problem import Problem
 from pliant.errors import ConvergenceError, IllPosedProblemError, PliantError
@@ -130,7 +130,7 @@ def planar_start(problem: Problem) -> Any:
                                 for i in range(2)])
     reactions = {name: SimpleNamespace(force=np.asarray(ld.force[:2]),
                                        moment=float(ld.moment[2]))
-                 for name, ld in eq.loads.items()}
+                 for name, ld in model_loads(eq).items()}
     return SimpleNamespace(problem=problem, s=np.asarray(eq.s), position=eq.position[:, :2],
                            angle=angle, internal_force=internal,
                            bending_moment=np.asarray(eq.internal_moment[:, 2]), loads=reactions,

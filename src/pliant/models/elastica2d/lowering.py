@@ -19,7 +19,7 @@ from types import SimpleNamespace
 
 import numpy as np
 
-from pliant.core.equilibrium import Equilibrium
+from pliant.core.equilibrium import Equilibrium, model_loads
 from pliant.core.problem import Problem, Station
 from pliant.errors import InputError
 from pliant.models.elastica2d import kernels
@@ -269,7 +269,7 @@ class Lowered:
         z = np.zeros(self.nz)
         pose0 = (eq.position[0, 0] / self.length, eq.position[0, 1] / self.length,
                  float(eq.angle[0]))
-        loads = eq.loads
+        loads = model_loads(eq)
         for k, station in enumerate(self.station_of):
             if self.st_kind[k, 0] == NODE:
                 s = self.st_s[k] * self.length

@@ -19,6 +19,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from pliant.core.equilibrium import model_loads
 from pliant.core.problem import Problem
 from pliant.models.elastica2d.lowering import PRESCRIBED, Lowered, lower
 
@@ -305,7 +306,7 @@ def equilibrium_error(eq) -> float:
         d[2] = (d[2] + math.pi) % (2 * math.pi) - math.pi
         errors.append(float(np.max(np.abs(d) / scale)))
     at: dict[float, np.ndarray] = {}  # the loads of the conditions sharing a station
-    for ld in eq.loads.values():
+    for ld in model_loads(eq).values():
         key = next((x for x in at if abs(x - ld.s) <= 1e-12 * L), ld.s)
         at[key] = at.get(key, np.zeros(3)) + np.array([*ld.force, float(ld.moment)])
     for station, load in at.items():

@@ -40,6 +40,7 @@ from pliant.core.equilibrium import (
     Equilibrium,
     Samples,
     StationLoad,
+    model_loads,
     potential_energy,
 )
 from pliant.core.events import (
@@ -1218,9 +1219,10 @@ class _Mirror:
         """The mirror twin of an equilibrium: its arrays (those ``Lowered.unknowns_from``
         reads)."""
         ends = []
+        raw = model_loads(eq)
         for st in self.stations:  # each end's load on the part: (force, moment)
-            f = (eq.loads[st.owner[0]].force[0], eq.loads[st.owner[1]].force[1])
-            m = eq.loads[st.owner[2]].moment if st.owner[2] is not None else 0.0
+            f = (raw[st.owner[0]].force[0], raw[st.owner[1]].force[1])
+            m = raw[st.owner[2]].moment if st.owner[2] is not None else 0.0
             ends.append((np.array(f, dtype=float), float(m)))
         loads = self._named(self._ends(ends))
         a = np.array(self.a)

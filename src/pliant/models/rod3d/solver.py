@@ -754,7 +754,7 @@ def _with_reaction_error(run: Run, state: State, eq: Equilibrium3D) -> Equilibri
     if twin is None:
         return eq
     elements, finer = twin
-    loads = eq.loads
+    loads = eq.samples.loads  # as the twin's: at the stations the model holds
     ratio = elements / run.rod.elements
     factor = ratio**2 / (ratio**2 - 1.0)
     worst = 0.0
