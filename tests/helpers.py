@@ -108,3 +108,33 @@ def shape_at(eq, s: np.ndarray) -> np.ndarray:
     grid, first = np.unique(eq.s, return_index=True)  # a station's row comes twice
     tangent = np.column_stack([np.cos(eq.angle[first]), np.sin(eq.angle[first])])
     return CubicHermiteSpline(grid, eq.position[first], tangent)(s)
+
+
+def hand_held_hose(at: tuple[float, float, float], tangent: tuple[float, float, float],
+                   od: float = 0.016) -> str:
+    """The [part] and the hand of a scene file: an EPDM hose 0.6 m long (``od`` [m]
+    across) held by one hand at its middle, at ``at`` along ``tangent``."""
+    x, y, z = at
+    return f"""
+[part]
+name = "hose"
+length = 0.6
+outer_diameter = {od}
+inner_diameter = 0.010
+min_bend_radius = 0.05
+[part.material]
+name = "EPDM"
+youngs_modulus = 8.0e6
+density = 1150.0
+poisson_ratio = 0.49
+
+[[condition]]
+name = "hand"
+hand = true
+s = 0.3
+x = {x}
+y = {y}
+z = {z}
+tangent = {list(tangent)}
+normal = [0.0, 0.0, 1.0]
+"""

@@ -21,6 +21,8 @@ from pliant.errors import FileFormatError
 from pliant.io.rules_file import bundled_rules, parse_rules
 from pliant.scene.distance import Obstacle
 
+from .helpers import hand_held_hose
+
 ENV = bundled_rules().access
 OD = 0.016  # m: the hose held
 
@@ -117,29 +119,7 @@ def test_a_hand_at_the_end_of_the_part_holds_a_hands_breadth_in_from_it():
 SCENE = """
 name = "hose held between two walls"
 gravity = [0.0, 0.0, 0.0]
-
-[part]
-name = "hose"
-length = 0.6
-outer_diameter = {od}
-inner_diameter = 0.010
-min_bend_radius = 0.05
-[part.material]
-name = "EPDM"
-youngs_modulus = 8.0e6
-density = 1150.0
-poisson_ratio = 0.49
-
-[[condition]]
-name = "hand"
-hand = true
-s = 0.3
-x = 0.3
-y = 0.0
-z = 0.0
-tangent = [1.0, 0.0, 0.0]
-normal = [0.0, 0.0, 1.0]
-
+{hose}
 [[obstacle]]
 name = "left wall"
 shape = "box"
@@ -155,8 +135,11 @@ position = [0.3, {right}, 0.0]
 """
 
 
+HOSE = hand_held_hose((0.3, 0.0, 0.0), (1.0, 0.0, 0.0), OD)
+
+
 def _scene(gap, extra=""):
-    return parse_scene(SCENE.format(od=OD, left=gap / 2 + 0.25, right=-gap / 2 - 0.25,
+    return parse_scene(SCENE.format(hose=HOSE, left=gap / 2 + 0.25, right=-gap / 2 - 0.25,
                                     extra=extra))
 
 
@@ -231,7 +214,7 @@ def test_a_fitted_part_in_the_way_bounds_the_hand(tmp_path):
     """A flexible part already fitted, running across the hand's reach 45 mm above the
     held part between wide walls, is what the hand meets (its tube at rest counts)."""
     (tmp_path / "cable.toml").write_text(CABLE)
-    text = SCENE.format(od=OD, left=0.4, right=-0.4, extra="")
+    text = SCENE.format(hose=HOSE, left=0.4, right=-0.4, extra="")
     free, _ = _access(evaluate(parse_scene(text), search=False))
     (tmp_path / "scene.toml").write_text(text.replace(
         "[part]", '[[assembled]]\nname = "cable"\nfile = "cable.toml"\n\n[part]', 1))
@@ -268,7 +251,7 @@ def test_walls_as_millimetre_meshes_give_their_primitive_twins_room(tmp_path):
     for name, _side in (("left", 1), ("right", -1)):
         box = trimesh.creation.box(extents=(2000.0, 500.0, 2000.0))  # mm
         box.export(tmp_path / f"{name}.stl")
-    text = SCENE.format(od=OD, left=gap / 2 + 0.25, right=-gap / 2 - 0.25, extra="")
+    text = SCENE.format(hose=HOSE, left=gap / 2 + 0.25, right=-gap / 2 - 0.25, extra="")
     meshes = text
     for name, side in (("left", 1), ("right", -1)):
         y = side * (gap / 2 + 0.25)
@@ -296,7 +279,7 @@ def test_a_fitted_part_through_the_hand_is_red_and_what_a_sequence_blames(tmp_pa
             .replace("outer_diameter = 0.01", "outer_diameter = 0.01\naxial_stiffness = 1e5"))
     assert taut.count("0.2502") == 2
     (tmp_path / "cable.toml").write_text(taut)  # pulled straight across the hand
-    text = SCENE.format(od=OD, left=0.4, right=-0.4, extra="")
+    text = SCENE.format(hose=HOSE, left=0.4, right=-0.4, extra="")
     (tmp_path / "scene.toml").write_text(text.replace(
         "[part]", '[[assembled]]\nname = "cable"\nfile = "cable.toml"\n\n[part]', 1))
     ev = evaluate(load_scene(tmp_path / "scene.toml"), search=False)

@@ -22,6 +22,8 @@ from pliant.errors import FileFormatError, InputError
 from pliant.io.evaluation_file import EvaluationReport
 from pliant.io.rules_file import bundled_rules
 
+from .helpers import hand_held_hose
+
 BODY = bundled_rules().body
 UP = np.array([0.0, 0.0, 1.0])
 EXAMPLES = Path(__file__).resolve().parents[1] / "examples"
@@ -120,31 +122,15 @@ def test_a_larger_worker_reaches_farther():
 SCENE = """
 name = "a hose held by one hand, a worker in front"
 gravity = [0.0, 0.0, -9.81]
-[part]
-name = "hose"
-length = 0.6
-outer_diameter = 0.016
-inner_diameter = 0.010
-min_bend_radius = 0.05
-[part.material]
-name = "EPDM"
-youngs_modulus = 8.0e6
-density = 1150.0
-poisson_ratio = 0.49
-[[condition]]
-name = "hand"
-hand = true
-s = 0.3
-x = 0.0
-y = 0.0
-z = 1.0
-tangent = [0.0, 1.0, 0.0]
-normal = [0.0, 0.0, 1.0]
+{hose}
 [worker]
 position = [{x}, 0.0, 0.0]
 facing = [-1.0, 0.0, 0.0]
 {more}
 """
+
+
+HOSE = hand_held_hose((0.0, 0.0, 1.0), (0.0, 1.0, 0.0))
 
 
 def _reach(result, operator="one hand"):
@@ -154,7 +140,7 @@ def _reach(result, operator="one hand"):
 
 def test_a_grip_out_of_reach_is_red_and_says_by_how_much():
     far = 2.0
-    result = evaluate(parse_scene(SCENE.format(x=far, more="")), search=False)
+    result = evaluate(parse_scene(SCENE.format(hose=HOSE, x=far, more="")), search=False)
     checks, op = _reach(result)
     reach = checks["reach"]
     assert reach.zone is Zone.RED
@@ -176,13 +162,13 @@ def test_a_grip_out_of_reach_is_red_and_says_by_how_much():
 
 
 def test_a_grip_at_chest_height_in_front_is_green():
-    result = evaluate(parse_scene(SCENE.format(x=0.35, more="")), search=False)
+    result = evaluate(parse_scene(SCENE.format(hose=HOSE, x=0.35, more="")), search=False)
     checks, op = _reach(result)
     assert checks["reach"].zone is Zone.GREEN
     assert checks["posture: trunk"].zone is Zone.GREEN
     assert checks["posture: upper_arm"].zone is Zone.GREEN
     # kneeling, the same grip is higher above the shoulder: the arm rises
-    kneeling = evaluate(parse_scene(SCENE.format(x=0.35, more='posture = "kneeling"')),
+    kneeling = evaluate(parse_scene(SCENE.format(hose=HOSE, x=0.35, more='posture = "kneeling"')),
                         search=False)
     assert (_reach(kneeling)[1].reach["hand"][0].upper_arm
             > op.reach["hand"][0].upper_arm + 10.0)
@@ -200,9 +186,9 @@ def test_two_grips_each_take_the_arm_on_their_side():
 
 def test_a_bad_worker_is_refused_naming_the_field():
     with pytest.raises(FileFormatError, match=r"worker\.posture"):
-        parse_scene(SCENE.format(x=1.0, more='posture = "crouching"'))
+        parse_scene(SCENE.format(hose=HOSE, x=1.0, more='posture = "crouching"'))
     with pytest.raises(FileFormatError, match=r"worker\.percentile"):
-        parse_scene(SCENE.format(x=1.0, more="percentile = 100"))
+        parse_scene(SCENE.format(hose=HOSE, x=1.0, more="percentile = 100"))
     with pytest.raises(InputError, match=r"worker\.facing"):
-        evaluate(parse_scene(SCENE.format(x=1.0, more="").replace(
+        evaluate(parse_scene(SCENE.format(hose=HOSE, x=1.0, more="").replace(
             "facing = [-1.0, 0.0, 0.0]", "facing = [0.0, 0.0, 1.0]")), search=False)
