@@ -189,6 +189,9 @@ def test_a_bad_worker_is_refused_naming_the_field():
         parse_scene(SCENE.format(hose=HOSE, x=1.0, more='posture = "crouching"'))
     with pytest.raises(FileFormatError, match=r"worker\.percentile"):
         parse_scene(SCENE.format(hose=HOSE, x=1.0, more="percentile = 100"))
+    with pytest.raises(FileFormatError, match="facing: give the direction"):
+        parse_scene(SCENE.format(hose=HOSE, x=1.0, more="").replace(
+            "facing = [-1.0, 0.0, 0.0]", "facing = [0.0, 0.0, 0.0]"))
     with pytest.raises(InputError, match=r"worker\.facing"):
         evaluate(parse_scene(SCENE.format(hose=HOSE, x=1.0, more="").replace(
             "facing = [-1.0, 0.0, 0.0]", "facing = [0.0, 0.0, 1.0]")), search=False)

@@ -360,6 +360,12 @@ class WorkerModel(_Strict):
     percentile: float = Field(5.0, ge=1, le=99, description="of stature and reach")
     side: Literal["right", "left"] = "right"
 
+    @model_validator(mode="after")
+    def _faces_somewhere(self) -> WorkerModel:
+        if not any(self.facing):
+            raise ValueError("facing: give the direction the worker faces (not zero)")
+        return self
+
     def build(self) -> Worker:
         return Worker(triple(self.position), triple(self.facing), self.posture, self.sex,
                       self.percentile, self.side)
