@@ -354,6 +354,10 @@ def test_a_part_without_a_path_is_planned_in_each_operation(tmp_path):
     assert len(hose) == 2 and all(r["status"] == "passes" for r in hose)
     assert all(r["plan"]["waypoints"] > 0 for r in hose)
     assert hose[0]["plan"]["waypoints"] == hose[1]["plan"]["waypoints"]
+    from pliant.cli.sequence_report import render_html
+
+    page = render_html(result)
+    assert page.count(f"planned: {hose[0]['plan']['waypoints']} waypoints") == 2
     seq = load_sequence(path)
     port = seq.fits[0].scene.ports["port"]
     done = seated(seq.fits[0].scene).condition("hand")

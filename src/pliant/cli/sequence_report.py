@@ -71,6 +71,16 @@ def _force(value: float | None) -> str:
     return "-" if value is None else f"{value:.3g} N"
 
 
+def _path_words(op: dict) -> str:
+    """Where an operation's path came from: the part's file, or planned in the search."""
+    plan = op.get("plan")
+    if not plan:
+        return "given" if op.get("status") not in ("pruned", "not judged") else "-"
+    if "failed" in plan:
+        return "none found"
+    return f"planned: {plan['waypoints']} waypoints, {plan['seconds']:.1f} s"
+
+
 def _cost_words(order: Any) -> str:
     zone, operator, peak, _ = order.cost
     who = ("one hand", "two hands", "a tool or robot")[int(operator)]
@@ -198,11 +208,12 @@ def render_html(result: Any, lines: list[tuple[str, np.ndarray]] | None = None,
     parts.append("</table><h2>Every operation</h2><details><summary>each part after each "
                  "prefix: judged, reused or pruned</summary><table><tr><th>fitted before"
                  "</th><th>part</th><th>status</th><th>verdict</th><th>blamed</th>"
-                 "<th>CPU s</th></tr>")
+                 "<th>path</th><th>CPU s</th></tr>")
     for (prefix, part), op in sorted(result.operations.items()):
         parts.append(f"<tr><td>{e(', '.join(prefix) or '(nothing)')}</td><td>{e(part)}</td>"
                      f"<td>{e(op['status'])}</td><td>{e(op['headline'])}</td>"
                      f"<td>{e(', '.join(op.get('blockers') or []))}</td>"
+                     f"<td>{e(_path_words(op))}</td>"
                      f"<td class=num>{op.get('seconds', 0.0):.2f}</td></tr>")
     parts.append("</table></details>")
     if result.notes:
