@@ -380,3 +380,17 @@ def test_a_path_that_cannot_be_planned_fails_blaming_the_parts_in_its_way():
     unnamed = NoPathError("no path found", closest=None, distance=0.2, seconds=6.0,
                           solves=90, blocked={"bend radius below 58 mm": 9})
     assert _unplanned(unnamed, ["line", "cable"])["blockers"] == ["line", "cable"]
+
+
+@pytest.mark.parametrize(("options", "field"), [
+    ({"scheduler": "not a url"}, "scheduler"), ({"workers": -3}, "workers")])
+def test_a_bad_cluster_is_refused_at_once_naming_the_option(tmp_path, options, field):
+    """A scheduler address that is none, or fewer than no workers: a typed error naming
+    the option, before anything is judged (``assembly.cluster``, shared with studies)."""
+    from pliant.errors import InputError
+
+    with pytest.raises(InputError, match=field) as err:
+        sequence(BAY, out=tmp_path / "s", **options)
+    assert err.value.field == field
+    assert not (tmp_path / "s" / "operations.jsonl").exists() or not (
+        tmp_path / "s" / "operations.jsonl").read_text().strip()

@@ -9,6 +9,10 @@ from collections.abc import Iterator
 from contextlib import contextmanager
 from typing import Any
 
+from pliant.errors import InputError
+
+CONNECT_TIMEOUT = 10  # s a scheduler's address may take to answer
+
 
 @contextmanager
 def dask_client(scheduler: str | None, workers: int | None) -> Iterator[Any]:
@@ -16,6 +20,9 @@ def dask_client(scheduler: str | None, workers: int | None) -> Iterator[Any]:
     a local cluster of ``workers`` processes (default one per core), closed on exit."""
     from distributed import Client, LocalCluster  # noqa: PLC0415 (heavy: on demand)
 
+    if workers is not None and workers < 0:
+        raise InputError("workers", f"{workers} worker processes: give 1 or more (0: judge "
+                         "in this process)")
     cluster = None
     if scheduler is None:
         n = workers or os.cpu_count() or 1
@@ -30,7 +37,13 @@ def dask_client(scheduler: str | None, workers: int | None) -> Iterator[Any]:
                                    silence_logs=40)
         client = Client(cluster)
     else:
-        client = Client(scheduler, timeout="30s")
+        try:
+            client = Client(scheduler, timeout=f"{CONNECT_TIMEOUT}s")
+        except (ValueError, OSError, TimeoutError) as err:
+            raise InputError("scheduler", f"no Dask scheduler answers at {scheduler!r} "
+                             f"within {CONNECT_TIMEOUT} s ({err}); give the tcp://HOST:PORT "
+                             "of a running one, or leave --scheduler out for a local "
+                             "cluster") from None
     try:
         yield client
     finally:

@@ -484,8 +484,8 @@ def study(
     scheduler: Annotated[str | None, typer.Option(help="a Dask scheduler's address "
                                                        "(tcp://HOST:PORT); default: a local "
                                                        "cluster on this machine")] = None,
-    workers: Annotated[int | None, typer.Option(help="local worker processes (default: one "
-                                                     "per core; 0: in this process)")] = None,
+    workers: Annotated[int | None, typer.Option(min=0, help="local worker processes (default: "
+                                                     "one per core; 0: in this process)")] = None,
     restart: Annotated[bool, typer.Option(help="discard the folder's samples and start "
                                                "again")] = False,
     elements: Annotated[int | None, typer.Option(help="about how many elements (default: "
@@ -653,8 +653,8 @@ def sequence(
     = None,
     scheduler: Annotated[str | None, typer.Option(help="a Dask scheduler's address "
                                                        "(tcp://HOST:PORT)")] = None,
-    workers: Annotated[int, typer.Option(help="local Dask worker processes (0: in this "
-                                              "process)")] = 0,
+    workers: Annotated[int, typer.Option(min=0, help="local Dask worker processes (0: in "
+                                              "this process)")] = 0,
     restart: Annotated[bool, typer.Option(help="discard the folder's operations and start "
                                                "again")] = False,
 ) -> None:
