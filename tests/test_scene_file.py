@@ -343,6 +343,7 @@ def test_an_obstacle_takes_its_friction():
 @pytest.mark.parametrize(("obj", "message"), [
     ("v 0 0 0\nv 1 0 0\nv nan 1 0\nf 1 2 3\n", "not finite"),
     ("v 0 0 0\nv 1 0 0\nv 2 0 0\nf 1 2 3\n", "no surface"),
+    ("v 0 0 0\nv 1e300 0 0\nv 0 1e300 0\nf 1 2 3\n", "spans 1e.300 m.*check its unit"),
 ])
 def test_a_mesh_with_nan_vertices_or_no_area_is_refused_naming_the_obstacle(tmp_path, obj,
                                                                            message):

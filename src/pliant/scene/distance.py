@@ -221,6 +221,9 @@ class MeshData:
         return np.array([flat.min(axis=0), flat.max(axis=0)])
 
 
+LARGEST_MESH = 1.0e5  # m: a mesh wider than this is in the wrong unit
+
+
 def check_mesh(vertices: np.ndarray, faces: np.ndarray) -> None:
     """A mesh an obstacle can be made of: finite vertices (v, 3), triangles (f, 3) that
     index them, and a surface (not every triangle degenerate); else a ValueError that
@@ -235,9 +238,12 @@ def check_mesh(vertices: np.ndarray, faces: np.ndarray) -> None:
         raise ValueError("the mesh needs triangles (f, 3)")
     if faces.min() < 0 or faces.max() >= vertices.shape[0]:
         raise ValueError("the mesh's triangles index vertices it does not have")
+    extent = float(np.ptp(vertices, axis=0).max())
+    if not extent <= LARGEST_MESH:
+        raise ValueError(f"the mesh spans {extent:.3g} m, more than {LARGEST_MESH:g} m: check "
+                         "its unit (the obstacle's scale, or the scene's units)")
     tri = vertices[faces]
     area = 0.5 * np.linalg.norm(np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]), axis=1)
-    extent = float(np.ptp(vertices, axis=0).max())
     if not area.sum() > 1e-12 * max(extent, 1e-300) ** 2:
         raise ValueError("the mesh has no surface: every triangle is degenerate (no area)")
 
