@@ -350,3 +350,27 @@ def test_the_examples_copy_out_to_a_folder_of_ones_own_and_run_there(tmp_path):
     solved = run("solve", str(tmp_path / "ex" / "paper" / "case1.toml"), "--json", "-")
     assert json.loads(solved.stdout)["loads"]["clamp"]["force"] == pytest.approx(
         [0.0, -7.0], abs=1e-9)
+
+
+@pytest.mark.parametrize("command", [
+    ("plan", "scenes/hose_past_post.toml"), ("sequence", "sequence/engine_bay.toml"),
+    ("study", "scenes/engine_bay.toml", "--vary", "length=5mm", "--samples", "2"),
+    ("run", "hoses/carry_past_post.toml"), ("demo",)])
+def test_an_out_that_is_a_file_is_refused_before_any_work(tmp_path, command):
+    """``--out`` naming a file, not a folder: refused at once, the option named, before
+    a search whose outputs could then not be written (issue 54: a plan was lost); from
+    the shell, exit status 2 and one line."""
+    from pliant.errors import PliantError
+
+    taken = tmp_path / "taken.txt"
+    taken.write_text("mine")
+    name, *rest = command
+    scene = [str(EXAMPLES / rest[0])] if rest else []
+    with pytest.raises(PliantError, match="is a file, not a folder"):
+        cli(name, *scene, *rest[1:], "--out", taken)
+    assert taken.read_text() == "mine"
+    if name == "plan":
+        done = run(name, *scene, "--out", str(taken))
+        assert done.returncode == 2
+        assert done.stderr.strip() == (f"error: --out {taken}: is a file, not a folder; give "
+                                        "a folder for the outputs (new or existing)")

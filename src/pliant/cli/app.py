@@ -148,6 +148,15 @@ class _ReadingBar:
         self.bar.reset(self.task, total=None)
 
 
+def _out_folder(out: Path) -> Path:
+    """``--out``, checked before any work: a folder, or nothing yet (never a file: the
+    work would be lost when its outputs cannot be written)."""
+    if out.exists() and not out.is_dir():
+        raise PliantError(f"--out {out}: is a file, not a folder; give a folder for the "
+                          "outputs (new or existing)")
+    return out
+
+
 def _load_scene(file: Path):
     """The scene file, its warnings said on stderr (a valid file may still mislead)."""
     from rich.console import Console  # noqa: PLC0415
@@ -307,7 +316,7 @@ def run(
 ) -> None:
     """Follow a scene's manipulation: solve every step of its \\[path], report the force and
     moment at the grip, contacts, clearances and bend radius, and write them out."""
-    run_scene(file, out, _elements(elements))
+    run_scene(file, _out_folder(out), _elements(elements))
 
 
 def _with_progress(console, scene, file: Path, work):
@@ -501,6 +510,8 @@ def study(
 
     from pliant.assembly.study import Store, final_voxels, summarize  # noqa: PLC0415
     from pliant.assembly.study import study as run_study  # noqa: PLC0415
+
+    _out_folder(out)
     from pliant.cli.study_report import print_study, write_html  # noqa: PLC0415
     from pliant.io.atomic import atomic_write  # noqa: PLC0415
     from pliant.io.jsontext import finite  # noqa: PLC0415
@@ -561,7 +572,8 @@ def plan(
     bend limit, with the least hand demand found. Writes the scene with that \\[path]
     (play it with `pliant view`) and its evaluation. Exit status 0 when the planned
     operation passes the evaluation, 1 when it does not, 2 when no path is found."""
-    _plan_scene(file, goal, out, budget, seed, allow_contact, attempts, _elements(elements))
+    _plan_scene(file, goal, _out_folder(out), budget, seed, allow_contact, attempts,
+                _elements(elements))
 
 
 def _plan_scene(file: Path, goal: str | None, out: Path, budget: float | None,
@@ -665,6 +677,7 @@ def sequence(
     from pliant.io.problem_file import read_text  # noqa: PLC0415
 
     read_text(file)
+    _out_folder(out)
     _first_run_note()
     from rich.console import Console  # noqa: PLC0415
 
@@ -764,6 +777,7 @@ def demo(
     scene = DEMO
     if not scene.is_file():
         raise PliantError(f"the bundled scene is missing: {scene}")
+    _out_folder(out)
     stem = scene.stem
     _evaluate_scene(scene, out / f"{stem}.html", out / f"{stem}.json", out / f"{stem}.csv",
                     None, None, None, pictures=out / stem)
