@@ -382,3 +382,24 @@ def test_a_paths_steps_are_made_by_assembly_not_by_the_reader():
     for before, after in zip([scene.problem, *scene.path], scene.path):
         assert [c for c in before.conditions if c.name != spec.grip] == \
                [c for c in after.conditions if c.name != spec.grip]
+
+
+def test_a_device_a_folder_or_a_huge_file_is_refused_unread(tmp_path, monkeypatch):
+    """No file pliant reads is read without bound (issue 54: /dev/zero as the scene or
+    the rules hung): a device or a folder is no regular file, and a file larger than
+    the limit is refused after reading just past it."""
+    from pliant.io import tomlfile
+    from pliant.io.rules_file import load_rules
+
+    with pytest.raises(FileFormatError, match="not a regular file"):
+        load_scene("/dev/zero")
+    with pytest.raises(FileFormatError, match=r"not a regular file.*rules file"):
+        load_rules("/dev/zero")
+    with pytest.raises(FileFormatError, match="not a regular file"):
+        load_scene(tmp_path)
+    with pytest.raises(FileFormatError, match="no such file"):
+        load_scene(tmp_path / "nope.toml")
+    monkeypatch.setattr(tomlfile, "LARGEST_TEXT", 100)
+    (tmp_path / "big.toml").write_text("# " + "x" * 200 + "\n" + SMALL)
+    with pytest.raises(FileFormatError, match="larger than"):
+        load_scene(tmp_path / "big.toml")

@@ -304,3 +304,16 @@ def test_a_sample_starts_from_the_nominal_start_and_gets_the_cold_answer(scene_f
     assert record["peak_force"] == pytest.approx(cold.run.peak("force")[0], rel=1e-6)
     assert record["headline"] == cold.verdict.headline
     np.testing.assert_allclose(record["final"], cold.run.final.position, atol=1e-8)
+
+
+def test_a_study_of_more_samples_than_a_machine_can_judge_is_refused_at_once():
+    """Issue 54: --samples 1e9 allocated its plan and ran; the plan is bounded, and a
+    study that large is refused naming the field before anything is sampled."""
+    from pliant.errors import InputError
+
+    v = [parse_variation("length=5mm", data())]
+    assert plan(v, 100_000).shape == (100_000, 1)
+    with pytest.raises(InputError, match="samples: must be 1 to 100,000"):
+        plan(v, 100_001)
+    with pytest.raises(InputError, match="samples"):
+        plan(v, 0)

@@ -145,6 +145,9 @@ def _locate(name: str, data: dict[str, Any], label: str) -> tuple[tuple[Any, ...
     return (table, i, "position"), "length", True
 
 
+MOST_SAMPLES = 100_000  # a study's samples at most (a day's work on 2 cores is 80,000)
+
+
 def plan(variations: list[Variation], samples: int, method: str = "lhs",
          seed: int = 0) -> np.ndarray:
     """(samples, columns) deviations from nominal, in each column's unit (SI, or a
@@ -152,8 +155,9 @@ def plan(variations: list[Variation], samples: int, method: str = "lhs",
     as 3 sigma, from a Latin hypercube or a scrambled Sobol sequence."""
     from scipy.stats import norm, qmc  # noqa: PLC0415
 
-    if samples < 1:
-        raise InputError("samples", f"must be at least 1, got {samples}")
+    if not 1 <= samples <= MOST_SAMPLES:
+        raise InputError("samples", f"must be 1 to {MOST_SAMPLES:,} (each is an evaluation "
+                         f"of about a second: split a larger study), got {samples:,}")
     if method not in ("lhs", "sobol"):
         raise InputError("method", f"must be lhs or sobol, got {method!r}")
     scales, normal = [], []

@@ -57,6 +57,7 @@ from pliant.io.scene_sections import (
 )
 from pliant.io.sections import PackagingFields, Vec3, _Strict, read_mesh
 from pliant.io.tomlfile import field_path, read_toml
+from pliant.io.tomlfile import read_text as read_bounded
 from pliant.util import progress
 
 
@@ -666,17 +667,9 @@ def load_problem_file(path: str | Path) -> tuple[Problem, SolverModel]:
 
 
 def read_text(path: str | Path) -> str:
-    """A file's text (UTF-8), or a one-line ``FileFormatError`` saying why not."""
-    path = Path(path)
-    try:
-        return path.read_text(encoding="utf-8")
-    except FileNotFoundError:
-        raise FileFormatError(f"{path}: no such file; check the path") from None
-    except UnicodeDecodeError as err:
-        raise FileFormatError(f"{path}: not a text file in UTF-8 (byte {err.start}); save "
-                              "it as UTF-8 TOML") from None
-    except OSError as err:
-        raise FileFormatError(f"{path}: cannot be read: {err.strerror}") from None
+    """A file's text (UTF-8), or a one-line ``FileFormatError`` saying why not
+    (``tomlfile.read_text``: bounded, regular files only)."""
+    return read_bounded(path)
 
 
 def load_scene(path: str | Path, settle: SettleFitted | None = None) -> Scene:

@@ -25,7 +25,7 @@ from pliant.core.rules import (
     Sourced,
 )
 from pliant.errors import FileFormatError
-from pliant.io.tomlfile import field_path, read_toml
+from pliant.io.tomlfile import field_path, read_text, read_toml
 
 UNITS = {"axial": "N", "lateral": "N", "grip": "N", "force": "N", "twist": "N m",
          "bending": "N m"}
@@ -359,10 +359,4 @@ def load_rules(path: str | Path | None = None) -> Rules:
     if path is None:
         return bundled_rules()
     path = Path(path)
-    try:
-        text = path.read_text(encoding="utf-8")
-    except FileNotFoundError:
-        raise FileFormatError(f"{path}: no such rules file; check the path") from None
-    except (OSError, UnicodeDecodeError) as err:
-        raise FileFormatError(f"{path}: cannot be read as UTF-8 TOML: {err}") from None
-    return parse_rules(text, str(path))
+    return parse_rules(read_text(path, "rules file"), str(path))

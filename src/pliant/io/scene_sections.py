@@ -20,6 +20,7 @@ from pliant.core.rules import EvaluationSettings
 from pliant.core.worker import Worker
 from pliant.errors import InputError, PliantError
 from pliant.io.sections import PackagingFields, Vec3, _referenced, _Strict
+from pliant.io.tomlfile import read_text
 from pliant.util import progress
 
 
@@ -96,7 +97,7 @@ def _nested_problem(name: str, base: Path | None, what: str) -> tuple[Path, Prob
 
     path = _referenced(name, base, "problem")
     try:
-        text = path.read_text(encoding="utf-8")
+        text = read_text(path, "problem file")
         problem = parse_scene(text, str(path), path.parent, nested=True).problem
     except (OSError, PliantError) as err:
         raise ValueError(f"file: {err}") from None

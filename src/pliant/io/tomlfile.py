@@ -1,12 +1,40 @@
-"""TOML text in, with errors that name the file and the field: shared by every file
-pliant reads (problems, scenes, rules)."""
+"""Text and TOML in, with errors that name the file and the field: shared by every file
+pliant reads (problems, scenes, rules, sequences)."""
 
 from __future__ import annotations
 
 import tomllib
+from pathlib import Path
 from typing import Any
 
 from pliant.errors import FileFormatError
+
+LARGEST_TEXT = 64 * 2**20  # bytes: a scene, rules or sequence file larger is no such file
+
+
+def read_text(path: str | Path, what: str = "file") -> str:
+    """A text file's text (UTF-8), or a one-line ``FileFormatError`` saying why not: no
+    such file, not a regular file (a device such as /dev/zero, a folder), larger than
+    ``LARGEST_TEXT``, not UTF-8, unreadable. Never reads without bound."""
+    path = Path(path)
+    try:
+        if not path.is_file():
+            if not path.exists():
+                raise FileFormatError(f"{path}: no such {what}; check the path")
+            raise FileFormatError(f"{path}: not a regular file (a folder or a device); give "
+                                  f"the {what}'s path")
+        with path.open("rb") as handle:
+            data = handle.read(LARGEST_TEXT + 1)
+    except OSError as err:
+        raise FileFormatError(f"{path}: cannot be read: {err.strerror}") from None
+    if len(data) > LARGEST_TEXT:
+        raise FileFormatError(f"{path}: larger than {LARGEST_TEXT // 2**20} MiB: not a "
+                              f"{what} pliant reads")
+    try:
+        return data.decode("utf-8")
+    except UnicodeDecodeError as err:
+        raise FileFormatError(f"{path}: not a text file in UTF-8 (byte {err.start}); save "
+                              "it as UTF-8 TOML") from None
 
 
 def read_toml(text: str, source: str) -> dict[str, Any]:
