@@ -5,9 +5,11 @@ from __future__ import annotations
 
 import json
 import math
+import re
 import shutil
 import subprocess
 import sys
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -403,3 +405,25 @@ def test_a_device_a_folder_or_a_huge_file_is_refused_unread(tmp_path, monkeypatc
     (tmp_path / "big.toml").write_text("# " + "x" * 200 + "\n" + SMALL)
     with pytest.raises(FileFormatError, match="larger than"):
         load_scene(tmp_path / "big.toml")
+
+
+@pytest.mark.parametrize(("change", "where"), [
+    (('name = "floor"', 'name = "fl\\u001b[31moor"'), "obstacle[0].name"),
+    (('[part]\nlength', '[part]\nname = "\\u0007hose"\nlength'), "part.name"),
+])
+def test_a_name_with_an_escape_sequence_is_refused(change, where):
+    """Issue 54: names with ANSI escapes reached the terminal raw; a control character
+    other than a tab or a line break is refused naming the field (multi-line notes stay
+    valid: the paper's cases keep theirs)."""
+    old, new = change
+    assert old in SMALL
+    with pytest.raises(FileFormatError, match=re.escape(where)):
+        parse_scene(SMALL.replace(old, new, 1), "s.toml")
+    load_scene(Path(__file__).resolve().parents[1] / "examples" / "paper" / "case1.toml")
+
+
+def test_a_path_of_more_steps_than_memory_holds_is_refused():
+    """Issue 54: steps = 100000 reached 4 GiB; the bound is checked as the file is read."""
+    text = SMALL + '[path]\ngrip = "hand"\nwaypoints = [[0.5, 0.0, 0.3]]\nsteps = 20000\n'
+    with pytest.raises(FileFormatError, match=r"path\.steps"):
+        parse_scene(text, "s.toml")

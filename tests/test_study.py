@@ -317,3 +317,12 @@ def test_a_study_of_more_samples_than_a_machine_can_judge_is_refused_at_once():
         plan(v, 100_001)
     with pytest.raises(InputError, match="samples"):
         plan(v, 0)
+
+
+def test_a_relative_tolerance_of_a_hundred_percent_or_more_is_refused():
+    """Issue 54: --vary bending_stiffness=100% took the stiffness to zero and below."""
+    from pliant.errors import InputError
+
+    with pytest.raises(InputError, match="less than 100 %"):
+        parse_variation("bending_stiffness=100%", data())
+    assert parse_variation("bending_stiffness=99%", data()).tolerance == pytest.approx(0.99)

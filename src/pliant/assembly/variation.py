@@ -102,6 +102,9 @@ def parse_variation(spec: str, data: dict[str, Any], index: int = 0) -> Variatio
     if unit == "%":
         if vector:
             raise InputError(label, "a position's tolerance is a length (mm, m), not %")
+        if not value < 100.0:
+            raise InputError(label, f"a tolerance of {value:g} % would take the value to zero "
+                             "or below it; give less than 100 %")
         return Variation(name, path, quantity, value / 100.0, True, dist, vector)
     scale = UNITS[quantity].get(unit)
     if scale is None:

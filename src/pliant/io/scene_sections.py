@@ -290,6 +290,9 @@ class JunctionModel(_Strict):
         return Junction(self.name, self.s, tuple(branches))
 
 
+MOST_STEPS = 10_000  # a [path]'s steps at most: each keeps its equilibrium (tens of kB)
+
+
 class PathModel(_Strict):
     """[path]: a manipulation: the condition ``grip`` is carried from where the file
     puts it through ``waypoints`` (straight legs), its axis turned toward ``tangents``
@@ -298,7 +301,7 @@ class PathModel(_Strict):
     grip: str
     waypoints: list[Vec3] = Field(min_length=1)
     tangents: list[Vec3] | None = None
-    steps: int = Field(50, ge=1, le=100000)
+    steps: int = Field(50, ge=1, le=MOST_STEPS)
     carry: list[str] = Field(default_factory=list, description="other hands carried with "
                              "the grip as one rigid carrier (both hands carrying)")
 

@@ -27,6 +27,10 @@ class _Strict(BaseModel):
         field = cls.model_fields.get(info.field_name or "")
         if _has_bool(value) and field is not None and "bool" not in str(field.annotation):
             raise ValueError("a number is wanted here, not true or false")
+        if _has_control(value):
+            raise ValueError("a control character (an escape sequence) stands in this "
+                             "text: pliant prints names and notes to terminals and "
+                             "reports; remove it")
         return value
 
 
@@ -106,3 +110,13 @@ def _parse_mesh(path: Path) -> tuple[np.ndarray, np.ndarray]:
         raise ValueError(f"file: {str(path)!r}: {err}") from None
     mesh.process()
     return np.asarray(mesh.vertices, dtype=float), np.asarray(mesh.faces, dtype=np.int64)
+
+
+def _has_control(value: Any) -> bool:
+    """Whether a text (or a list of texts) holds a control character other than a tab or
+    a line break (ANSI escapes would reach a terminal raw)."""
+    if isinstance(value, str):
+        return any((ord(ch) < 32 and ch not in "\t\n\r") or ord(ch) == 127 for ch in value)
+    if isinstance(value, list):
+        return any(_has_control(v) for v in value)
+    return False
