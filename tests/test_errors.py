@@ -160,6 +160,13 @@ def test_files_that_are_not_text_too_deep_or_far_out_get_one_line_errors(tmp_pat
     # a 10 m cable of EI 1e-4 pulled with 100 N: F L^2 / EI = 1e8 (it grew to 1 GB)
     (lambda pl: pl.Problem(pl.Part(10.0, 1e-4), (pl.clamp(0.0), pl.push(
         10.0, force=(100.0, 1.0), name="tip"))), "tip.force"),
+    # 3D (issue 54: "the start is singular"), past a millionth of the length
+    (lambda pl: pl.Problem(pl.Part(1.0, 1.0), (pl.clamp(0.0, (0, 0, 0)), pl.push(
+        1.0, force=(0.0, 0.0, 1e38), name="tip"))), "tip.force"),
+    (lambda pl: pl.Problem(pl.Part(1.0, 1e-300), (pl.clamp(0.0, (0, 0, 0)), pl.push(
+        1.0, force=(0.0, 0.0, 1.0), name="tip"))), "part.bending_stiffness"),
+    (lambda pl: pl.Problem(pl.Part(1.0, 1.0), (pl.clamp(0.0, (0, 0, 0)), pl.push(
+        1.0, force=(0.0, 0.0, 0.0), moment=(0.0, 1e12, 0.0), name="tip"))), "tip.moment"),
 ])
 def test_loads_far_past_bending_are_refused_at_once_by_name(problem, field):
     """Loads that bend the part on a scale under a thousandth of its length (a unit slip
