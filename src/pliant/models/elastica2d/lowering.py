@@ -21,9 +21,9 @@ import numpy as np
 
 from pliant.core.equilibrium import Equilibrium, model_loads
 from pliant.core.problem import Problem, Station
-from pliant.errors import InputError
 from pliant.models.elastica2d import kernels
 from pliant.models.elastica2d.kernels import APPLIED, NODE, PRESCRIBED
+from pliant.models.scale import force_terms, refuse, scale_terms
 
 # Largest wavenumber times interval length between restart nodes: the sensitivities
 # grow by at most about exp(NODE_SPAN) across one shooting interval.
@@ -392,34 +392,13 @@ def check_wavenumber(problem: Problem) -> float:
     wave = load_wavenumber(problem)
     if math.isfinite(wave) and wave <= MAX_WAVENUMBER:
         return wave
-    part = problem.part
-    length, stiffness = part.length, part.bending_stiffness
-    terms = [(math.sqrt(math.hypot(*problem.dead_load_per_length) * length
-                        * length**2 / stiffness), "part.mass_per_length",
-              "the part's weight and distributed loads")]
-    for ld in problem.partial_loads:
-        a, b = ld.span(length)
-        total = math.hypot(*ld.force) * (b - a)
-        terms.append((math.sqrt(total * length**2 / stiffness), f"{ld.name}.force",
-                      f"a distributed load of {total:.3g} N in all"))
-    for st in problem.stations:
-        name = "/".join(c.name for c in st.conditions) or f"s = {st.s:g} m"
+    length, stiffness = problem.part.length, problem.part.bending_stiffness
+
+    def at(st: Station, name: str) -> list:
         force = math.hypot(st.dead_load[0], st.dead_load[1]) + math.hypot(*st.follower_load)
-        terms.append((math.sqrt(force * length**2 / stiffness), f"{name}.force",
-                      f"a force of {force:.3g} N"))
-        terms.append((abs(st.dead_load[2]) * length / stiffness, f"{name}.moment",
-                      f"a moment of {abs(st.dead_load[2]):.3g} N m"))
-    curvature = max(abs(k) for _, k in part.rest_knots)
-    terms.append((curvature * length, "part.rest_curvature",
-                  f"a rest curvature of {curvature:.3g} 1/m"))
-    size, field, what = max(terms, key=lambda t: t[0] if math.isfinite(t[0]) else math.inf)
-    if stiffness < 1e-12 or not math.isfinite(size):
-        field = "part.bending_stiffness"
-    raise InputError(field, f"{what} on a part of bending stiffness {stiffness:.3g} N m^2 and "
-                     f"length {length:.3g} m bends it on a scale of {1.0 / max(wave, 1e-300):.2g} "
-                     f"of its length (k L = {wave:.3g}, beyond {MAX_WAVENUMBER:g}): check "
-                     "the units (N, not kN; N m^2, not N mm^2); a part that slack is a string, "
-                     "outside what the accurate model resolves")
+        return force_terms(force, abs(st.dead_load[2]), name, length, stiffness)
+
+    refuse(problem, scale_terms(problem, at), wave, MAX_WAVENUMBER)
 
 
 def lower(problem: Problem, nodes: int | None = None) -> Lowered:

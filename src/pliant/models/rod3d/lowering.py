@@ -19,9 +19,9 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from pliant.core.problem import Problem, Station3D
-from pliant.errors import InputError
 from pliant.models.rod3d import kernels
 from pliant.models.rod3d.kernels import AXIS, FREE, FULL
+from pliant.models.scale import force_terms, refuse, scale_terms
 
 if TYPE_CHECKING:
     from pliant.scene.distance import DistanceField
@@ -487,39 +487,20 @@ MAX_SCALE = 1.0e6  # k L: loads that bend a part on a scale under a millionth of
 def check_scale(problem: Problem) -> None:
     """An ``InputError`` naming the field where a load (or the stiffness) is far past
     anything a part can be: it would bend the part on a scale under ``1 / MAX_SCALE`` of
-    its length (k L: sqrt(F L^2 / EI) for a force, M L / EI for a moment). That is a unit
-    slip or a typo (Fz = 1e38, EI = 1e-300), which the solver would otherwise meet as "the
-    start is singular". Tension the rod resolves (a taut cable) stays far below it."""
-    part = problem.part
-    length, stiffness = part.length, part.bending_stiffness
-    weight = math.hypot(*problem.dead_load_per_length) if problem.dead_load_per_length else 0.0
-    terms = [(math.sqrt(weight * length**3 / stiffness), "part.mass_per_length",
-              "the part's weight and distributed loads")]
-    for ld in problem.partial_loads:
-        a, b = ld.span(length)
-        total = math.hypot(*ld.force) * (b - a)
-        terms.append((math.sqrt(total * length**2 / stiffness), f"{ld.name}.force",
-                      f"a distributed load of {total:.3g} N in all"))
-    for st in problem.stations:
-        name = "/".join(c.name for c in st.conditions) or f"s = {st.s:g} m"
+    its length (``pliant.models.scale``). That is a unit slip or a typo (Fz = 1e38, EI =
+    1e-300), which the solver would otherwise meet as "the start is singular"; tension
+    the rod resolves (a taut cable) stays far below it."""
+    length, stiffness = problem.part.length, problem.part.bending_stiffness
+
+    def at(st: Station3D, name: str) -> list:
         force = math.hypot(*st.dead_force) + math.hypot(*st.follower_force)
         moment = math.hypot(*st.dead_moment) + math.hypot(*st.follower_moment)
-        terms.append((math.sqrt(force * length**2 / stiffness), f"{name}.force",
-                      f"a force of {force:.3g} N"))
-        terms.append((moment * length / stiffness, f"{name}.moment",
-                      f"a moment of {moment:.3g} N m"))
-    curvature = max((abs(k) for _, k in part.rest_knots), default=0.0)
-    terms.append((curvature * length, "part.rest_curvature",
-                  f"a rest curvature of {curvature:.3g} 1/m"))
-    size, field, what = max(terms, key=lambda t: t[0] if math.isfinite(t[0]) else math.inf)
-    if math.isfinite(size) and size <= MAX_SCALE:
-        return
-    if stiffness < 1e-12 or not math.isfinite(size):
-        field = "part.bending_stiffness"
-    raise InputError(field, f"{what} on a part of bending stiffness {stiffness:.3g} N m^2 and "
-                     f"length {length:.3g} m would bend it on a scale of {1.0 / size:.2g} of "
-                     f"its length (k L = {size:.3g}, beyond {MAX_SCALE:g}): check the units "
-                     "(N, not kN; N m^2, not N mm^2) and the value")
+        return force_terms(force, moment, name, length, stiffness)
+
+    terms = scale_terms(problem, at)
+    size = max(t[0] if math.isfinite(t[0]) else math.inf for t in terms)
+    if size > MAX_SCALE:
+        refuse(problem, terms, size, MAX_SCALE)
 
 
 def lower(problem: Problem, elements: int = 100) -> Rod:
