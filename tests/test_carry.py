@@ -125,4 +125,4 @@ def test_the_planner_carries_the_hose_by_both_ends_past_the_post_where_one_hand_
     np.testing.assert_allclose(end.position[-1], (0.8, 0.9, 0.7), atol=1e-6)
     np.testing.assert_allclose(end.position[0], (0.0, 0.9, 0.7), atol=1e-6)  # carried
     with pytest.raises(NoPathError):
-        plan(scene, "bench port", replace(scene.plan, carry=(), budget=6.0, attempts=1))
+        plan(scene, "bench port", replace(scene.plan, carry=(), budget=3.0, attempts=1))
