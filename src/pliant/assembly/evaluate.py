@@ -379,6 +379,15 @@ class Evaluation:
                 return op
         return self.operators[0] if self.operators else None
 
+    @property
+    def bodies(self) -> OperatorResult | None:
+        """The operator whose hands and worker the report and the page draw: the one
+        chosen, else the first that judged access or reach (None: none did)."""
+        chosen = self.chosen
+        if chosen is not None and (chosen.access or chosen.reach):
+            return chosen
+        return next((o for o in self.operators if o.access or o.reach), None)
+
     def worst_step(self) -> int:
         """The step of the worst red or yellow item (the last step when all is green)."""
         for c in self.items:

@@ -31,6 +31,7 @@ from typing import Any
 
 import numpy as np
 
+from pliant.core.numbers import triple
 from pliant.core.rules import Body, PostureZones
 from pliant.core.worker import Worker
 from pliant.errors import InputError
@@ -44,7 +45,7 @@ class Reach:
     """One hand at one step: how far beyond the arm's reach the grip is at the trunk bend
     found (negative: within it by that much) [m], that bend and the upper-arm elevation
     [deg], the shoulder-to-grip distance and the arm's reach [m], and where the shoulder,
-    elbow, hip and feet are (global frame) [m]: the stick figure a report draws."""
+    elbow, hip, feet and hand are (global frame) [m]: the stick figure a report draws."""
 
     excess: float
     trunk: float
@@ -56,12 +57,18 @@ class Reach:
     side: str
     hip: tuple[float, float, float] = (0.0, 0.0, 0.0)
     feet: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    hand: tuple[float, float, float] = (0.0, 0.0, 0.0)
+
+    @property
+    def chain(self) -> list[tuple[float, float, float]]:
+        """The stick figure to draw: feet, hip, shoulder, elbow, hand [m]."""
+        return [self.feet, self.hip, self.shoulder, self.elbow, self.hand]
 
     def to_dict(self) -> dict[str, Any]:
         return {"excess": self.excess, "trunk": self.trunk, "upper_arm": self.upper_arm,
                 "distance": self.distance, "arm": self.arm, "shoulder": list(self.shoulder),
                 "elbow": list(self.elbow), "side": self.side, "hip": list(self.hip),
-                "feet": list(self.feet)}
+                "feet": list(self.feet), "hand": list(self.hand)}
 
 
 class Figure:
@@ -89,13 +96,17 @@ class Figure:
         self.half_breadth = 0.5 * body.shoulder_breadth * self.stature
         self.worker = worker
 
-    def shoulder(self, side: str, bend: float) -> np.ndarray:
-        """The shoulder ``side`` with the trunk bent forward ``bend`` [deg]."""
-        b = math.radians(bend)
+    def shoulders(self, side: str, bends: np.ndarray) -> np.ndarray:
+        """The shoulder ``side`` (n, 3) with the trunk bent forward ``bends`` (n,) [deg]."""
+        b = np.radians(np.asarray(bends, float))[:, None]
         right = np.cross(self.facing, self.up)
         lateral = self.half_breadth * (1.0 if side == "right" else -1.0)
-        return (self.hip + self.trunk * (math.cos(b) * self.up + math.sin(b) * self.facing)
+        return (self.hip + self.trunk * (np.cos(b) * self.up + np.sin(b) * self.facing)
                 + lateral * right)
+
+    def shoulder(self, side: str, bend: float) -> np.ndarray:
+        """The shoulder ``side`` with the trunk bent forward ``bend`` [deg]."""
+        return self.shoulders(side, np.array([bend]))[0]
 
     def least_bend(self, hand: np.ndarray, side: str) -> float:
         """The least forward trunk bend [deg] that brings ``hand`` within the arm's reach
@@ -106,7 +117,7 @@ class Figure:
             return float(np.linalg.norm(hand - self.shoulder(side, bend))) - self.arm
 
         bends = np.arange(0.0, MOST_BEND + BEND_STEP / 2, BEND_STEP)
-        gaps = np.array([gap(b) for b in bends])
+        gaps = np.linalg.norm(hand - self.shoulders(side, bends), axis=1) - self.arm
         inside = np.nonzero(gaps <= 0.0)[0]
         if inside.size == 0:
             return float(bends[int(np.argmin(gaps))])
@@ -118,16 +129,21 @@ class Figure:
             lo, hi = (lo, mid) if gap(mid) <= 0.0 else (mid, hi)
         return hi
 
+    def elevations(self, shoulders: np.ndarray, elbows: np.ndarray) -> np.ndarray:
+        """The upper arm's elevation from hanging down [deg] (n,)."""
+        arm = elbows - shoulders
+        down = (arm @ -self.up) / np.linalg.norm(arm, axis=1)
+        return np.degrees(np.arccos(np.clip(down, -1.0, 1.0)))
+
     def posture(self, hand: np.ndarray, side: str, bend: float) -> Reach:
         """The arm's posture reaching ``hand`` with the trunk bent ``bend`` [deg]."""
-        shoulder = self.shoulder(side, bend)
-        elbow = self.elbow(shoulder, hand)
-        arm_dir = (elbow - shoulder) / np.linalg.norm(elbow - shoulder)
-        elevation = math.degrees(math.acos(max(-1.0, min(1.0, float(arm_dir @ -self.up)))))
-        distance = float(np.linalg.norm(hand - shoulder))
+        shoulder = self.shoulders(side, np.array([bend]))
+        elbow = self.elbows(shoulder, hand)
+        elevation = float(self.elevations(shoulder, elbow)[0])
+        distance = float(np.linalg.norm(hand - shoulder[0]))
         return Reach(distance - self.arm, bend, elevation, distance, self.arm,
-                     _triple(shoulder), _triple(elbow), side, _triple(self.hip),
-                     _triple(np.asarray(self.worker.position, float)))
+                     triple(shoulder[0]), triple(elbow[0]), side, triple(self.hip),
+                     triple(self.worker.position), triple(hand))
 
     def reach(self, hand, side: str, zones: PostureZones | None = None) -> Reach:
         """The posture that reaches ``hand`` [m]: with ``zones``, the trunk bend from the
@@ -140,34 +156,38 @@ class Figure:
         if zones is None or best.excess > 0.0:
             return best
 
-        def cost(r: Reach) -> float:
-            return max(r.trunk / zones.trunk[1], r.upper_arm / zones.upper_arm[1])
-
-        for bend in np.arange(math.ceil(least / BEND_STEP) * BEND_STEP, MOST_BEND + 1e-9,
-                              BEND_STEP):
-            tried = self.posture(hand, side, float(bend))
-            if cost(tried) < cost(best):
-                best = tried
+        # every bend further on the grid at once: the first of least risk, if it is less
+        bends = np.arange(math.ceil(least / BEND_STEP) * BEND_STEP, MOST_BEND + 1e-9,
+                          BEND_STEP)
+        if not bends.size:
+            return best
+        shoulders = self.shoulders(side, bends)
+        risk = np.maximum(bends / zones.trunk[1],
+                          self.elevations(shoulders, self.elbows(shoulders, hand))
+                          / zones.upper_arm[1])
+        k = int(np.argmin(risk))
+        if risk[k] < max(best.trunk / zones.trunk[1], best.upper_arm / zones.upper_arm[1]):
+            return self.posture(hand, side, float(bends[k]))
         return best
 
-    def elbow(self, shoulder: np.ndarray, hand: np.ndarray) -> np.ndarray:
-        """The elbow as low as it can hang with the upper arm from ``shoulder`` and the
-        forearm to ``hand`` (the arm straight towards the hand where it does not reach)."""
+    def elbows(self, shoulders: np.ndarray, hand: np.ndarray) -> np.ndarray:
+        """The elbows (n, 3) as low as they can hang with the upper arm from ``shoulders``
+        (n, 3) and the forearm to ``hand`` (the arm straight towards the hand where it
+        does not reach; hanging where the hand is at the shoulder)."""
         a, b = self.upper, self.arm - self.upper
-        along = hand - shoulder
-        d = float(np.linalg.norm(along))
-        if d < 1e-9:
-            return shoulder - a * self.up
-        u = along / d
-        if d >= a + b or d <= abs(a - b):
-            return shoulder + a * u
-        x = (a * a - b * b + d * d) / (2.0 * d)
-        rho = math.sqrt(max(a * a - x * x, 0.0))
-        down = -self.up - float(-self.up @ u) * u
-        n = np.linalg.norm(down)
-        w = down / n if n > 1e-9 else np.cross(u, self.facing) / max(
-            np.linalg.norm(np.cross(u, self.facing)), 1e-12)
-        return shoulder + x * u + rho * w
+        along = hand - shoulders
+        d = np.linalg.norm(along, axis=1)
+        u = along / np.maximum(d, 1e-300)[:, None]
+        x = (a * a - b * b + d * d) / (2.0 * np.maximum(d, 1e-300))
+        rho = np.sqrt(np.maximum(a * a - x * x, 0.0))
+        down = -self.up - (u @ -self.up)[:, None] * u
+        n = np.linalg.norm(down, axis=1)
+        aside = np.cross(u, self.facing)
+        aside /= np.maximum(np.linalg.norm(aside, axis=1), 1e-12)[:, None]
+        w = np.where((n > 1e-9)[:, None], down / np.maximum(n, 1e-300)[:, None], aside)
+        out = np.where(((d >= a + b) | (d <= abs(a - b)))[:, None], shoulders + a * u,
+                       shoulders + x[:, None] * u + rho[:, None] * w)
+        return np.where((d < 1e-9)[:, None], shoulders - a * self.up, out)
 
 
 def up_of(problem: Any) -> np.ndarray:
@@ -177,6 +197,3 @@ def up_of(problem: Any) -> np.ndarray:
         return -g / np.linalg.norm(g)
     return np.array([0.0, 0.0, 1.0])
 
-
-def _triple(v: np.ndarray) -> tuple[float, float, float]:
-    return float(v[0]), float(v[1]), float(v[2])

@@ -204,10 +204,10 @@ def pictures(ev: Any, steps: list[tuple[str, int]]) -> list[tuple[str, str]]:
             mesh = mesh.simplify_quadric_decimation(face_count=4000) if hasattr(
                 mesh, "simplify_quadric_decimation") else mesh
         meshes.append((obstacle.name, mesh))
-    shown = _body_operator(ev)
+    shown = ev.bodies
     figure_points = [np.asarray(pts, float) for k in {k for _, k in steps}
                      for r in (shown.reach.values() if shown else ())
-                     for pts in (r[k].hip, r[k].shoulder, r[k].elbow, r[k].feet)]
+                     for pts in r[k].chain]
     every = np.concatenate([ev.run.equilibria[k].position for _, k in steps]
                            + [np.array(figure_points).reshape(-1, 3)])
     lo, hi = every.min(axis=0), every.max(axis=0)
@@ -236,7 +236,7 @@ def pictures(ev: Any, steps: list[tuple[str, int]]) -> list[tuple[str, str]]:
                 ax.text(*(p + arrow), f"{g}: {norm:.3g} N", fontsize=7,
                         color=COLOURS["red"])
         if shown is not None:
-            _draw_body(ax, shown, eq, k)
+            _draw_body(ax, shown, k)
         ax.set_xlim(centre[0] - half, centre[0] + half)
         ax.set_ylim(centre[1] - half, centre[1] + half)
         ax.set_zlim(centre[2] - half, centre[2] + half)
@@ -250,16 +250,7 @@ def pictures(ev: Any, steps: list[tuple[str, int]]) -> list[tuple[str, str]]:
     return out
 
 
-def _body_operator(ev: Any) -> Any:
-    """The operator whose hands the pictures draw: the one chosen, else the first that
-    judged access or reach."""
-    chosen = ev.chosen
-    if chosen is not None and (chosen.access or chosen.reach):
-        return chosen
-    return next((o for o in ev.operators if o.access or o.reach), None)
-
-
-def _draw_body(ax, op: Any, eq: Any, k: int) -> None:
+def _draw_body(ax, op: Any, k: int) -> None:
     """The hands' envelopes at step k (the ring round the part, the forearm out along
     the best approach, coloured by the access check's zone there) and the worker's
     stick figure (feet, hip, shoulder, elbow, grip)."""
@@ -272,11 +263,9 @@ def _draw_body(ax, op: Any, eq: Any, k: int) -> None:
         end = c + a.reach * d
         ax.plot(*zip(c, end), color=COLOURS[zone], lw=7, alpha=0.45, solid_capstyle="round")
         ax.scatter(*c, s=90, color=COLOURS[zone], alpha=0.6)
-    for g, steps in op.reach.items():
+    for steps in op.reach.values():
         r = steps[k]
-        grip = eq.position[int(np.argmin(np.abs(eq.s - (
-            eq.loads[g].s if g in eq.loads else op.second_hand_s or 0.0))))]
-        chain = np.array([r.feet, r.hip, r.shoulder, r.elbow, grip])
+        chain = np.array(r.chain)
         ax.plot(chain[:, 0], chain[:, 1], chain[:, 2], color="#5b3a87", lw=2.5)
         ax.scatter(*np.array(r.shoulder), s=18, color="#5b3a87")
 

@@ -71,6 +71,7 @@ class ReachModel(_Model):
     side: Literal["right", "left"]
     hip: list[float] = Field(default_factory=list, description="(3,) [m]")
     feet: list[float] = Field(default_factory=list, description="(3,) [m] on the floor")
+    hand: list[float] = Field(default_factory=list, description="(3,) [m] the grip reached")
 
 
 class OperatorModel(_Model):

@@ -402,7 +402,7 @@ class ViewerState:
         zone = worst_zone(ev.checks + (chosen.checks if chosen else []))
         if not ev.verdict.decided:  # a fallback: no colour of a verdict
             zone = Zone.UNCHECKED
-        hands, worker = _bodies(ev, result)
+        hands, worker = _bodies(ev)
         return P.Verdict(passes=ev.verdict.passes, headline=ev.verdict.headline,
                          operator=ev.verdict.operator, zone=zone.value,
                          items=[P.VerdictItem(zone=c.zone.value,
@@ -537,14 +537,12 @@ def _bend_limit(scene: Any) -> float | None:
     return centreline_bend_limit(scene.problem.part, rules)
 
 
-def _bodies(ev: Any, pose: Any) -> tuple[list[P.HandShape], list[P.WorkerShape]]:
+def _bodies(ev: Any) -> tuple[list[P.HandShape], list[P.WorkerShape]]:
     """The hands' envelopes and the worker's stick figures the evaluation of a pose
-    judged (its chosen operator's, else the first that judged them), to draw."""
+    judged (``Evaluation.bodies``), to draw."""
     from pliant.assembly.evaluate import worst_zone  # noqa: PLC0415
 
-    chosen = ev.chosen
-    op = chosen if chosen is not None and (chosen.access or chosen.reach) else next(
-        (o for o in ev.operators if o.access or o.reach), None)
+    op = ev.bodies
     if op is None:
         return [], []
 
@@ -556,15 +554,9 @@ def _bodies(ev: Any, pose: Any) -> tuple[list[P.HandShape], list[P.WorkerShape]]
                          reach=a[0].reach, ring=a[0].ring, clearance=a[0].clearance,
                          bound_by=a[0].bound_by, zone=zone_of(g, ("access",)))
              for g, a in op.access.items()]
-    workers = []
-    for g, steps in op.reach.items():
-        r = steps[0]
-        s = pose.loads[g].s if g in pose.loads else (op.second_hand_s or 0.0)
-        grip = pose.position[int(np.argmin(np.abs(pose.s - s)))]
-        workers.append(P.WorkerShape(
-            grip=g, chain=[list(r.feet), list(r.hip), list(r.shoulder), list(r.elbow),
-                           [float(v) for v in grip]],
-            side=r.side, zone=zone_of(g, ("reach", "posture"))))
+    workers = [P.WorkerShape(grip=g, chain=[list(p) for p in steps[0].chain],
+                             side=steps[0].side, zone=zone_of(g, ("reach", "posture")))
+               for g, steps in op.reach.items()]
     return hands, workers
 
 
