@@ -883,15 +883,17 @@ def _operators(scene: Any, run: PathRun, rules: Rules, settings: EvaluationSetti
     wanted = settings.operator
     out: list[OperatorResult] = []
     rows = hand_rows(rules, settings, settings.hold)
+    access: dict = {}  # each hand's access, found once for every operator
     if wanted in ("auto", "one hand"):
         checks = [c for g in grips for c in hand_checks(g, grip_steps[g], rows, friction)]
         one = OperatorResult("one hand", checks, "one hand" if len(grips) == 1 else
                              "one hand at each of " + ", ".join(grips))
-        _with_access(one, run, rules, settings, grips)
+        _with_access(one, run, rules, settings, grips, memo=access)
         _with_reach(one, run, rules, scene, grips)
         out.append(one)
     if wanted == "two hands" or (wanted == "auto" and out[0].zone == Zone.RED):
-        out += _two_hands(scene, run, rules, settings, grips, grip_steps, elements, search)
+        out += _two_hands(scene, run, rules, settings, grips, grip_steps, elements, search,
+                          access)
     if wanted in ("tool", "robot"):
         rating = settings.rating_force
         assert rating is not None  # EvaluationSettings asks a tool or robot for one
@@ -928,7 +930,8 @@ def _clamp_checks(scene: Any, run: PathRun) -> list[Check]:
 
 def _two_hands(scene: Any, run: PathRun, rules: Rules, settings: EvaluationSettings,
                grips: tuple[str, ...], grip_steps: dict[str, list[GripStep]],
-               elements: int | None, search: bool) -> list[OperatorResult]:
+               elements: int | None, search: bool,
+               access: dict | None = None) -> list[OperatorResult]:
     from pliant.assembly.operators import place_second_hand  # noqa: PLC0415
 
     friction = rules.hand_friction
@@ -942,17 +945,17 @@ def _two_hands(scene: Any, run: PathRun, rules: Rules, settings: EvaluationSetti
                                   note=note if share < 1 else "")
     out = [OperatorResult("two hands side by side", checks,
                           "two hands side by side at " + ", ".join(grips))]
-    _with_access(out[0], run, rules, settings, grips, hands=2)
+    _with_access(out[0], run, rules, settings, grips, hands=2, memo=access)
     _with_reach(out[0], run, rules, scene, grips)
     # Side by side passes: no need to look for where else the second hand could go.
     if len(grips) == 1 and search and not out[0].passes:
         placed = place_second_hand(scene, run, rules, settings, grips[0], grip_steps[grips[0]],
                                    elements or scene.solver.elements)
         if placed is not None:
-            _with_access(placed, run, rules, settings, grips)
+            _with_access(placed, run, rules, settings, grips, memo=access)
             if placed.second_hand_s is not None:
                 _with_access(placed, run, rules, settings, (SECOND_HAND,),
-                             at=placed.second_hand_s)
+                             at=placed.second_hand_s, memo=access)
             _with_reach(placed, run, rules, scene, grips, second=placed.second_hand_s)
             out.append(placed)
     return out
@@ -963,18 +966,24 @@ SECOND_HAND = "second hand"
 
 def _with_access(op: OperatorResult, run: PathRun, rules: Rules,
                  settings: EvaluationSettings, grips: tuple[str, ...], hands: int = 1,
-                 at: float | None = None) -> None:
+                 at: float | None = None, memo: dict | None = None) -> None:
     """Add to ``op`` the access of a hand (``hands`` side by side) at each of ``grips``
     along the path (``at``: at that arc length [m] instead of the grip's), a check each
-    (``pliant.assembly.access``): red where no approach fits round the part."""
+    (``pliant.assembly.access``): red where no approach fits round the part. ``memo``:
+    the accesses found for the evaluation's other operators, by (grip, hands, at): one
+    hand at a grip is the same for every operator that puts one there."""
     env = rules.access
     if env is None or not run.equilibria:
         return
     from pliant.assembly.access import hand_access  # noqa: PLC0415
 
+    memo = {} if memo is None else memo
     for g in grips:
-        steps = [hand_access(eq, eq.loads[g].s if at is None else at, env, settings.hold,
-                             hands) for eq in run.equilibria]
+        key = (g, hands, at)
+        if key not in memo:
+            memo[key] = [hand_access(eq, eq.loads[g].s if at is None else at, env,
+                                     settings.hold, hands) for eq in run.equilibria]
+        steps = memo[key]
         op.access[g] = steps
         op.checks.append(access_check(g, steps, env, hands))
 
