@@ -12,11 +12,12 @@ import pytest
 
 import pliant as pl
 from pliant.assembly.evaluate import evaluate
-from pliant.assembly.path import carry, rotation_between
+from pliant.assembly.path import carry
 from pliant.assembly.plan import Planner
 from pliant.assembly.scenes import load_scene
 from pliant.core.planning import PathSpec, PlanSettings
 from pliant.errors import FileFormatError, InputError
+from pliant.models.rod3d.lowering import rotation_between
 
 EXAMPLE = Path(__file__).resolve().parents[1] / "examples" / "hoses" / "carry_past_post.toml"
 

@@ -186,8 +186,12 @@ def carry_with(grip: Condition, where: Any, direction: Any,
     grip's axis to ``direction`` (none without axes) about the grip, then moved with it."""
     if not carried:
         return {}
-    turn = (rotation_between(np.asarray(grip.tangent, float), np.asarray(direction, float))
-            if direction is not None and grip.tangent is not None else np.eye(3))
+    from pliant.models.rod3d.lowering import rotation_between  # noqa: PLC0415
+
+    turn = np.eye(3)
+    if direction is not None and grip.tangent is not None:
+        to = np.asarray(direction, float)
+        turn = rotation_between(np.asarray(grip.tangent, float), to / np.linalg.norm(to))
     origin, target = np.asarray(grip.position, float), np.asarray(where, float)
     out = {}
     for c in carried:
@@ -199,25 +203,6 @@ def carry_with(grip: Condition, where: Any, direction: Any,
                 changes[key] = tuple(float(x) for x in turn @ np.asarray(value, float))
         out[c.name] = replace(c, **changes)
     return out
-
-
-def rotation_between(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """The least rotation (3, 3) taking unit a to unit b (Rodrigues; a half turn about an
-    axis square to a)."""
-    a = a / np.linalg.norm(a)
-    b = b / np.linalg.norm(b)
-    axis = np.cross(a, b)
-    sin, cos = float(np.linalg.norm(axis)), float(a @ b)
-    if sin < 1e-12:
-        if cos > 0:
-            return np.eye(3)
-        helper = np.eye(3)[int(np.argmin(np.abs(a)))]
-        k = np.cross(a, helper)
-        k /= np.linalg.norm(k)
-        return 2.0 * np.outer(k, k) - np.eye(3)
-    k = axis / sin
-    K = np.array([[0.0, -k[2], k[1]], [k[2], 0.0, -k[0]], [-k[1], k[0], 0.0]])
-    return np.eye(3) + sin * K + (1.0 - cos) * (K @ K)
 
 
 def along_legs(points: np.ndarray, tangents: np.ndarray | None,
