@@ -38,6 +38,7 @@ from typing import Any
 
 import numpy as np
 
+from pliant.core.numbers import triple
 from pliant.core.rules import HandEnvelope
 
 SPACING = 0.02  # m between samples along a line of the envelope
@@ -217,12 +218,8 @@ def hand_access(eq: Any, s: float, env: HandEnvelope, hold: str = "power grip",
     by = ring_by if ring_best <= per_line[r].min() else int(
         line_by.reshape(n_dir, LINES)[r, int(np.argmin(per_line[r]))])
     name = SELF if by == -2 else (field.obstacles[by].name if by >= 0 else "nothing")
-    return Access(float(per_dir[r]), _triple(a[r]), name, _triple(centre),
+    return Access(float(per_dir[r]), triple(a[r]), name, triple(centre),
                   float(nodes_s[k]), shape.reach, shape.ring_radius)
-
-
-def _triple(v: np.ndarray) -> tuple[float, float, float]:
-    return float(v[0]), float(v[1]), float(v[2])
 
 
 class _Own:
