@@ -56,8 +56,7 @@ from pliant.io.scene_sections import (
     _solid_vertices,
 )
 from pliant.io.sections import PackagingFields, Vec3, _Strict, read_mesh
-from pliant.io.tomlfile import field_path, read_toml
-from pliant.io.tomlfile import read_text as read_bounded
+from pliant.io.tomlfile import field_path, read_text, read_toml
 from pliant.util import progress
 
 
@@ -664,12 +663,6 @@ def load_problem_file(path: str | Path) -> tuple[Problem, SolverModel]:
     """Read a problem file (TOML, SI units) and its ``[solver]`` settings."""
     scene = load_scene(path)
     return scene.problem, scene.solver
-
-
-def read_text(path: str | Path) -> str:
-    """A file's text (UTF-8), or a one-line ``FileFormatError`` saying why not
-    (``tomlfile.read_text``: bounded, regular files only)."""
-    return read_bounded(path)
 
 
 def load_scene(path: str | Path, settle: SettleFitted | None = None) -> Scene:
