@@ -421,10 +421,15 @@ def relax(model: Relaxable, state: Any, loads: Any, max_steps: int = 600,
         return None
     sigma = model.diagonal_scale(jac)
     ceiling = 1e8 * max(sigma, 1.0)
+    neutral = 1e-6 * sigma
     for _ in range(max_steps):
         if clock.now() > model.deadline or sigma > ceiling:
             return None  # out of time, or no step short enough: it cannot settle
         du, ok = model.shifted_solve(jac, sigma, -R)
+        if not ok and sigma < neutral:
+            # Singular only as the shift vanishes: settled on a neutral equilibrium (a
+            # round part's arch turning about its chord), which Newton closes on.
+            break
         move = model.primal_move(du) if ok else math.inf
         if not math.isfinite(move) or move > 4.0 * stride:
             sigma *= 4.0  # too long a step: a shorter one
@@ -447,7 +452,10 @@ def relax(model: Relaxable, state: Any, loads: Any, max_steps: int = 600,
     return state if status == Status.CONVERGED else None
 
 
-def settle(model: Relaxable, state: Any, loads: Any, push: float = 0.05) -> Any | None:
+PUSH = 0.05  # how far a saddle is pushed along its unstable mode, in L
+
+
+def settle(model: Relaxable, state: Any, loads: Any, push: float = PUSH) -> Any | None:
     """Relax (``relax``); where that ends on a saddle (an unstable equilibrium: the flow
     slowed next to it and the closing Newton landed on it), push the part along the
     saddle's unstable mode by ``push`` L, one way then the other, and relax again, so
