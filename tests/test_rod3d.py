@@ -11,7 +11,7 @@ from scipy.special import ellipe, ellipk
 
 import pliant as pl
 from pliant.core.equilibrium import WARM_START_LOST
-from pliant.core.events import LowestEquilibrium, Snapped
+from pliant.core.events import LeftUnstable, LowestEquilibrium, Snapped
 from pliant.errors import (
     ConvergenceError,
     IllPosedProblemError,
@@ -446,16 +446,30 @@ def test_jacobian_matches_finite_differences(curvature):
 
 def test_stability_changes_at_the_euler_load():
     """A straight cantilever pushed along its axis is stable below the Euler load
-    pi^2 EI / 4 L^2 and unstable above it (the model's own value is within O(h^2))."""
+    pi^2 EI / 4 L^2 and unstable above it (the model's own value is within O(h^2)).
+    Past it, a solve that keeps the unstable answer (``settle=False``) stays straight;
+    the default one leaves it along its unstable mode and settles on the buckled
+    elastica: tip off the axis by 2 k / lambda and along it at 2 E(k) / lambda - L, where
+    K(k) = lambda L, lambda^2 = P / EI (neutral: it may turn about its axis)."""
     critical = math.pi**2 / 4
     verdicts = []
     for factor in (0.97, 1.03):
         problem = pl.Problem(UNIT, (pl.clamp(0.0, position=(0.0, 0.0, 0.0)),
                                     pl.push(1.0, force=(-factor * critical, 0.0, 0.0),
                                             name="tip")))
-        verdicts.append(rod3d.solve(problem).stability)
+        straight = rod3d.solve(problem, solver=rod3d.RodSolver(settle=False))
+        assert abs(straight.position[:, 1:]).max() < 1e-9
+        verdicts.append(straight.stability)
     assert verdicts[0][0] is True and verdicts[0][1] > 0
     assert verdicts[1][0] is False and verdicts[1][1] < 0
+    buckled = rod3d.solve(problem)
+    assert buckled.verdict in ("stable", "neutral")
+    assert isinstance(buckled.notes[-1], LeftUnstable) and not buckled.notes[-1].jump
+    lam = math.sqrt(1.03 * critical)
+    k = brentq(lambda k: ellipk(k * k) - lam, 1e-6, 0.99)
+    tip = buckled.position[-1]
+    assert np.hypot(tip[1], tip[2]) == pytest.approx(2 * k / lam, rel=2e-3)
+    assert tip[0] == pytest.approx(2 * ellipe(k * k) / lam - 1.0, rel=2e-3)
     # The eigenvalue is that of the continuous operator (unknowns weighed by the length
     # they stand for): it converges under refinement, here at first order.
     half = pl.Problem(UNIT, (pl.clamp(0.0, position=(0.0, 0.0, 0.0)),
@@ -672,7 +686,7 @@ def test_stability_by_lanczos_matches_the_dense_eigensolver(factor, side, weight
     problem = pl.Problem(hose, (pl.clamp(0.0, position=(0.0, 0.0, 0.0)),
                                 pl.push(1.0, force=(-factor * math.pi**2 / 4, 0.0, side),
                                         name="tip")), gravity=(0.0, 0.0, -9.81))
-    eq = rod3d.solve(problem, solver=rod3d.RodSolver(elements=30))
+    eq = rod3d.solve(problem, solver=rod3d.RodSolver(elements=30, settle=False))
     run = Run(eq.state.rod, rod3d.RodSolver(elements=30))
     run.gauge_quat = eq.state.gauge_quat
     fast, dense = stability_of(run, eq.state.state), stability_dense(run, eq.state.state)

@@ -404,3 +404,4 @@ def test_the_sign_by_one_sturm_count_is_the_eigenvalues_at_random_targets():
             assert planar.stable_sign(eq, 60) is planar.stability(eq, 60)[0]
             checked += 1
     assert checked >= 12
+

@@ -43,7 +43,7 @@ from pliant.assembly.checks import (
 )
 from pliant.assembly.path import PathRun, StepRecord, follow_path
 from pliant.core.equilibrium import Result, stretch_summary
-from pliant.core.events import HeldRigid, WarmStartLost, has
+from pliant.core.events import HeldRigid, has, jumped
 from pliant.core.numbers import ROUND_OFF, TOUCHING, clean, triple
 from pliant.core.rules import Capacity, EvaluationSettings, ObstacleRule, PartKind, Rules
 from pliant.errors import InputError
@@ -456,7 +456,7 @@ def evaluate_pose(scene: Any, pose: Any, clearances: dict[str, float], *,
         moment=triple(grip.moment), clearance=float(nearest[1]),
         nearest=nearest[0], contacts=0 if pose.contacts is None else len(pose.contacts),
         contact_force=0.0, bend_radius=float(radius), bend_at=float(at),
-        stable=pose.stable, snap=has(pose.notes, WarmStartLost), seconds=0.0,
+        stable=pose.stable, snap=jumped(pose.notes), seconds=0.0,
         clearances=tuple(clearances.items()))
     run = PathRun(grip=recorded, margin=scene.margin, steps=[record], final=pose,
                   equilibria=[pose], problems=[pose.problem])
@@ -802,8 +802,12 @@ def _stability_check(run: PathRun) -> Check:
                      float(len(undecided)), "", Zone.UNCHECKED, "above", None, None, source,
                      "computed", step=undecided[0], note="follower loads or friction: a "
                      "static test does not decide")
+    branched = run.branched
+    note = (f"at {_ranges(tuple(branched))} the followed shape turned unstable and the part "
+            "took the stable branch that leaves it (a bifurcation: no jump)" if branched
+            else "")
     return Check("stability", "unstable or snapping steps", "stability", 0.0, "", Zone.GREEN,
-                 "above", None, 0.0, source, "computed")
+                 "above", None, 0.0, source, "computed", note=note)
 
 
 def _interference_checks(run: PathRun, scene: Any, rules: Rules) -> list[Check]:

@@ -751,7 +751,12 @@ class _BucklingModel:
         if not m.angle > 0.0:
             raise InputError(f"{label}.angle", "give the critical angle in rad, positive (the "
                              "turn's sense is about the clamp's tangent)")
-        self.m, self.label, self.problem, self.solver = m, label, problem, solver
+        from pliant.models.rod3d import RodSolver  # noqa: PLC0415
+
+        # The branch itself, unstable past the critical angle: its eigenvalue's zero is
+        # the measurement, so a solve must not leave it for the buckled shape.
+        self.solver = replace(solver or RodSolver(), settle=False)
+        self.m, self.label, self.problem = m, label, problem
         self.dof = 1
         self.scale = m.angle
         self.step = min(math.pi / 8.0, m.angle / 16.0)

@@ -20,7 +20,7 @@ import numpy as np
 
 from pliant.core.conditions import Condition
 from pliant.core.equilibrium import Equilibrium3D
-from pliant.core.events import WarmStartLost, events, has
+from pliant.core.events import LeftUnstable, WarmStartLost, events, jumped
 from pliant.core.numbers import triple
 from pliant.core.planning import PathSpec
 from pliant.core.problem import Problem
@@ -101,6 +101,13 @@ class PathRun:
     def snaps(self) -> list[int]:
         """The steps where the part jumped to another shape."""
         return [k for k, r in enumerate(self.steps) if r.snap]
+
+    @property
+    def branched(self) -> list[int]:
+        """The steps where the followed shape was unstable and the part took the stable
+        branch beside it without a jump (a bifurcation crossed: ``LeftUnstable``)."""
+        return [k for k, eq in enumerate(self.equilibria)
+                if any(isinstance(n, LeftUnstable) and not n.jump for n in eq.notes)]
 
     @property
     def unstable(self) -> list[int]:
@@ -298,5 +305,5 @@ def _record(eq: Equilibrium3D, grip: str, progress: float, margin: float,
         contacts=len(contacts),
         contact_force=float(np.linalg.norm(contacts.force, axis=1).sum()),
         bend_radius=float(radius), bend_at=float(at), stable=eq.stable,
-        snap=has(eq.notes, WarmStartLost), seconds=seconds,
+        snap=jumped(eq.notes), seconds=seconds,
         clearances=tuple((c.obstacle, float(c.clearance)) for c in report.clearances))

@@ -333,6 +333,10 @@ def print_path(run: Any, part: Any, console: Console | None = None, rows: int = 
     if run.snaps:
         console.print(f"[red]the part snaps[/red] (its shape could not be followed, it jumps "
                       f"to another) at steps {', '.join(map(str, run.snaps))}")
+    if run.branched:
+        console.print("the followed shape turned unstable and the part took the stable branch "
+                      "that leaves it (a bifurcation: no jump) at steps "
+                      f"{', '.join(map(str, run.branched))}")
     if run.unstable:
         console.print(f"[red]unstable shapes[/red] (a real part would not stay there) at "
                       f"{len(run.unstable)} steps, first {run.unstable[0]}")

@@ -147,6 +147,19 @@ class Snapped(Event):
     count: int = 1  # type: ignore[assignment]  # a field, over str.count
 
 
+class LeftUnstable(Event):
+    """The equilibrium reached was unstable: the part left it along its unstable mode
+    and settled on this stable one, ``distance`` [m] away at most, releasing ``released``
+    [J] of potential energy. ``jump`` where that is a snap (it releases more than a tenth
+    of the energy the step itself changed: a real part jumps there); else the stable
+    branch that leaves a bifurcation, which a real part follows without a jump."""
+
+    kind = "left_unstable"
+    distance: float = 0.0
+    released: float = 0.0
+    jump: bool = False
+
+
 class CrossedBifurcation(Event):
     """The path crosses a bifurcation (det J changes sign): the answer continued through
     it may be unstable, and a neighbouring branch may be the one the part takes."""
@@ -200,6 +213,13 @@ class HeldRigid(Event):
 def has(notes, kind: type[Event]) -> bool:
     """Whether any of an answer's notes is an event of this kind."""
     return any(isinstance(n, kind) for n in notes)
+
+
+def jumped(notes) -> bool:
+    """Whether an answer's part jumped to reach it: its warm start could not be followed
+    (``WarmStartLost``), or it left an unstable equilibrium with a snap (``LeftUnstable``)."""
+    return any(isinstance(n, WarmStartLost) or (isinstance(n, LeftUnstable) and n.jump)
+               for n in notes)
 
 
 def events(notes) -> tuple[Event, ...]:

@@ -331,6 +331,24 @@ class Routes:
             state = settled
         return state, count
 
+    def downhill(self, state: State, loads: Loads | None = None) -> list[State]:
+        """An unstable equilibrium (of the problem, or of ``loads`` on the way to it)
+        left along its unstable mode, one way then the other (pushed as
+        ``continuation.settle`` pushes off a saddle): the stable or neutral equilibria the
+        part settles in, one per way that settles."""
+        run = cast("Run", self)
+        loads = self.rod.target if loads is None else loads
+        mode = run.unstable_mode(state, loads)
+        if mode is None:
+            return []
+        du = mode * (continuation.PUSH / max(float(np.abs(mode).max()), 1e-300))
+        found = []
+        for sign in (1.0, -1.0):
+            settled = self.settle(run.step(state, sign * du, 1.0), loads)
+            if settled is not None:
+                found.append(settled)
+        return found
+
     def settle(self, state: State, loads: Loads) -> State | None:
         """Let the part settle past a fold (``continuation.settle``: a relaxation pushed
         along a saddle's unstable mode)."""

@@ -54,6 +54,7 @@ from pliant.models.rod3d.kernels import AXIS
 from pliant.models.rod3d.lowering import Loads, Rod, State, axis_basis, lower, qmul, quat_matrix
 from pliant.models.rod3d.results import WarmState, build, station_loads
 from pliant.models.rod3d.routes import _BRANCH_NOTE, Routes
+from pliant.models.rod3d.settling import same_family, same_shape, settled
 from pliant.models.rod3d.stability import conservative, metric, stability_of
 from pliant.models.settings import check
 
@@ -102,6 +103,10 @@ class RodSolver:
         route (with obstacles, without them, keeping the answers that touch none of
         them) and answer with the stable equilibrium of lowest potential energy (about
         four times the first route's time); False answers with the first route's
+    settle : an answer that is unstable is left along its unstable mode, both ways, for
+        the stable equilibrium the part settles in (from a warm start the nearest to it,
+        from rest the lowest), with a note; False keeps the unstable equilibrium (to
+        study that branch itself, as ``trace`` does)
     """
 
     elements: int = 100
@@ -116,6 +121,7 @@ class RodSolver:
     time_budget: float = 60.0
     accuracy: float = 0.01
     lowest: bool = True
+    settle: bool = True
 
     def __post_init__(self) -> None:
         check(self, fractions=("contraction",))
@@ -534,20 +540,36 @@ def reached(problem: Problem, solver: RodSolver, deadline: float) -> list[Equili
                                               route=route, how=how),))
             if not any(same_shape(eq, other) for other in found):
                 found.append(eq)
+    if solver.settle:
+        found += _settled_from(found, solver, deadline)
     if problem.obstacles:
         found += [eq for eq in _clear(Run(rod, solver), deadline)
                   if not any(same_shape(eq, other) for other in found)]
     return found
 
 
-def same_shape(a: Equilibrium3D, b: Equilibrium3D) -> bool:
-    """One equilibrium reached twice: the same neutral line to 1e-6 of the part's length
-    (sampled at 41 points)."""
-    L = a.problem.part.length
-    s = np.linspace(0.0, L, 41)
-    pa = np.column_stack([np.interp(s, a.s, a.position[:, k]) for k in range(3)])
-    pb = np.column_stack([np.interp(s, b.s, b.position[:, k]) for k in range(3)])
-    return float(np.abs(pa - pb).max()) <= 1e-6 * L
+def _settled_from(found: list[Equilibrium3D], solver: RodSolver, deadline: float
+                  ) -> list[Equilibrium3D]:
+    """The stable equilibria the unstable ones of ``found`` lead to, left along their
+    unstable mode both ways (``Routes.downhill``), those not found already, each with
+    its ``ReachedBy`` note."""
+    out: list[Equilibrium3D] = []
+    for eq in [e for e in found if e.verdict == "unstable"]:
+        left = deadline - clock.now()
+        if left <= 0.0:
+            break
+        run = Run(eq.state.rod, replace(solver, time_budget=left),
+                  gauge_quat=eq.state.gauge_quat)
+        for state in run.downhill(eq.state.state):
+            calm = build(run, state)
+            if calm.verdict == "unstable" or any(
+                    same_family(calm, other) for other in (*found, *out)):
+                continue
+            route = eq.notes[0].route if isinstance(eq.notes[0], ReachedBy) else ""
+            out.append(replace(calm, notes=(ReachedBy(
+                f"reached by the {route} route to an unstable equilibrium, then left along "
+                "its unstable mode", route=route, how="left along its unstable mode"),)))
+    return out
 
 
 def _solve(problem: Problem, warm_start: Equilibrium3D | None, solver: RodSolver,
@@ -602,8 +624,10 @@ def _solve(problem: Problem, warm_start: Equilibrium3D | None, solver: RodSolver
     eq = build(run, state, seed)
     if warm_start is None:
         eq, run = _lowest(run, eq)
-        if not problem.solved_together:  # (here: the rigid first pass; solved next)
-            eq = _with_reaction_error(run, eq.state.state, eq)
+    if run.solver.settle and not follow_only and eq.verdict == "unstable":
+        eq = settled(run, eq, warm_start)
+    if warm_start is None and not problem.solved_together:  # (else: the rigid first
+        eq = _with_reaction_error(run, eq.state.state, eq)  # pass, solved together next)
     return eq
 
 
