@@ -37,6 +37,7 @@ from pliant.assembly.evaluate import (
 )
 from pliant.core.conditions import push
 from pliant.core.equilibrium import Equilibrium3D
+from pliant.core.events import HeldRigid, has
 from pliant.core.numbers import triple
 from pliant.core.rules import Capacity, EvaluationSettings, Rules
 from pliant.errors import PliantError
@@ -184,7 +185,10 @@ def place_second_hand(scene: Any, run: Any, rules: Rules, settings: EvaluationSe
     friction = rules.hand_friction
     rows = hand_rows(rules, settings, settings.hold)
     ratios = [_ratio(g.wrench, rows, friction) for g in steps]
-    red = {k for k, r in enumerate(ratios) if r > 1.0}
+    # A step solved with a fitted part or clip held rigid (a fallback) is not judged, so
+    # no second hand is placed from it either.
+    held = {k for k, eq in enumerate(run.equilibria) if has(eq.notes, HeldRigid)}
+    red = {k for k, r in enumerate(ratios) if r > 1.0 and k not in held}
     if not red:
         return None
     worst = max(red, key=lambda k: ratios[k])
