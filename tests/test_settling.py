@@ -190,3 +190,34 @@ def test_a_path_across_a_bifurcation_fits_and_every_output_says_where(tmp_path):
     assert [k for k, s in enumerate(steps) if any(n["kind"] == "left_unstable"
                                                   for n in s["notes"])] == branched
     assert all(s["stable"] and not s["snap"] for s in steps)
+
+
+def _strut(d: float) -> pl.Problem:
+    part = pl.Part(1.0, 1.0, torsional_stiffness=1.0 / 1.5)
+    return pl.Problem(part, (
+        pl.clamp(0.0, (0.0, 0.0, 0.0), tangent=(1, 0, 0), normal=(0, 0, 1)),
+        pl.clamp(1.0, (1.0 - d, 0.0, 0.0), tangent=(1, 0, 0), normal=(0, 0, 1), name="end")))
+
+
+def test_a_neutral_shape_is_followed_by_warm_steps_and_by_trace():
+    """Issue 60 (6): a round strut buckled between coaxial clamps turns about its chord
+    at no cost (neutral), so its Jacobian is singular and the warm Newton could not
+    factorise it: every step of a path was 'solved from the rest state' and counted as
+    a snap, and ``trace`` refused its start. Warm steps and ``trace`` now follow it (a
+    shifted Newton takes the member of the family nearest the start), and each answer's
+    energy is the cold solve's of the same problem (found independently, from rest)."""
+    ends = np.linspace(0.3, 0.4, 6)
+    eq = rod3d.solve(_strut(0.3))
+    assert eq.verdict == "neutral"
+    warm = []
+    for d in ends[1:]:
+        eq = rod3d.solve(_strut(float(d)), warm_start=eq)
+        assert not jumped(eq.notes) and eq.verdict == "neutral"
+        warm.append(eq)
+    traced = list(pl.trace([_strut(float(d)) for d in ends[1:]],
+                           start=rod3d.solve(_strut(0.3))))
+    assert len(traced) == len(warm)
+    for d, a, b in zip(ends[1:], warm, traced):
+        cold = potential_energy(rod3d.solve(_strut(float(d))))
+        assert potential_energy(a) == pytest.approx(cold, rel=1e-6)
+        assert potential_energy(b) == pytest.approx(cold, rel=1e-6)

@@ -452,6 +452,38 @@ def relax(model: Relaxable, state: Any, loads: Any, max_steps: int = 600,
     return state if status == Status.CONVERGED else None
 
 
+def shifted_newton(model: Relaxable, state: Any, loads: Any, tolerance: float,
+                   iterations: int = 25, stalls: int = 6) -> Any | None:
+    """Newton on J + mu W (mu 1e-9 of the diagonal's scale, W the relaxation's metric):
+    where J is singular along a neutral family (a round part's arch turning about its
+    chord at no cost), which plain Newton cannot factorise, the shift takes the member
+    nearest the start and leaves the rest of the step Newton's. Up to ``stalls``
+    iterations may fail to halve the residual (a contact switching); None where it does
+    not reach ``tolerance``, or the closing Newton (``correct``) refuses it."""
+    R, jac = model.gradient(state, loads)
+    mu = 1e-9 * model.diagonal_scale(jac)
+    size = float(np.abs(R).max())
+    for _ in range(iterations):
+        if not math.isfinite(size):
+            return None
+        if size <= tolerance:
+            state, _r, status = model.correct(state, loads, strict=False, tol=None)
+            return state if status == Status.CONVERGED else None
+        du, ok = model.shifted_solve(jac, mu, -R)
+        if not ok:
+            return None
+        state = model.step(state, du, 1.0)
+        R, jac = model.gradient(state, loads)
+        model.iterations += 1
+        new = float(np.abs(R).max())
+        if not new <= 0.5 * size:
+            stalls -= 1
+            if stalls < 0:
+                return None
+        size = new
+    return None
+
+
 PUSH = 0.05  # how far a saddle is pushed along its unstable mode, in L
 
 

@@ -408,6 +408,15 @@ class Run(Routes):
         if status == kernels.CONVERGED:
             self.steps += 1
             return state
+        if status == kernels.SINGULAR:
+            # A neutral start (a family it can drift along at no cost): the shifted
+            # Newton takes the member nearest it, where the continuation's first
+            # tangent could not be found.
+            state = continuation.shifted_newton(self, start, self.rod.target,
+                                                self.solver.tolerance)
+            if state is not None:
+                self.steps += 1
+                return state
         try:
             return self.follow(old.rod.target, self.rod.target, start)
         except Stalled as stall:
