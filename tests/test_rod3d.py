@@ -164,6 +164,26 @@ def test_a_cold_answer_estimates_its_reactions_discretisation_error(chord, side,
     assert error(finer) < 0.0125 and finer.reaction_error < 0.0125
 
 
+def test_a_reaction_that_is_zero_divides_no_error_estimate():
+    """Issue 60 (5): a straight rod only twisted, a quarter turn between its clamps, has
+    no reaction force (0 to round-off) and the couple GJ (pi / 2) / L (Saint-Venant's
+    closed form). Its error estimate divided the forces' difference by that zero force
+    (126 %, with a note asking for 1,130 elements); each block is now relative to the
+    reactions' size in its units, so the estimate is the couple's true error, within a
+    fifth (4e-5 at 100 elements), and no note."""
+    part = pl.Part(1.0, 1.0, torsional_stiffness=0.8, axial_stiffness=1e6)
+    eq = rod3d.solve(pl.Problem(part, (
+        pl.clamp(0.0, (0.0, 0.0, 0.0), tangent=(1, 0, 0), normal=(0, 0, 1)),
+        pl.clamp(1.0, (1.0, 0.0, 0.0), tangent=(1, 0, 0), normal=(0, 1, 0), name="end"))))
+    exact = 0.8 * math.pi / 2
+    couple = eq.loads["end"].moment
+    assert abs(couple[0]) == pytest.approx(exact, rel=1e-4)
+    assert np.linalg.norm(eq.loads["end"].force) < 1e-9 * exact
+    truth = abs(abs(couple[0]) - exact) / exact
+    assert eq.reaction_error == pytest.approx(truth, rel=0.2)
+    assert not any(n.startswith("the reactions may be off") for n in eq.notes)
+
+
 def test_a_cold_solve_in_configuration_space_takes_the_lowest_stable_equilibrium():
     """Issue: a cold solve of a pre-curved part held by its axis at both ends found a
     stable equilibrium where another of lower energy exists (here 11.47 J against 9.85 J

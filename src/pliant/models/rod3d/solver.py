@@ -790,14 +790,23 @@ def _with_reaction_error(run: Run, state: State, eq: Equilibrium3D) -> Equilibri
     loads = eq.samples.loads  # as the twin's: at the stations the model holds
     ratio = elements / run.rod.elements
     factor = ratio**2 / (ratio**2 - 1.0)
-    worst = 0.0
+    # Each block relative to the reactions' size in its units: the largest force, or
+    # the largest moment over the part's length (and the force's times it), so that a
+    # reaction that is zero (a rod only twisted has no force) divides nothing.
+    blocks = []
     for block in (slice(0, 3), slice(3, 5)):  # forces, then moments
         held = [n for n in loads if any(loads[n].prescribed[block])]
         pairs = ([(loads[n].force, finer[n].force) for n in held] if block.start == 0
                  else [(loads[n].moment, finer[n].moment) for n in held])
         size = max((float(np.linalg.norm(a)) for a, _ in pairs), default=0.0)
+        diff = max((float(np.linalg.norm(a - b)) for a, b in pairs), default=0.0)
+        blocks.append((size, diff))
+    length = run.rod.problem.part.length
+    (force, force_diff), (moment, moment_diff) = blocks
+    worst = 0.0
+    for size, diff in ((max(force, moment / length), force_diff),
+                       (max(moment, force * length), moment_diff)):
         if size > 0.0:
-            diff = max(float(np.linalg.norm(a - b)) for a, b in pairs)
             worst = max(worst, factor * diff / size)
     notes = eq.notes
     accuracy = run.solver.accuracy
