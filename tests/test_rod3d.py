@@ -906,3 +906,22 @@ def test_where_every_route_with_a_ball_stops_the_answer_clear_of_it_is_taken():
     assert np.abs(np.linalg.norm(np.diff(x, axis=0), axis=1) - ds).max() <= 1e-9 * L
     np.testing.assert_allclose(x[-1], hand, atol=1e-9 * L)
     assert np.linalg.norm(x - centre, axis=1).min() >= 0.1 * L + 0.005 * L
+
+
+def test_a_relaxed_stage_turns_a_twisted_clamp_a_tenth_of_a_radian_at_most():
+    """A snap is let settle as the targets move on in stages (``routes.stages``), each
+    asking no longer a move than the relaxation's own step. A clamp turned about its
+    axis (a twist) counted for nothing, so a 0.5 rad turn was one stage whose frame
+    constraint asked 0.5 rad at once: the relaxation refused it (a twisted rod snapping
+    was then solved from rest, its accumulated twist lost). Now 0.1 rad a stage."""
+    from pliant.models.rod3d.routes import stages
+
+    def target(phi: float):
+        return lower(pl.Problem(UNIT, (
+            pl.clamp(0.0, (0.0, 0.0, 0.0), tangent=(1, 0, 0), normal=(0, 0, 1)),
+            pl.clamp(1.0, (0.9, 0.0, 0.0), tangent=(1, 0, 0),
+                     normal=(0.0, math.sin(phi), math.cos(phi)), name="end"))),
+            elements=20).target
+
+    assert stages(target(0.0), target(0.5)) == 5
+    assert stages(target(0.0), target(0.0)) == 1

@@ -6,6 +6,7 @@ minimiser's energy, the branch kept by ``settle=False``."""
 
 from __future__ import annotations
 
+import itertools
 import json
 import math
 import re
@@ -221,3 +222,64 @@ def test_a_neutral_shape_is_followed_by_warm_steps_and_by_trace():
         cold = potential_energy(rod3d.solve(_strut(float(d))))
         assert potential_energy(a) == pytest.approx(cold, rel=1e-6)
         assert potential_energy(b) == pytest.approx(cold, rel=1e-6)
+
+
+def _turned(phi: float, gap: float, part: pl.Part) -> pl.Problem:
+    normal = (0.0, math.sin(phi), math.cos(phi))
+    return pl.Problem(part, (
+        pl.clamp(0.0, (0.0, 0.0, 0.0), tangent=(1, 0, 0), normal=(0, 0, 1)),
+        pl.clamp(1.0, (gap, 0.0, 0.0), tangent=(1, 0, 0), normal=normal, name="end")))
+
+
+def test_twist_accumulates_through_full_turns():
+    """Issue 60 (3): one clamp of a round rod turned in warm 10-degree steps to 450
+    degrees. Taut (EA 1e6 N, its ends a length apart), the couple is Saint-Venant's
+    GJ phi / L at every step (below Greenhill's 8.99 EI / L), to the mesh's error.
+    Slack (its ends 0.9 L apart), the rod is neutral at every step (it may turn about
+    its chord), so the warm steps used to be dropped (37 of 45 'solved from the rest
+    state') and the couple fell back to zero after each full turn; now every step is
+    followed and the couple grows with the turn, a full turn on it far from where it
+    was."""
+    taut = pl.Part(1.0, 1.0, torsional_stiffness=0.8, axial_stiffness=1e6)
+    slack = pl.Part(1.0, 1.0, torsional_stiffness=0.8)
+    for part, gap in ((taut, 1.0), (slack, 0.9)):
+        eq = rod3d.solve(_turned(0.0, gap, part))
+        couples = []
+        for k in range(1, 46):
+            phi = math.radians(10 * k)
+            eq = rod3d.solve(_turned(phi, gap, part), warm_start=eq)
+            assert not jumped(eq.notes)
+            couples.append(-eq.loads["end"].moment[0])
+            if gap == 1.0:  # within the mesh's second-order error, (phi / N)^2 / 6
+                assert couples[-1] == pytest.approx(0.8 * phi, rel=(phi / 100) ** 2 / 4)
+        assert all(b > a for a, b in itertools.pairwise(couples))
+        assert couples[38] > couples[2] + 4.0  # 390 against 30 degrees
+
+
+def test_a_round_off_eigenvalue_is_neutral_not_unstable():
+    """The first 240 of 540 steps of PyElastica's localized helical buckling ramp (a
+    round rod, B 1.345, C 0.789, one clamp turned toward 27 turns as the ends close in
+    by 3 %): buckled and twisted, the rod is neutral (it may turn about its chord), and
+    its smallest eigenvalue comes out at round-off, -2e-8 EI / L with internal loads in
+    the hundreds. Judged against a fixed 1e-8 EI / L, 12 of these steps were called
+    unstable and 'settled' a few millimetres along the family; the tolerance now scales with the
+    loads the eigensolver's accuracy is relative to, and every step left as unstable is
+    a genuine instability (eigenvalue below -1e-3 EI / L)."""
+    part = pl.Part(1.0, 1.345, torsional_stiffness=0.789, axial_stiffness=1.345e4)
+    solver = rod3d.RodSolver(elements=100)
+
+    def ramp(f: float) -> pl.Problem:
+        phi = f * 27 * 2 * math.pi
+        return pl.Problem(part, (
+            pl.clamp(0.0, (0.0, 0.0, 0.0), tangent=(0, 0, 1), normal=(1, 0, 0)),
+            pl.clamp(1.0, (0.0, 0.0, 1.0 - 0.03 * f), tangent=(0, 0, 1),
+                     normal=(math.cos(phi), math.sin(phi), 0.0), name="end")))
+
+    eq = rod3d.solve(ramp(0.0), solver=solver)
+    left = []
+    for k in range(1, 240):
+        eq = rod3d.solve(ramp(k / 540), warm_start=eq, solver=solver)
+        assert eq.verdict in ("stable", "neutral")
+        left += [n for n in eq.notes if isinstance(n, LeftUnstable)]
+    assert len(left) <= 3
+    assert all(n.eigenvalue < -1e-3 * 1.345 for n in left)

@@ -31,16 +31,21 @@ WARM_START_LOST = ("the warm start could not be followed to this problem; solved
 
 
 # The smallest eigenvalue below which an equilibrium is neutral, relative to EI / L: the
-# solvers' own accuracy (a mode a symmetry makes free comes out near 1e-12).
+# solvers' own accuracy (a mode a symmetry makes free comes out near 1e-12). The 3D test
+# scales it by the internal loads' own size (``rod3d.stability.shift_bound``), to which
+# the eigensolver's accuracy is relative.
 NEUTRAL = 1e-8
 
 
 def stability_verdict(stability: tuple[bool | None, float | None], part) -> str:
-    """The word for (stable, smallest eigenvalue [N m])."""
+    """The word for (stable, smallest eigenvalue [N m]): neutral where the eigenvalue is
+    zero to the solver's accuracy (within NEUTRAL EI / L, or not positive in a test that
+    judged it not unstable)."""
     stable, eigen = stability
     if stable is None or eigen is None:
         return "undecided"
-    if abs(eigen) <= NEUTRAL * part.bending_stiffness / part.length:
+    if abs(eigen) <= NEUTRAL * part.bending_stiffness / part.length or (stable
+                                                                       and eigen <= 0.0):
         return "neutral"
     return "stable" if stable else "unstable"
 

@@ -148,13 +148,15 @@ class Snapped(Event):
 
 
 class LeftUnstable(Event):
-    """The equilibrium reached was unstable: the part left it along its unstable mode
-    and settled on this stable one, ``distance`` [m] away at most, releasing ``released``
-    [J] of potential energy. ``jump`` where that is a snap (it releases more than a tenth
-    of the energy the step itself changed: a real part jumps there); else the stable
-    branch that leaves a bifurcation, which a real part follows without a jump."""
+    """The equilibrium reached was unstable (its smallest eigenvalue ``eigenvalue``
+    [N m]): the part left it along its unstable mode and settled on this stable one,
+    ``distance`` [m] away at most, releasing ``released`` [J] of potential energy.
+    ``jump`` where that is a snap (a real part jumps there); else the stable branch that
+    leaves a bifurcation, which a real part follows without a jump
+    (``rod3d.settling``)."""
 
     kind = "left_unstable"
+    eigenvalue: float = 0.0
     distance: float = 0.0
     released: float = 0.0
     jump: bool = False

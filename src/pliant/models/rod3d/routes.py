@@ -358,12 +358,19 @@ class Routes:
 def stages(start: Loads, end: Loads, stride: float = 0.02, turn: float = 0.1) -> int:
     """How many stages take the targets from ``start`` to ``end`` with each held point
     moving at most ``stride`` (of the part's length: the relaxation's own step,
-    ``continuation.relax``), each held axis turning at most ``turn`` rad and each rest
+    ``continuation.relax``), each held axis or frame turning at most ``turn`` rad and each rest
     curvature changing by at most 1 / L (a route's bow let go): a stage's constraints
     then ask no longer a move than the relaxation takes. At most 400."""
     move = float(np.abs(end.st_pos - start.st_pos).max(initial=0.0))
     cos = np.clip(np.einsum("ij,ij->i", start.st_tangent, end.st_tangent), -1.0, 1.0)
     angle = float(np.arccos(cos).max(initial=0.0))
+    # A held orientation also turns about its axis (a clamp twisted): its quaternion's
+    # angle, where both ends of the stage hold one.
+    held = ((np.linalg.norm(start.st_quat, axis=1) > 0.5)
+            & (np.linalg.norm(end.st_quat, axis=1) > 0.5))
+    if held.any():
+        dot = np.abs(np.einsum("ij,ij->i", start.st_quat[held], end.st_quat[held]))
+        angle = max(angle, float((2.0 * np.arccos(np.clip(dot, 0.0, 1.0))).max()))
     bend = float(np.abs(end.joint_k0 - start.joint_k0).max(initial=0.0))
     return min(400, max(1, math.ceil(max(move / stride, angle / turn, bend))))
 

@@ -78,7 +78,8 @@ def settled(run: Run, eq: Equilibrium3D, warm_start: Equilibrium3D | None
         f"the equilibrium reached is unstable (smallest eigenvalue {eq.stability[1]:.3g}): "
         f"the part leaves it along that mode and settles here ({best.verdict}), "
         f"{distance:.3g} m away at most, releasing {released:.3g} J; {how}",
-        distance=distance, released=released, jump=jump)
+        eigenvalue=float(eq.stability[1] or 0.0), distance=distance, released=released,
+        jump=jump)
     return replace(best, notes=(*eq.notes, note), iterations=run.iterations)
 
 

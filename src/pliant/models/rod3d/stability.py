@@ -123,8 +123,9 @@ def stability_of(run: Run, state: State, seed: np.ndarray | None = None,
             return stability_dense(run, state, loads)
     if found is not None:
         found[:] = [vector]
-    # Neutral (zero to the solver's accuracy: a free family) is not unstable.
-    return value > -NEUTRAL, value * rod.moment_scale  # EI / L
+    # Neutral (zero to the solver's accuracy: a free family) is not unstable. That
+    # accuracy is relative to the shift: Lanczos finds 1 / (value + c) to 1e-10.
+    return value > -NEUTRAL * max(1.0, c), value * rod.moment_scale  # EI / L
 
 
 
@@ -160,4 +161,4 @@ def stability_dense(run: Run, state: State,
     smallest = float(eigh(0.5 * (reduced + reduced.T), 0.5 * (mass + mass.T),
                           eigvals_only=True, subset_by_index=(0, 0))[0])
     scale = rod.moment_scale  # EI / L
-    return smallest > -NEUTRAL, smallest * scale
+    return smallest > -NEUTRAL * max(1.0, shift_bound(rod, state)), smallest * scale
