@@ -751,8 +751,9 @@ def _clear(run: Run, deadline: float) -> list[Equilibrium3D]:
     return out
 
 
-def _twin(run: Run, state: State) -> tuple[int, dict[str, StationLoad]] | None:
-    """The same equilibrium on twice the elements (element count, station loads), by a
+def _twin(run: Run, state: State) -> tuple[int, dict[str, StationLoad], float] | None:
+    """The same equilibrium on twice the elements (element count, station loads, the
+    largest distance between the two neutral lines at this one's nodes, by L), by a
     damped Newton from this one carried over (positions and internal forces interpolated,
     frames from their neighbours): the same branch. None where there is contact (the
     touching set would have to be found again) or it does not converge."""
@@ -773,20 +774,24 @@ def _twin(run: Run, state: State) -> tuple[int, dict[str, StationLoad]] | None:
     found, _, status, _ = twin.newton(start, fine.target, strict=False)
     if status != kernels.CONVERGED:
         return None
-    return fine.elements, station_loads(twin, found)
+    back = np.column_stack([np.interp(rod.s_node, fine.s_node, found[0][:, k])
+                            for k in range(3)])
+    return fine.elements, station_loads(twin, found), float(
+        np.linalg.norm(back - X, axis=1).max())
 
 
 def _with_reaction_error(run: Run, state: State, eq: Equilibrium3D) -> Equilibrium3D:
     """The answer with its reactions' discretisation error estimated, relative to the
-    largest reaction, and a note where it exceeds the solver's accuracy with the element
-    count that would meet it. Richardson's rule on the same equilibrium with twice the
-    elements: the model is second order, so the answer is off by about r^2 / (r^2 - 1)
+    largest reaction, and a note where it or the shape's (relative to the part's length)
+    exceeds the solver's accuracy, with the element count that would meet it.
+    Richardson's rule on the same equilibrium with twice the elements: the model is
+    second order, so the answer is off by about r^2 / (r^2 - 1)
     times its difference from the finer one (element ratio r); the finer twin is nearer
     the asymptotic regime than a coarser one, where a taut part's error falls slower."""
     twin = _twin(run, state)
     if twin is None:
         return eq
-    elements, finer = twin
+    elements, finer, apart = twin
     loads = eq.samples.loads  # as the twin's: at the stations the model holds
     ratio = elements / run.rod.elements
     factor = ratio**2 / (ratio**2 - 1.0)
@@ -816,6 +821,13 @@ def _with_reaction_error(run: Run, state: State, eq: Equilibrium3D) -> Equilibri
                  f"{run.rod.requested} elements (estimated from the same equilibrium on "
                  f"{elements}); about {need} elements bring them within {100 * accuracy:g} % "
                  f"(RodSolver(elements={need}))")
+    shape = factor * apart  # by L: where nothing holds it (a free end), the shape's own
+    if shape > accuracy:
+        need = int(math.ceil(run.rod.requested * math.sqrt(shape / accuracy) / 10.0) * 10)
+        notes = (*notes, f"the shape may be off by about {100 * shape:.2g} % of the part's "
+                 f"length at {run.rod.requested} elements (estimated from the same "
+                 f"equilibrium on {elements}); about {need} elements bring it within "
+                 f"{100 * accuracy:g} % (RodSolver(elements={need}))")
     out = replace(eq, notes=notes, reaction_error=worst)
     out.__dict__["samples"] = eq.samples  # sampled already (its loads): not again
     return out
