@@ -282,7 +282,9 @@ class Network:
         from pliant.models import rod3d  # noqa: PLC0415
 
         problem = self.problem(seg_id)
-        solver = rod3d.RodSolver(elements=_elements(problem.part.length))
+        # Not settled: the junctions' Newton solves each segment again and again, and a
+        # segment that left its branch between two of them would break that Newton.
+        solver = rod3d.RodSolver(elements=_elements(problem.part.length), settle=False)
         previous = self.eqs.get(seg_id) if warm else None
         if previous is not None:
             try:

@@ -386,7 +386,11 @@ def _solve(problem: Problem, warm: Any, solver: Any):
 
     if problem.dimension == 2:  # cold: a 2D solve costs less than a warm one's homotopy
         return solve(problem)
-    return solve(problem, warm_start=warm, solver=solver)
+    from pliant.models.rod3d import RodSolver  # noqa: PLC0415
+
+    # The branch the part was measured on: a fit's finite differences must not jump to
+    # another, and settling would test each of its many solves' stability.
+    return solve(problem, warm_start=warm, solver=replace(solver or RodSolver(), settle=False))
 
 
 def _curve(eq) -> tuple[np.ndarray, np.ndarray, np.ndarray]:

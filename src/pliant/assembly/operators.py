@@ -192,7 +192,9 @@ def place_second_hand(scene: Any, run: Any, rules: Rules, settings: EvaluationSe
     if not red:
         return None
     worst = max(red, key=lambda k: ratios[k])
-    solver = rod3d.RodSolver(elements=elements)
+    # Not settled: each push's effect on the first hand is measured on the branch the
+    # hands hold (finite differences), not on one a settled answer jumped to.
+    solver = rod3d.RodSolver(elements=elements, settle=False)
     found: list[tuple[float, float, Any, np.ndarray | None]] = []
     solves = 0
     for s2 in _candidates(run, grip):
