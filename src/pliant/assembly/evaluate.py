@@ -43,7 +43,7 @@ from pliant.assembly.checks import (
 )
 from pliant.assembly.path import PathRun, StepRecord, follow_path
 from pliant.core.equilibrium import Result, stretch_summary
-from pliant.core.events import HeldRigid, has, jumped
+from pliant.core.events import BRANCHED, HeldRigid, has, jumped
 from pliant.core.numbers import ROUND_OFF, TOUCHING, clean, triple
 from pliant.core.rules import Capacity, EvaluationSettings, ObstacleRule, PartKind, Rules
 from pliant.errors import InputError
@@ -803,9 +803,7 @@ def _stability_check(run: PathRun) -> Check:
                      "computed", step=undecided[0], note="follower loads or friction: a "
                      "static test does not decide")
     branched = run.branched
-    note = (f"at {_ranges(tuple(branched))} the followed shape turned unstable and the part "
-            "took the stable branch that leaves it (a bifurcation: no jump)" if branched
-            else "")
+    note = f"{_ranges(tuple(branched))}: {BRANCHED}" if branched else ""
     return Check("stability", "unstable or snapping steps", "stability", 0.0, "", Zone.GREEN,
                  "above", None, 0.0, source, "computed", note=note)
 

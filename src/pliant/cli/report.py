@@ -15,7 +15,7 @@ from rich.table import Table
 
 from pliant.assembly.checks import max_torque, shape_warnings
 from pliant.core.equilibrium import Equilibrium, Equilibrium3D, Result, stretch_summary
-from pliant.core.events import SolvedTogether
+from pliant.core.events import BRANCHED, SolvedTogether
 from pliant.core.numbers import clean
 from pliant.core.problem import Problem
 from pliant.io.jsontext import finite
@@ -334,9 +334,7 @@ def print_path(run: Any, part: Any, console: Console | None = None, rows: int = 
         console.print(f"[red]the part snaps[/red] (its shape could not be followed, it jumps "
                       f"to another) at steps {', '.join(map(str, run.snaps))}")
     if run.branched:
-        console.print("the followed shape turned unstable and the part took the stable branch "
-                      "that leaves it (a bifurcation: no jump) at steps "
-                      f"{', '.join(map(str, run.branched))}")
+        console.print(f"{BRANCHED} at steps {', '.join(map(str, run.branched))}")
     if run.unstable:
         console.print(f"[red]unstable shapes[/red] (a real part would not stay there) at "
                       f"{len(run.unstable)} steps, first {run.unstable[0]}")

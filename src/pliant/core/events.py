@@ -162,6 +162,11 @@ class LeftUnstable(Event):
     jump: bool = False
 
 
+# What every output says of a step where the part left an unstable shape without a jump.
+BRANCHED = ("the followed shape turned unstable and the part took the stable branch that "
+            "leaves it (a bifurcation: no jump)")
+
+
 class CrossedBifurcation(Event):
     """The path crosses a bifurcation (det J changes sign): the answer continued through
     it may be unstable, and a neighbouring branch may be the one the part takes."""

@@ -57,8 +57,7 @@ def settled(run: Run, eq: Equilibrium3D, warm_start: Equilibrium3D | None
     (``Routes.downhill``): from a warm start the nearest to it (where the part was), from
     rest the lowest; the unstable answer itself where it settles nowhere (its verdict
     says so)."""
-    found = [e for e in (build(run, s) for s in run.downhill(eq.state.state))
-             if e.verdict != "unstable"]
+    found = downhill_equilibria(run, eq)
     if not found:
         return eq
     if warm_start is None:
@@ -70,7 +69,7 @@ def settled(run: Run, eq: Equilibrium3D, warm_start: Equilibrium3D | None
     if warm_start is None:
         jump, how = False, "the lowest of those it settles in from there"
     else:
-        jump, why = _jumps(run, eq, best, warm_start)
+        jump, why = _jumps(run, eq, best, warm_start, released)
         how = ("a jump (a snap): a real part jumps here" if jump else
                "the stable branch that leaves a bifurcation on the way, which a real part "
                "follows without a jump") + f" ({why})"
@@ -83,8 +82,15 @@ def settled(run: Run, eq: Equilibrium3D, warm_start: Equilibrium3D | None
     return replace(best, notes=(*eq.notes, note), iterations=run.iterations)
 
 
-def _jumps(run: Run, eq: Equilibrium3D, best: Equilibrium3D, warm_start: Equilibrium3D
-           ) -> tuple[bool, str]:
+def downhill_equilibria(run: Run, eq: Equilibrium3D) -> list[Equilibrium3D]:
+    """The stable or neutral equilibria an unstable one leads to, left along its unstable
+    mode either way (``Routes.downhill``), built as answers of ``run``."""
+    return [e for e in (build(run, s) for s in run.downhill(eq.state.state))
+            if e.verdict != "unstable"]
+
+
+def _jumps(run: Run, eq: Equilibrium3D, best: Equilibrium3D, warm_start: Equilibrium3D,
+           released: float) -> tuple[bool, str]:
     """Whether a warm step that ended unstable makes the part jump, and why. On a stable
     branch that leaves a bifurcation, how far the part settles from the followed branch
     grows as the square root of the followed branch's negative eigenvalue; where it
@@ -93,7 +99,8 @@ def _jumps(run: Run, eq: Equilibrium3D, best: Equilibrium3D, warm_start: Equilib
     end's (``_settled_nearer``), the part let settle there too, and the two distances
     compared: nearer the square-root law's ratio than 1 is no jump. Where the step
     cannot be followed again (another mesh, a start not decided stable), a jump where
-    settling releases more than a tenth of the energy the step itself changed."""
+    settling releases (``released`` [J]) more than a tenth of the energy the step itself
+    changed."""
     old = warm_start.state
     start_eigen, end_eigen = warm_start.stability[1], float(eq.stability[1] or 0.0)
     far = run.primal_move(run.difference(eq.state.state, best.state.state))
@@ -112,7 +119,6 @@ def _jumps(run: Run, eq: Equilibrium3D, best: Equilibrium3D, warm_start: Equilib
                 f"of this one's, it moves {ratio:.2f} as far: {law:.2f} on a branch that "
                 "leaves a bifurcation, about 1 where it jumps")
     step = abs(potential_energy(eq) - potential_energy(warm_start))
-    released = potential_energy(eq) - potential_energy(best)
     return released > 0.1 * step, (f"it releases {released / step if step else math.inf:.2g} "
                                    "of the energy the step changed")
 

@@ -54,7 +54,12 @@ from pliant.models.rod3d.kernels import AXIS
 from pliant.models.rod3d.lowering import Loads, Rod, State, axis_basis, lower, qmul, quat_matrix
 from pliant.models.rod3d.results import WarmState, build, station_loads
 from pliant.models.rod3d.routes import _BRANCH_NOTE, Routes
-from pliant.models.rod3d.settling import same_family, same_shape, settled
+from pliant.models.rod3d.settling import (
+    downhill_equilibria,
+    same_family,
+    same_shape,
+    settled,
+)
 from pliant.models.rod3d.stability import conservative, metric, stability_of
 from pliant.models.settings import check
 
@@ -569,10 +574,8 @@ def _settled_from(found: list[Equilibrium3D], solver: RodSolver, deadline: float
             break
         run = Run(eq.state.rod, replace(solver, time_budget=left),
                   gauge_quat=eq.state.gauge_quat)
-        for state in run.downhill(eq.state.state):
-            calm = build(run, state)
-            if calm.verdict == "unstable" or any(
-                    same_family(calm, other) for other in (*found, *out)):
+        for calm in downhill_equilibria(run, eq):
+            if any(same_family(calm, other) for other in (*found, *out)):
                 continue
             route = eq.notes[0].route if isinstance(eq.notes[0], ReachedBy) else ""
             out.append(replace(calm, notes=(ReachedBy(
@@ -813,22 +816,18 @@ def _with_reaction_error(run: Run, state: State, eq: Equilibrium3D) -> Equilibri
                        (max(moment, force * length), moment_diff)):
         if size > 0.0:
             worst = max(worst, factor * diff / size)
-    notes = eq.notes
+    notes = list(eq.notes)
     accuracy = run.solver.accuracy
-    if worst > accuracy:
-        need = int(math.ceil(run.rod.requested * math.sqrt(worst / accuracy) / 10.0) * 10)
-        notes = (*notes, f"the reactions may be off by about {100 * worst:.2g} % at "
-                 f"{run.rod.requested} elements (estimated from the same equilibrium on "
-                 f"{elements}); about {need} elements bring them within {100 * accuracy:g} % "
-                 f"(RodSolver(elements={need}))")
     shape = factor * apart  # by L: where nothing holds it (a free end), the shape's own
-    if shape > accuracy:
-        need = int(math.ceil(run.rod.requested * math.sqrt(shape / accuracy) / 10.0) * 10)
-        notes = (*notes, f"the shape may be off by about {100 * shape:.2g} % of the part's "
-                 f"length at {run.rod.requested} elements (estimated from the same "
-                 f"equilibrium on {elements}); about {need} elements bring it within "
-                 f"{100 * accuracy:g} % (RodSolver(elements={need}))")
-    out = replace(eq, notes=notes, reaction_error=worst)
+    for error, what, them in ((worst, "the reactions may be off by about {} %", "them"), (
+            shape, "the shape may be off by about {} % of the part's length", "it")):
+        if error > accuracy:
+            need = int(math.ceil(run.rod.requested * math.sqrt(error / accuracy) / 10.0) * 10)
+            notes.append(f"{what.format(f'{100 * error:.2g}')} at {run.rod.requested} "
+                         f"elements (estimated from the same equilibrium on {elements}); "
+                         f"about {need} elements bring {them} within {100 * accuracy:g} % "
+                         f"(RodSolver(elements={need}))")
+    out = replace(eq, notes=tuple(notes), reaction_error=worst)
     out.__dict__["samples"] = eq.samples  # sampled already (its loads): not again
     return out
 
