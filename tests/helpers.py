@@ -138,3 +138,44 @@ z = {z}
 tangent = {list(tangent)}
 normal = [0.0, 0.0, 1.0]
 """
+
+
+# A line from a clip to a hand in one vertical plane, lowered onto a boss (its port)
+# below the hand: x, y the boss; yc the clip; ys the hand at the start.
+LINE_ONTO_BOSS = """
+name = "line down onto a boss"
+gravity = [0.0, 0.0, -9.81]
+[part]
+name = "line"
+length = 0.40
+outer_diameter = 0.008
+bending_stiffness = 0.02
+mass_per_length = 0.05
+min_bend_radius = 0.03
+[solver]
+elements = 16
+[[port]]
+name = "boss"
+position = [{x}, {y}, 0.33]
+axis = [0.0, 0.0, 1.0]
+[[condition]]
+name = "clip"
+s = 0.0
+x = {x}
+y = {yc}
+z = 0.31
+tangent = [0.0, -1.0, 0.0]
+normal = [0.0, 0.0, 1.0]
+[[condition]]
+name = "hand"
+s = 0.40
+x = {x}
+y = {ys}
+z = 0.56
+tangent = [0.0, -1.0, 0.0]
+[path]
+grip = "hand"
+waypoints = [[{x}, {y}, 0.48], [{x}, {y}, 0.33]]
+tangents = [[0.0, -0.5, -1.0], [0.0, 0.0, -1.0]]
+steps = 10
+"""

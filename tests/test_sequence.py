@@ -15,7 +15,7 @@ import pytest
 from pliant.assembly.scenes import load_scene
 from pliant.assembly.sequence import fitted_obstacles, load_sequence, sequence
 from pliant.errors import FileFormatError
-from tests.helpers import cli
+from tests.helpers import LINE_ONTO_BOSS, cli
 
 EXAMPLE = Path(__file__).resolve().parents[1] / "examples" / "sequence"
 BAY = EXAMPLE / "engine_bay.toml"
@@ -154,43 +154,6 @@ tangents = [[0.9, 0.4, 0.0], [1.0, 0.0, 0.0]]
 steps = 10
 """
 
-LINE = """
-name = "line down onto a boss"
-gravity = [0.0, 0.0, -9.81]
-[part]
-name = "line"
-length = 0.40
-outer_diameter = 0.008
-bending_stiffness = 0.02
-mass_per_length = 0.05
-min_bend_radius = 0.03
-[solver]
-elements = 16
-[[port]]
-name = "boss"
-position = [{x}, {y}, 0.33]
-axis = [0.0, 0.0, 1.0]
-[[condition]]
-name = "clip"
-s = 0.0
-x = {x}
-y = {yc}
-z = 0.31
-tangent = [0.0, -1.0, 0.0]
-normal = [0.0, 0.0, 1.0]
-[[condition]]
-name = "hand"
-s = 0.40
-x = {x}
-y = {ys}
-z = 0.56
-tangent = [0.0, -1.0, 0.0]
-[path]
-grip = "hand"
-waypoints = [[{x}, {y}, 0.48], [{x}, {y}, 0.33]]
-tangents = [[0.0, -0.5, -1.0], [0.0, 0.0, -1.0]]
-steps = 10
-"""
 
 
 def _random_scene(folder: Path, rng: np.random.Generator, lines: int) -> Path:
@@ -199,8 +162,8 @@ def _random_scene(folder: Path, rng: np.random.Generator, lines: int) -> Path:
     fits = ['[[fit]]\nname = "hose"\nfile = "hose.toml"\n']
     for k in range(lines):
         x, yl = float(rng.uniform(-0.12, 0.12)), float(rng.uniform(-0.08, 0.08))
-        (folder / f"line{k}.toml").write_text(LINE.format(x=x, y=yl, yc=yl + 0.24,
-                                                          ys=yl + 0.06))
+        (folder / f"line{k}.toml").write_text(
+            LINE_ONTO_BOSS.format(x=x, y=yl, yc=yl + 0.24, ys=yl + 0.06))
         fits.append(f'[[fit]]\nname = "line {k}"\nfile = "line{k}.toml"\n')
     path = folder / "sequence.toml"
     path.write_text('name = "random"\nmargin = 0.003\n' + "\n".join(fits))

@@ -21,7 +21,7 @@ from pliant.core.equilibrium import potential_energy
 from pliant.core.events import LeftUnstable, jumped
 from pliant.models import rod3d
 
-from .helpers import cli
+from .helpers import LINE_ONTO_BOSS, cli
 
 ROUND = pl.Part(length=1.0, bending_stiffness=1.0, torsional_stiffness=0.8)
 CRITICAL = math.pi**2 / 4  # the cantilever's Euler load, EI = L = 1
@@ -122,41 +122,6 @@ def test_an_unstable_answer_is_left_for_the_stable_one_it_leads_to():
     assert potential_energy(listed[0]) == pytest.approx(energies[1], rel=1e-9)
 
 
-LINE = """
-name = "line down onto a boss"
-gravity = [0.0, 0.0, -9.81]
-[part]
-name = "line"
-length = 0.40
-outer_diameter = 0.008
-bending_stiffness = 0.02
-mass_per_length = 0.05
-min_bend_radius = 0.03
-[solver]
-elements = 16
-[[condition]]
-name = "clip"
-s = 0.0
-x = 0.07
-y = 0.24
-z = 0.31
-tangent = [0.0, -1.0, 0.0]
-normal = [0.0, 0.0, 1.0]
-[[condition]]
-name = "hand"
-s = 0.40
-x = 0.07
-y = 0.06
-z = 0.56
-tangent = [0.0, -1.0, 0.0]
-[path]
-grip = "hand"
-waypoints = [[0.07, 0.0, 0.48], [0.07, 0.0, 0.33]]
-tangents = [[0.0, -0.5, -1.0], [0.0, 0.0, -1.0]]
-steps = 10
-"""
-
-
 def test_a_path_across_a_bifurcation_fits_and_every_output_says_where(tmp_path):
     """A line lowered onto a boss, clip and hand in one vertical plane: its shape starts
     bowed out of that plane, comes into it, and in the plane turns unstable (out of
@@ -167,7 +132,7 @@ def test_a_path_across_a_bifurcation_fits_and_every_output_says_where(tmp_path):
     from pliant.assembly import load_scene
 
     path = tmp_path / "line.toml"
-    path.write_text(LINE)
+    path.write_text(LINE_ONTO_BOSS.format(x=0.07, y=0.0, yc=0.24, ys=0.06))
     scene = load_scene(path)
     kept, settled = [], []
     for solver, out in ((rod3d.RodSolver(elements=16, settle=False), kept),
