@@ -141,7 +141,7 @@ normal = [0.0, 0.0, 1.0]
 
 
 # A line from a clip to a hand in one vertical plane, lowered onto a boss (its port)
-# below the hand: x, y the boss; yc the clip; ys the hand at the start.
+# below the hand: x, y the boss; yc the clip; ys the hand at the start; the path's steps.
 LINE_ONTO_BOSS = """
 name = "line down onto a boss"
 gravity = [0.0, 0.0, -9.81]
@@ -177,5 +177,5 @@ tangent = [0.0, -1.0, 0.0]
 grip = "hand"
 waypoints = [[{x}, {y}, 0.48], [{x}, {y}, 0.33]]
 tangents = [[0.0, -0.5, -1.0], [0.0, 0.0, -1.0]]
-steps = 10
+steps = {steps}
 """

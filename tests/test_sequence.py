@@ -151,7 +151,7 @@ tangent = [0.6, 0.8, 0.0]
 grip = "hand"
 waypoints = [[0.17, {y1}, 0.41], [0.2, {y}, 0.40]]
 tangents = [[0.9, 0.4, 0.0], [1.0, 0.0, 0.0]]
-steps = 10
+steps = 6
 """
 
 
@@ -163,7 +163,7 @@ def _random_scene(folder: Path, rng: np.random.Generator, lines: int) -> Path:
     for k in range(lines):
         x, yl = float(rng.uniform(-0.12, 0.12)), float(rng.uniform(-0.08, 0.08))
         (folder / f"line{k}.toml").write_text(
-            LINE_ONTO_BOSS.format(x=x, y=yl, yc=yl + 0.24, ys=yl + 0.06))
+            LINE_ONTO_BOSS.format(x=x, y=yl, yc=yl + 0.24, ys=yl + 0.06, steps=6))
         fits.append(f'[[fit]]\nname = "line {k}"\nfile = "line{k}.toml"\n')
     path = folder / "sequence.toml"
     path.write_text('name = "random"\nmargin = 0.003\n' + "\n".join(fits))
@@ -195,24 +195,27 @@ def test_the_pruned_search_finds_the_exhaustive_search_s_best_order(tmp_path):
 
 
 # -- Dask, the command line, bad files ---------------------------------------------------
-def test_a_local_cluster_gives_what_this_process_gives(tmp_path):
-    two = tmp_path / "two.toml"
-    two.write_text(BAY.read_text().split("[[fit]]\nname = \"sensor cable\"")[0]
-                   + (BAY.read_text().split("file = \"sensor_cable.toml\"")[1]))
-    for name in ("coolant_hose.toml", "oil_line.toml"):
-        (tmp_path / name).write_text((EXAMPLE / name).read_text())
-    here = sequence(two, workers=0)
-    there = sequence(two, workers=2)
-    assert there.workers == 2
+def test_a_local_cluster_gives_what_this_process_gives(bay, tmp_path):
+    here, _ = bay
+    there = sequence(BAY, out=tmp_path / "search", workers=2)
+    assert there.workers == 2 and there.judged == here.judged and there.pruned == here.pruned
     assert [o.to_dict() for o in there.orders] == [o.to_dict() for o in here.orders]
-    assert [o.parts for o in here.orders if o.passes] == [("oil line", "coolant hose")]
+    assert [p.to_dict() for p in there.precedences] == [p.to_dict() for p in here.precedences]
 
 
-def test_pliant_sequence_writes_json_and_a_report_and_exits_by_the_answer(tmp_path):
+def test_pliant_sequence_writes_json_and_a_report_and_exits_by_the_answer(bay, tmp_path):
+    # The search's store with its last three operations not yet judged: the command
+    # judges those and reads the others.
+    _, searched = bay
     out = tmp_path / "search"
+    out.mkdir()
+    (out / "sequence.json").write_bytes((searched / "search" / "sequence.json").read_bytes())
+    lines = (searched / "search" / "operations.jsonl").read_text().splitlines(keepends=True)
+    (out / "operations.jsonl").write_text("".join(lines[:-3]))
     done = cli("sequence", BAY, "--out", out, "--json", tmp_path / "s.json")
     assert done.returncode == 0, done.stdout
     assert "FITS in 3 of 6 orders" in done.stdout
+    assert "3 operations judged now" in " ".join(done.stdout.split())
     data = json.loads((tmp_path / "s.json").read_text())
     assert data["passes"] and data["best"]["parts"][0] in ("oil line", "sensor cable")
     assert data["precedences"][0]["first"] == "oil line"

@@ -132,7 +132,7 @@ def test_a_path_across_a_bifurcation_fits_and_every_output_says_where(tmp_path):
     from pliant.assembly import load_scene
 
     path = tmp_path / "line.toml"
-    path.write_text(LINE_ONTO_BOSS.format(x=0.07, y=0.0, yc=0.24, ys=0.06))
+    path.write_text(LINE_ONTO_BOSS.format(x=0.07, y=0.0, yc=0.24, ys=0.06, steps=10))
     scene = load_scene(path)
     kept, settled = [], []
     for solver, out in ((rod3d.RodSolver(elements=16, settle=False), kept),
