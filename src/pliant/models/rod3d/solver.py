@@ -754,9 +754,11 @@ def _clear(run: Run, deadline: float) -> list[Equilibrium3D]:
     return out
 
 
-def _twin(run: Run, state: State) -> tuple[int, dict[str, StationLoad], float] | None:
+def _twin(run: Run, state: State) -> tuple[int, dict[str, StationLoad], float,
+                                          float] | None:
     """The same equilibrium on twice the elements (element count, station loads, the
-    largest distance between the two neutral lines at this one's nodes, by L), by a
+    largest distance between the two neutral lines at this one's nodes, by L, and the
+    largest angle between the two's material frames at this one's frames [rad]), by a
     damped Newton from this one carried over (positions and internal forces interpolated,
     frames from their neighbours): the same branch. None where there is contact (the
     touching set would have to be found again) or it does not converge."""
@@ -779,8 +781,10 @@ def _twin(run: Run, state: State) -> tuple[int, dict[str, StationLoad], float] |
         return None
     back = np.column_stack([np.interp(rod.s_node, fine.s_node, found[0][:, k])
                             for k in range(3)])
+    turned = np.abs(np.sum(_frames_at(fine.frame_s, found[1], rod.frame_s) * Q, axis=1))
     return fine.elements, station_loads(twin, found), float(
-        np.linalg.norm(back - X, axis=1).max())
+        np.linalg.norm(back - X, axis=1).max()), float(
+        2.0 * np.arccos(np.clip(turned, -1.0, 1.0)).max())
 
 
 def _with_reaction_error(run: Run, state: State, eq: Equilibrium3D) -> Equilibrium3D:
@@ -794,7 +798,7 @@ def _with_reaction_error(run: Run, state: State, eq: Equilibrium3D) -> Equilibri
     twin = _twin(run, state)
     if twin is None:
         return eq
-    elements, finer, apart = twin
+    elements, finer, apart, turned = twin
     loads = eq.samples.loads  # as the twin's: at the stations the model holds
     ratio = elements / run.rod.elements
     factor = ratio**2 / (ratio**2 - 1.0)
@@ -819,14 +823,21 @@ def _with_reaction_error(run: Run, state: State, eq: Equilibrium3D) -> Equilibri
     notes = list(eq.notes)
     accuracy = run.solver.accuracy
     shape = factor * apart  # by L: where nothing holds it (a free end), the shape's own
-    for error, what, them in ((worst, "the reactions may be off by about {} %", "them"), (
-            shape, "the shape may be off by about {} % of the part's length", "it")):
+    # The frames (a connector's orientation, the twist) to the same share of a turn.
+    frames = factor * turned / (2.0 * math.pi)
+    for error, what, them, unit, scale in (
+            (worst, "the reactions may be off by about {}", "them", " %", 100.0),
+            (shape, "the shape may be off by about {} of the part's length", "it", " %", 100.0),
+            (frames, "the part's frames (its twist, its ends' orientation) may be off by "
+             "about {}", "them", " degrees", 360.0)):
         if error > accuracy:
             need = int(math.ceil(run.rod.requested * math.sqrt(error / accuracy) / 10.0) * 10)
-            notes.append(f"{what.format(f'{100 * error:.2g}')} at {run.rod.requested} "
-                         f"elements (estimated from the same equilibrium on {elements}); "
-                         f"about {need} elements bring {them} within {100 * accuracy:g} % "
-                         f"(RodSolver(elements={need}))")
+            size = scale * error
+            said = (f"{size:.2g}" if size < 100 else f"{size:.0f}") + unit
+            notes.append(f"{what.format(said)} at {run.rod.requested} elements "
+                         f"(estimated from the same equilibrium "
+                         f"on {elements}); about {need} elements bring {them} within "
+                         f"{scale * accuracy:g}{unit} (RodSolver(elements={need}))")
     out = replace(eq, notes=tuple(notes), reaction_error=worst)
     out.__dict__["samples"] = eq.samples  # sampled already (its loads): not again
     return out
