@@ -23,13 +23,14 @@ natural shape is straight (a bundle taped on a formboard); the design is a route
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping
-from dataclasses import dataclass, field
+from collections.abc import Collection, Mapping
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
 from pliant.assembly.harness import SegmentProperties, centre_curve, select
 from pliant.core.equilibrium import Equilibrium3D
+from pliant.core.events import jumped
 from pliant.core.harness import Harness, HarnessSegment
 from pliant.core.tube import rotation_minimizing_frames
 from pliant.errors import ConvergenceError, IllPosedProblemError, PliantError
@@ -99,6 +100,7 @@ class Installed:
     rotations: dict[str, np.ndarray] = field(default_factory=dict, repr=False)
     jacobian: np.ndarray | None = field(default=None, repr=False)  # for a warm re-solve
     prepared: tuple | None = field(default=None, repr=False)  # design curves and frames
+    released: frozenset[str] = frozenset()  # the fixings not fixed (by name)
 
     @property
     def weight(self) -> float:
@@ -140,17 +142,26 @@ class Network:
     def __init__(self, harness: Harness, props: Mapping[str, SegmentProperties],
                  gravity: tuple[float, float, float],
                  moved: Mapping[str, tuple[float, float, float]] | None = None,
-                 prepared: tuple | None = None, obstacles: tuple = ()) -> None:
+                 prepared: tuple | None = None, obstacles: tuple = (),
+                 released: Collection[str] = ()) -> None:
         import pliant as pl  # noqa: PLC0415 (the solver: only a solve needs it)
 
         self.pl = pl
         self.obstacles = tuple(obstacles)
         self.moved = dict(moved or {})
+        self.released = frozenset(released)
+        # Fixings on their way from where the harness hung to their designed place
+        # (``pliant.assembly.clip_order``): name -> (point [m], tangent), and how far
+        # along (0 where it hung, 1 its designed place).
+        self.approach: dict[str, tuple[np.ndarray, np.ndarray]] = {}
+        self.along = 1.0
         names = {f.name for f in harness.fixings.values()}
-        for name in self.moved:
-            if name not in names:
-                raise IllPosedProblemError(f"moved: {name!r} is not a fixing of the harness "
-                                           f"(its fixings: {', '.join(sorted(names)[:8])})")
+        for what, given in (("moved", self.moved), ("released", self.released)):
+            for name in given:
+                if name not in names:
+                    raise IllPosedProblemError(
+                        f"{what}: {name!r} is not a fixing of the harness (its fixings: "
+                        f"{', '.join(sorted(names)[:8])})")
         self.harness = harness
         self.gravity = gravity
         self.notes: list[str] = []
@@ -227,13 +238,17 @@ class Network:
                     stack += [s.start, s.end]
             seen |= piece
             segs = {e.segment for n in piece for e in ends[n]}
-            if not (piece & self.held) and not any(self.harness.segments[s].fixings
-                                                    for s in segs):
+            if not (piece & self.held) and not any(self._fixed(p) for s in segs
+                                                    for p in self.harness.segments[s].fixings):
                 names = sorted(self.harness.nodes[n].name for n in piece)[:5]
                 raise IllPosedProblemError(
                     f"the harness piece with nodes {', '.join(names)} is held nowhere: no "
                     "placed connector and no fixing (place a connector in the design, or "
                     "hold it with a fixing)")
+
+    def _fixed(self, place) -> bool:
+        """Whether the fixing at ``place`` holds the harness (not one of ``released``)."""
+        return self.harness.fixings[place.fixing].name not in self.released
 
     # -- one segment's problem --------------------------------------------------------
     def _end_condition(self, seg: HarnessSegment, end: int):
@@ -264,6 +279,12 @@ class Network:
             s = place.location * seg.virtual_length
             if s <= 1e-9 * seg.virtual_length or s >= (1 - 1e-9) * seg.virtual_length:
                 s = min(max(s, 1e-3 * seg.virtual_length), (1 - 1e-3) * seg.virtual_length)
+            if not self._fixed(place):
+                # Its mark stays a station of the rod (a load of nothing), so that fixing
+                # it later keeps the mesh: the shape carries over as it is.
+                conditions.append(self.pl.push(s, force=(0.0, 0.0, 0.0),
+                                               name=f"mark {fixing.name}"))
+                continue
             at = place.location * arc[-1]
             k = int(np.clip(np.searchsorted(arc, at) - 1, 0, len(pts) - 2))
             w = (at - arc[k]) / max(arc[k + 1] - arc[k], 1e-300)
@@ -271,6 +292,11 @@ class Network:
             tangent = pts[k + 1] - pts[k]
             tangent /= np.linalg.norm(tangent)
             point = point + np.asarray(self.moved.get(fixing.name, (0.0, 0.0, 0.0)), float)
+            if fixing.name in self.approach:
+                hung, turned = self.approach[fixing.name]
+                point = (1.0 - self.along) * hung + self.along * point
+                tangent = (1.0 - self.along) * turned + self.along * tangent
+                tangent /= np.linalg.norm(tangent)
             conditions.append(self.pl.grip(s, _vec3(point),
                                            name=f"fixing {fixing.name}",
                                            tangent=_vec3(tangent)))
@@ -433,21 +459,23 @@ def solve_installed(harness: Harness, props: Mapping[str, SegmentProperties], *,
                     gravity: tuple[float, float, float] = GRAVITY,
                     moved: Mapping[str, tuple[float, float, float]] | None = None,
                     warm: Installed | None = None, obstacles: tuple = (),
-                    margin: float = 0.0) -> Installed:
+                    margin: float = 0.0, released: Collection[str] = ()) -> Installed:
     """The harness installed under ``gravity``: see the module. ``moved``: fixings (by
     name) displaced from their designed place [m]; ``warm``: an earlier answer of the
     same harness to start from (a fixing moved, re-solved in a fraction of the cold
     solve's time); ``obstacles``: the scene's (``pliant.scene.Obstacle``), each segment
-    in contact with them and its clearance reported against ``margin`` [m]. Raises
+    in contact with them and its clearance reported against ``margin`` [m];
+    ``released``: fixings (by name) not fixed yet, the harness hanging past them
+    (``pliant.assembly.clip_order``). Raises
     ``ConvergenceError`` (naming the junction that would not balance) or
     ``IllPosedProblemError`` (a piece held nowhere, a property missing)."""
     if modules:
         harness = select(harness, modules)
     if moved and warm is None:  # as designed first, then the fixings moved from there
         warm = solve_installed(harness, props, gravity=gravity, obstacles=obstacles,
-                               margin=margin)
+                               margin=margin, released=released)
     net = Network(harness, props, gravity, moved,
-                  None if warm is None else warm.prepared, obstacles)
+                  None if warm is None else warm.prepared, obstacles, released)
     if warm is not None and set(warm.segments) == set(harness.segments) and \
             set(warm.rotations) == {j.node for j in net.junctions}:
         # From an earlier answer (a fixing moved): its junction poses and its segments'
@@ -457,6 +485,8 @@ def solve_installed(harness: Harness, props: Mapping[str, SegmentProperties], *,
             j.rotation = np.array(warm.rotations[j.node], float)
         for seg_id in harness.segments:
             net.eqs[seg_id] = warm.segments[seg_id].equilibrium
+        if warm.released != net.released:  # other fixings hold it: each segment followed
+            net.eqs = {seg_id: net.solve_segment(seg_id) for seg_id in harness.segments}
     else:
         warm = None
         for seg_id in harness.segments:
@@ -490,6 +520,88 @@ def solve_installed(harness: Harness, props: Mapping[str, SegmentProperties], *,
         iterations, r, jac = _balance(net, None)
     return _installed(harness, net, iterations, float(np.abs(r).max(initial=0.0)), jac,
                       margin)
+
+
+def fix(before: Installed, props: Mapping[str, SegmentProperties], fixing: str, *,
+        gravity: tuple[float, float, float] = GRAVITY, obstacles: tuple = (),
+        margin: float = 0.0, steps: int = 4) -> tuple[Installed, list[float]]:
+    """The harness of ``before`` with one of its released fixings fixed: the fixing is
+    taken where the harness hangs (its point and the bundle's axis there) and carried to
+    its designed place and axis in ``steps`` steps (halved where the harness cannot
+    follow), the junctions balanced after each; every segment follows warm, so the
+    answer is the branch the fitter's move leads to. Also returns the force [N] the
+    harness pushes back on the fixing (on the fitter's hand) at each step."""
+    from pliant.models import rod3d  # noqa: PLC0415 (the solver: only a solve needs it)
+
+    if fixing not in before.released:
+        raise IllPosedProblemError(f"fixing {fixing!r} is not released in this answer (the "
+                                   f"released: {', '.join(sorted(before.released)) or 'none'})")
+    harness = before.harness
+    net = Network(harness, props, gravity, None, before.prepared, obstacles,
+                  before.released - {fixing})
+    for j in net.junctions:
+        j.position = np.array(before.junctions[j.node], float)
+        j.rotation = np.array(before.rotations[j.node], float)
+    net.eqs = {seg_id: seg.equilibrium for seg_id, seg in before.segments.items()}
+    (fid,) = [f.id for f in harness.fixings.values() if f.name == fixing]
+    carrying = [seg_id for seg_id, seg in harness.segments.items()
+                if any(p.fixing == fid for p in seg.fixings)]
+    if not carrying:  # placed on no segment: it holds nothing
+        return replace(before, released=net.released), [0.0]
+    seg_id = carrying[0]
+    eq = before.segments[seg_id].equilibrium
+    place = next(p for p in harness.segments[seg_id].fixings if p.fixing == fid)
+    s = min(max(place.location * eq.problem.part.length, 1e-3 * eq.problem.part.length),
+            (1 - 1e-3) * eq.problem.part.length)
+    # Where the bundle is at the clip's mark, and its axis there: between the nodes
+    # about it, in proportion.
+    k = int(np.clip(np.searchsorted(eq.s, s) - 1, 0, len(eq.s) - 2))
+    w = (s - eq.s[k]) / (eq.s[k + 1] - eq.s[k])
+    axis = (1.0 - w) * eq.frames[k][:, 2] + w * eq.frames[k + 1][:, 2]
+    net.approach = {fixing: ((1.0 - w) * eq.position[k] + w * eq.position[k + 1],
+                             axis / np.linalg.norm(axis))}
+    solver = {seg: rod3d.RodSolver(elements=_elements(harness.segments[seg].virtual_length),
+                                   settle=False) for seg in harness.segments}
+    forces: list[float] = []
+
+    def follow(seg: str) -> Equilibrium3D:  # warm only: a cold solve is another branch
+        eq = rod3d.solve(net.problem(seg), solver=solver[seg], warm_start=net.eqs[seg])
+        if jumped(eq.notes):
+            raise ConvergenceError(f"segment {seg} cannot follow fixing {fixing} there",
+                                   residual=math.inf)
+        return eq
+
+    jac = before.jacobian
+    iterations, done, step = 0, 0.0, 1.0 / steps
+    r = net.residual(net.eqs)
+    while True:
+        kept = dict(net.eqs)
+        saved = [(j.position.copy(), j.rotation.copy()) for j in net.junctions]
+        t = min(1.0, done + step) if forces else 0.0
+        net.along = t
+        try:
+            net.eqs = {seg: follow(seg) for seg in harness.segments}
+            count, r, jac = _balance(net, jac)
+        except PliantError:
+            if not forces:
+                raise
+            net.eqs = kept
+            for j, (p, rot) in zip(net.junctions, saved):
+                j.position, j.rotation = p, rot
+            step *= 0.5
+            if step < 1e-3 / steps:
+                raise
+            continue
+        iterations += count
+        done = t
+        for seg in carrying:
+            load = net.eqs[seg].reactions.get(f"fixing {fixing}")
+            if load is not None:
+                forces.append(float(np.linalg.norm(load.force)))
+        if done >= 1.0:
+            break
+    return _installed(harness, net, iterations, float(np.abs(r).max(initial=0.0)), jac,
+                      margin), forces
 
 
 def _balance(net: Network, jac: np.ndarray | None) -> tuple[int, np.ndarray, np.ndarray | None]:
@@ -652,7 +764,7 @@ def _installed(harness: Harness, net: Network, iterations: int, balance: float,
     return Installed(harness, segments, {j.node: j.position.copy() for j in net.junctions},
                      held, iterations, balance, tuple(notes),
                      {j.node: j.rotation.copy() for j in net.junctions}, jac,
-                     (net.design, net.frames))
+                     (net.design, net.frames), net.released)
 
 
 def installed_checks(installed: Installed, rules=None) -> list:

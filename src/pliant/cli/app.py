@@ -820,12 +820,19 @@ def harness(
     rules: Annotated[Path | None, typer.Option(help="a rules table replacing the bundled "
                                                     "one (bend margins, fallback limits)")]
     = None,
+    clip_order: Annotated[bool, typer.Option(
+        "--clip-order", help="find the order to fix the fixings in (the connectors "
+                             "plugged first): the hand's force and the bends after each "
+                             "clip, and why the other orders fail; implies --solve")] = False,
+    fixing: Annotated[list[str] | None, typer.Option(
+        help="with --clip-order: order only this fixing (its name; repeat for several; "
+             "the others stay fixed). Default: every fixing placed on a segment")] = None,
 ) -> None:
     """Read a harness's design data (KBL): every segment's bundle diameter, mass,
     stiffness and bend limit with their sources, and the design's checks (curves that
     miss their nodes or their length, bends tighter than the wires allow, bundles
     larger than their reserved section, kinks at nodes). Exit status 1 when a check is
-    red."""
+    red, or when no clip order passes."""
     from rich.console import Console  # noqa: PLC0415
 
     from pliant.assembly import harness as design  # noqa: PLC0415
@@ -850,6 +857,7 @@ def harness(
         obstacles, margin, solve = scene.obstacles, scene.margin, True
     else:
         model = read_kbl(file, strict=strict)
+    solve = solve or clip_order
     if modules:
         from pliant.cli.harness_report import print_modules  # noqa: PLC0415
 
@@ -877,6 +885,15 @@ def harness(
         print_installed(console, installed, after, time.perf_counter() - began,
                         show_all=all_segments)
         checks = checks + after
+    order = None
+    if clip_order:
+        from pliant.assembly.clip_order import clip_order as search  # noqa: PLC0415
+        from pliant.cli.harness_report import print_clip_order  # noqa: PLC0415
+
+        with console.status("searching the clip order ..."):
+            order = search(model, props, fixings=fixing or None, obstacles=obstacles,
+                           margin=margin, rules=table)
+        print_clip_order(console, order)
 
     def shape(k: str):
         if installed is not None:
@@ -897,13 +914,17 @@ def harness(
 
         console.print(f"report: {write_html(model, props, checks, installed, report)}")
     if json is not None:
-        written = emit_json(harness_file.harness_json(model, props, checks, installed), json,
-                            "the harness JSON")
+        written = emit_json(harness_file.harness_json(model, props, checks, installed, order),
+                            json, "the harness JSON")
         if written is not None:
             console.print(f"JSON: {written}")
     reds = sum(c.zone.value == "red" for c in checks)
     yellows = sum(c.zone.value == "yellow" for c in checks)
     what = "the design and the installed harness" if installed is not None else "the design"
+    if order is not None and order.best is None:
+        console.print("verdict: [bold red]red[/]: no order of the fixings passes (exit "
+                      "status 1)")
+        raise typer.Exit(1)
     if reds:
         console.print(f"verdict: [bold red]red[/] ({what}): {reds} red and {yellows} yellow "
                       "checks (exit status 1)")

@@ -138,3 +138,34 @@ def print_modules(console: Console, harness: Harness) -> None:
         if harness.modules else set()
     console.print(f"{sum(1 for w in harness.wires if w not in controlled)} wires belong to "
                   "no module: every variant has them")
+
+
+def print_clip_order(console: Console, result) -> None:
+    """The clip order (``pliant.assembly.clip_order.ClipOrder``): the best order's
+    operations (the hand's force, the tightest bend after each), then why the others
+    fail: each clip that is red when fixed after which others."""
+    console.print(f"[bold]clip order[/bold] of {len(result.fixings)} fixings "
+                  f"({result.method}; {result.operations} operations judged)")
+    for note in result.notes:
+        console.print(f"  note: {note}")
+    best = result.best
+    if best is None:
+        console.print("[bold red]no order of the fixings passes[/]")
+    else:
+        table = Table(title=f"best order: {best.zone}")
+        for col in ("#", "fixing", "hand force N", "tightest bend mm", "segment",
+                    "R min mm", "zone"):
+            table.add_column(col, justify="left" if col in ("fixing", "segment") else "right")
+        for k, step in enumerate(best.steps, 1):
+            segment, radius, limit = step.tightest
+            zone = Zone(step.zone)
+            table.add_row(str(k), step.fixing, f"{step.force:.2f}", f"{radius * 1e3:.1f}",
+                          segment, _mm(limit), f"[{_STYLE[zone]}]{zone.value}[/]")
+        console.print(table)
+        for step in best.steps:
+            for reason in step.reasons:
+                console.print(f"  {step.fixing}: {reason}")
+    for step in result.failures:
+        after = ", ".join(sorted(step.before)) or "no other"
+        console.print(f"[red]fails[/]: {step.fixing} fixed after {after}: "
+                      + "; ".join(step.reasons))

@@ -24,10 +24,11 @@ def _derived(d) -> dict:
 
 
 def harness_json(harness: Harness, props: Mapping, checks: Sequence,
-                 installed=None) -> str:
+                 installed=None, clip_order=None) -> str:
     """The import's summary, each segment's properties (SI, with sources), every check
-    (the design's, and the installed harness's where it was solved) and the installed
-    answer, as JSON text."""
+    (the design's, and the installed harness's where it was solved), the installed
+    answer and the clip order (``pliant.assembly.clip_order``; forces in N, radii in
+    m), as JSON text."""
     doc = {
         "schema_version": SCHEMA_VERSION,
         "harness": {"name": harness.name, "part_number": harness.part_number,
@@ -63,6 +64,8 @@ def harness_json(harness: Harness, props: Mapping, checks: Sequence,
                           else s.interference.to_dict()}
                          for k, s in installed.segments.items()],
         }
+    if clip_order is not None:
+        doc["clip_order"] = clip_order.to_dict()
     return json.dumps(finite(doc), indent=1)
 
 

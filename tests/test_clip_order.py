@@ -1,0 +1,142 @@
+"""The clip order of a harness (``pliant.assembly.clip_order``): each clip carried from
+where the bundle hangs to its place, checked against the closed form of a bundle held
+level at both ends of each span; the exact search over sets against every order along
+its own path; an order that fails, for the bend its first clip leaves."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from pliant.assembly.harness import properties
+from pliant.errors import InputError
+
+from .helpers import cli
+
+GENERATOR = (Path(__file__).resolve().parents[1] / "examples" / "harness" / "kbl"
+             / "kblxml_2.3sr-1_000971230_ltgs_generator_170718.kbl")
+
+LENGTH, CHORD, MASS = 1.25, 1.2, 0.2  # m, m, kg/m: a slack bundle between two connectors
+WHERE = (0.25, 0.5, 0.75)  # the clips' marks, as fractions of the bundle's length
+
+
+def _bundle(bend_radius: float = 5e-3):
+    """One segment between two plugged connectors at the same height, designed straight
+    (so every clip's place and axis are level), carrying one 6 mm wire."""
+    from pliant.core.harness import (
+        UNCLAMPED,
+        Connector,
+        Fixing,
+        FixingPlace,
+        Harness,
+        HarnessNode,
+        HarnessSegment,
+        Placement,
+        Wire,
+        WireType,
+    )
+
+    wire = WireType("T", "T1", "test wire", 6e-3, 1e-6, bend_radius, MASS)
+    nodes = {"A": HarnessNode("A", "A", (0.0, 0.0, 0.0)),
+             "B": HarnessNode("B", "B", (CHORD, 0.0, 0.0))}
+    clips = {f"F{k}": Fixing(f"F{k}", f"clip {k}", "", "", "clip") for k in range(3)}
+    segment = HarnessSegment("S", "S", "A", "B", LENGTH, (), fixings=tuple(
+        FixingPlace(f"F{k}", w) for k, w in enumerate(WHERE)))
+    plugs = {f"C{n}": Connector(f"C{n}", f"C{n}", "", "", Placement(
+        nodes[n].position, (1.0, 0.0, 0.0), (0.0, 1.0, 0.0)), n) for n in "AB"}
+    return Harness("bundle", "", "test", "2.4", UNCLAMPED, nodes, {"S": segment},
+                   {"T": wire}, {"W": Wire("W", "W", "T", None, ("S",))}, clips, plugs, {})
+
+
+def test_each_clip_carries_half_the_weight_of_the_spans_beside_it_in_every_order():
+    """Closed form: held level at both ends, every span between two held points is
+    symmetric, so each end carries half its weight; a clip, half of each span beside
+    it, whatever the bundle's sag and slack. Checked after every operation of two
+    orders; both end where the harness solved with every clip fixed is (the order does
+    not change the installed harness)."""
+    from pliant.assembly.harness_solve import fix, solve_installed
+
+    harness = _bundle()
+    props = properties(harness)
+    weight_per_length = MASS * 9.81
+    hanging = solve_installed(harness, props, released=[f"clip {k}" for k in range(3)])
+    installed = solve_installed(harness, props)
+    for order in ((1, 0, 2), (0, 2, 1)):
+        state, fixed = hanging, []
+        for k in order:
+            state, forces = fix(state, props, f"clip {k}")
+            fixed.append(k)
+            marks = [0.0, *sorted(WHERE[j] for j in fixed), 1.0]
+            for j in fixed:
+                i = marks.index(WHERE[j])
+                expected = 0.5 * (marks[i + 1] - marks[i - 1]) * LENGTH * weight_per_length
+                assert -state.held[f"fixing clip {j}"][0][2] == pytest.approx(
+                    expected, rel=1e-4)
+            assert forces[0] < 1e-4 * state.weight  # taken where it hung: nothing yet
+            final = float(np.linalg.norm(state.held[f"fixing clip {k}"][0]))
+            assert forces[-1] == pytest.approx(final, rel=1e-9) and max(forces) >= forces[-1]
+        for name, (force, moment) in installed.held.items():
+            assert np.abs(state.held[name][0] - force).max() < 1e-6 * installed.weight
+            assert np.abs(state.held[name][1] - moment).max() < 1e-6 * installed.weight
+
+
+def test_the_exact_search_finds_every_order_s_best_and_names_why_the_others_fail():
+    """A bundle whose wire may not bend tighter than 90 mm: a clip at a quarter fixed
+    first leaves the long span sagging into an 87 mm bend at it (red), the middle clip
+    first a 102 mm one (yellow, within 1.2 times the limit, as installed). The exact
+    search over the
+    sets of clips and the slow twin (every order along its own path) agree on the best
+    order and its costs, and both name the failing first clips."""
+    from pliant.assembly.clip_order import clip_order
+
+    harness = _bundle(bend_radius=0.09)
+    props = properties(harness)
+    exact = clip_order(harness, props)
+    slow = clip_order(harness, props, exhaustive=True)
+    assert len(slow.orders) == 6 and exact.operations == 12 and slow.operations == 15
+    assert exact.best is not None and slow.best is not None
+    assert exact.best.fixings == slow.best.fixings and exact.best.fixings[0] == "clip 1"
+    assert exact.best.key() == slow.best.key()
+    # The installed harness's own bend is yellow (102 mm, within 1.2 times 90 mm): the
+    # design's, not the order's, so the best order is green.
+    assert exact.best.zone == "green"
+    assert any("the installed harness itself" in n and "yellow" in n for n in exact.notes)
+    failing = [o for o in slow.orders if not o.passes]
+    assert {o.fixings[0] for o in failing} == {"clip 0", "clip 2"} and len(failing) == 4
+    for order in failing:
+        step = order.failing
+        assert step.before == () and step.tightest[0] == "S"
+        assert 0.08 < step.tightest[1] < 0.09 == step.tightest[2]
+        assert any("installed bend radius" in r for r in step.reasons)
+    assert {(f.fixing, f.before) for f in exact.failures} == {("clip 0", ()), ("clip 2", ())}
+    assert not any("another shape" in n for n in exact.notes)  # no branch met
+
+
+def test_a_fixing_the_harness_lacks_is_a_typed_error_naming_it():
+    from pliant.assembly.clip_order import clip_order
+
+    harness = _bundle()
+    with pytest.raises(InputError, match="'clip 9' is not a fixing"):
+        clip_order(harness, properties(harness), fixings=["clip 9"])
+
+
+def test_pliant_harness_orders_the_generator_cable_s_clip_and_writes_it_in_json(tmp_path):
+    """The generator cable (its KBL, millimetres): its one clip carried from where the
+    cable hangs off its connectors to its place. The hand's last force is the load the
+    installed harness (solved cold, apart) puts on that clip; the design's own red bend
+    (segment 2) is said as the design's, not blamed on the order."""
+    done = cli("harness", GENERATOR, "--clip-order", "--json", tmp_path / "h.json")
+    out = " ".join(done.stdout.split())
+    assert "clip order of 1 fixings" in out and "best order: green" in out
+    assert "the installed harness itself has" in out
+    assert done.returncode == 1  # the design's red bend, as without --clip-order
+    data = json.loads((tmp_path / "h.json").read_text())
+    order = data["clip_order"]
+    assert order["best"]["fixings"] == ["CL_01_Gen"] and order["failures"] == []
+    [step] = order["best"]["steps"]
+    held = np.linalg.norm(data["installed"]["held_loads"]["fixing CL_01_Gen"]["force_N"])
+    assert step["forces"][-1] == pytest.approx(held, abs=1e-6 * data["installed"]["weight_N"])
+    assert step["forces"][0] < 1e-4 * data["installed"]["weight_N"] < step["force"]
