@@ -128,7 +128,8 @@ def test_pliant_harness_orders_the_generator_cable_s_clip_and_writes_it_in_json(
     cable hangs off its connectors to its place. The hand's last force is the load the
     installed harness (solved cold, apart) puts on that clip; the design's own red bend
     (segment 2) is said as the design's, not blamed on the order."""
-    done = cli("harness", GENERATOR, "--clip-order", "--json", tmp_path / "h.json")
+    done = cli("harness", GENERATOR, "--clip-order", "--json", tmp_path / "h.json",
+               "--report", tmp_path / "h.html")
     out = " ".join(done.stdout.split())
     assert "clip order of 1 fixings" in out and "best order: green" in out
     assert "the installed harness itself has" in out
@@ -140,3 +141,5 @@ def test_pliant_harness_orders_the_generator_cable_s_clip_and_writes_it_in_json(
     held = np.linalg.norm(data["installed"]["held_loads"]["fixing CL_01_Gen"]["force_N"])
     assert step["forces"][-1] == pytest.approx(held, abs=1e-6 * data["installed"]["weight_N"])
     assert step["forces"][0] < 1e-4 * data["installed"]["weight_N"] < step["force"]
+    page = (tmp_path / "h.html").read_text()
+    assert "<h2>Clip order</h2>" in page and "Best: CL_01_Gen" in page

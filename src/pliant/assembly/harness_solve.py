@@ -579,8 +579,8 @@ def fix(before: Installed, props: Mapping[str, SegmentProperties], fixing: str, 
         saved = [(j.position.copy(), j.rotation.copy()) for j in net.junctions]
         t = min(1.0, done + step) if forces else 0.0
         net.along = t
-        try:
-            net.eqs = {seg: follow(seg) for seg in harness.segments}
+        try:  # only the clip's segments' problems changed since the last balance
+            net.eqs = {**net.eqs, **{seg: follow(seg) for seg in carrying}}
             count, r, jac = _balance(net, jac)
         except PliantError:
             if not forces:

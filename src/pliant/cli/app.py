@@ -912,7 +912,7 @@ def harness(
     if report is not None:
         from pliant.cli.harness_html import write_html  # noqa: PLC0415
 
-        console.print(f"report: {write_html(model, props, checks, installed, report)}")
+        console.print(f"report: {write_html(model, props, checks, installed, report, order)}")
     if json is not None:
         written = emit_json(harness_file.harness_json(model, props, checks, installed, order),
                             json, "the harness JSON")

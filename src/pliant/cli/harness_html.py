@@ -61,8 +61,10 @@ def views(harness: Harness, design: Mapping[str, np.ndarray], installed,
     return inline_svg(fig, plt)
 
 
-def render_html(harness: Harness, props: Mapping, checks: Sequence, installed=None) -> str:
-    """The report as one HTML document."""
+def render_html(harness: Harness, props: Mapping, checks: Sequence, installed=None,
+                clip_order=None) -> str:
+    """The report as one HTML document (with the clip order, ``assembly.clip_order``'s
+    answer, where one was searched)."""
     from pliant import __version__  # noqa: PLC0415
     from pliant.assembly.harness import centre_curve  # noqa: PLC0415
 
@@ -140,13 +142,44 @@ def render_html(harness: Harness, props: Mapping, checks: Sequence, installed=No
                          f"<td>{np.linalg.norm(moment):.3g}</td></tr>")
         parts.append("</table><p>No public rule limits them: compare with the connector's "
                      "or clip's rating.</p>")
+    if clip_order is not None:
+        parts.append(_clip_order_html(clip_order))
     parts.append("<h2>Sources</h2><ul>" + "".join(f"<li>{e(s)}</li>"
                                                   for s in sources(props, checks))
                  + "</ul></main></body></html>")
     return "".join(parts)
 
 
+def _clip_order_html(result) -> str:
+    """The clip order: the best order's operations, then each failing operation."""
+    e = html.escape
+    best = result.best
+    out = [f"<h2>Clip order</h2><p>{len(result.fixings)} fixings, {e(result.method)}, "
+           f"{result.operations} operations judged. "
+           + ("<b>No order of the fixings passes.</b>" if best is None else
+              f'Best: {e(" → ".join(best.fixings))} '
+              f'(<span class="zone {best.zone}">{best.zone}</span>, the hand at most '
+              f"{best.peak:.2f} N).") + "</p>"]
+    out.append("<ul>" + "".join(f"<li>{e(n)}</li>" for n in result.notes) + "</ul>")
+    if best is not None:
+        out.append("<table><tr><th>#</th><th>fixing</th><th>hand force N</th>"
+                   "<th>tightest bend mm</th><th>segment</th><th>R min mm</th>"
+                   "<th>zone</th></tr>")
+        for k, step in enumerate(best.steps, 1):
+            segment, radius, limit = step.tightest
+            out.append(f"<tr><td>{k}</td><td>{e(step.fixing)}</td><td>{step.force:.2f}</td>"
+                       f"<td>{radius * 1e3:.1f}</td><td>{e(segment)}</td>"
+                       f"<td>{'–' if limit is None else f'{limit * 1e3:.1f}'}</td>"
+                       f'<td><span class="zone {step.zone}">{step.zone}</span></td></tr>')
+        out.append("</table>")
+    if result.failures:
+        out.append("<p>Why the other orders fail:</p><ul>" + "".join(
+            f"<li>{e(f.fixing)} fixed after {e(', '.join(sorted(f.before)) or 'no other')}: "
+            f"{e('; '.join(f.reasons))}</li>" for f in result.failures) + "</ul>")
+    return "".join(out)
+
+
 def write_html(harness: Harness, props: Mapping, checks: Sequence, installed,
-               path: str | Path) -> Path:
-    text = render_html(harness, props, checks, installed).encode()
+               path: str | Path, clip_order=None) -> Path:
+    text = render_html(harness, props, checks, installed, clip_order).encode()
     return atomic_write(path, lambda h: h.write(text), "the report")
