@@ -77,6 +77,18 @@ def test_a_long_hose_carried_by_both_ends_clears_a_post_one_hand_drags_it_over()
     ev1 = evaluate(alone, search=False)
     assert min(dict(r.clearances)["post"] for r in ev1.run.steps) <= carried.margin
     assert not ev1.verdict.assemblable
+    # The hands' distance (issue 56): carried, 0.8 m apart throughout (green for the 5th
+    # percentile woman); left behind, as far as the path's targets take the right hand
+    # from it (1.38 m, over the post), past the spread that raises her upper arms above
+    # 20 degrees: yellow, with why.
+    widest = max(float(np.linalg.norm(np.subtract(p.condition("right hand").position,
+                                                  (0.0, 0.0, 0.5)))) for p in alone.path)
+    assert 1.13 < widest < 1.42
+    for result, apart, zone in ((ev, 0.8, "green"), (ev1, widest, "yellow")):
+        [check] = [c for c in result.operators[0].checks
+                   if c.rule == "hands apart: right hand and left hand"]
+        assert check.value == pytest.approx(apart, abs=1e-6) and check.zone.value == zone
+        assert "5th percentile woman" in check.note and "ISO 11226" in check.source
 
 
 def test_the_planner_moves_the_carried_hand_with_the_grip_and_writes_it(tmp_path):

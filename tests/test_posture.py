@@ -195,3 +195,54 @@ def test_a_bad_worker_is_refused_naming_the_field():
     with pytest.raises(InputError, match=r"worker\.facing"):
         evaluate(parse_scene(SCENE.format(hose=HOSE, x=1.0, more="").replace(
             "facing = [-1.0, 0.0, 0.0]", "facing = [0.0, 0.0, 1.0]")), search=False)
+
+
+@pytest.mark.parametrize("apart", [0.6, 0.9, 1.1, 1.25, 1.4])
+def test_two_hands_spread_needs_the_upper_arms_raised_as_an_exhaustive_arm_search_finds(
+        apart):
+    """Issue 56 (two hands): hands ``apart`` need each hand (apart - breadth) / 2 to the
+    side of its shoulder. The least upper-arm elevation that reaches that far, searched
+    over a two-link arm (the upper arm at every elevation on a 0.1 degree grid and every
+    azimuth, the forearm and hand pointing every way), is ``Spread.elevation``'s; and the
+    stick figure's own posture for hands there (the elbow hanging as low as it can) is
+    never below it."""
+    from pliant.assembly.posture import spread
+
+    rules = bundled_rules()
+    body = spread(rules.body, rules.posture)
+    f = figure()
+    assert body.arm == pytest.approx(f.arm) and body.upper == pytest.approx(f.upper)
+    side = 0.5 * (apart - body.breadth)
+    rng = np.random.default_rng(3)
+    fore = rng.normal(size=(4000, 3))
+    fore /= np.linalg.norm(fore, axis=1)[:, None]
+    azimuth = np.radians(np.arange(0.0, 360.0, 2.0))
+    least = None
+    for e in np.arange(0.0, 90.05, 0.1):  # the first elevation whose arm gets there
+        upper = body.upper * math.sin(math.radians(e)) * np.cos(azimuth)  # to the side
+        if (upper.max() + (body.arm - body.upper) * fore[:, 0].max()) >= side:
+            least = e
+            break
+    assert least is not None
+    assert body.elevation(apart) == pytest.approx(least, abs=0.15)
+    right = np.cross(f.facing, f.up)
+    middle = f.hip + f.trunk * UP + 0.3 * f.facing
+    for sign, hand in ((1.0, "right"), (-1.0, "left")):
+        got = f.reach(middle + sign * 0.5 * apart * right, hand)
+        if got.excess <= 0.0:
+            assert got.upper_arm >= body.elevation(apart) - 1e-9
+
+
+def test_two_hands_spread_limits_are_the_posture_zones_onsets():
+    """The spread's yellow and red distances are those at which the least elevation is
+    the [posture] zones' upper-arm onsets (20 and 60 degrees, ISO 11226); past the
+    breadth and both arms no hands reach."""
+    from pliant.assembly.posture import spread
+
+    rules = bundled_rules()
+    body = spread(rules.body, rules.posture)
+    for limit, onset in zip(body.limits, rules.posture.upper_arm):
+        assert body.elevation(limit) == pytest.approx(onset, abs=1e-9)
+    assert body.elevation(body.most) == pytest.approx(90.0)
+    tall = spread(rules.body, rules.posture, "men", 95.0)
+    assert tall.limits[0] > body.limits[0] and "95th percentile man" in tall.who

@@ -892,6 +892,8 @@ def _operators(scene: Any, run: PathRun, rules: Rules, settings: EvaluationSetti
                              "one hand at each of " + ", ".join(grips))
         _with_access(one, run, rules, settings, grips, memo=access)
         _with_reach(one, run, rules, scene, grips)
+        if len(grips) == 2:
+            _with_spread(one, run, rules, scene, grips[0], grips[1])
         out.append(one)
     if wanted == "two hands" or (wanted == "auto" and out[0].zone == Zone.RED):
         out += _two_hands(scene, run, rules, settings, grips, grip_steps, elements, search,
@@ -959,6 +961,8 @@ def _two_hands(scene: Any, run: PathRun, rules: Rules, settings: EvaluationSetti
                 _with_access(placed, run, rules, settings, (SECOND_HAND,),
                              at=placed.second_hand_s, memo=access)
             _with_reach(placed, run, rules, scene, grips, second=placed.second_hand_s)
+            if placed.second_hand_s is not None:
+                _with_spread(placed, run, rules, scene, grips[0], placed.second_hand_s)
             out.append(placed)
     return out
 
@@ -1021,6 +1025,40 @@ def _with_reach(op: OperatorResult, run: PathRun, rules: Rules, scene: Any,
         steps = [figure.reach(p, side, rules.posture) for p in points]
         op.reach[g] = steps
         op.checks += reach_checks(g, steps, rules, figure)
+
+
+def _with_spread(op: OperatorResult, run: PathRun, rules: Rules, scene: Any, first: str,
+                 second: str | float) -> None:
+    """Add to ``op`` how far apart its two hands are along the path (at grip ``first``
+    and at grip or arc length ``second``), a check: the distance against the spread at
+    which the upper arms must be raised past the ``[posture]`` zones' onsets whatever
+    the posture (``posture.spread``), for the scene's worker or, without one, the 5th
+    percentile woman the worker defaults to."""
+    if rules.body is None or rules.posture is None or not run.equilibria:
+        return
+    from pliant.assembly.posture import spread  # noqa: PLC0415
+
+    worker = getattr(scene, "worker", None)
+    body = (spread(rules.body, rules.posture) if worker is None else
+            spread(rules.body, rules.posture, worker.sex, worker.percentile))
+
+    def point(eq: Any, s: float) -> np.ndarray:
+        return eq.position[int(np.argmin(np.abs(eq.s - s)))]
+
+    where = second if isinstance(second, str) else SECOND_HAND
+    apart = [float(np.linalg.norm(point(eq, eq.loads[first].s) - point(
+        eq, eq.loads[second].s if isinstance(second, str) else second)))
+        for eq in run.equilibria]
+    widest = max(apart)
+    reach = ("beyond what the arms span at all" if widest > body.most else
+             f"the upper arms raised at least {body.elevation(widest):.0f} degrees")
+    note = (f"{body.who}: shoulders {body.breadth * 1e3:.0f} mm apart, arm "
+            f"{body.arm * 1e3:.0f} mm; at the widest, {widest * 1e3:.0f} mm apart, {reach}")
+    op.checks.append(series_check(
+        f"hands apart: {first} and {where}", f"distance between the hands at {first} and "
+        f"{where}", "ergonomics", apart, "m", "above", body.limits[0], body.limits[1],
+        f"{rules.body.sourced.source}; {rules.posture.sourced.source}", "derived",
+        grip=first, note=note))
 
 
 def reach_checks(grip: str, steps: list[Any], rules: Rules, figure: Any) -> list[Check]:

@@ -176,6 +176,27 @@ def _steps(n: int) -> str:
     return "at the step" if n == 1 else f"at the {n} steps"
 
 
+def _too_far(scene: Any, rules: Rules, grip: str):
+    """Whether two hands, at ``grip`` and at s2 on an equilibrium, are farther apart than
+    the worker (the 5th percentile woman without one) holds them with the upper arms
+    below the red onset (``posture.spread``): such a place is taken only where no other
+    is solved."""
+    if rules.body is None or rules.posture is None:
+        return lambda eq, s2: False
+    from pliant.assembly.posture import spread  # noqa: PLC0415
+
+    worker = getattr(scene, "worker", None)
+    body = (spread(rules.body, rules.posture) if worker is None else
+            spread(rules.body, rules.posture, worker.sex, worker.percentile))
+
+    def far(eq: Any, s2: float) -> bool:
+        at = eq.position[int(np.argmin(np.abs(eq.s - eq.loads[grip].s)))]
+        other = eq.position[int(np.argmin(np.abs(eq.s - s2)))]
+        return bool(np.linalg.norm(at - other) > body.limits[1])
+
+    return far
+
+
 def place_second_hand(scene: Any, run: Any, rules: Rules, settings: EvaluationSettings,
                       grip: str, steps: list[GripStep], elements: int) -> OperatorResult | None:
     """The two-hand operator with the second hand at the best s2 (see the module), or
@@ -204,7 +225,9 @@ def place_second_hand(scene: Any, run: Any, rules: Rules, settings: EvaluationSe
             found.append((result[2], s2, result, A))
     if not found:
         return None
-    _, s2, (f_worst, eq_worst, _), A_worst = min(found, key=lambda x: x[0])
+    too_far = _too_far(scene, rules, grip)
+    _, s2, (f_worst, eq_worst, _), A_worst = min(
+        found, key=lambda x: (too_far(x[2][1], x[1]), x[0]))
     first = list(steps)
     pushes: dict[int, tuple[float, float, float]] = {worst: triple(f_worst)}
     equilibria: dict[int, Any] = {worst: eq_worst}

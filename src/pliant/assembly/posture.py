@@ -71,6 +71,52 @@ class Reach:
                 "feet": list(self.feet), "hand": list(self.hand)}
 
 
+@dataclass(frozen=True)
+class Spread:
+    """How far apart two hands can be, for a body: shoulder breadth, the arm's reach
+    (shoulder to grip, straight) and the upper arm [m]; ``limits`` the hands' distances
+    [m] at which the upper arms must be raised past the ``[posture]`` zones' yellow and
+    red onsets, whatever the rest of the posture, and ``most`` the widest two hands
+    reach at all."""
+
+    breadth: float
+    arm: float
+    upper: float
+    limits: tuple[float, float]
+    who: str
+
+    @property
+    def most(self) -> float:
+        return self.breadth + 2.0 * self.arm
+
+    def elevation(self, apart: float) -> float:
+        """The least upper-arm elevation [deg] that holds two hands ``apart`` [m]: each
+        hand at least (apart - breadth) / 2 to the side of its shoulder, of which the
+        forearm and hand (the arm's reach less the upper arm, turned any way) give at
+        most their length and the upper arm raised by e the rest, upper sin(e)."""
+        side = 0.5 * (apart - self.breadth) - (self.arm - self.upper)
+        if side <= 0.0:
+            return 0.0
+        return math.degrees(math.asin(min(1.0, side / self.upper)))
+
+
+def spread(body: Body, zones: PostureZones, sex: str = "women",
+           percentile: float = 5.0) -> Spread:
+    """Two hands' spread for the ``percentile`` of ``sex`` (the 5th percentile woman by
+    default, as the worker: reach is designed for the small)."""
+    z = NormalDist().inv_cdf(percentile / 100.0)
+    mean, sd = body.stature[sex]
+    stature = mean + z * sd
+    mean, sd = body.shoulder_grip[sex]
+    arm = mean + z * sd
+    upper = body.upper_arm * stature
+    breadth = body.shoulder_breadth * stature
+    limits = tuple(breadth + 2.0 * ((arm - upper) + upper * math.sin(math.radians(e)))
+                   for e in zones.upper_arm)
+    who = f"a {percentile:g}th percentile {'man' if sex == 'men' else 'woman'}"
+    return Spread(breadth, arm, upper, (limits[0], limits[1]), who)
+
+
 class Figure:
     """The worker's stick figure: where the hip is, how long the trunk and the arm are,
     which way is up, forward and right."""
