@@ -342,3 +342,22 @@ def test_pseudonormals_match_their_definition(points, seed, cut):
         centre = vertices.mean(axis=0)
         for k, points_of in ((0, faces[:, 0]), (4, faces[:, 0]), (1, faces[:, 0])):
             assert np.all(np.einsum("tk,tk->t", pseudo[:, k], vertices[points_of] - centre) > 0)
+
+
+def test_a_full_disk_leaves_no_half_written_cache_file(monkeypatch):
+    """Issue 54: a full disk left zero-byte ``*.tmp.npz`` files in the cache. A write that
+    fails (here numpy's, after it created its file, as a full disk does) leaves nothing
+    behind, and the next read is a plain miss."""
+    import errno
+
+    from pliant.util import cache
+
+    def full(path, **_):
+        open(path, "wb").close()
+        raise OSError(errno.ENOSPC, "No space left on device")
+
+    monkeypatch.setattr(cache.np, "savez", full)
+    cache.save_arrays("mesh", "k" * 32, a=np.zeros(3))
+    folder = cache.cache_dir() / "mesh"
+    assert folder.is_dir() and list(folder.iterdir()) == []
+    assert cache.load_arrays("mesh", "k" * 32) is None

@@ -362,3 +362,16 @@ def test_a_bad_cluster_is_refused_at_once_naming_the_option(tmp_path, options, f
     assert err.value.field == field
     assert not (tmp_path / "s" / "operations.jsonl").exists() or not (
         tmp_path / "s" / "operations.jsonl").read_text().strip()
+
+
+def test_a_second_search_in_a_folder_in_use_is_refused(tmp_path):
+    """Issue 54: one writer per store: a search's folder held by another is refused
+    before anything is judged, naming the folder."""
+    from pliant.errors import InputError
+    from pliant.io.folder_lock import FolderLock
+
+    out = tmp_path / "busy"
+    with FolderLock(out, "sequence search"), pytest.raises(
+            InputError, match="in use by another sequence search"):
+        sequence(BAY, out=out, workers=0)
+    assert not (out / "operations.jsonl").exists()

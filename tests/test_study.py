@@ -326,3 +326,32 @@ def test_a_relative_tolerance_of_a_hundred_percent_or_more_is_refused():
     with pytest.raises(InputError, match="less than 100 %"):
         parse_variation("bending_stiffness=100%", data())
     assert parse_variation("bending_stiffness=99%", data()).tolerance == pytest.approx(0.99)
+
+
+def test_a_second_study_in_a_folder_in_use_is_refused_naming_it(scene_file, tmp_path):
+    """Issue 54: two studies in one folder each computed every sample beside the other.
+    A folder held by a running study (its lock, as a study takes it) refuses a second
+    before anything is sampled, naming the folder and the holder's process; once the
+    first ends the folder is free again, and a lock left by a process that died is no
+    lock (the kernel drops it with the process)."""
+    import os
+    import subprocess
+    import sys
+
+    from pliant.errors import InputError
+    from pliant.io.folder_lock import FolderLock
+
+    out = tmp_path / "busy"
+    with FolderLock(out, "study"):
+        with pytest.raises(InputError, match=f"in use by another study \\(process "
+                                             f"{os.getpid()}\\)"):
+            study(scene_file, VARY, 2, out=out, workers=0)
+        assert not (out / "samples.jsonl").exists()
+    with FolderLock(out, "study"):  # free again
+        pass
+    died = subprocess.run([sys.executable, "-c", (
+        "import os; from pliant.io.folder_lock import FolderLock; "
+        f"FolderLock({str(out)!r}, 'study').acquire(); os._exit(0)")], timeout=120)
+    assert died.returncode == 0
+    with FolderLock(out, "study"):
+        pass

@@ -415,10 +415,14 @@ def sequence(seq: SequenceScene | str | Path, *, out: str | Path | None = None,
         seq = load_sequence(seq)
     exhaustive = seq.exhaustive if exhaustive is None else exhaustive
     started = time.perf_counter()
-    store = Store(out) if out is not None else None
-    ops: dict[tuple, dict[str, Any]] = store.open(seq, restart) if store else {}
     names = tuple(f.name for f in seq.fits)
     with ExitStack() as stack:
+        store = Store(out) if out is not None else None
+        if store is not None:  # one search at a time in a folder
+            from pliant.io.folder_lock import FolderLock  # noqa: PLC0415
+
+            stack.enter_context(FolderLock(store.folder, "sequence search"))
+        ops: dict[tuple, dict[str, Any]] = store.open(seq, restart) if store else {}
         client = None
         if workers != 0 or scheduler is not None:
             from pliant.assembly.cluster import dask_client  # noqa: PLC0415

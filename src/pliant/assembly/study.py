@@ -278,20 +278,24 @@ def study(scene_file: str | Path, variations: list[str], samples: int, *, out: s
         "scene": text, "variations": [v.to_dict() for v in parsed], "samples": samples,
         "method": method, "seed": seed, "elements": elements, "search": search,
         "version": STUDY_VERSION}, sort_keys=True).encode()).hexdigest()
+    from pliant.io.folder_lock import FolderLock  # noqa: PLC0415
+
     store = Store(Path(out))
-    done = store.open({"key": key, "scene": str(scene_file), "variations": variations,
-                       "samples": samples, "method": method, "seed": seed,
-                       "columns": columns, "nominal": nominal, "voxel": voxel,
-                       "version": STUDY_VERSION}, restart)
-    todo = [k for k in range(samples) if k not in done]
-    start = time.perf_counter()
-    used = 0
-    if todo:
-        used = _run(spec, deviations, todo, store, scheduler, workers, batch,
-                    lambda n: on_done(len(done) + n, samples) if on_done else None)
-    elif on_done:
-        on_done(samples, samples)
-    return StudyResult(store.folder, parsed, columns, deviations, store.records(), len(todo),
+    with FolderLock(out, "study"):  # one study at a time in a folder
+        done = store.open({"key": key, "scene": str(scene_file), "variations": variations,
+                           "samples": samples, "method": method, "seed": seed,
+                           "columns": columns, "nominal": nominal, "voxel": voxel,
+                           "version": STUDY_VERSION}, restart)
+        todo = [k for k in range(samples) if k not in done]
+        start = time.perf_counter()
+        used = 0
+        if todo:
+            used = _run(spec, deviations, todo, store, scheduler, workers, batch,
+                        lambda n: on_done(len(done) + n, samples) if on_done else None)
+        elif on_done:
+            on_done(samples, samples)
+        records = store.records()
+    return StudyResult(store.folder, parsed, columns, deviations, records, len(todo),
                        used, time.perf_counter() - start, voxel, radius, nominal_scene)
 
 

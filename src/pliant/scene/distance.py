@@ -331,14 +331,14 @@ def _save_structure(key: str, pseudo: np.ndarray, solid: bool, bvh: tuple) -> No
 
 def _save_grid(path: Path, values: np.ndarray) -> None:
     """Best effort: a cache that cannot be written only costs time."""
+    tmp = path.with_suffix(f".{os.getpid()}.tmp")
     try:
         path.parent.mkdir(parents=True, exist_ok=True)
-        tmp = path.with_suffix(f".{os.getpid()}.tmp")
         with open(tmp, "wb") as handle:
             np.save(handle, values)
         os.replace(tmp, path)
     except OSError:
-        pass
+        disk.discard(tmp)  # a full disk leaves no half-written file behind
 
 
 @dataclass(frozen=True, eq=False)

@@ -40,10 +40,18 @@ def load_arrays(kind: str, key: str) -> dict[str, np.ndarray] | None:
 def save_arrays(kind: str, key: str, **arrays: np.ndarray) -> None:
     """Keep ``arrays`` under ``kind/key`` (best effort, whole or not at all)."""
     path = cache_dir() / kind / f"{key}.npz"
+    tmp = path.with_name(f"{path.stem}.{os.getpid()}.tmp.npz")
     try:
         path.parent.mkdir(parents=True, exist_ok=True)
-        tmp = path.with_name(f"{path.stem}.{os.getpid()}.tmp.npz")
         np.savez(tmp, **arrays)  # type: ignore[arg-type]  # numpy's stub: names as flags
         os.replace(tmp, path)
+    except OSError:
+        discard(tmp)  # a full disk leaves no half-written file behind
+
+
+def discard(path: Path) -> None:
+    """Remove a temporary file that could not be finished, if it is there."""
+    try:
+        path.unlink(missing_ok=True)
     except OSError:
         pass
