@@ -239,6 +239,16 @@ def test_the_summary_ranks_the_parameter_that_drives_the_force(scene_file, tmp_p
     for label in ("peak grip force [N]", "smallest clearance [mm]",
                   "smallest bend radius [mm]", "on this process, no workers"):
         assert label in text, label
+    # Issue 54: an output the same in every sample but for round-off (a clearance varied
+    # by 1e-16) crashed the report ("Too many bins"); it is drawn as one bar, said so.
+    from dataclasses import replace
+
+    from pliant.cli.study_report import render_html
+
+    flat = replace(result, records=[dict(r, min_clearance=0.01 + k * 1e-18)
+                                    for k, r in enumerate(result.records)])
+    page = render_html(flat, summarize(flat), swept, final)
+    assert "the same in every sample: 10" in page  # mm
 
 
 def _free_port() -> int:
@@ -355,3 +365,26 @@ def test_a_second_study_in_a_folder_in_use_is_refused_naming_it(scene_file, tmp_
     assert died.returncode == 0
     with FolderLock(out, "study"):
         pass
+
+
+def test_a_study_whose_every_sample_fails_still_writes_its_report(tmp_path):
+    """Issue 54: a study whose every sample failed crashed at its last step ("Can't export
+    empty scenes!") and wrote no report. The hand 0.1 mm short of the part's length from
+    its fitting, straight out, and varied across: both samples of seed 0 (y 36 and
+    -27 mm) put it beyond the part's reach, so every sample fails, typed; the summary
+    and the report are written, the envelope is said to be missing, not crashed on."""
+    from .helpers import cli
+
+    short = tmp_path / "short.toml"
+    short.write_text(SCENE.replace("x = 0.45\ny = 0.15", "x = 0.5999\ny = 0.0", 1))
+    out = tmp_path / "study"
+    done = cli("study", short, "--vary", "condition[hand].y=100mm", "--samples", "2",
+               "--workers", "0", "--seed", "0", "--out", out)
+    assert done.returncode == 0, done.stdout
+    records = [json.loads(line) for line in (out / "samples.jsonl").read_text().splitlines()]
+    assert len(records) == 2 and all(r["status"] != "ok" for r in records)
+    assert all("reaches or exceeds" in r["error"] for r in records)
+    assert "no envelope written: no sample was evaluated" in " ".join(done.stdout.split())
+    assert not (out / "envelope.glb").exists()
+    assert (out / "report.html").stat().st_size > 1000
+    assert json.loads((out / "summary.json").read_text())["failed"] == 2

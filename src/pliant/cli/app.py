@@ -532,12 +532,14 @@ def study(
     envelope = Store(result.folder).swept([r["index"] for r in result.ok])
     result_envelope = final_voxels(result)
     text = _json.dumps(finite(summary), indent=1).encode()
+    glb = export_envelope([("envelope along the path", envelope, (150, 160, 170, 90)),
+                           ("envelope at the final pose", result_envelope,
+                            (224, 112, 30, 160))], result.voxel,
+                          result.folder / "envelope.glb")
+    if glb is None:
+        console.print("no envelope written: no sample was evaluated")
     written = [atomic_write(result.folder / "summary.json", lambda h: h.write(text),
-                            "the study's summary"),
-               export_envelope([("envelope along the path", envelope, (150, 160, 170, 90)),
-                                ("envelope at the final pose", result_envelope,
-                                 (224, 112, 30, 160))], result.voxel,
-                               result.folder / "envelope.glb"),
+                            "the study's summary"), *([glb] if glb else []),
                write_html(result, summary, envelope, result_envelope,
                           result.folder / "report.html")]
     console.print("written: " + ", ".join(str(w) for w in written))

@@ -91,12 +91,21 @@ def render_html(result: Any, summary: dict[str, Any], envelope: np.ndarray,
         scale, unit = SCALE[p["unit"]]
         values = np.array([r[key] for r in ok if r.get(key) is not None], float) * scale
         values = values[np.isfinite(values)]
+        title = f"{p['title']} [{unit}]"
         if values.size:
-            ax.hist(values, bins=max(5, min(40, int(math.sqrt(values.size)) * 2)),
-                    color="#3d5a80")
-            for q, style in (("p5", ":"), ("p50", "-"), ("p95", ":")):
-                ax.axvline(p[q] * scale, color="#c0262d", ls=style, lw=1)
-        ax.set_title(f"{p['title']} [{unit}]", fontsize=9)
+            low, high = float(values.min()), float(values.max())
+            if high - low <= 1e-9 * max(abs(low), abs(high), 1e-300):
+                # The same for every sample (to round-off): one bar, said in the title,
+                # where bins narrower than round-off could not be made.
+                half = max(0.05 * abs(high), 1e-12)
+                ax.hist(values, bins=1, range=(high - half, high + half), color="#3d5a80")
+                title += f"\nthe same in every sample: {high:.4g}"
+            else:
+                ax.hist(values, bins=max(5, min(40, int(math.sqrt(values.size)) * 2)),
+                        color="#3d5a80")
+                for q, style in (("p5", ":"), ("p50", "-"), ("p95", ":")):
+                    ax.axvline(p[q] * scale, color="#c0262d", ls=style, lw=1)
+        ax.set_title(title, fontsize=9)
         ax.tick_params(labelsize=7)
     parts.append(inline_svg(fig, plt))
     parts.append("</div><table><tr><th>output</th><th>p5</th><th>p50</th><th>p95</th>"

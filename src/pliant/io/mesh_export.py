@@ -201,10 +201,11 @@ def voxel_surface(voxels: np.ndarray, size: float) -> tuple[np.ndarray, np.ndarr
 
 
 def export_envelope(layers: list[tuple[str, np.ndarray, tuple[int, int, int, int]]],
-                    size: float, path: str | Path) -> Path:
+                    size: float, path: str | Path) -> Path | None:
     """A GLB of voxel envelopes: each layer (name, voxels (k, 3), RGBA colour) as the
     surface of its voxels of edge ``size`` [m], in the scene's frame (as
-    ``export_scene`` writes it, so that the two overlay)."""
+    ``export_scene`` writes it, so that the two overlay). None, and nothing written,
+    where every layer is empty (no sample was evaluated)."""
     import trimesh  # noqa: PLC0415
 
     from pliant.io.atomic import atomic_write  # noqa: PLC0415
@@ -218,5 +219,7 @@ def export_envelope(layers: list[tuple[str, np.ndarray, tuple[int, int, int, int
         colours = np.tile(np.array(colour, dtype=np.uint8), (len(faces), 1))
         mesh.visual.face_colors = colours  # type: ignore[union-attr]  # colour visuals
         scene.add_geometry(mesh, geom_name=name, node_name=name)
+    if not scene.geometry:
+        return None
     data = scene.export(file_type="glb")
     return atomic_write(path, lambda h: h.write(data), "the envelope")
