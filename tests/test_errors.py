@@ -148,6 +148,34 @@ def test_files_that_are_not_text_too_deep_or_far_out_get_one_line_errors(tmp_pat
         pl.Problem(pl.Part(1.0, 1.0), (pl.clamp(0.0), pl.pin(1.0, position=(1e160, 0.0))))
 
 
+def test_a_terminal_escape_in_a_name_is_refused_naming_the_field(tmp_path):
+    """Issue 54: names with ANSI escapes reached the terminal raw (an ESC [2J in a part's
+    name clears the user's screen). Any string or key of a TOML file holding a control
+    character is refused, naming where; tabs and line breaks are text. Through the CLI:
+    one line, no traceback, and no escape written."""
+    import subprocess
+    import sys
+
+    from pliant.errors import FileFormatError
+    from pliant.io.problem_file import load_problem
+
+    good = (tmp_path / "ok.toml")
+    good.write_text('[part]\nlength = 1.0\nbending_stiffness = 1.0\nname = "hose\\tA"\n'
+                    '[[condition]]\nname = "clamp"\ns = 0.0\nx = 0.0\ny = 0.0\nangle = 0.0\n'
+                    '[[condition]]\nname = "tip"\ns = 1.0\nFx = 0.0\nFy = -1.0\n')
+    assert load_problem(good).part.name == "hose\tA"
+    bad = tmp_path / "escape.toml"
+    bad.write_text(good.read_text().replace('name = "tip"', 'name = "tip\\u001b[2J"'))
+    with pytest.raises(FileFormatError, match=r"condition\[1\]\.name: holds the control "
+                                              r"character U\+001B"):
+        load_problem(bad)
+    done = subprocess.run([sys.executable, "-m", "pliant.cli.app", "solve", str(bad)],
+                          capture_output=True, text=True, timeout=300)
+    said = done.stdout + done.stderr
+    assert done.returncode != 0 and "\x1b" not in said and "Traceback" not in said
+    assert "U+001B" in said and len(said.strip().splitlines()) == 1
+
+
 @pytest.mark.parametrize(("problem", "field"), [
     (lambda pl: pl.Problem(pl.Part(1.0, 1.0), (pl.clamp(0.0), pl.push(
         1.0, force=(0.0, 1e38), name="tip"))), "tip.force"),

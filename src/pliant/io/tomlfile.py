@@ -4,6 +4,7 @@ pliant reads (problems, scenes, rules, sequences)."""
 from __future__ import annotations
 
 import tomllib
+import unicodedata
 from pathlib import Path
 from typing import Any
 
@@ -41,12 +42,34 @@ def read_toml(text: str, source: str) -> dict[str, Any]:
     """The TOML document ``text``; invalid TOML is a ``FileFormatError`` naming
     ``source``."""
     try:
-        return tomllib.loads(text)
+        doc = tomllib.loads(text)
     except tomllib.TOMLDecodeError as err:
         raise FileFormatError(f"{source}: not valid TOML: {err}") from None
     except RecursionError:
         raise FileFormatError(f"{source}: not valid TOML for pliant: arrays or tables "
                               "nested too deeply") from None
+    _printable(doc, source, ())
+    return doc
+
+
+def _printable(value: Any, source: str, where: tuple[Any, ...]) -> None:
+    """Refuse a string or key holding a control character (a terminal escape such as
+    ESC [31m would reach the user's terminal raw through every name printed); tabs and
+    line breaks are text."""
+    if isinstance(value, str):
+        bad = next((c for c in value if unicodedata.category(c) == "Cc"
+                    and c not in "\t\n\r"), None)
+        if bad is not None:
+            raise FileFormatError(f"{source}: {field_path(where)}: holds the control "
+                                  f"character U+{ord(bad):04X}; names and texts must be "
+                                  "printable (remove it)")
+    elif isinstance(value, dict):
+        for key, item in value.items():
+            _printable(key, source, (*where, "(a key)"))
+            _printable(item, source, (*where, key))
+    elif isinstance(value, list):
+        for k, item in enumerate(value):
+            _printable(item, source, (*where, k))
 
 
 def field_path(loc: tuple[Any, ...]) -> str:
