@@ -143,3 +143,21 @@ def test_pliant_harness_orders_the_generator_cable_s_clip_and_writes_it_in_json(
     assert step["forces"][0] < 1e-4 * data["installed"]["weight_N"] < step["force"]
     page = (tmp_path / "h.html").read_text()
     assert "<h2>Clip order</h2>" in page and "Best: CL_01_Gen" in page
+
+
+def test_the_clip_order_among_a_scene_s_obstacles_ends_at_the_installed_harness(tmp_path):
+    """Features together: the generator cable's KBL (millimetres) in a scene (SI) with a
+    bracket its branch rests on. The clip is carried among the obstacle, its last force
+    is the load the installed harness (solved cold with the bracket, apart) puts on it,
+    and the operation is not red (a segment through the bracket would make it so; the
+    installed harness passes through nothing)."""
+    done = cli("harness", GENERATOR.parents[1] / "generator_on_bracket.toml", "--clip-order",
+               "--json", tmp_path / "h.json")
+    data = json.loads((tmp_path / "h.json").read_text())
+    order = data["clip_order"]
+    [step] = order["best"]["steps"]
+    held = np.linalg.norm(data["installed"]["held_loads"]["fixing CL_01_Gen"]["force_N"])
+    assert step["forces"][-1] == pytest.approx(held, rel=1e-4)
+    assert step["zone"] != "red" and "rests on it" in " ".join(done.stdout.split())
+    for segment in data["installed"]["segments"]:
+        assert not segment["interference"]["penetrations"]

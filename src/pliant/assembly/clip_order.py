@@ -269,7 +269,7 @@ def _every_order(names, start, step, failures) -> tuple[list[FixOrder], int]:
 def _over_sets(names, start, step, failures) -> tuple[list[FixOrder], int, list[str]]:
     """Over the sets of fixings fixed: each set's harness solved once (from the first
     order to reach it), each set keeping the orders no other beats on zone, peak and
-    sum together; returns the best order beginning with each fixing."""
+    sum together; returns, of the full set's, the best beginning with each fixing."""
     states: dict[frozenset, Any] = {frozenset(): start}
     fronts: dict[frozenset, list[tuple]] = {frozenset(): [(0, 0.0, 0.0, ())]}
     branched: list[str] = []
