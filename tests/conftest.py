@@ -35,3 +35,19 @@ def compiled_kernels():
     except PliantError:
         pass
     yield
+
+
+# The files that take longest, longest first: pytest-xdist hands whole files (--dist
+# loadfile) to the two workers in collection order, so a long file collected last (the
+# wheel's, alphabetically) ran alone at the end while the other worker idled. Longest
+# first, the short ones fill the end. The rest keep their order.
+LONGEST_FIRST = ("test_browser.py", "test_wheel.py", "test_first_run.py", "test_sequence.py",
+                 "test_viewer.py", "test_cli.py", "test_evaluation.py", "test_rod3d.py",
+                 "test_clip_order.py", "test_lint.py", "test_combinations.py",
+                 "test_minimum.py", "test_plan.py", "test_settling.py", "test_contact.py",
+                 "test_study.py", "test_carry.py", "test_harness_kbl.py")
+
+
+def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:
+    rank = {name: k for k, name in enumerate(LONGEST_FIRST)}
+    items.sort(key=lambda item: rank.get(item.path.name, len(rank)))
