@@ -10,12 +10,25 @@ import pytest
 
 
 @pytest.fixture(scope="session", autouse=True)
-def compiled_kernels():
+def compiled_kernels(tmp_path_factory):
+    import fcntl
+
     import pliant as pl
     from pliant.errors import PliantError
-    from pliant.models import rod3d
+    from pliant.models import first_run, rod3d
     from pliant.models.elastica2d import ShootingSolver
     from pliant.scene.distance import Obstacle
+
+    # In a fresh clone both xdist workers compiled every kernel at once, the same ones
+    # twice. The first to come compiles them ahead on both cores (the product's own
+    # first-run path) while the other waits, then both load them from the cache.
+    shared = tmp_path_factory.getbasetemp().parent / "kernels.lock"  # one per session
+    with open(shared, "a") as lock:
+        fcntl.flock(lock.fileno(), fcntl.LOCK_EX)
+        for kind in ("3d", "2d"):
+            if first_run.cold(kind):
+                first_run.compile_ahead(cores=2, kind=kind)
+        fcntl.flock(lock.fileno(), fcntl.LOCK_UN)
 
     part = pl.Part(length=1.0, bending_stiffness=1.0, mass_per_length=0.1,
                    outer_diameter=0.02)

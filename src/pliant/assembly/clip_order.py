@@ -123,6 +123,10 @@ class ClipOrder:
     operations: int
     method: str
     notes: tuple[str, ...] = field(default=())
+    # The harness with every fixing fixed, and hanging with those ordered released
+    # (``harness_solve.Installed``): for another search of the same harness.
+    installed: Any = field(default=None, repr=False)
+    hanging: Any = field(default=None, repr=False)
 
     def to_dict(self) -> dict[str, Any]:
         return {"harness": self.harness, "fixings": list(self.fixings), "method": self.method,
@@ -179,12 +183,15 @@ def _loads_differ(a, b) -> bool:
 def clip_order(harness, props: Mapping[str, Any], *, fixings: Sequence[str] | None = None,
                gravity: tuple[float, float, float] | None = None, obstacles: tuple = (),
                margin: float = 0.0, rules=None, exhaustive: bool = False,
-               steps: int = 4) -> ClipOrder:
+               steps: int = 4, installed=None, hanging=None) -> ClipOrder:
     """The order to fix ``fixings`` (names; default: every fixing placed on a segment)
     of ``harness`` (``pliant.core.harness.Harness``, its ``props`` from
-    ``assembly.harness.properties``) in; see the module. Raises ``InputError`` for a
-    fixing the harness does not have or too many to search exactly, and the solver's
-    errors where the harness cannot be solved with them released."""
+    ``assembly.harness.properties``) in; see the module. ``installed`` and ``hanging``:
+    the harness solved with every fixing fixed and with ``fixings`` released, where the
+    caller has them (``ClipOrder.installed`` and ``.hanging`` of an earlier search of the
+    same harness; each a cold solve otherwise). Raises ``InputError`` for a fixing the
+    harness does not have or too many to search exactly, and the solver's errors where
+    the harness cannot be solved with them released."""
     from pliant.assembly.harness_solve import (  # noqa: PLC0415 (loads the solver)
         GRAVITY,
         fix,
@@ -209,10 +216,13 @@ def clip_order(harness, props: Mapping[str, Any], *, fixings: Sequence[str] | No
         raise InputError("fixings", f"{len(names)} fixings: the exact search solves the "
                          f"harness for each of their 2^{len(names)} sets; order at most "
                          f"{MAX_EXACT} at a time (give them with fixings=...)")
-    start = solve_installed(harness, props, gravity=gravity, obstacles=obstacles,
-                            margin=margin, released=names)
-    installed = solve_installed(harness, props, gravity=gravity, obstacles=obstacles,
-                                margin=margin)
+    if hanging is not None and hanging.released != frozenset(names):
+        raise InputError("hanging", "an answer with other fixings released than those "
+                         "ordered; leave it out")
+    start = hanging or solve_installed(harness, props, gravity=gravity, obstacles=obstacles,
+                                       margin=margin, released=names)
+    installed = installed or solve_installed(harness, props, gravity=gravity,
+                                             obstacles=obstacles, margin=margin)
     design: dict[tuple[str, str], int] = {}
     notes = ["the placed connectors are plugged first; each clip is carried from where "
              "the harness hangs to its place, the bundle's axis with it, and held there "
@@ -247,7 +257,7 @@ def clip_order(harness, props: Mapping[str, Any], *, fixings: Sequence[str] | No
     passing = [o for o in ranked if o.passes]
     return ClipOrder(harness.name, names, passing[0] if passing else None, tuple(ranked),
                      tuple(sorted(failures.values(), key=lambda f: (f.fixing, f.before))),
-                     judged, method, tuple(notes))
+                     judged, method, tuple(notes), installed, start)
 
 
 def _every_order(names, start, step, failures) -> tuple[list[FixOrder], int]:

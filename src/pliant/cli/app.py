@@ -894,7 +894,7 @@ def harness(
 
         with console.status("searching the clip order ..."):
             order = search(model, props, fixings=fixing or None, obstacles=obstacles,
-                           margin=margin, rules=table)
+                           margin=margin, rules=table, installed=installed)
         print_clip_order(console, order)
 
     def shape(k: str):
