@@ -310,10 +310,21 @@ def compile_ahead(on_kernel: Callable[[str], None] | None = None,
 
 
 def _let_go(helper: subprocess.Popen, kill: bool) -> None:
-    """Leave the helper to exit (killed first where ``kill``), reaped by a thread."""
+    """Leave the helper to exit (killed first where ``kill``), reaped by a thread that
+    then closes its pipes (left open, they are a resource leak Python warns of)."""
     if kill:
         helper.kill()
-    threading.Thread(target=helper.wait, daemon=True).start()
+    threading.Thread(target=_reap, args=(helper,), daemon=True).start()
+
+
+def _reap(helper: subprocess.Popen) -> None:
+    helper.wait()
+    for stream in (helper.stdin, helper.stdout):
+        if stream is not None:
+            try:
+                stream.close()
+            except OSError:
+                pass
 
 
 def _helper(parent: int, kind: str = "3d") -> None:

@@ -14,9 +14,10 @@ from __future__ import annotations
 
 import dataclasses
 import time
-from collections.abc import Callable, Iterable
+from collections import deque
+from collections.abc import Callable, Iterable, Iterator
 from dataclasses import dataclass, field
-from typing import Any
+from typing import Any, Generic, TypeVar
 
 import numpy as np
 
@@ -35,6 +36,7 @@ from pliant.session.accurate import (
     Request,
 )
 
+T = TypeVar("T")
 
 @dataclass(frozen=True)
 class GripEvent:
@@ -82,6 +84,37 @@ class Frame:
     seconds: float
 
 
+KEPT = 64  # results a session keeps (the page takes each as it is published)
+
+
+class Kept(Generic[T]):
+    """The last ``size`` items appended, and how many were appended in all (``total``):
+    what a long session keeps of its history without growing with it. Reads as a list
+    of the items kept, oldest first; ``since(count)`` the items appended after the
+    first ``count`` that are still kept."""
+
+    def __init__(self, size: int) -> None:
+        self._items: deque[T] = deque(maxlen=size)
+        self.total = 0
+
+    def append(self, item: T) -> None:
+        self._items.append(item)
+        self.total += 1
+
+    def since(self, count: int) -> list[T]:
+        new = self.total - count
+        return list(self._items)[-new:] if new > 0 else []
+
+    def __len__(self) -> int:
+        return len(self._items)
+
+    def __iter__(self) -> Iterator[T]:
+        return iter(self._items)
+
+    def __getitem__(self, key: int | slice) -> Any:
+        return list(self._items)[key]
+
+
 @dataclass
 class Session:
     """An interactive session on one problem (2D or 3D).
@@ -104,11 +137,14 @@ class Session:
     index: int = field(default=0, init=False)
     events: list[GripEvent] = field(default_factory=list, init=False)
     accurate: AccurateResult | None = field(default=None, init=False)
-    solves: list[AccurateResult] = field(default_factory=list, init=False)
+    # The latest accurate results as published (``Kept``: a sitting of thousands of
+    # solves keeps the last KEPT, about 31 KB each, and counts them all).
+    solves: Kept[AccurateResult] = field(default_factory=lambda: Kept(KEPT), init=False)
     start_error: str | None = field(default=None, init=False)  # why the start pose has no
     # equilibrium (the session opens all the same)
-    searches: list[EquilibriaFound] = field(default_factory=list, init=False)  # each
-    # search for the pose's equilibria, as published (``find_equilibria``)
+    searches: Kept[EquilibriaFound] = field(default_factory=lambda: Kept(KEPT),
+                                            init=False)  # each search for the pose's
+    # equilibria, as published (``find_equilibria``)
 
     def __post_init__(self) -> None:
         self.model = RealtimeModel(self.problem, control_points=self.control_points,

@@ -105,8 +105,8 @@ class ViewerState:
         self.modes = {c.name: grips.grip_mode(c, scene.fixed) for c in problem.conditions}
         self.radius = problem.part.drawn_radius
         self.bend_limit = _bend_limit(scene)
-        self._published = len(session.solves)
-        self._searched = len(session.searches)
+        self._published = session.solves.total
+        self._searched = session.searches.total
         self._meshes: list[P.ObstacleMesh] | None = None
 
     def close(self) -> None:
@@ -202,12 +202,10 @@ class ViewerState:
     def _published_since(self) -> list[P._Message]:
         """The session's results not yet sent (a frame may have taken them in)."""
         out: list[P._Message] = []
-        while self._published < len(self.session.solves):
-            out.append(self._accurate(self.session.solves[self._published]))
-            self._published += 1
-        while self._searched < len(self.session.searches):
-            out.append(self._equilibria(self.session.searches[self._searched]))
-            self._searched += 1
+        out += [self._accurate(r) for r in self.session.solves.since(self._published)]
+        self._published = self.session.solves.total
+        out += [self._equilibria(f) for f in self.session.searches.since(self._searched)]
+        self._searched = self.session.searches.total
         return out
 
     def _equilibria(self, found) -> P.ServerEquilibria:
