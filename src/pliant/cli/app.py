@@ -355,8 +355,8 @@ def run_scene(file: Path, out: Path, elements: int | None) -> None:
 
     scene = _load_scene(file)
     if not scene.path:
-        raise PliantError(f"{file}: no [path] to follow; give one (see the README), or "
-                          "use `pliant solve` for a single pose")
+        raise PliantError(f"{file}: no [path] to follow; give one (docs/reference.md, scene "
+                          "files), or use `pliant solve` for a single pose")
     problem = scene.problem
     console = Console()
     result = _with_progress(console, scene, file, lambda step: follow_path(
@@ -951,7 +951,7 @@ def examples(
     out: Annotated[Path, typer.Argument(help="a new (or empty) folder to copy them into")]
     = Path("pliant-examples"),
 ) -> None:
-    """Copy the example scenes, problems and tests (the README's) into a folder of your
+    """Copy the example scenes, problems and tests (the docs') into a folder of your
     own, to run and to edit: the paper's cases, hoses, cables, harnesses, CAD, scenes and
     stiffness tests."""
     import shutil  # noqa: PLC0415

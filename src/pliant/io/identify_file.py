@@ -67,7 +67,7 @@ class IdentifyModel(_Strict):
 
 
 class MeasuredModel(_Strict):
-    """[[measured]]: one measurement (see the README's stiffness tests)."""
+    """[[measured]]: one measurement (see docs/guide.md, "Stiffness from a test")."""
 
     kind: Literal["shape", "deflection", "three_point_bending", "twist", "twist_buckling"]
     name: str = ""

@@ -11,7 +11,7 @@ A condition's keys say which components are prescribed and which are applied: ``
 ``y``, ``angle`` prescribe (the answer is the reaction), ``Fx``, ``Fy``,
 ``moment`` apply a dead load, and ``Ft``, ``Fn`` apply a follower force (tangential and
 normal to the deformed neutral line). Switching a hand from holding to pushing is a
-one-word change: ``y = 0.3`` becomes ``Fy = 2.0``. See the README for the whole format.
+one-word change: ``y = 0.3`` becomes ``Fy = 2.0``. See docs/reference.md for the whole format.
 
 This module holds the part, conditions, obstacles, loads and the file as a whole, and
 reads them; a scene's other sections are ``scene_sections``'s, the strict base and mesh
@@ -589,7 +589,7 @@ def _unknown_key(loc: tuple) -> str:
     table = ".".join(names[:-1])
     model = tables.get(table, ProblemFile if not table else None)
     if model is None:
-        return "unknown key; see the README's file format (SI units)"
+        return "unknown key; see docs/reference.md's file format (SI units)"
     known = sorted(model.model_fields)
     if table and key in ProblemFile.model_fields:
         return (f"{key!r} is a top-level key, but it stands under [{table}]: TOML puts a "
