@@ -6,6 +6,7 @@ its own path; an order that fails, for the bend its first clip leaves."""
 from __future__ import annotations
 
 import json
+import math
 from pathlib import Path
 
 import numpy as np
@@ -162,3 +163,49 @@ def test_the_clip_order_among_a_scene_s_obstacles_ends_at_the_installed_harness(
     assert step["zone"] != "red" and "rests on it" in " ".join(done.stdout.split())
     for segment in data["installed"]["segments"]:
         assert not segment["interference"]["penetrations"]
+
+
+def test_an_operation_the_harness_cannot_follow_fails_its_orders_and_the_search_goes_on(
+        monkeypatch):
+    """Where the harness cannot follow a clip to its place (the solver meets a fold: here
+    the middle clip, made to fail once the quarter ones are in), that operation is red
+    with why, the orders through it end there, and the search goes on: both searches
+    agree on the best order, which avoids it, and neither raises."""
+    from pliant.assembly import harness_solve
+    from pliant.assembly.clip_order import clip_order
+    from pliant.errors import ConvergenceError
+
+    harness = _bundle()
+    props = properties(harness)
+    real = harness_solve.fix
+
+    def jams(before, props, fixing, **options):
+        if fixing == "clip 1" and len(before.released) == 1:
+            raise ConvergenceError("segment S cannot follow fixing clip 1 there",
+                                   residual=math.inf)
+        return real(before, props, fixing, **options)
+
+    monkeypatch.setattr(harness_solve, "fix", jams)
+    exact = clip_order(harness, props)
+    slow = clip_order(harness, props, exhaustive=True, installed=exact.installed,
+                      hanging=exact.hanging)
+    assert exact.best is not None and exact.best.fixings == slow.best.fixings
+    assert exact.best.fixings[-1] != "clip 1"
+    stuck = [f for f in exact.failures if f.fixing == "clip 1"]
+    assert [set(f.before) for f in stuck] == [{"clip 0", "clip 2"}]
+    assert "could not follow clip 1" in stuck[0].reasons[0]
+    cut = [o for o in slow.orders if o.fixings[-1] == "clip 1"]
+    assert len(cut) == 2 and all(not o.passes and len(o.steps) == 3 for o in cut)
+    # A clip that can never be fixed: no order passes, and each says where it stops.
+
+    def never(before, props, fixing, **options):
+        if fixing == "clip 1":
+            raise ConvergenceError("segment S cannot follow fixing clip 1", residual=1.0)
+        return real(before, props, fixing, **options)
+
+    monkeypatch.setattr(harness_solve, "fix", never)
+    none = clip_order(harness, props, installed=exact.installed, hanging=exact.hanging)
+    assert none.best is None and none.orders == ()
+    assert {frozenset(f.before) for f in none.failures if f.fixing == "clip 1"} == {
+        frozenset(), frozenset({"clip 0"}), frozenset({"clip 2"}),
+        frozenset({"clip 0", "clip 2"})}

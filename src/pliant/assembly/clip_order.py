@@ -36,7 +36,7 @@ from typing import Any
 
 import numpy as np
 
-from pliant.errors import InputError
+from pliant.errors import InputError, PliantError
 
 MAX_EXACT = 10  # fixings: 2^10 sets of fixings, 5,120 operations at most
 ZONES = ("green", "yellow", "red")
@@ -241,8 +241,16 @@ def clip_order(harness, props: Mapping[str, Any], *, fixings: Sequence[str] | No
                      "one worse")
 
     def step(state, before: tuple[str, ...], name: str):
-        after, forces = fix(state, props, name, gravity=gravity, obstacles=obstacles,
-                            margin=margin, steps=steps)
+        """The harness after fixing ``name`` and the operation judged; where the harness
+        cannot follow the clip (a snap, a fold), no harness and the operation red, saying
+        so: the orders through it fail there, and the search goes on."""
+        try:
+            after, forces = fix(state, props, name, gravity=gravity, obstacles=obstacles,
+                                margin=margin, steps=steps)
+        except PliantError as err:
+            return None, FixStep(name, before, math.inf, (), "red", (
+                f"the harness could not follow {name} to its place ({err}): it would "
+                "snap or jam on the way",), ("", math.nan, None))
         return after, _judged(name, before, forces, after, rules, design)
 
     failures: dict[tuple[frozenset, str], FixStep] = {}
@@ -266,13 +274,17 @@ def _every_order(names, start, step, failures) -> tuple[list[FixOrder], int]:
     done: dict[tuple[str, ...], FixStep] = {}
     out = []
     for order in itertools.permutations(names):
+        taken = []
         for k in range(len(order)):
             prefix = order[:k + 1]
-            if prefix not in states:
+            if prefix not in done:
                 states[prefix], done[prefix] = step(states[order[:k]], order[:k], order[k])
                 if done[prefix].zone == "red":
                     failures.setdefault((frozenset(order[:k]), order[k]), done[prefix])
-        out.append(FixOrder(order, tuple(done[order[:k + 1]] for k in range(len(order)))))
+            taken.append(done[prefix])
+            if states[prefix] is None:  # could not be done: the order ends there
+                break
+        out.append(FixOrder(order, tuple(taken)))
     return out, len(done)
 
 
@@ -296,6 +308,8 @@ def _over_sets(names, start, step, failures) -> tuple[list[FixOrder], int, list[
                 moves[(done, name)] = judged
                 if judged.zone == "red":
                     failures.setdefault((done, name), judged)
+                if after is None:  # could not be done: no order goes on from here
+                    continue
                 if after_set not in states:
                     states[after_set] = after
                 elif _loads_differ(states[after_set], after):
@@ -310,7 +324,7 @@ def _over_sets(names, start, step, failures) -> tuple[list[FixOrder], int, list[
                 fronts[after_set] = _pareto(labels)
     full = frozenset(names)
     best: dict[str, tuple] = {}
-    for label in fronts.get(full, [(0, 0.0, 0.0, ())]):
+    for label in fronts.get(full, []):  # none where no order could be carried through
         first = label[3][0] if label[3] else ""
         if first not in best or (label[:3], label[3]) < (best[first][:3], best[first][3]):
             best[first] = label
