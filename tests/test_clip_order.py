@@ -96,7 +96,7 @@ def test_the_exact_search_finds_every_order_s_best_and_names_why_the_others_fail
     harness = _bundle(bend_radius=0.09)
     props = properties(harness)
     exact = clip_order(harness, props)
-    slow = clip_order(harness, props, exhaustive=True, installed=exact.installed,
+    slow = clip_order(harness, props, search="every", installed=exact.installed,
                       hanging=exact.hanging)  # the same two cold solves
     assert len(slow.orders) == 6 and exact.operations == 12 and slow.operations == 15
     assert exact.best is not None and slow.best is not None
@@ -115,6 +115,12 @@ def test_the_exact_search_finds_every_order_s_best_and_names_why_the_others_fail
         assert any("installed bend radius" in r for r in step.reasons)
     assert {(f.fixing, f.before) for f in exact.failures} == {("clip 0", ()), ("clip 2", ())}
     assert not any("another shape" in n for n in exact.notes)  # no branch met
+    # The greedy search (past 10 fixings, where the exact one stops) takes the middle
+    # clip first here too, in n (n + 1) / 2 = 6 operations, with the same costs.
+    greedy = clip_order(harness, props, search="greedy", installed=exact.installed,
+                        hanging=exact.hanging)
+    assert greedy.operations == 6 and greedy.best is not None
+    assert greedy.best.key() == exact.best.key() and "not proven" in greedy.method
 
 
 def test_a_fixing_the_harness_lacks_is_a_typed_error_naming_it():
@@ -123,6 +129,8 @@ def test_a_fixing_the_harness_lacks_is_a_typed_error_naming_it():
     harness = _bundle()
     with pytest.raises(InputError, match="'clip 9' is not a fixing"):
         clip_order(harness, properties(harness), fixings=["clip 9"])
+    with pytest.raises(InputError, match="search: must be auto, exact, every or greedy"):
+        clip_order(harness, properties(harness), search="best")
 
 
 def test_pliant_harness_orders_the_generator_cable_s_clip_and_writes_it_in_json(tmp_path):
@@ -187,7 +195,7 @@ def test_an_operation_the_harness_cannot_follow_fails_its_orders_and_the_search_
 
     monkeypatch.setattr(harness_solve, "fix", jams)
     exact = clip_order(harness, props)
-    slow = clip_order(harness, props, exhaustive=True, installed=exact.installed,
+    slow = clip_order(harness, props, search="every", installed=exact.installed,
                       hanging=exact.hanging)
     assert exact.best is not None and exact.best.fixings == slow.best.fixings
     assert exact.best.fixings[-1] != "clip 1"

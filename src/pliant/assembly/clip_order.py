@@ -19,11 +19,12 @@ leads to). Judged at each operation:
 
 An order's cost, compared in turn: its worst zone, its largest hand force, the sum of
 its hand forces. The search is exact: over the sets of fixings already fixed (each
-set's harness solved once, from the first order that reaches it; 2^n sets for n
-fixings, refused above ``MAX_EXACT``), keeping for each set the orders no other beats
-on all three costs. ``exhaustive=True`` judges every one of the n! orders along its own
-path instead (the slow twin the tests compare with); a set reached by two orders in two
-different shapes (a branch) is said in the notes.
+set's harness solved once, from the first order that reaches it; n 2^(n-1) operations
+for n fixings, up to ``MAX_EXACT``), keeping for each set the orders no other beats on
+all three costs. Beyond that, greedy (each time the operation of least cost from the
+harness as it is; said). ``search="every"`` judges every one of the n! orders along
+its own path instead (the slow twin the tests compare with); a set reached by two
+orders in two different shapes (a branch) is said in the notes.
 """
 
 from __future__ import annotations
@@ -39,6 +40,7 @@ import numpy as np
 from pliant.errors import InputError, PliantError
 
 MAX_EXACT = 10  # fixings: 2^10 sets of fixings, 5,120 operations at most
+MAX_EVERY = 7  # fixings: 7! orders, 13,699 operations at most
 ZONES = ("green", "yellow", "red")
 SAME_SHAPE = 1e-6  # a set reached twice: the held loads' difference, by the weight
 
@@ -182,11 +184,15 @@ def _loads_differ(a, b) -> bool:
 
 def clip_order(harness, props: Mapping[str, Any], *, fixings: Sequence[str] | None = None,
                gravity: tuple[float, float, float] | None = None, obstacles: tuple = (),
-               margin: float = 0.0, rules=None, exhaustive: bool = False,
+               margin: float = 0.0, rules=None, search: str = "auto",
                steps: int = 4, installed=None, hanging=None) -> ClipOrder:
     """The order to fix ``fixings`` (names; default: every fixing placed on a segment)
     of ``harness`` (``pliant.core.harness.Harness``, its ``props`` from
-    ``assembly.harness.properties``) in; see the module. ``installed`` and ``hanging``:
+    ``assembly.harness.properties``) in; see the module. ``search``: "exact" (over the
+    sets of fixings fixed), "every" (every order along its own path: the slow twin, at
+    most MAX_EVERY fixings), "greedy" (each time the operation of least cost from the
+    harness as it is: n (n + 1) / 2 operations, not proven the best) or "auto" (exact up
+    to MAX_EXACT fixings, greedy beyond, said in the notes). ``installed`` and ``hanging``:
     the harness solved with every fixing fixed and with ``fixings`` released, where the
     caller has them (``ClipOrder.installed`` and ``.hanging`` of an earlier search of the
     same harness; each a cold solve otherwise). Raises ``InputError`` for a fixing the
@@ -212,10 +218,15 @@ def clip_order(harness, props: Mapping[str, Any], *, fixings: Sequence[str] | No
                              f"{', '.join(sorted(on_segments)[:8]) or 'none'})")
     if len(set(names)) != len(names):
         raise InputError("fixings", "a fixing is named twice")
-    if not exhaustive and len(names) > MAX_EXACT:
-        raise InputError("fixings", f"{len(names)} fixings: the exact search solves the "
-                         f"harness for each of their 2^{len(names)} sets; order at most "
-                         f"{MAX_EXACT} at a time (give them with fixings=...)")
+    if search == "auto":
+        search = "exact" if len(names) <= MAX_EXACT else "greedy"
+    most = {"exact": MAX_EXACT, "every": MAX_EVERY, "greedy": None}
+    if search not in most:
+        raise InputError("search", f"must be auto, exact, every or greedy; got {search!r}")
+    if most[search] is not None and len(names) > most[search]:  # type: ignore[operator]
+        raise InputError("fixings", f"{len(names)} fixings: the {search} search would judge "
+                         f"too many operations; order at most {most[search]} at a time "
+                         "(give them with fixings=...), or search greedy")
     if hanging is not None and hanging.released != frozenset(names):
         raise InputError("hanging", "an answer with other fixings released than those "
                          "ordered; leave it out")
@@ -254,9 +265,15 @@ def clip_order(harness, props: Mapping[str, Any], *, fixings: Sequence[str] | No
         return after, _judged(name, before, forces, after, rules, design)
 
     failures: dict[tuple[frozenset, str], FixStep] = {}
-    if exhaustive:
+    if search == "every":
         orders, judged = _every_order(names, start, step, failures)
         method = f"every order ({math.factorial(len(names))})"
+    elif search == "greedy":
+        orders, judged = _greedy(names, start, step, failures)
+        method = "greedy: each time the operation of least cost (not proven the best)"
+        if len(names) > MAX_EXACT:
+            notes.append(f"{len(names)} fixings: more than the exact search takes "
+                         f"({MAX_EXACT}); the order is the greedy one, not proven the best")
     else:
         orders, judged, branched = _over_sets(names, start, step, failures)
         method = f"exact over the {2 ** len(names)} sets of fixings fixed"
@@ -266,6 +283,33 @@ def clip_order(harness, props: Mapping[str, Any], *, fixings: Sequence[str] | No
     return ClipOrder(harness.name, names, passing[0] if passing else None, tuple(ranked),
                      tuple(sorted(failures.values(), key=lambda f: (f.fixing, f.before))),
                      judged, method, tuple(notes), installed, start)
+
+
+def _greedy(names, start, step, failures) -> tuple[list[FixOrder], int]:
+    """Each time, every fixing left fixed from the harness as it is, and the operation
+    of least cost (zone, then force, then name) kept; the order ends where none can be
+    done."""
+    state, taken, judged = start, [], 0
+    order: tuple[str, ...] = ()
+    while len(order) < len(names):
+        tried = []
+        for name in names:
+            if name not in order:
+                after, step_ = step(state, order, name)
+                judged += 1
+                if step_.zone == "red":
+                    failures.setdefault((frozenset(order), name), step_)
+                tried.append((ZONES.index(step_.zone), _rounded(step_.force), name, after,
+                              step_))
+        done = [t for t in tried if t[3] is not None]
+        if not done:  # nothing can be fixed from here: the order ends failing
+            taken.append(min(tried, key=lambda t: t[:3])[4])
+            order = (*order, taken[-1].fixing)
+            break
+        _, _, name, state, step_ = min(done, key=lambda t: t[:3])
+        order = (*order, name)
+        taken.append(step_)
+    return [FixOrder(order, tuple(taken))], judged
 
 
 def _every_order(names, start, step, failures) -> tuple[list[FixOrder], int]:
