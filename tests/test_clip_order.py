@@ -131,6 +131,8 @@ def test_a_fixing_the_harness_lacks_is_a_typed_error_naming_it():
         clip_order(harness, properties(harness), fixings=["clip 9"])
     with pytest.raises(InputError, match="search: must be auto, exact, every or greedy"):
         clip_order(harness, properties(harness), search="best")
+    with pytest.raises(InputError, match="give at least one fixing to order"):
+        clip_order(harness, properties(harness), fixings=[])
 
 
 def test_pliant_harness_orders_the_generator_cable_s_clip_and_writes_it_in_json(tmp_path):

@@ -218,6 +218,10 @@ def clip_order(harness, props: Mapping[str, Any], *, fixings: Sequence[str] | No
                              f"{', '.join(sorted(on_segments)[:8]) or 'none'})")
     if len(set(names)) != len(names):
         raise InputError("fixings", "a fixing is named twice")
+    if not names:
+        raise InputError("fixings", "give at least one fixing to order" if on_segments else
+                         f"{harness.name} has no fixing placed on a segment: there is no "
+                         "clip order to find")
     if search == "auto":
         search = "exact" if len(names) <= MAX_EXACT else "greedy"
     most = {"exact": MAX_EXACT, "every": MAX_EVERY, "greedy": None}
