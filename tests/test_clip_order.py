@@ -219,3 +219,30 @@ def test_an_operation_the_harness_cannot_follow_fails_its_orders_and_the_search_
     assert {frozenset(f.before) for f in none.failures if f.fixing == "clip 1"} == {
         frozenset(), frozenset({"clip 0"}), frozenset({"clip 2"}),
         frozenset({"clip 0", "clip 2"})}
+
+
+def test_a_scene_with_two_harnesses_judges_each_and_writes_each_its_files(tmp_path):
+    """Issue 55: a scene's second harness was left out ("this command judges the first").
+    The generator cable and the battery cable in one scene: each is solved and judged
+    with the same checks as alone, each report gets its own numbered file, the JSON
+    holds both, and the exit status is the worse of their verdicts."""
+    battery = GENERATOR.parent / "kblxml_2.3sr-1_000971228_ltgs_batterie_plus_170718.kbl"
+    scene = tmp_path / "two.toml"
+    scene.write_text(f'name = "two cables"\nmargin = 0.005\n[[harness]]\nfile = "{GENERATOR}"'
+                     f'\n[[harness]]\nfile = "{battery}"\n')
+    done = cli("harness", scene, "--json", tmp_path / "h.json", "--report",
+               tmp_path / "h.html")
+    said = " ".join(done.stdout.split())
+    assert "harness 1 of 2" in said and "harness 2 of 2" in said
+    assert "verdict over the scene's 2 harnesses" in said
+    both = json.loads((tmp_path / "h.json").read_text())["harnesses"]
+    codes = []
+    for k, path in enumerate((GENERATOR, battery), 1):
+        alone = cli("harness", path, "--solve", "--json", tmp_path / f"alone-{k}.json")
+        codes.append(alone.returncode)
+        mine = json.loads((tmp_path / f"alone-{k}.json").read_text())
+        assert both[k - 1]["harness"]["name"] == mine["harness"]["name"]
+        assert [(c["where"], c["what"], c["zone"]) for c in both[k - 1]["design_checks"]] == [
+            (c["where"], c["what"], c["zone"]) for c in mine["design_checks"]]
+        assert (tmp_path / f"h-{k}.html").stat().st_size > 1000
+    assert done.returncode == max(codes) == 1

@@ -13,7 +13,7 @@ import inspect
 import os
 import sys
 from pathlib import Path
-from typing import Annotated
+from typing import Annotated, Any
 
 import typer
 
@@ -789,7 +789,7 @@ def demo(
 def harness(
     file: Annotated[Path, typer.Argument(help="a KBL harness file (VDA 4964, 2.3 or 2.4), "
                                               "or a scene file (TOML) whose \\[\\[harness]] "
-                                              "names one among \\[\\[obstacle]] and "
+                                              "tables name one or more among \\[\\[obstacle]] and "
                                               "\\[\\[cad]] tables (solved there)")],
     module: Annotated[list[str] | None, typer.Option(
         help="build this module (a variant; id or part number; repeat for several): its "
@@ -838,7 +838,6 @@ def harness(
     from rich.console import Console  # noqa: PLC0415
 
     from pliant.assembly import harness as design  # noqa: PLC0415
-    from pliant.cli.harness_report import print_harness  # noqa: PLC0415
     from pliant.io import harness_file  # noqa: PLC0415
     from pliant.io.kbl import read_kbl  # noqa: PLC0415
     from pliant.io.rules_file import load_rules  # noqa: PLC0415
@@ -851,22 +850,64 @@ def harness(
         from pliant.io.harness_scene import load_harness_scene  # noqa: PLC0415
 
         scene = load_harness_scene(file)
-        if len(scene.harnesses) > 1:
-            console.print(f"{file}: {len(scene.harnesses)} harnesses; this command judges "
-                          "the first (give each its own scene file)")
-        model, from_scene = scene.harnesses[0]
-        module = list(module or from_scene)
+        # Each harness of the scene judged in turn among its obstacles (not against each
+        # other: contact between harnesses is not modelled).
+        harnesses = [(m, list(module or from_scene)) for m, from_scene in scene.harnesses]
         obstacles, margin, solve = scene.obstacles, scene.margin, True
     else:
-        model = read_kbl(file, strict=strict)
+        harnesses = [(read_kbl(file, strict=strict), list(module or []))]
     solve = solve or clip_order
     if modules:
         from pliant.cli.harness_report import print_modules  # noqa: PLC0415
 
-        print_modules(console, model)
+        for model, _ in harnesses:
+            print_modules(console, model)
         return
-    if module:
-        model = design.select(model, module)
+    several = len(harnesses) > 1
+
+    def own(path: Path | None, k: int) -> Path | None:
+        """A file of harness ``k`` (1-based): the path given, numbered where several."""
+        if path is None or not several or str(path) == "-":
+            return path
+        return path.with_name(f"{path.stem}-{k}{path.suffix}")
+
+    texts, verdicts = [], []
+    for k, (model, chosen) in enumerate(harnesses, 1):
+        if several:
+            console.rule(f"harness {k} of {len(harnesses)}: {model.name}")
+        if chosen:
+            model = design.select(model, chosen)
+        props, checks, installed, order = _judge_harness(
+            console, model, table, solve, clip_order, fixing, obstacles, margin,
+            all_segments, own(curves, k), own(glb, k), own(report, k))
+        texts.append(harness_file.harness_json(model, props, checks, installed, order))
+        verdicts.append(_harness_verdict(console, checks, installed, order,
+                                         f"harness {k} ({model.name}): " if several else ""))
+    if json is not None:
+        text = texts[0] if not several else (
+            '{"schema_version": ' + str(harness_file.SCHEMA_VERSION)
+            + ', "harnesses": [' + ", ".join(texts) + "]}")
+        written = emit_json(text, json, "the harness JSON")
+        if written is not None:
+            console.print(f"JSON: {written}")
+    if several:
+        failed = sum(not v for v in verdicts)
+        console.print(f"verdict over the scene's {len(harnesses)} harnesses: "
+                      + (f"[bold red]red[/] ({failed} red, exit status 1)" if failed
+                         else "[green]no harness red[/]"))
+    raise typer.Exit(0 if all(verdicts) else 1)
+
+
+def _judge_harness(console: Any, model: Any, table: Any, solve: bool, clip_order: bool,
+                   fixing: list[str] | None, obstacles: tuple, margin: float,
+                   all_segments: bool, curves: Path | None, glb: Path | None,
+                   report: Path | None) -> tuple[Any, list, Any, Any]:
+    """One harness of ``pliant harness``: its design printed and checked, installed and
+    its clip order where asked, its files written; (props, checks, installed, order)."""
+    from pliant.assembly import harness as design  # noqa: PLC0415
+    from pliant.cli.harness_report import print_harness  # noqa: PLC0415
+    from pliant.io import harness_file  # noqa: PLC0415
+
     props = design.properties(model, rules=table)
     checks = design.design_checks(model, props, rules=table)
     print_harness(console, model, props, checks, show_all=all_segments)
@@ -915,26 +956,28 @@ def harness(
         from pliant.cli.harness_html import write_html  # noqa: PLC0415
 
         console.print(f"report: {write_html(model, props, checks, installed, report, order)}")
-    if json is not None:
-        written = emit_json(harness_file.harness_json(model, props, checks, installed, order),
-                            json, "the harness JSON")
-        if written is not None:
-            console.print(f"JSON: {written}")
+    return props, checks, installed, order
+
+
+def _harness_verdict(console: Any, checks: list, installed: Any, order: Any,
+                     who: str) -> bool:
+    """Print one harness's verdict; whether it passes (no red check, an order found)."""
     reds = sum(c.zone.value == "red" for c in checks)
     yellows = sum(c.zone.value == "yellow" for c in checks)
     what = "the design and the installed harness" if installed is not None else "the design"
     if order is not None and order.best is None:
-        console.print("verdict: [bold red]red[/]: no order of the fixings passes (exit "
+        console.print(f"{who}verdict: [bold red]red[/]: no order of the fixings passes (exit "
                       "status 1)")
-        raise typer.Exit(1)
+        return False
     if reds:
-        console.print(f"verdict: [bold red]red[/] ({what}): {reds} red and {yellows} yellow "
-                      "checks (exit status 1)")
+        console.print(f"{who}verdict: [bold red]red[/] ({what}): {reds} red and {yellows} "
+                      "yellow checks (exit status 1)")
     elif yellows:
-        console.print(f"verdict: [yellow]yellow[/] ({what}): no red check, {yellows} yellow")
+        console.print(f"{who}verdict: [yellow]yellow[/] ({what}): no red check, {yellows} "
+                      "yellow")
     else:
-        console.print(f"verdict: [green]green[/] ({what}): every check is green")
-    raise typer.Exit(1 if reds else 0)
+        console.print(f"{who}verdict: [green]green[/] ({what}): every check is green")
+    return not reds
 
 
 def examples_folder() -> Path:
