@@ -230,6 +230,26 @@ def test_version_answers_at_once():
     assert out.returncode == 0 and out.stdout.strip() == f"pliant {__version__}"
 
 
+def test_an_interrupt_after_some_outputs_says_which_were_written(monkeypatch, capsys,
+                                                                  tmp_path):
+    """Issue 54: 30 of 139 interrupts left an incomplete set of outputs with nothing
+    marking it. A command interrupted after writing one of its files says so, naming the
+    one it wrote (whole: written atomically) and that the set is incomplete."""
+    import pliant.cli.app as cli_app
+    from pliant.io.atomic import atomic_write
+
+    def halfway():
+        atomic_write(tmp_path / "e.json", lambda h: h.write(b"{}"), "the JSON")
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(cli_app, "app", halfway)
+    with pytest.raises(SystemExit) as stop:
+        cli_app.main()
+    said = capsys.readouterr().err
+    assert stop.value.code == 130 and said.startswith("interrupted: the outputs are incomplete")
+    assert str(tmp_path / "e.json") in said and (tmp_path / "e.json").read_text() == "{}"
+
+
 def test_ctrl_c_inside_a_compiled_kernel_is_interrupted_not_a_traceback(monkeypatch, capsys):
     import pliant.cli.app as cli_app
 
@@ -243,7 +263,8 @@ def test_ctrl_c_inside_a_compiled_kernel_is_interrupted_not_a_traceback(monkeypa
     monkeypatch.setattr(cli_app, "app", kernel_interrupted)
     with pytest.raises(SystemExit) as stop:
         cli_app.main()
-    assert stop.value.code == 130 and capsys.readouterr().err == "interrupted\n"
+    assert stop.value.code == 130
+    assert capsys.readouterr().err == "interrupted: nothing written\n"
 
     def broken():
         raise SystemError("a real one")

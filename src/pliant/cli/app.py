@@ -1086,21 +1086,36 @@ _summaries()
 def main() -> None:
     """Run the app, turning pliant's errors into one-line messages (``SystemExit`` with
     the status)."""
+    from pliant.io.atomic import WRITTEN  # noqa: PLC0415
+
+    WRITTEN.clear()  # what this command writes, said if it is interrupted
     try:
         app()
     except PliantError as err:
         typer.echo(f"error: {err}", err=True)
         sys.exit(2)
     except KeyboardInterrupt:
-        typer.echo("interrupted", err=True)
+        typer.echo(_interrupted(), err=True)
         sys.exit(130)
     except SystemError as err:
         # Ctrl+C that lands while a compiled kernel hands back its result comes out as
         # "returned a result with an exception set", caused by the KeyboardInterrupt.
         if isinstance(err.__cause__ or err.__context__, KeyboardInterrupt):
-            typer.echo("interrupted", err=True)
+            typer.echo(_interrupted(), err=True)
             sys.exit(130)
         raise
+
+
+def _interrupted() -> str:
+    """The line an interrupted command ends with: what it had written (each file whole),
+    so that a set of outputs cut short is marked as such, or that it wrote nothing."""
+    from pliant.io.atomic import WRITTEN  # noqa: PLC0415
+
+    if not WRITTEN:
+        return "interrupted: nothing written"
+    return (f"interrupted: the outputs are incomplete; written before the interrupt (each "
+            f"file whole, a store's lines each whole: run the command again to resume "
+            f"where it can): {', '.join(str(p) for p in WRITTEN)}")
 
 
 def entry() -> None:

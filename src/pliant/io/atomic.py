@@ -6,11 +6,18 @@ from __future__ import annotations
 
 import os
 import tempfile
+from collections import deque
 from collections.abc import Callable
 from pathlib import Path
 from typing import BinaryIO
 
 from pliant.errors import OutputError
+
+# The files this process has written whole, latest last (the last 64: a server that
+# writes for hours keeps no more): what an interrupted command says it left
+# (``pliant.cli.app.main`` empties it as a command starts), so that an incomplete set
+# of outputs is marked.
+WRITTEN: deque[Path] = deque(maxlen=64)
 
 
 def _umask() -> int:
@@ -38,4 +45,5 @@ def atomic_write(path: str | Path, write: Callable[[BinaryIO], object], what: st
         raise OutputError(f"cannot write {what} {path}: {err.strerror or err}") from None
     finally:
         Path(tmp).unlink(missing_ok=True)
+    WRITTEN.append(path)
     return path

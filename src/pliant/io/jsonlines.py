@@ -10,6 +10,7 @@ import os
 from pathlib import Path
 from typing import Any
 
+from pliant.io.atomic import WRITTEN
 from pliant.io.jsontext import finite
 
 
@@ -36,6 +37,8 @@ class JsonLines:
             handle.write(line)
             handle.flush()
             os.fsync(handle.fileno())
+        if self.path not in WRITTEN:  # a store a resumed run goes on with
+            WRITTEN.append(self.path)
 
     def read(self) -> list[dict[str, Any]]:
         """Every complete line's record, in the file's order (a torn one left out)."""
