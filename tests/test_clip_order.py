@@ -246,3 +246,48 @@ def test_a_scene_with_two_harnesses_judges_each_and_writes_each_its_files(tmp_pa
             (c["where"], c["what"], c["zone"]) for c in mine["design_checks"]]
         assert (tmp_path / f"h-{k}.html").stat().st_size > 1000
     assert done.returncode == max(codes) == 1
+
+
+def test_a_clip_holding_two_segments_at_a_node_takes_both_their_loads():
+    """A fixing assigned to both segments that meet at a junction, a little way along each
+    (KBL allows it: the main harness has 16 assignments for 14 fixings; a duct holding
+    both): the hand carries the two segments' loads together, so its last force is the
+    load the installed harness puts on the fixing (both assignments summed), and it starts
+    at nothing (each segment taken where it hangs). (A fixing on both sides right at the
+    junction over-constrains it: the installed harness itself is not solved then.)"""
+    from pliant.assembly.harness_solve import fix, solve_installed
+    from pliant.core.harness import (
+        UNCLAMPED,
+        Connector,
+        Fixing,
+        FixingPlace,
+        Harness,
+        HarnessNode,
+        HarnessSegment,
+        Placement,
+        Wire,
+        WireType,
+    )
+
+    wire = WireType("T", "T1", "test wire", 6e-3, 1e-6, 5e-3, MASS)
+    nodes = {n: HarnessNode(n, n, (x, 0.0, 0.0)) for n, x in (("A", 0.0), ("M", 0.6),
+                                                                ("B", 1.2))}
+    segments = {"S1": HarnessSegment("S1", "S1", "A", "M", 0.625, (),
+                                     fixings=(FixingPlace("F", 0.9),)),
+                "S2": HarnessSegment("S2", "S2", "M", "B", 0.625, (),
+                                     fixings=(FixingPlace("F", 0.1),))}
+    plugs = {f"C{n}": Connector(f"C{n}", f"C{n}", "", "", Placement(
+        nodes[n].position, (1.0, 0.0, 0.0), (0.0, 1.0, 0.0)), n) for n in "AB"}
+    harness = Harness("two", "", "test", "2.4", UNCLAMPED, nodes, segments, {"T": wire},
+                      {"W": Wire("W", "W", "T", None, ("S1", "S2"))},
+                      {"F": Fixing("F", "middle clip", "", "", "clip")}, plugs, {})
+    props = properties(harness)
+    hanging = solve_installed(harness, props, released=["middle clip"])
+    after, forces = fix(hanging, props, "middle clip")
+    installed = solve_installed(harness, props)
+    load = np.linalg.norm(installed.held["fixing middle clip"][0])
+    assert load > 0.5 * installed.weight  # it carries a good share of the harness
+    assert forces[0] < 1e-4 * installed.weight
+    assert forces[-1] == pytest.approx(load, rel=1e-5)
+    assert np.abs(after.held["fixing middle clip"][0]
+                  - installed.held["fixing middle clip"][0]).max() < 1e-6 * installed.weight

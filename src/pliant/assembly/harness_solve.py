@@ -151,9 +151,9 @@ class Network:
         self.moved = dict(moved or {})
         self.released = frozenset(released)
         # Fixings on their way from where the harness hung to their designed place
-        # (``pliant.assembly.clip_order``): name -> (point [m], tangent), and how far
-        # along (0 where it hung, 1 its designed place).
-        self.approach: dict[str, tuple[np.ndarray, np.ndarray]] = {}
+        # (``pliant.assembly.clip_order``): (name, segment) -> (point [m], tangent), and
+        # how far along (0 where it hung, 1 its designed place).
+        self.approach: dict[tuple[str, str], tuple[np.ndarray, np.ndarray]] = {}
         self.along = 1.0
         names = {f.name for f in harness.fixings.values()}
         for what, given in (("moved", self.moved), ("released", self.released)):
@@ -292,8 +292,8 @@ class Network:
             tangent = pts[k + 1] - pts[k]
             tangent /= np.linalg.norm(tangent)
             point = point + np.asarray(self.moved.get(fixing.name, (0.0, 0.0, 0.0)), float)
-            if fixing.name in self.approach:
-                hung, turned = self.approach[fixing.name]
+            if (fixing.name, seg_id) in self.approach:
+                hung, turned = self.approach[(fixing.name, seg_id)]
                 point = (1.0 - self.along) * hung + self.along * point
                 tangent = (1.0 - self.along) * turned + self.along * tangent
                 tangent /= np.linalg.norm(tangent)
@@ -548,18 +548,19 @@ def fix(before: Installed, props: Mapping[str, SegmentProperties], fixing: str, 
                 if any(p.fixing == fid for p in seg.fixings)]
     if not carrying:  # placed on no segment: it holds nothing
         return replace(before, released=net.released), [0.0]
-    seg_id = carrying[0]
-    eq = before.segments[seg_id].equilibrium
-    place = next(p for p in harness.segments[seg_id].fixings if p.fixing == fid)
-    s = min(max(place.location * eq.problem.part.length, 1e-3 * eq.problem.part.length),
-            (1 - 1e-3) * eq.problem.part.length)
-    # Where the bundle is at the clip's mark, and its axis there: between the nodes
-    # about it, in proportion.
-    k = int(np.clip(np.searchsorted(eq.s, s) - 1, 0, len(eq.s) - 2))
-    w = (s - eq.s[k]) / (eq.s[k + 1] - eq.s[k])
-    axis = (1.0 - w) * eq.frames[k][:, 2] + w * eq.frames[k + 1][:, 2]
-    net.approach = {fixing: ((1.0 - w) * eq.position[k] + w * eq.position[k + 1],
-                             axis / np.linalg.norm(axis))}
+    for seg_id in carrying:  # (a clip may hold two segments, at a node between them)
+        eq = before.segments[seg_id].equilibrium
+        place = next(p for p in harness.segments[seg_id].fixings if p.fixing == fid)
+        s = min(max(place.location * eq.problem.part.length, 1e-3 * eq.problem.part.length),
+                (1 - 1e-3) * eq.problem.part.length)
+        # Where the bundle is at the clip's mark, and its axis there: between the nodes
+        # about it, in proportion.
+        k = int(np.clip(np.searchsorted(eq.s, s) - 1, 0, len(eq.s) - 2))
+        w = (s - eq.s[k]) / (eq.s[k + 1] - eq.s[k])
+        axis = (1.0 - w) * eq.frames[k][:, 2] + w * eq.frames[k + 1][:, 2]
+        net.approach[(fixing, seg_id)] = ((1.0 - w) * eq.position[k]
+                                          + w * eq.position[k + 1],
+                                          axis / np.linalg.norm(axis))
     solver = {seg: rod3d.RodSolver(elements=_elements(harness.segments[seg].virtual_length),
                                    settle=False) for seg in harness.segments}
     forces: list[float] = []
@@ -594,10 +595,9 @@ def fix(before: Installed, props: Mapping[str, SegmentProperties], fixing: str, 
             continue
         iterations += count
         done = t
-        for seg in carrying:
-            load = net.eqs[seg].reactions.get(f"fixing {fixing}")
-            if load is not None:
-                forces.append(float(np.linalg.norm(load.force)))
+        held = [net.eqs[seg].reactions.get(f"fixing {fixing}") for seg in carrying]
+        forces.append(float(np.linalg.norm(sum(np.asarray(h.force) for h in held
+                                               if h is not None))))
         if done >= 1.0:
             break
     return _installed(harness, net, iterations, float(np.abs(r).max(initial=0.0)), jac,
