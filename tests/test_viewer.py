@@ -746,6 +746,42 @@ def test_past_its_bound_the_server_says_busy_and_frees_the_place_on_close(folder
             receive(d, "frame")
 
 
+def test_a_tab_that_sends_nothing_is_closed_and_frees_its_place(folder):
+    """Issue 54: idle websockets held their session slots forever. A tab that sends
+    nothing for the server's ``idle`` seconds is told why and closed (going away), its
+    place freed for another tab; a tab that keeps sending is not."""
+    from websockets.exceptions import ConnectionClosed
+
+    from pliant.errors import InputError
+    from pliant.viewer.server import Server
+
+    hello = json.dumps({"v": 1, "type": "hello"})
+    with pytest.raises(InputError, match="idle"):
+        Server(folder / "hose.toml", port=0, live=False, idle=0.0)
+    with Server(folder / "hose.toml", port=0, live=False, sessions=1, idle=1.5) as server:
+        with connect(server) as quiet:
+            quiet.send(hello)
+            said = receive(quiet, "error", timeout=60)
+            assert "sent nothing for 1.5 s" in said["message"]
+            assert "reload the page" in said["message"]
+            with pytest.raises(ConnectionClosed):
+                while True:
+                    quiet.recv(timeout=60)
+            assert quiet.close_code == 1001
+        deadline = time.monotonic() + 30
+        while server.open_sessions and time.monotonic() < deadline:
+            time.sleep(0.05)
+        assert server.open_sessions == 0 and server.idled == 1
+        with connect(server) as busy:  # its place is free, and sending keeps it open
+            busy.send(hello)
+            receive(busy, "frame")
+            for _ in range(3):
+                time.sleep(0.7)
+                busy.send(hello)
+                receive(busy, "scene")
+        assert server.idled == 1
+
+
 def _raw_websocket(port: int):
     """A websocket client that sends but never reads: a socket with a small receive
     buffer, the opening handshake by hand, and masked text frames."""

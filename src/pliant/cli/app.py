@@ -1043,6 +1043,9 @@ def view(
                                                       "each with its own solver process "
                                                       "(default: the cores, at least 2)")]
     = None,
+    idle: Annotated[float, typer.Option(help="seconds a tab may send nothing before its "
+                                             "session is closed and its place freed (the "
+                                             "page says to reload)")] = 1800.0,
 ) -> None:
     """The interactive environment in the browser: drag the part's grips (mouse or VR
     controllers), see its shape, the force and moment each hand must apply, what it
@@ -1057,7 +1060,7 @@ def view(
     if sessions is not None and not 1 <= sessions <= 256:
         raise PliantError(f"--sessions: must be from 1 to 256, got {sessions}")
     server = Server(scene, host=host, port=port, elements=elements, envelope=envelope,
-                    display=triangles, sessions=sessions)
+                    display=triangles, sessions=sessions, idle=idle)
     typer.echo(f"checking {scene.name} and loading the solvers…")
     check = ViewerState(server.scene, server.root, live=False, elements=elements)
     check.close()

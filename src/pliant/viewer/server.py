@@ -25,6 +25,8 @@ from pliant.viewer import protocol as P
 from pliant.viewer.protocol import ProtocolError
 
 STATIC = Path(__file__).with_name("static")
+IDLE_TIMEOUT = 1800.0  # s a tab may send nothing before its session (a slot, a worker) is
+# freed: an open tab left for the night held its slot forever; the page says to reload
 SEND_TIMEOUT = 15.0  # s a message may wait for a client that does not read; then it goes
 VENDOR = {"three": "three", "iwer": "iwer"}  # URL prefix under /vendor/ -> npm package
 log = logging.getLogger("pliant.viewer")
@@ -59,12 +61,14 @@ class Server:
     deterministic); ``elements``: the 3D resolution (default: the scene's); ``envelope``:
     a variation study's envelope.glb (or its folder), shown with the scene; ``display``:
     the triangles drawn of the obstacles; ``sessions``: the most tabs served at once
-    (default: the cores, at least 2; one more is told the server is busy)."""
+    (default: the cores, at least 2; one more is told the server is busy); ``idle``: the
+    seconds a tab may send nothing before its session is closed (IDLE_TIMEOUT)."""
 
     def __init__(self, scene: Path, *, host: str = "127.0.0.1", port: int = 8765,
                  root: Path | None = None, live: bool = True,
                  elements: int | None = None, envelope: Path | None = None,
-                 display: int | None = None, sessions: int | None = None) -> None:
+                 display: int | None = None, sessions: int | None = None,
+                 idle: float = IDLE_TIMEOUT) -> None:
         scene = Path(scene).resolve()
         if not scene.is_file():
             raise InputError("scene", f"{scene} is not a file; give a scene file (TOML)")
@@ -79,6 +83,10 @@ class Server:
             raise InputError("sessions", f"must be at least 1, got {sessions}")
         self.sessions = sessions or max(2, os.cpu_count() or 2)
         self.open_sessions = 0
+        if not idle > 0:
+            raise InputError("idle", f"must be a positive number of seconds, got {idle}")
+        self.idle = idle
+        self.idled = 0  # sessions closed for sending nothing for ``idle`` seconds
         self.dropped = 0  # clients dropped for not reading
         self.envelopes = []
         if envelope is not None:
@@ -234,7 +242,18 @@ class Server:
 
         task = asyncio.create_task(pump())
         try:
-            async for raw in ws:
+            while True:
+                try:
+                    raw = await asyncio.wait_for(ws.recv(), self.idle)
+                except TimeoutError:
+                    self.idled += 1
+                    async with lock:
+                        await self._send(ws, P.dump(P.ServerError(
+                            message=f"closed: this tab sent nothing for {self.idle:g} s, "
+                            "and its session was freed for others; reload the page to "
+                            "start again")))
+                    await ws.close(1001, "idle")
+                    break
                 async with lock:
                     for reply in await self._reply(state, raw):
                         await self._send(ws, reply)
