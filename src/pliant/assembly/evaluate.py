@@ -209,6 +209,11 @@ def tangent_at(eq: Result, s: float) -> np.ndarray:
     return eq.tangent[int(np.argmin(np.abs(eq.s - s)))]
 
 
+def position_at(eq: Result, s: float) -> np.ndarray:
+    """The part's position (3,) [m] at its node nearest arc length s [m]."""
+    return eq.position[int(np.argmin(np.abs(eq.s - s)))]
+
+
 def outward_sign(s: float, length: float) -> float:
     """+1 where the tangent points out of the part (its last half, the end at s = L),
     -1 where it points in: what makes a grip's axial force its pull."""
@@ -1006,13 +1011,9 @@ def _with_reach(op: OperatorResult, run: PathRun, rules: Rules, scene: Any,
 
     figure = Figure(worker, rules.body, up_of(scene.problem))
     eqs = run.equilibria
-
-    def point(eq: Any, s: float) -> np.ndarray:
-        return eq.position[int(np.argmin(np.abs(eq.s - s)))]
-
-    spots = [(g, [point(eq, eq.loads[g].s) for eq in eqs]) for g in grips]
+    spots = [(g, [position_at(eq, eq.loads[g].s) for eq in eqs]) for g in grips]
     if second is not None:
-        spots.append((SECOND_HAND, [point(eq, second) for eq in eqs]))
+        spots.append((SECOND_HAND, [position_at(eq, second) for eq in eqs]))
     other = "left" if worker.side == "right" else "right"
     sides = [worker.side] * len(spots)
     if len(spots) == 2:  # each hand takes the grip on its side, at the start
@@ -1034,19 +1035,13 @@ def _with_spread(op: OperatorResult, run: PathRun, rules: Rules, scene: Any, fir
     which the upper arms must be raised past the ``[posture]`` zones' onsets whatever
     the posture (``posture.spread``), for the scene's worker or, without one, the 5th
     percentile woman the worker defaults to."""
-    if rules.body is None or rules.posture is None or not run.equilibria:
+    from pliant.assembly.posture import spread_of  # noqa: PLC0415
+
+    body = spread_of(rules, getattr(scene, "worker", None))
+    if body is None or not run.equilibria:
         return
-    from pliant.assembly.posture import spread  # noqa: PLC0415
-
-    worker = getattr(scene, "worker", None)
-    body = (spread(rules.body, rules.posture) if worker is None else
-            spread(rules.body, rules.posture, worker.sex, worker.percentile))
-
-    def point(eq: Any, s: float) -> np.ndarray:
-        return eq.position[int(np.argmin(np.abs(eq.s - s)))]
-
     where = second if isinstance(second, str) else SECOND_HAND
-    apart = [float(np.linalg.norm(point(eq, eq.loads[first].s) - point(
+    apart = [float(np.linalg.norm(position_at(eq, eq.loads[first].s) - position_at(
         eq, eq.loads[second].s if isinstance(second, str) else second)))
         for eq in run.equilibria]
     widest = max(apart)
@@ -1057,8 +1052,7 @@ def _with_spread(op: OperatorResult, run: PathRun, rules: Rules, scene: Any, fir
     op.checks.append(series_check(
         f"hands apart: {first} and {where}", f"distance between the hands at {first} and "
         f"{where}", "ergonomics", apart, "m", "above", body.limits[0], body.limits[1],
-        f"{rules.body.sourced.source}; {rules.posture.sourced.source}", "derived",
-        grip=first, note=note))
+        body.source, "derived", grip=first, note=note))
 
 
 def reach_checks(grip: str, steps: list[Any], rules: Rules, figure: Any) -> list[Check]:

@@ -32,6 +32,7 @@ from pliant.assembly.evaluate import (
     hand_checks,
     hand_rows,
     outward_sign,
+    position_at,
     series_check,
     tangent_at,
 )
@@ -181,20 +182,14 @@ def _too_far(scene: Any, rules: Rules, grip: str):
     the worker (the 5th percentile woman without one) holds them with the upper arms
     below the red onset (``posture.spread``): such a place is taken only where no other
     is solved."""
-    if rules.body is None or rules.posture is None:
+    from pliant.assembly.posture import spread_of  # noqa: PLC0415
+
+    body = spread_of(rules, getattr(scene, "worker", None))
+    if body is None:
         return lambda eq, s2: False
-    from pliant.assembly.posture import spread  # noqa: PLC0415
-
-    worker = getattr(scene, "worker", None)
-    body = (spread(rules.body, rules.posture) if worker is None else
-            spread(rules.body, rules.posture, worker.sex, worker.percentile))
-
-    def far(eq: Any, s2: float) -> bool:
-        at = eq.position[int(np.argmin(np.abs(eq.s - eq.loads[grip].s)))]
-        other = eq.position[int(np.argmin(np.abs(eq.s - s2)))]
-        return bool(np.linalg.norm(at - other) > body.limits[1])
-
-    return far
+    red = body.limits[1]
+    return lambda eq, s2: bool(np.linalg.norm(position_at(eq, eq.loads[grip].s)
+                                              - position_at(eq, s2)) > red)
 
 
 def place_second_hand(scene: Any, run: Any, rules: Rules, settings: EvaluationSettings,

@@ -32,7 +32,7 @@ from typing import Any
 import numpy as np
 
 from pliant.core.numbers import triple
-from pliant.core.rules import Body, PostureZones
+from pliant.core.rules import Body, PostureZones, Rules
 from pliant.core.worker import Worker
 from pliant.errors import InputError
 
@@ -77,13 +77,14 @@ class Spread:
     (shoulder to grip, straight) and the upper arm [m]; ``limits`` the hands' distances
     [m] at which the upper arms must be raised past the ``[posture]`` zones' yellow and
     red onsets, whatever the rest of the posture, and ``most`` the widest two hands
-    reach at all."""
+    reach at all; ``who`` whose body, ``source`` where its sizes and zones come from."""
 
     breadth: float
     arm: float
     upper: float
     limits: tuple[float, float]
     who: str
+    source: str = ""
 
     @property
     def most(self) -> float:
@@ -100,21 +101,36 @@ class Spread:
         return math.degrees(math.asin(min(1.0, side / self.upper)))
 
 
+def body_sizes(body: Body, sex: str, percentile: float) -> tuple[float, float]:
+    """Stature and shoulder-grip length (the arm's reach) [m] at ``percentile`` of
+    ``sex``'s table, taken together."""
+    z = NormalDist().inv_cdf(percentile / 100.0)
+    (stature, sd_stature), (arm, sd_arm) = body.stature[sex], body.shoulder_grip[sex]
+    return stature + z * sd_stature, arm + z * sd_arm
+
+
 def spread(body: Body, zones: PostureZones, sex: str = "women",
            percentile: float = 5.0) -> Spread:
     """Two hands' spread for the ``percentile`` of ``sex`` (the 5th percentile woman by
     default, as the worker: reach is designed for the small)."""
-    z = NormalDist().inv_cdf(percentile / 100.0)
-    mean, sd = body.stature[sex]
-    stature = mean + z * sd
-    mean, sd = body.shoulder_grip[sex]
-    arm = mean + z * sd
+    stature, arm = body_sizes(body, sex, percentile)
     upper = body.upper_arm * stature
     breadth = body.shoulder_breadth * stature
     limits = tuple(breadth + 2.0 * ((arm - upper) + upper * math.sin(math.radians(e)))
                    for e in zones.upper_arm)
     who = f"a {percentile:g}th percentile {'man' if sex == 'men' else 'woman'}"
-    return Spread(breadth, arm, upper, (limits[0], limits[1]), who)
+    return Spread(breadth, arm, upper, (limits[0], limits[1]), who,
+                  f"{body.sourced.source}; {zones.sourced.source}")
+
+
+def spread_of(rules: Rules, worker: Worker | None) -> Spread | None:
+    """The spread of ``worker`` (the scene's; None: the 5th percentile woman the worker
+    defaults to), or None where the rules table has no ``[body]`` or ``[posture]``."""
+    if rules.body is None or rules.posture is None:
+        return None
+    if worker is None:
+        return spread(rules.body, rules.posture)
+    return spread(rules.body, rules.posture, worker.sex, worker.percentile)
 
 
 class Figure:
@@ -122,11 +138,7 @@ class Figure:
     which way is up, forward and right."""
 
     def __init__(self, worker: Worker, body: Body, up: np.ndarray) -> None:
-        z = NormalDist().inv_cdf(worker.percentile / 100.0)
-        mean, sd = body.stature[worker.sex]
-        self.stature = mean + z * sd
-        mean, sd = body.shoulder_grip[worker.sex]
-        self.arm = mean + z * sd
+        self.stature, self.arm = body_sizes(body, worker.sex, worker.percentile)
         self.upper = body.upper_arm * self.stature
         self.up = up / np.linalg.norm(up)
         facing = np.asarray(worker.facing, float)
