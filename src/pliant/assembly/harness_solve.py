@@ -23,7 +23,7 @@ natural shape is straight (a bundle taped on a formboard); the design is a route
 from __future__ import annotations
 
 import math
-from collections.abc import Collection, Mapping
+from collections.abc import Callable, Collection, Mapping
 from dataclasses import dataclass, field, replace
 
 import numpy as np
@@ -495,27 +495,13 @@ def solve_installed(harness: Harness, props: Mapping[str, SegmentProperties], *,
         # The fixings moved as far as their segments follow at once (all the way first,
         # halved where a segment cannot), the junctions balanced after each step.
         target = dict(net.moved)
-        jac = warm.jacobian
-        iterations, done, step = 0, 0.0, 1.0
-        while done < 1.0:
-            t = min(1.0, done + step)
+
+        def to(t: float) -> None:
             net.moved = {name: _vec3(np.asarray(v, float) * t) for name, v in target.items()}
-            kept = dict(net.eqs)
-            saved = [(j.position.copy(), j.rotation.copy()) for j in net.junctions]
-            try:
-                net.eqs = {seg_id: net.solve_segment(seg_id, warm=True)
-                           for seg_id in harness.segments}
-                count, r, jac = _balance(net, jac)
-            except PliantError:
-                net.eqs = kept
-                for j, (p, rot) in zip(net.junctions, saved):
-                    j.position, j.rotation = p, rot
-                step *= 0.5
-                if step < 1e-3:
-                    raise
-                continue
-            iterations += count
-            done = t
+
+        iterations, r, jac = _stepped(net, warm.jacobian, to, lambda: {
+            seg_id: net.solve_segment(seg_id, warm=True) for seg_id in harness.segments},
+            step=1.0)
     else:
         iterations, r, jac = _balance(net, None)
     return _installed(harness, net, iterations, float(np.abs(r).max(initial=0.0)), jac,
@@ -572,36 +558,57 @@ def fix(before: Installed, props: Mapping[str, SegmentProperties], fixing: str, 
                                    residual=math.inf)
         return eq
 
-    jac = before.jacobian
-    iterations, done, step = 0, 0.0, 1.0 / steps
+    def to(t: float) -> None:
+        net.along = t
+
+    def felt() -> None:  # the force on the hand: the clip's load from every segment it holds
+        held = [net.eqs[seg].reactions.get(f"fixing {fixing}") for seg in carrying]
+        forces.append(float(np.linalg.norm(sum(np.asarray(h.force) for h in held
+                                               if h is not None))))
+
+    # Only the clip's segments' problems change between two balances.
+    iterations, r, jac = _stepped(net, before.jacobian, to, lambda: {
+        seg: follow(seg) for seg in carrying}, step=1.0 / steps, from_start=True,
+        after=felt)
+    return _installed(harness, net, iterations, float(np.abs(r).max(initial=0.0)), jac,
+                      margin), forces
+
+
+def _stepped(net: Network, jac: np.ndarray | None, to: Callable[[float], None],
+             resolve: Callable[[], dict[str, Equilibrium3D]], *, step: float,
+             from_start: bool = False, after: Callable[[], None] | None = None
+             ) -> tuple[int, np.ndarray, np.ndarray | None]:
+    """Take the network from where it is (0) to ``to(1)`` in steps of ``step``, halved
+    where it cannot follow (down to a thousandth of the first): at each, ``resolve`` the
+    segments whose problems changed, balance the junctions, then ``after()``.
+    ``from_start``: a first step at 0 itself, which must succeed. (iterations, the last
+    balance, the last Jacobian); the solver's error where a step cannot be taken."""
+    iterations, done, least = 0, 0.0, 1e-3 * step
     r = net.residual(net.eqs)
-    while True:
+    first = from_start
+    while first or done < 1.0:
+        t = 0.0 if first else min(1.0, done + step)
         kept = dict(net.eqs)
         saved = [(j.position.copy(), j.rotation.copy()) for j in net.junctions]
-        t = min(1.0, done + step) if forces else 0.0
-        net.along = t
-        try:  # only the clip's segments' problems changed since the last balance
-            net.eqs = {**net.eqs, **{seg: follow(seg) for seg in carrying}}
+        to(t)
+        try:
+            net.eqs = {**net.eqs, **resolve()}
             count, r, jac = _balance(net, jac)
         except PliantError:
-            if not forces:
+            if first:
                 raise
             net.eqs = kept
             for j, (p, rot) in zip(net.junctions, saved):
                 j.position, j.rotation = p, rot
             step *= 0.5
-            if step < 1e-3 / steps:
+            if step < least:
                 raise
             continue
         iterations += count
-        done = t
-        held = [net.eqs[seg].reactions.get(f"fixing {fixing}") for seg in carrying]
-        forces.append(float(np.linalg.norm(sum(np.asarray(h.force) for h in held
-                                               if h is not None))))
-        if done >= 1.0:
-            break
-    return _installed(harness, net, iterations, float(np.abs(r).max(initial=0.0)), jac,
-                      margin), forces
+        done, first = t, False
+        if after is not None:
+            after()
+    return iterations, r, jac
 
 
 def _balance(net: Network, jac: np.ndarray | None) -> tuple[int, np.ndarray, np.ndarray | None]:
