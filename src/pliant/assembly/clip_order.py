@@ -255,31 +255,36 @@ def clip_order(harness, props: Mapping[str, Any], *, fixings: Sequence[str] | No
                      "): every order ends there, so an operation counts only where it makes "
                      "one worse")
 
+    failures: dict[tuple[frozenset, str], FixStep] = {}  # red operations, by what is fixed
+
     def step(state, before: tuple[str, ...], name: str):
-        """The harness after fixing ``name`` and the operation judged; where the harness
-        cannot follow the clip (a snap, a fold), no harness and the operation red, saying
-        so: the orders through it fail there, and the search goes on."""
+        """The harness after fixing ``name`` and the operation judged (a red one kept in
+        ``failures``); where the harness cannot follow the clip (a snap, a fold), no
+        harness and the operation red, saying so: the orders through it fail there, and
+        the search goes on."""
         try:
             after, forces = fix(state, props, name, gravity=gravity, obstacles=obstacles,
                                 margin=margin, steps=steps)
         except PliantError as err:
-            return None, FixStep(name, before, math.inf, (), "red", (
+            after, judged = None, FixStep(name, before, math.inf, (), "red", (
                 f"the harness could not follow {name} to its place ({err}): it would "
                 "snap or jam on the way",), ("", math.nan, None))
-        return after, _judged(name, before, forces, after, rules, design)
-
-    failures: dict[tuple[frozenset, str], FixStep] = {}
+        else:
+            judged = _judged(name, before, forces, after, rules, design)
+        if judged.zone == "red":
+            failures.setdefault((frozenset(before), name), judged)
+        return after, judged
     if search == "every":
-        orders, judged = _every_order(names, start, step, failures)
+        orders, judged = _every_order(names, start, step)
         method = f"every order ({math.factorial(len(names))})"
     elif search == "greedy":
-        orders, judged = _greedy(names, start, step, failures)
+        orders, judged = _greedy(names, start, step)
         method = "greedy: each time the operation of least cost (not proven the best)"
         if len(names) > MAX_EXACT:
             notes.append(f"{len(names)} fixings: more than the exact search takes "
                          f"({MAX_EXACT}); the order is the greedy one, not proven the best")
     else:
-        orders, judged, branched = _over_sets(names, start, step, failures)
+        orders, judged, branched = _over_sets(names, start, step)
         method = f"exact over the {2 ** len(names)} sets of fixings fixed"
         notes += branched
     ranked = sorted(orders, key=FixOrder.key)
@@ -289,7 +294,7 @@ def clip_order(harness, props: Mapping[str, Any], *, fixings: Sequence[str] | No
                      judged, method, tuple(notes), installed, start)
 
 
-def _greedy(names, start, step, failures) -> tuple[list[FixOrder], int]:
+def _greedy(names, start, step) -> tuple[list[FixOrder], int]:
     """Each time, every fixing left fixed from the harness as it is, and the operation
     of least cost (zone, then force, then name) kept; the order ends where none can be
     done."""
@@ -301,8 +306,6 @@ def _greedy(names, start, step, failures) -> tuple[list[FixOrder], int]:
             if name not in order:
                 after, step_ = step(state, order, name)
                 judged += 1
-                if step_.zone == "red":
-                    failures.setdefault((frozenset(order), name), step_)
                 tried.append((ZONES.index(step_.zone), _rounded(step_.force), name, after,
                               step_))
         done = [t for t in tried if t[3] is not None]
@@ -316,7 +319,7 @@ def _greedy(names, start, step, failures) -> tuple[list[FixOrder], int]:
     return [FixOrder(order, tuple(taken))], judged
 
 
-def _every_order(names, start, step, failures) -> tuple[list[FixOrder], int]:
+def _every_order(names, start, step) -> tuple[list[FixOrder], int]:
     """Every order along its own path (each prefix solved once)."""
     states: dict[tuple[str, ...], Any] = {(): start}
     done: dict[tuple[str, ...], FixStep] = {}
@@ -327,8 +330,6 @@ def _every_order(names, start, step, failures) -> tuple[list[FixOrder], int]:
             prefix = order[:k + 1]
             if prefix not in done:
                 states[prefix], done[prefix] = step(states[order[:k]], order[:k], order[k])
-                if done[prefix].zone == "red":
-                    failures.setdefault((frozenset(order[:k]), order[k]), done[prefix])
             taken.append(done[prefix])
             if states[prefix] is None:  # could not be done: the order ends there
                 break
@@ -336,7 +337,7 @@ def _every_order(names, start, step, failures) -> tuple[list[FixOrder], int]:
     return out, len(done)
 
 
-def _over_sets(names, start, step, failures) -> tuple[list[FixOrder], int, list[str]]:
+def _over_sets(names, start, step) -> tuple[list[FixOrder], int, list[str]]:
     """Over the sets of fixings fixed: each set's harness solved once (from the first
     order to reach it), each set keeping the orders no other beats on zone, peak and
     sum together; returns, of the full set's, the best beginning with each fixing."""
@@ -354,8 +355,6 @@ def _over_sets(names, start, step, failures) -> tuple[list[FixOrder], int, list[
                 after_set = done | {name}
                 after, judged = step(states[done], before, name)
                 moves[(done, name)] = judged
-                if judged.zone == "red":
-                    failures.setdefault((done, name), judged)
                 if after is None:  # could not be done: no order goes on from here
                     continue
                 if after_set not in states:
