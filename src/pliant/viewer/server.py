@@ -190,11 +190,9 @@ class Server:
         self.connections += 1
         try:
             if self.open_sessions >= self.sessions:
-                await self._send(ws, P.dump(P.ServerError(
-                    message=f"busy: {self.open_sessions} sessions are open, the most this "
-                    "server runs at once; close another tab, or start pliant view with a "
-                    "larger --sessions")))
-                await ws.close(1013, "busy")
+                await self._close(ws, f"busy: {self.open_sessions} sessions are open, the "
+                                  "most this server runs at once; close another tab, or "
+                                  "start pliant view with a larger --sessions", 1013, "busy")
                 return
             self.open_sessions += 1
             try:
@@ -214,9 +212,7 @@ class Server:
                                             live=self.live, elements=self.elements,
                                             envelopes=self.envelopes, display=self.display)
         except PliantError as err:
-            await self._send(ws, P.dump(P.ServerError(
-                message=f"the scene cannot be opened: {err}")))
-            await ws.close()
+            await self._close(ws, f"the scene cannot be opened: {err}")
             return
         lock = asyncio.Lock()
         arrived = asyncio.Event()
@@ -248,11 +244,10 @@ class Server:
                 except TimeoutError:
                     self.idled += 1
                     async with lock:
-                        await self._send(ws, P.dump(P.ServerError(
-                            message=f"closed: this tab sent nothing for {self.idle:g} s, "
-                            "and its session was freed for others; reload the page to "
-                            "start again")))
-                    await ws.close(1001, "idle")
+                        await self._close(ws, f"closed: this tab sent nothing for "
+                                          f"{self.idle:g} s, and its session was freed for "
+                                          "others; reload the page to start again", 1001,
+                                          "idle")
                     break
                 async with lock:
                     for reply in await self._reply(state, raw):
@@ -262,6 +257,11 @@ class Server:
         finally:
             task.cancel()
             await asyncio.to_thread(state.close)
+
+    async def _close(self, ws, message: str, code: int = 1000, reason: str = "") -> None:
+        """Tell the page why (an ``error`` message), then close the connection."""
+        await self._send(ws, P.dump(P.ServerError(message=message)))
+        await ws.close(code, reason)
 
     async def _send(self, ws, text: str) -> None:
         """Send, or drop a client that has not read for ``SEND_TIMEOUT`` (its session and
