@@ -179,3 +179,39 @@ waypoints = [[{x}, {y}, 0.48], [{x}, {y}, 0.33]]
 tangents = [[0.0, -0.5, -1.0], [0.0, 0.0, -1.0]]
 steps = {steps}
 """
+
+
+def straight_harness(nodes: dict[str, tuple[float, float, float]],
+                     segments: list[tuple], held: list[str], *,
+                     wire: tuple[float, float, float] = (2e-3, 5e-3, 0.02),
+                     clips: dict[str, str] | None = None):
+    """A harness of straight-designed segments (no centre curves) carrying one wire
+    (outside diameter [m], bend radius [m], mass [kg/m]; 1 mm2), with a placed connector
+    at each ``held`` node. ``segments``: (id, start node, end node, length [m]), with
+    optionally a fifth item, ((fixing id, location as a fraction), ...); ``clips``:
+    each fixing's id and name."""
+    from pliant.core.harness import (
+        UNCLAMPED,
+        Connector,
+        Fixing,
+        FixingPlace,
+        Harness,
+        HarnessNode,
+        HarnessSegment,
+        Placement,
+        Wire,
+        WireType,
+    )
+
+    diameter, bend_radius, mass = wire
+    wire_type = WireType("T", "T1", "test wire", diameter, 1e-6, bend_radius, mass)
+    segs = {s[0]: HarnessSegment(s[0], s[0], s[1], s[2], s[3], (), fixings=tuple(
+        FixingPlace(f, w) for f, w in (s[4] if len(s) > 4 else ()))) for s in segments}
+    connectors = {f"C{n}": Connector(f"C{n}", f"C{n}", "", "",
+                                     Placement(nodes[n], (1.0, 0.0, 0.0), (0.0, 1.0, 0.0)), n)
+                  for n in held}
+    fixings = {f: Fixing(f, name, "", "", "clip") for f, name in (clips or {}).items()}
+    return Harness("test", "", "test", "2.4", UNCLAMPED,
+                   {n: HarnessNode(n, n, p) for n, p in nodes.items()}, segs,
+                   {"T": wire_type}, {"W": Wire("W", "W", "T", None, tuple(segs))}, fixings,
+                   connectors, {})

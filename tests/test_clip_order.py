@@ -15,7 +15,7 @@ import pytest
 from pliant.assembly.harness import properties
 from pliant.errors import InputError
 
-from .helpers import cli
+from .helpers import cli, straight_harness
 
 GENERATOR = (Path(__file__).resolve().parents[1] / "examples" / "harness" / "kbl"
              / "kblxml_2.3sr-1_000971230_ltgs_generator_170718.kbl")
@@ -27,29 +27,10 @@ WHERE = (0.25, 0.5, 0.75)  # the clips' marks, as fractions of the bundle's leng
 def _bundle(bend_radius: float = 5e-3):
     """One segment between two plugged connectors at the same height, designed straight
     (so every clip's place and axis are level), carrying one 6 mm wire."""
-    from pliant.core.harness import (
-        UNCLAMPED,
-        Connector,
-        Fixing,
-        FixingPlace,
-        Harness,
-        HarnessNode,
-        HarnessSegment,
-        Placement,
-        Wire,
-        WireType,
-    )
-
-    wire = WireType("T", "T1", "test wire", 6e-3, 1e-6, bend_radius, MASS)
-    nodes = {"A": HarnessNode("A", "A", (0.0, 0.0, 0.0)),
-             "B": HarnessNode("B", "B", (CHORD, 0.0, 0.0))}
-    clips = {f"F{k}": Fixing(f"F{k}", f"clip {k}", "", "", "clip") for k in range(3)}
-    segment = HarnessSegment("S", "S", "A", "B", LENGTH, (), fixings=tuple(
-        FixingPlace(f"F{k}", w) for k, w in enumerate(WHERE)))
-    plugs = {f"C{n}": Connector(f"C{n}", f"C{n}", "", "", Placement(
-        nodes[n].position, (1.0, 0.0, 0.0), (0.0, 1.0, 0.0)), n) for n in "AB"}
-    return Harness("bundle", "", "test", "2.4", UNCLAMPED, nodes, {"S": segment},
-                   {"T": wire}, {"W": Wire("W", "W", "T", None, ("S",))}, clips, plugs, {})
+    return straight_harness(
+        {"A": (0.0, 0.0, 0.0), "B": (CHORD, 0.0, 0.0)},
+        [("S", "A", "B", LENGTH, [(f"F{k}", w) for k, w in enumerate(WHERE)])], ["A", "B"],
+        wire=(6e-3, bend_radius, MASS), clips={f"F{k}": f"clip {k}" for k in range(3)})
 
 
 def test_each_clip_carries_half_the_weight_of_the_spans_beside_it_in_every_order():
@@ -256,31 +237,11 @@ def test_a_clip_holding_two_segments_at_a_node_takes_both_their_loads():
     at nothing (each segment taken where it hangs). (A fixing on both sides right at the
     junction over-constrains it: the installed harness itself is not solved then.)"""
     from pliant.assembly.harness_solve import fix, solve_installed
-    from pliant.core.harness import (
-        UNCLAMPED,
-        Connector,
-        Fixing,
-        FixingPlace,
-        Harness,
-        HarnessNode,
-        HarnessSegment,
-        Placement,
-        Wire,
-        WireType,
-    )
 
-    wire = WireType("T", "T1", "test wire", 6e-3, 1e-6, 5e-3, MASS)
-    nodes = {n: HarnessNode(n, n, (x, 0.0, 0.0)) for n, x in (("A", 0.0), ("M", 0.6),
-                                                                ("B", 1.2))}
-    segments = {"S1": HarnessSegment("S1", "S1", "A", "M", 0.625, (),
-                                     fixings=(FixingPlace("F", 0.9),)),
-                "S2": HarnessSegment("S2", "S2", "M", "B", 0.625, (),
-                                     fixings=(FixingPlace("F", 0.1),))}
-    plugs = {f"C{n}": Connector(f"C{n}", f"C{n}", "", "", Placement(
-        nodes[n].position, (1.0, 0.0, 0.0), (0.0, 1.0, 0.0)), n) for n in "AB"}
-    harness = Harness("two", "", "test", "2.4", UNCLAMPED, nodes, segments, {"T": wire},
-                      {"W": Wire("W", "W", "T", None, ("S1", "S2"))},
-                      {"F": Fixing("F", "middle clip", "", "", "clip")}, plugs, {})
+    harness = straight_harness(
+        {"A": (0.0, 0.0, 0.0), "M": (0.6, 0.0, 0.0), "B": (1.2, 0.0, 0.0)},
+        [("S1", "A", "M", 0.625, [("F", 0.9)]), ("S2", "M", "B", 0.625, [("F", 0.1)])],
+        ["A", "B"], wire=(6e-3, 5e-3, MASS), clips={"F": "middle clip"})
     props = properties(harness)
     hanging = solve_installed(harness, props, released=["middle clip"])
     after, forces = fix(hanging, props, "middle clip")

@@ -31,6 +31,8 @@ from pliant.core.harness import CLAMPED, UNCLAMPED
 from pliant.errors import FileFormatError, InputError
 from pliant.io.kbl import read_kbl
 
+from .helpers import straight_harness
+
 KBL = Path(__file__).resolve().parents[1] / "examples" / "harness" / "kbl"
 GENERATOR = KBL / "kblxml_2.3sr-1_000971230_ltgs_generator_170718.kbl"
 MOTOR = KBL / "kblxml_2.3sr-1_000971619_ltgs_movo_170718.kbl"
@@ -343,31 +345,6 @@ def test_pliant_harness_reports_checks_and_writes_curves_in_metres(tmp_path):
 
 
 # -- the installed harness -------------------------------------------------------------
-def _straight_harness(nodes: dict[str, tuple[float, float, float]],
-                      segments: list[tuple[str, str, str, float]], held: list[str]):
-    """A harness of straight-designed segments (no centre curves) carrying one wire of
-    2 mm (1 mm2, 20 g/m), with a placed connector at each ``held`` node."""
-    from pliant.core.harness import (
-        Connector,
-        Harness,
-        HarnessNode,
-        HarnessSegment,
-        Placement,
-        Wire,
-        WireType,
-    )
-
-    wire_type = WireType("T", "T1", "test wire", 2e-3, 1e-6, 5e-3, 0.02)
-    segs = {sid: HarnessSegment(sid, sid, a, b, length, ()) for sid, a, b, length in segments}
-    connectors = {f"C{n}": Connector(f"C{n}", f"C{n}", "", "",
-                                     Placement(nodes[n], (1.0, 0.0, 0.0), (0.0, 1.0, 0.0)), n)
-                  for n in held}
-    return Harness("test", "", "test", "2.4", UNCLAMPED,
-                   {n: HarnessNode(n, n, p) for n, p in nodes.items()}, segs,
-                   {"T": wire_type}, {"W": Wire("W", "W", "T", None, tuple(segs))}, {},
-                   connectors, {})
-
-
 def test_a_junction_where_one_part_runs_through_gives_the_one_parts_answer():
     """The junction's twin: two segments joined straight, clamped at their far ends,
     against one part of their length clamped the same way (same elements)."""
@@ -375,7 +352,7 @@ def test_a_junction_where_one_part_runs_through_gives_the_one_parts_answer():
     from pliant.assembly.harness_solve import solve_installed
     from pliant.models import rod3d
 
-    harness = _straight_harness({"A": (0.0, 0.0, 0.0), "M": (0.2, 0.0, 0.0),
+    harness = straight_harness({"A": (0.0, 0.0, 0.0), "M": (0.2, 0.0, 0.0),
                                  "B": (0.4, 0.0, 0.0)},
                                 [("S1", "A", "M", 0.24), ("S2", "M", "B", 0.24)], ["A", "B"])
     props = properties(harness)
@@ -444,7 +421,7 @@ def test_a_harness_held_nowhere_is_refused_with_its_nodes():
     from pliant.assembly.harness_solve import solve_installed
     from pliant.errors import IllPosedProblemError
 
-    harness = _straight_harness({"A": (0.0, 0.0, 0.0), "B": (0.2, 0.0, 0.0)},
+    harness = straight_harness({"A": (0.0, 0.0, 0.0), "B": (0.2, 0.0, 0.0)},
                                 [("S1", "A", "B", 0.25)], [])
     with pytest.raises(IllPosedProblemError, match="held nowhere"):
         solve_installed(harness, properties(harness))
@@ -528,7 +505,7 @@ def test_a_floppy_segment_between_two_connectors_hangs_as_the_catenary():
     from pliant.assembly.harness_solve import solve_installed
 
     span, length, w = 0.5, 0.6, 0.02 * 9.81
-    harness = _straight_harness({"A": (0.0, 0.0, 0.0), "B": (span, 0.0, 0.0)},
+    harness = straight_harness({"A": (0.0, 0.0, 0.0), "B": (span, 0.0, 0.0)},
                                 [("S", "A", "B", length)], ["A", "B"])
     props = properties(harness, {"S": {"bending_stiffness": 1e-6, "mass_per_length": 0.02}})
     installed = solve_installed(harness, props)
