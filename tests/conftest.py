@@ -6,7 +6,15 @@ after."""
 
 from __future__ import annotations
 
+import signal
+
 import pytest
+
+# A suite started in the background (``cmd &`` in a shell without job control) inherits
+# Ctrl+C ignored, and so would every process a test starts: the tests that press Ctrl+C
+# on a command would wait out its budget. Ctrl+C is given back its default here.
+if signal.getsignal(signal.SIGINT) is signal.SIG_IGN:
+    signal.signal(signal.SIGINT, signal.default_int_handler)
 
 
 @pytest.fixture(scope="session", autouse=True)
