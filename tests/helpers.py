@@ -215,3 +215,24 @@ def straight_harness(nodes: dict[str, tuple[float, float, float]],
                    {n: HarnessNode(n, n, p) for n, p in nodes.items()}, segs,
                    {"T": wire_type}, {"W": Wire("W", "W", "T", None, tuple(segs))}, fixings,
                    connectors, {})
+
+
+def drawn_in_view(page, points, colour: str, step: int | None = None) -> int:
+    """How many of ``points`` (n, 3) [m] the report's 3D view (``cli.view3d``, the
+    page's first) draws in ``colour`` (within 3 px and 40 of each channel, where the
+    point projects), after showing ``step`` where given."""
+    rgb = [int(colour[i:i + 2], 16) for i in (1, 3, 5)]
+    return page.evaluate("""([points, rgb, step]) => {
+        const root = document.querySelector("figure.view3d"), view = window.pliantViews[root.id];
+        if (step !== null) view.show(step);
+        const g = root.querySelector("canvas").getContext("2d");
+        let hits = 0;
+        for (const p of points) {
+            const [x, y] = view.project(p), px = g.getImageData(Math.round(x) - 3,
+                Math.round(y) - 3, 7, 7).data;
+            for (let i = 0; i < px.length; i += 4)
+                if (px[i + 3] > 200 && Math.abs(px[i] - rgb[0]) < 40 &&
+                    Math.abs(px[i + 1] - rgb[1]) < 40 && Math.abs(px[i + 2] - rgb[2]) < 40) {
+                    hits++; break; }
+        }
+        return hits; }""", [np.asarray(points, float).tolist(), rgb, step])

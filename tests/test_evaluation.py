@@ -34,7 +34,7 @@ from pliant.errors import FileFormatError, InputError
 from pliant.io.evaluation_file import EvaluationReport, evaluation_json, write_csv
 from pliant.io.rules_file import bundled_rules, parse_rules
 
-from .helpers import cli
+from .helpers import cli, drawn_in_view
 
 RULES_TEXT = (Path(__file__).resolve().parents[1] / "src" / "pliant" / "data"
               / "rules.toml").read_text()
@@ -420,6 +420,24 @@ def test_the_report_opens_offline_in_chromium_and_shows_the_verdict(engine_bay, 
         worst, last = engine_bay.worst_step(), len(engine_bay.run.steps) - 1
         pictures = 2 + (0 < worst < last)  # start, last, and the worst when it is neither
         assert page.locator("svg").count() >= 3 and page.locator("img").count() == pictures
+        # The 3D view: its data is the answer's (to 0.1 mm) and it draws the part where
+        # the part projects, at the worst step, at another one, and turned.
+        data = json.loads(page.inner_text("figure.view3d script[type='application/json']"))
+        assert len(data["steps"]) == last + 1 and data["start"] == worst
+        for k in (0, worst, last):
+            eq = engine_bay.run.equilibria[k]
+            drawn = np.array(data["steps"][k][0]["p"]).reshape(-1, 3)
+            assert np.abs(drawn - eq.position[np.linspace(0, len(eq.s) - 1, len(drawn))
+                                              .round().astype(int)]).max() <= 0.6e-4
+        blue = "#1f4e9c"
+        for k in (worst, 0):
+            along = engine_bay.run.equilibria[k].position[::6]
+            assert drawn_in_view(page, along, blue, k) >= 0.7 * len(along)
+        away = engine_bay.run.equilibria[last].position[::6] + [0.4, 0.0, 0.0]
+        assert drawn_in_view(page, away, blue, last) <= 0.1 * len(away)  # nothing there
+        page.evaluate("() => Object.values(window.pliantViews)[0].turn(1.2, -0.3)")
+        along = engine_bay.run.equilibria[last].position[::6]
+        assert drawn_in_view(page, along, blue, last) >= 0.7 * len(along)
         browser.close()
 
 

@@ -955,7 +955,8 @@ def _judge_harness(console: Any, model: Any, table: Any, solve: bool, clip_order
     if report is not None:
         from pliant.cli.harness_html import write_html  # noqa: PLC0415
 
-        console.print(f"report: {write_html(model, props, checks, installed, report, order)}")
+        written = write_html(model, props, checks, installed, report, order, obstacles)
+        console.print(f"report: {written}")
     return props, checks, installed, order
 
 

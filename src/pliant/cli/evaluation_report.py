@@ -250,6 +250,41 @@ def pictures(ev: Any, steps: list[tuple[str, int]]) -> list[tuple[str, str]]:
     return out
 
 
+def view(ev: Any) -> str:
+    """The interactive 3D view (``cli.view3d``): the obstacles, and at each step the part,
+    its grips, each hand's envelope and the worker, from the worst step."""
+    from pliant.cli import view3d  # noqa: PLC0415
+
+    eq0 = ev.run.equilibria[0]
+    shown = ev.bodies
+    steps, labels = [], []
+    for k, eq in enumerate(ev.run.equilibria):
+        items = [view3d.line(eq.position, "#1f4e9c", 4.0, name="part")]
+        for g in ev.grips:
+            load = eq.loads[g]
+            items.append(view3d.point(eq.position[int(np.argmin(np.abs(eq.s - load.s)))],
+                                      COLOURS["red"], g))
+        if shown is not None:
+            for g, at in shown.access.items():
+                a = at[k]
+                check = next((c for c in shown.checks
+                              if c.rule == "access: hand" and c.grip == g), None)
+                zone = ("red" if check is not None and k in check.red_steps else
+                        "yellow" if check is not None and k in check.yellow_steps else "green")
+                centre = np.asarray(a.centre)
+                items.append(view3d.line([centre, centre + a.reach * np.asarray(a.approach)],
+                                         COLOURS[zone], 7.0, name=f"{g}: hand"))
+            for r in shown.reach.values():
+                items.append(view3d.line(np.array(r[k].chain), "#5b3a87", 2.5, name="worker"))
+        steps.append(items)
+        labels.append(f"step {k} of {len(ev.run.equilibria) - 1}")
+    return view3d.html_view(meshes=view3d.obstacle_meshes(eq0.problem.obstacles),
+                            steps=steps, labels=labels, start=ev.worst_step(),
+                            caption="The part at each step (blue), its grips (red), the "
+                            "hands' envelopes in their access zone's colour and the worker "
+                            "(purple); the slider picks the step, from the worst.")
+
+
 def _draw_body(ax, op: Any, k: int) -> None:
     """The hands' envelopes at step k (the ring round the part, the forearm out along
     the best approach, coloured by the access check's zone there) and the worker's
@@ -370,7 +405,9 @@ def render_html(ev: Any) -> str:
     parts.append("<h2>Along the path</h2><div class=figs>")
     for title, svg in figures(ev):
         parts.append(f"<h3 style='font-size:14px;margin:10px 0 0'>{e(title)}</h3>{svg}")
-    parts.append("</div><h2>Poses</h2><div class=poses>")
+    parts.append("</div><h2>Poses</h2>")
+    parts.append(view(ev))
+    parts.append("<div class=poses>")
     for caption, url in pictures(ev, poses):
         parts.append(f"<figure><img alt='{e(caption)}' src='{url}'><figcaption>{e(caption)}"
                      "</figcaption></figure>")

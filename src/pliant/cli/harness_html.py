@@ -61,10 +61,39 @@ def views(harness: Harness, design: Mapping[str, np.ndarray], installed,
     return inline_svg(fig, plt)
 
 
+def view(harness: Harness, design: Mapping[str, np.ndarray], installed, checks: Sequence,
+         obstacles: Sequence = ()) -> str:
+    """The interactive 3D view (``cli.view3d``): the scene's obstacles, each segment's
+    designed curve (grey, dashed) and its installed one in its worst check's colour (the
+    flagged designed ones where not solved), the placed connectors and the fixings."""
+    from pliant.cli import view3d  # noqa: PLC0415
+
+    worst = worst_zones(checks)
+    lines = []
+    for seg_id, pts in design.items():
+        name = seg_id  # as the checks name it
+        lines.append(view3d.line(pts, "#999999", 1.0, dashed=True, name=f"{name} (design)"))
+        zone = worst.get(f"segment {seg_id}", Zone.GREEN)
+        colour = COLOURS.get(zone.value, "#1b7f3b")
+        if installed is not None:
+            lines.append(view3d.line(installed.segments[seg_id].equilibrium.position,
+                                     colour, 2.5, name=name))
+        elif zone.rank >= Zone.YELLOW.rank:
+            lines.append(view3d.line(pts, colour, 2.5, name=name))
+    points = [view3d.point(harness.nodes[c.node].position, "#3d5a80", c.name)
+              for c in harness.connectors.values()
+              if c.placement and c.node and c.node in harness.nodes]
+    return view3d.html_view(meshes=view3d.obstacle_meshes(obstacles), lines=lines,
+                            points=points, caption="Dashed: the design. Solid: "
+                            + ("the installed harness" if installed is not None
+                               else "segments flagged by a check")
+                            + ", coloured by its worst check. Squares: placed connectors.")
+
+
 def render_html(harness: Harness, props: Mapping, checks: Sequence, installed=None,
-                clip_order=None) -> str:
+                clip_order=None, obstacles: Sequence = ()) -> str:
     """The report as one HTML document (with the clip order, ``assembly.clip_order``'s
-    answer, where one was searched)."""
+    answer, where one was searched, and the scene's ``obstacles`` in its 3D view)."""
     from pliant import __version__  # noqa: PLC0415
     from pliant.assembly.harness import centre_curve  # noqa: PLC0415
 
@@ -98,6 +127,7 @@ def render_html(harness: Harness, props: Mapping, checks: Sequence, installed=No
                  + ("the installed harness" if installed is not None
                     else "segments flagged by a check")
                  + ", coloured by its worst check. Squares: placed connectors.</p>")
+    parts.append(view(harness, design, installed, checks, obstacles))
     parts.append(views(harness, design, installed, checks))
     parts.append("<h2>Checks, worst first</h2><table><tr><th>zone</th><th>where</th>"
                  "<th>what</th><th>finding</th><th>source</th></tr>")
@@ -180,6 +210,6 @@ def _clip_order_html(result) -> str:
 
 
 def write_html(harness: Harness, props: Mapping, checks: Sequence, installed,
-               path: str | Path, clip_order=None) -> Path:
-    text = render_html(harness, props, checks, installed, clip_order).encode()
+               path: str | Path, clip_order=None, obstacles: Sequence = ()) -> Path:
+    text = render_html(harness, props, checks, installed, clip_order, obstacles).encode()
     return atomic_write(path, lambda h: h.write(text), "the report")
