@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import json
 import math
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -229,13 +230,61 @@ def test_a_scene_with_two_harnesses_judges_each_and_writes_each_its_files(tmp_pa
     assert done.returncode == max(codes) == 1
 
 
+def test_a_clip_right_at_a_junction_holds_the_node_installed_moved_and_fixed():
+    """A fixing assigned to two segments at the node where they meet (a third branch
+    leaves it) holds the node, as a connector would: grips a hair inside each segment
+    would pin the free junction from both sides. Three spans clamped level at both ends,
+    each symmetric: the clip carries half of each one's weight (closed form) and nothing
+    along the two in line. Moved, the node goes with it; released and fixed again, the
+    hand's force goes from nothing (the node taken where it hangs) to that load, and the
+    harness ends as installed. A place within 1 mm of the node is at the node. (S1 and
+    S2 start from their designs, straight and 5 mm shorter: pushed straight between
+    their ends, unstable; each is settled to its sag, a stable shape.)"""
+    from pliant.assembly.harness_solve import Network, fix, solve_installed
+
+    lengths = {"S1": 0.605, "S2": 0.605, "S3": 0.52}
+    harness = straight_harness(
+        {"A": (0.0, 0.0, 0.0), "M": (0.6, 0.0, 0.0), "B": (1.2, 0.0, 0.0),
+         "C": (0.6, 0.5, 0.0)},
+        [("S1", "A", "M", lengths["S1"], [("F", 1.0)]),
+         ("S2", "M", "B", lengths["S2"], [("F", 0.0)]), ("S3", "M", "C", lengths["S3"])],
+        ["A", "B", "C"], wire=(6e-3, 5e-3, MASS), clips={"F": "node clip"})
+    s1, place = harness.segments["S1"], harness.segments["S1"].fixings[0]
+    assert Network.node_of(s1, place) == "M"
+    assert Network.node_of(s1, replace(place, location=1.0 - 0.9e-3 / 0.605)) == "M"
+    assert Network.node_of(s1, replace(place, location=1.0 - 1.1e-3 / 0.605)) is None
+    props = properties(harness)
+    installed = solve_installed(harness, props)
+    force = installed.held["fixing node clip"][0]
+    halves = 0.5 * installed.weight  # (the segments' own mass per length: properties)
+    assert not installed.junctions  # the node is held, not balanced
+    assert {seg.equilibrium.verdict for seg in installed.segments.values()} == {"stable"}
+    assert min(installed.segments["S1"].equilibrium.position[:, 2]) < -0.02
+    # (to the mirror images' meshes: each segment's mark of the clip is a station)
+    assert force[0] == pytest.approx(0.0, abs=1e-5 * halves)
+    assert force[2] == pytest.approx(-halves, rel=1e-5)
+    moved = solve_installed(harness, props, moved={"node clip": (0.0, 0.0, 0.005)},
+                            warm=installed)
+    for seg, k in (("S1", -1), ("S2", 0), ("S3", 0)):
+        assert moved.segments[seg].equilibrium.position[k] == pytest.approx(
+            [0.6, 0.0, 0.005], abs=1e-9)
+    hanging = solve_installed(harness, props, released=["node clip"])
+    assert hanging.junctions["M"][2] < -0.02  # it hangs below its clip
+    after, forces = fix(hanging, props, "node clip")
+    assert forces[0] < 1e-6 * installed.weight
+    assert forces[-1] == pytest.approx(float(np.linalg.norm(force)), rel=1e-6)
+    for seg in lengths:
+        assert np.abs(after.segments[seg].equilibrium.position
+                      - installed.segments[seg].equilibrium.position).max() < 1e-8
+
+
 def test_a_clip_holding_two_segments_at_a_node_takes_both_their_loads():
     """A fixing assigned to both segments that meet at a junction, a little way along each
     (KBL allows it: the main harness has 16 assignments for 14 fixings; a duct holding
     both): the hand carries the two segments' loads together, so its last force is the
     load the installed harness puts on the fixing (both assignments summed), and it starts
-    at nothing (each segment taken where it hangs). (A fixing on both sides right at the
-    junction over-constrains it: the installed harness itself is not solved then.)"""
+    at nothing (each segment taken where it hangs). (Right at the junction, it holds the
+    node: the test before.)"""
     from pliant.assembly.harness_solve import fix, solve_installed
 
     harness = straight_harness(
@@ -252,3 +301,34 @@ def test_a_clip_holding_two_segments_at_a_node_takes_both_their_loads():
     assert forces[-1] == pytest.approx(load, rel=1e-5)
     assert np.abs(after.held["fixing middle clip"][0]
                   - installed.held["fixing middle clip"][0]).max() < 1e-6 * installed.weight
+
+
+def test_a_segment_left_unstable_is_said_and_the_verdict_does_not_rest_on_it(monkeypatch):
+    """Where an unstable segment is not settled (the settling switched off here), the
+    installed harness says so in its notes and in an unchecked stability check per
+    segment, and the harness's verdict is undecided (exit status 1), not green."""
+    import io
+
+    from rich.console import Console
+
+    import pliant.assembly.harness_solve as harness_solve
+    from pliant.cli.app import _harness_verdict
+
+    harness = straight_harness(  # straight designs 5 mm shorter: pushed straight
+        {"A": (0.0, 0.0, 0.0), "B": (0.6, 0.0, 0.0)}, [("S1", "A", "B", 0.605)], ["A", "B"],
+        wire=(6e-3, 5e-3, MASS))
+    props = properties(harness)
+    monkeypatch.setattr(harness_solve, "_settle_unstable", lambda net: [])
+    installed = harness_solve.solve_installed(harness, props)
+    assert installed.segments["S1"].equilibrium.verdict == "unstable"
+    assert any("unstable as installed" in n and "S1" in n for n in installed.notes)
+    checks = harness_solve.installed_checks(installed)
+    (stability,) = [c for c in checks if c.what == "stability"]
+    assert stability.zone.value == "unchecked" and stability.value < 0.0
+    out = io.StringIO()
+    assert _harness_verdict(Console(file=out, width=200), checks, installed, None, "") is False
+    assert "undecided" in out.getvalue() and "exit status 1" in out.getvalue()
+    monkeypatch.undo()
+    settled = harness_solve.solve_installed(harness, props)
+    assert settled.segments["S1"].equilibrium.verdict == "stable" and not settled.notes
+    assert not [c for c in harness_solve.installed_checks(settled) if c.what == "stability"]

@@ -44,7 +44,9 @@ STEP_POSITION = 1e-6  # the twin Jacobian's differences, by the mean segment len
 STEP_ROTATION = 1e-6  # rad
 TOLERANCE = 1e-7  # the junctions' balance, by the weight (and weight x length) of all
 MAX_ITERATIONS = 200
+SETTLE_ROUNDS = 3  # unstable segments settled and the junctions balanced again
 DESIGN_LENGTH = 0.01  # a design curve this far from its segment's length is no start
+AT_NODE = 1e-3  # m: a fixing this near a segment's end holds the node there
 GRAVITY = (0.0, 0.0, -9.81)
 
 
@@ -121,6 +123,13 @@ def _rotation(v: np.ndarray) -> np.ndarray:
     return np.eye(3) + math.sin(angle) * K + (1.0 - math.cos(angle)) * K @ K
 
 
+def _log(rotation: np.ndarray) -> np.ndarray:
+    """The rotation vector of a rotation matrix (``_rotation``'s inverse)."""
+    from scipy.spatial.transform import Rotation  # noqa: PLC0415
+
+    return np.asarray(Rotation.from_matrix(rotation).as_rotvec())
+
+
 def _end_frames(points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Design frames (d1, d2, d3 as columns) at a curve's two ends: d3 along it, d1
     carried by rotation-minimising (parallel) transport, no twist along the design."""
@@ -166,6 +175,18 @@ class Network:
         self.gravity = gravity
         self.notes: list[str] = []
         held = {c.node for c in harness.connectors.values() if c.placement is not None and c.node}
+        # A fixing at a segment's end holds the node itself (its place and the design's
+        # frames there, as a connector does): grips a hair inside the segments beside a
+        # free junction would pin it from both sides, an ill-posed balance.
+        self.at_fixing: dict[str, str] = {}  # node -> the fixing holding it
+        self.node_approach: dict[str, tuple[np.ndarray, np.ndarray]] = {}  # see ``fix``
+        for seg in harness.segments.values():
+            for place in seg.fixings:
+                node = self.node_of(seg, place)
+                if node is not None and node not in held and self._fixed(place):
+                    self.at_fixing[node] = harness.fixings[place.fixing].name
+        self.connected = frozenset(held)  # the nodes a placed connector holds
+        held |= set(self.at_fixing)
         self.design: dict[str, np.ndarray] = {}
         ends: dict[str, list[_End]] = {}
         self.frames: dict[tuple[str, int], np.ndarray] = {}
@@ -246,6 +267,14 @@ class Network:
                     "placed connector and no fixing (place a connector in the design, or "
                     "hold it with a fixing)")
 
+    @staticmethod
+    def node_of(seg: HarnessSegment, place) -> str | None:
+        """The node a fixing place sits at (within ``AT_NODE`` of the segment's end), or
+        None where it is inside the segment."""
+        s = place.location * seg.virtual_length
+        return (seg.start if s <= AT_NODE else
+                seg.end if s >= seg.virtual_length - AT_NODE else None)
+
     def _fixed(self, place) -> bool:
         """Whether the fixing at ``place`` holds the harness (not one of ``released``)."""
         return self.harness.fixings[place.fixing].name not in self.released
@@ -258,6 +287,14 @@ class Network:
         if node in self.held:
             frame = self.frames[(seg.id, end)]
             position = np.array(self.harness.nodes[node].position)
+            if node in self.at_fixing:
+                fixing = self.at_fixing[node]
+                position = position + np.asarray(self.moved.get(fixing, (0.0, 0.0, 0.0)),
+                                                 float)
+                if node in self.node_approach:  # carried from where it hung (``fix``)
+                    hung, turned = self.node_approach[node]
+                    position = (1.0 - self.along) * hung + self.along * position
+                    frame = _rotation((1.0 - self.along) * _log(turned)) @ frame
         elif node in self.at_node:
             j = self.junctions[self.at_node[node]]
             frame = j.rotation @ self.frames[(seg.id, end)]
@@ -279,9 +316,10 @@ class Network:
             s = place.location * seg.virtual_length
             if s <= 1e-9 * seg.virtual_length or s >= (1 - 1e-9) * seg.virtual_length:
                 s = min(max(s, 1e-3 * seg.virtual_length), (1 - 1e-3) * seg.virtual_length)
-            if not self._fixed(place):
+            if not self._fixed(place) or self.node_of(seg, place) is not None:
                 # Its mark stays a station of the rod (a load of nothing), so that fixing
-                # it later keeps the mesh: the shape carries over as it is.
+                # it later keeps the mesh: the shape carries over as it is. (At a node
+                # the fixing holds the node: the segment's end condition.)
                 conditions.append(self.pl.push(s, force=(0.0, 0.0, 0.0),
                                                name=f"mark {fixing.name}"))
                 continue
@@ -504,8 +542,36 @@ def solve_installed(harness: Harness, props: Mapping[str, SegmentProperties], *,
             step=1.0)
     else:
         iterations, r, jac = _balance(net, None)
+        for _ in range(SETTLE_ROUNDS):
+            if not _settle_unstable(net):
+                break
+            more, r, jac = _balance(net, None)
+            iterations += more
     return _installed(harness, net, iterations, float(np.abs(r).max(initial=0.0)), jac,
                       margin)
+
+
+def _settle_unstable(net: Network) -> list[str]:
+    """Each segment whose answer is unstable with its ends held where they are (then so
+    is the harness, whose junctions hold them less) left along its unstable mode for the
+    stable shape it settles in (``rod3d``'s settle); the ids of those that were. A
+    cold start can end there: a design shorter than its segment, straight, gives the
+    segment pushed straight between its ends."""
+    from pliant.models import rod3d  # noqa: PLC0415
+
+    settled = []
+    for seg_id, eq in net.eqs.items():
+        if eq.verdict != "unstable":
+            continue
+        solver = rod3d.RodSolver(elements=_elements(eq.problem.part.length), settle=True)
+        try:
+            stable = rod3d.solve(net.problem(seg_id), solver=solver, warm_start=eq)
+        except PliantError:
+            continue
+        if stable.verdict != "unstable":
+            net.eqs[seg_id] = stable
+            settled.append(seg_id)
+    return settled
 
 
 def fix(before: Installed, props: Mapping[str, SegmentProperties], fixing: str, *,
@@ -534,7 +600,17 @@ def fix(before: Installed, props: Mapping[str, SegmentProperties], fixing: str, 
                 if any(p.fixing == fid for p in seg.fixings)]
     if not carrying:  # placed on no segment: it holds nothing
         return replace(before, released=net.released), [0.0]
-    for seg_id in carrying:  # (a clip may hold two segments, at a node between them)
+    at = next((n for n, name in net.at_fixing.items() if name == fixing), None)
+    if at is not None:  # it holds a node: every segment there loads it
+        carrying = sorted({seg_id for seg_id, seg in harness.segments.items()
+                           if at in (seg.start, seg.end)})
+        seg_id = carrying[0]
+        eq = before.segments[seg_id].equilibrium
+        end = 0 if harness.segments[seg_id].start == at else 1
+        # Where the node hung, and its turn from the design's frames there.
+        net.node_approach[at] = (np.array(eq.position[-end]),
+                                 eq.frames[-end] @ net.frames[(seg_id, end)].T)
+    for seg_id in carrying if at is None else ():  # (a clip may hold two segments)
         eq = before.segments[seg_id].equilibrium
         place = next(p for p in harness.segments[seg_id].fixings if p.fixing == fid)
         s = min(max(place.location * eq.problem.part.length, 1e-3 * eq.problem.part.length),
@@ -562,12 +638,15 @@ def fix(before: Installed, props: Mapping[str, SegmentProperties], fixing: str, 
         net.along = t
 
     def felt() -> None:  # the force on the hand: the clip's load from every segment it holds
-        held = [net.eqs[seg].reactions.get(f"fixing {fixing}") for seg in carrying]
+        names = ([f"fixing {fixing}"] if at is None else
+                 [f"start {harness.nodes[at].name}", f"end {harness.nodes[at].name}"])
+        held = [net.eqs[seg].reactions.get(name) for seg in carrying for name in names]
         forces.append(float(np.linalg.norm(sum(np.asarray(h.force) for h in held
                                                if h is not None))))
 
     # Only the clip's segments' problems change between two balances.
-    iterations, r, jac = _stepped(net, before.jacobian, to, lambda: {
+    same = {j.node for j in net.junctions} == set(before.junctions)
+    iterations, r, jac = _stepped(net, before.jacobian if same else None, to, lambda: {
         seg: follow(seg) for seg in carrying}, step=1.0 / steps, from_start=True,
         after=felt)
     return _installed(harness, net, iterations, float(np.abs(r).max(initial=0.0)), jac,
@@ -755,15 +834,27 @@ def _installed(harness: Harness, net: Network, iterations: int, balance: float,
             seg_id, eq, float(np.linalg.norm(offset, axis=1).max()),
             float(max(0.0, (offset @ down).max())), float(radius),
             eq.problem.part.min_bend_radius, report)
+        seg = harness.segments[seg_id]
         for name, load in eq.reactions.items():
-            node_name = name.split(" ", 1)[1] if name.startswith(("start ", "end ")) else ""
-            if name.startswith("fixing ") or any(
-                    harness.nodes[n].name == node_name for n in net.held):
-                key = name if name.startswith("fixing ") else f"connector at {node_name}"
-                f, m = held.get(key, (np.zeros(3), np.zeros(3)))
-                # The load on the connector or fixing: the opposite of what it applies.
-                held[key] = (f - np.asarray(load.force), m - np.asarray(load.moment))
+            node = (seg.start if name.startswith("start ") else
+                    seg.end if name.startswith("end ") else None)
+            if node in net.at_fixing:
+                key = f"fixing {net.at_fixing[node]}"
+            elif node in net.connected:
+                key = f"connector at {harness.nodes[node].name}"
+            elif name.startswith("fixing "):
+                key = name
+            else:
+                continue
+            f, m = held.get(key, (np.zeros(3), np.zeros(3)))
+            # The load on the connector or fixing: the opposite of what it applies.
+            held[key] = (f - np.asarray(load.force), m - np.asarray(load.moment))
     notes = []
+    unstable = sorted(seg_id for seg_id, eq in net.eqs.items() if eq.verdict == "unstable")
+    if unstable:
+        notes.append(f"{len(unstable)} segment(s) unstable as installed (the harness would "
+                     f"snap to another shape; their checks are unchecked): "
+                     + ", ".join(unstable[:6]) + (" ..." if len(unstable) > 6 else ""))
     if net.free:
         notes.append(f"{len(net.free)} segment end(s) hang free: no placed connector at "
                      + ", ".join(sorted(harness.nodes[n].name for n in net.free)[:6])
@@ -800,6 +891,12 @@ def installed_checks(installed: Installed, rules=None) -> list:
                                    f"{seg.bend_limit * 1e3:.1f} mm",
                                    rules.bend_margin_sourced.source, name=name))
         eq = seg.equilibrium
+        if eq.verdict == "unstable":
+            _, eigen = eq.stability
+            out.append(DesignCheck(where, "stability", eigen, 0.0, Zone.UNCHECKED,
+                                   f"its installed shape is unstable (smallest eigenvalue "
+                                   f"{eigen:.3g} N m): it would snap to another, so this "
+                                   "segment's other checks do not hold", name=name))
         chord = float(np.linalg.norm(eq.position[-1] - eq.position[0]))
         ends_held = sum(1 for c in eq.problem.conditions if c.s in (0.0, eq.problem.part.length))
         if ends_held == 2 and chord >= 0.999 * eq.problem.part.length:

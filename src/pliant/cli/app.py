@@ -970,14 +970,23 @@ def _harness_verdict(console: Any, checks: list, installed: Any, order: Any,
         console.print(f"{who}verdict: [bold red]red[/]: no order of the fixings passes (exit "
                       "status 1)")
         return False
+    unchecked = sum(c.zone.value == "unchecked" for c in checks)
+    unstable = sum(c.zone.value == "unchecked" and c.what == "stability" for c in checks)
+    also = f"; {unchecked} unchecked" if unchecked else ""
     if reds:
         console.print(f"{who}verdict: [bold red]red[/] ({what}): {reds} red and {yellows} "
-                      "yellow checks (exit status 1)")
+                      f"yellow checks{also} (exit status 1)")
+    elif unstable:  # its checks rest on a shape the harness would not keep
+        console.print(f"{who}verdict: [bold]undecided[/] ({what}): {unstable} segment(s) "
+                      "unstable as installed, their checks do not hold (exit status 1)")
+        return False
     elif yellows:
         console.print(f"{who}verdict: [yellow]yellow[/] ({what}): no red check, {yellows} "
-                      "yellow")
+                      f"yellow{also}")
     else:
-        console.print(f"{who}verdict: [green]green[/] ({what}): every check is green")
+        console.print(f"{who}verdict: [green]green[/] ({what}): no red or yellow check"
+                      + (f", {unchecked} unchecked (see the checks)" if unchecked
+                         else ": every check is green"))
     return not reds
 
 

@@ -122,6 +122,9 @@ def render_html(harness: Harness, props: Mapping, checks: Sequence, installed=No
                      f"balanced to {installed.balance:.1e} of the weight "
                      f"({installed.weight:.2f} N) in {installed.iterations} Newton "
                      "iterations.</p>")
+        if installed.notes:
+            parts.append("<ul>" + "".join(f"<li>{e(x)}</li>" for x in installed.notes)
+                         + "</ul>")
     design = {k: centre_curve(harness, k) for k in harness.segments}
     parts.append("<h2>Views</h2><p>Dashed: the design. Solid: "
                  + ("the installed harness" if installed is not None
