@@ -4,6 +4,8 @@ solve does not block."""
 
 from __future__ import annotations
 
+import time
+
 import numpy as np
 import pytest
 
@@ -219,6 +221,39 @@ def test_a_worker_that_dies_is_started_again_and_the_pose_solved():
     assert time.monotonic() - started < 5.0
     with pytest.raises(ProcessLookupError):
         os.kill(worker, 0)  # gone (and reaped)
+
+
+def test_a_worker_stopped_mid_solve_is_replaced_and_the_pose_solved(monkeypatch):
+    """A worker stopped while it solves (SIGSTOP, Ctrl+Z on it, a debugger) answers
+    nothing and never dies: after ``STOPPED_GRACE`` the watchdog kills it, a new one
+    takes the request, and the answer is the inline solver's. A stopped worker with
+    nothing to do is left alone."""
+    import os
+    import signal
+
+    from pliant.session import accurate
+    from pliant.session.accurate import AccurateSolver, ProcessExecutor, stopped
+
+    monkeypatch.setattr(accurate, "STOPPED_GRACE", 1.0)  # (3 s in use)
+    executor = ProcessExecutor(elements=30)
+    try:
+        idle = executor.pid
+        os.kill(idle, signal.SIGSTOP)
+        time.sleep(2.5)
+        assert stopped(idle) and executor.pid == idle and executor.stopped_replaced == 0
+        os.kill(idle, signal.SIGCONT)
+        executor.submit(1, PROBLEM_3D)
+        os.kill(idle, signal.SIGSTOP)
+        result = executor.wait(timeout=240)
+        assert result is not None and result.ok and result.index == 1
+        assert executor.stopped_replaced == 1 and executor.restarts == 1
+        assert executor.pid != idle and not stopped(executor.pid)
+        here = AccurateSolver(elements=30).solve(1, PROBLEM_3D)
+        assert np.allclose(result.position, here.position, atol=1e-9)
+    finally:
+        executor.close()
+    with pytest.raises(ProcessLookupError):
+        os.kill(idle, 0)  # killed and reaped
 
 
 def test_a_recording_of_a_scene_keeps_its_obstacles(tmp_path):

@@ -248,15 +248,32 @@ class InlineExecutor:
         pass
 
 
+STOPPED_GRACE = 3.0  # s a worker may stay stopped mid-solve before it is replaced
+
+
+def stopped(pid: int) -> bool:
+    """Whether a process is stopped (SIGSTOP, Ctrl+Z, a debugger: state T or t in
+    /proc); where there is no /proc, never."""
+    try:
+        with open(f"/proc/{pid}/stat", encoding="ascii") as f:
+            stat = f.read()
+    except OSError:
+        return False
+    return stat.rsplit(")", 1)[-1].split()[:1] in (["T"], ["t"])
+
+
 class ProcessExecutor:
     """Runs solves in one worker process (``python -m pliant.session.worker``), one at a
     time; ``poll`` never waits. Messages are length-prefixed pickles over the worker's
     stdin and stdout; a reader thread (blocked in I/O, so it holds no lock the frame loop
     needs) queues the answers. A plain subprocess rather than multiprocessing: a user's
-    script needs no ``if __name__ == "__main__"`` guard, on any platform."""
+    script needs no ``if __name__ == "__main__"`` guard, on any platform. A worker that
+    dies, or stays stopped mid-solve for ``STOPPED_GRACE`` (a watchdog thread looks
+    twice a second), is replaced and the request in flight sent to the new one once."""
 
     def __init__(self, elements: int | None = None) -> None:
         import queue  # noqa: PLC0415
+        import threading  # noqa: PLC0415
 
         self.elements = elements
         self._answers: queue.Queue = queue.Queue()
@@ -268,7 +285,26 @@ class ProcessExecutor:
         # Called (from the reader thread) as each answer arrives, so that a server can
         # push it to its page at once instead of polling; it must not block.
         self.on_answer: Callable[[], None] | None = None
+        self.stopped_replaced = 0  # workers killed for staying stopped mid-solve
+        self._closing = threading.Event()
         self._start()
+        threading.Thread(target=self._watch, daemon=True, name="pliant-accurate-watch").start()
+
+    def _watch(self) -> None:
+        """Kill a worker that stays stopped while it has a request (its reader then sees
+        its pipe end, and ``_take`` starts another and sends the request again)."""
+        since: tuple[Any, float] | None = None
+        while not self._closing.wait(0.5):
+            process = self._process
+            if not (self._busy and stopped(process.pid)):
+                since = None
+                continue
+            if since is None or since[0] is not process:
+                since = (process, time.monotonic())
+            elif time.monotonic() - since[1] >= STOPPED_GRACE:
+                self.stopped_replaced += 1
+                process.kill()
+                since = None
 
     def _start(self) -> None:
         """A worker process and the thread that reads its answers."""
@@ -389,6 +425,7 @@ class ProcessExecutor:
     def close(self) -> None:
         """Stop the worker: at once when it is solving (a tab closed mid-solve must not
         leave it running on), else by the stop message."""
+        self._closing.set()
         process = self._process
         if self._busy:
             process.kill()
