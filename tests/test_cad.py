@@ -283,3 +283,63 @@ def test_a_cad_tables_packaging_rule_reaches_each_of_its_solids(tmp_path):
     rule = built.obstacle_rules["from cad/plate"]
     assert rule.temperature == 300.0 and rule.edge and not rule.moving
     assert "from mesh" not in built.obstacle_rules
+
+
+_CHILDREN = """
+import os, signal, sys, threading, time
+from pathlib import Path
+from pliant.errors import FileFormatError
+from pliant.io.cad import read_assembly
+
+def children():
+    pid = os.getpid()
+    return [int(c) for c in Path(f"/proc/{pid}/task/{pid}/children").read_text().split()]
+
+def killer(sig):
+    while True:
+        found = children()
+        if found:  # at once: it cannot have read the file yet
+            os.kill(found[0], sig)
+            return
+        time.sleep(0.005)
+"""
+
+
+@pytest.mark.skipif(not Path("/proc/self/task").is_dir(), reason="reads /proc")
+def test_opencascade_crashing_or_ctrl_c_ends_only_its_own_process():
+    """OpenCASCADE reads a STEP file in a process of its own: where it crashes (killed
+    here with SIGSEGV as it reads), the read is a typed error naming the signal and
+    the file; a Ctrl+C while it reads raises KeyboardInterrupt in pliant at once, with
+    the reader killed and reaped (no process left), not a crash."""
+    import subprocess
+    import sys
+
+    crash = _CHILDREN + f"""
+threading.Thread(target=killer, args=(signal.SIGSEGV,), daemon=True).start()
+try:
+    read_assembly(Path({str(STEP)!r}), tolerance=2e-4)
+except FileFormatError as err:
+    print("typed:", err)
+print("left:", children())
+"""
+    out = subprocess.run([sys.executable, "-c", crash], capture_output=True, text=True,
+                         timeout=120)
+    assert out.returncode == 0, out.stderr
+    assert "typed:" in out.stdout and "signal 11" in out.stdout
+    assert "bracket_assembly.step" in out.stdout and "left: []" in out.stdout
+    interrupt = _CHILDREN + f"""
+def press():
+    while not children():
+        time.sleep(0.005)
+    os.kill(os.getpid(), signal.SIGINT)  # at once: it cannot have read the file yet
+threading.Thread(target=press, daemon=True).start()
+try:
+    read_assembly(Path({str(STEP)!r}), tolerance=3e-4)
+    print("finished first")
+except KeyboardInterrupt:
+    print("interrupted; left:", children())
+"""
+    out = subprocess.run([sys.executable, "-c", interrupt], capture_output=True, text=True,
+                         timeout=120)
+    assert out.returncode == 0, out.stderr
+    assert "interrupted; left: []" in out.stdout, out.stdout

@@ -9,12 +9,11 @@ triangles; the contact's accuracy is no better than it.
 
 from __future__ import annotations
 
-import contextlib
 import fnmatch
-import os
+import functools
 import re
 import tempfile
-from collections.abc import Iterator, Sequence
+from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -51,28 +50,6 @@ def unit_scale(units: str, field: str = "units") -> float:
     return UNITS[key]
 
 
-@contextlib.contextmanager
-def _captured_output() -> Iterator[list[str]]:
-    """OpenCASCADE writes its messages to the process's stdout and stderr: keep them out
-    of the user's terminal, and hand them back (to explain a failure)."""
-    lines: list[str] = []
-    with tempfile.TemporaryFile(mode="w+b") as sink:
-        saved = [os.dup(1), os.dup(2)]
-        try:
-            os.dup2(sink.fileno(), 1)
-            os.dup2(sink.fileno(), 2)
-            yield lines
-        finally:
-            os.dup2(saved[0], 1)
-            os.dup2(saved[1], 2)
-            for fd in saved:
-                os.close(fd)
-            sink.seek(0)
-            text = sink.read().decode("utf-8", "replace")
-            lines.extend(re.sub(r"\x1b\[[0-9;]*m", "", line).strip()
-                         for line in text.splitlines() if line.strip())
-
-
 def read_assembly(path: Path, *, units: str | None = None, tolerance: float = TOLERANCE,
                   keep: Sequence[str] = (), drop: Sequence[str] = ()) -> list[Solid]:
     """The solids of a CAD file, placed and in metres, filtered by name patterns (``keep``:
@@ -97,22 +74,17 @@ def read_assembly(path: Path, *, units: str | None = None, tolerance: float = TO
         raise InputError("tolerance", f"must be a positive length in m, got {tolerance!r}")
     # OpenCASCADE works in mm.
     options: dict[str, Any] = {"tol_linear": tolerance * 1e3} if step else {}
-    messages: list[str] = []
-    try:
-        if step:
-            with _captured_output() as messages:
-                scene = trimesh.load(path, file_type="step", **options)
-        else:
+    if step:
+        solids = list(_read_step(path, options["tol_linear"]))
+    else:
+        try:
             scene = trimesh.load(path, force="scene")
-    except Exception as err:  # trimesh and cascadio raise many kinds on a bad file
-        said = next((m for m in messages if "ERR" in m or "rror" in m), "")
-        raise FileFormatError(
-            f"{path}: not a CAD file pliant can read"
-            f"{' (' + said + ')' if said else ''}"
-            f"{'' if step else f': {err}'}; export it again as STEP (AP203, AP214 or "
-            "AP242), or as glTF") from None
-    solids = [s if s.name != path.name else Solid(path.stem, s.vertices, s.faces)
-              for s in _solids(scene, scale)]  # a mesh file's one solid: its file's stem
+        except Exception as err:  # trimesh raises many kinds on a bad file
+            raise FileFormatError(
+                f"{path}: not a CAD file pliant can read: {err}; export it again as STEP "
+                "(AP203, AP214 or AP242), or as glTF") from None
+        solids = [s if s.name != path.name else Solid(path.stem, s.vertices, s.faces)
+                  for s in placed_solids(scene, scale)]  # a mesh file's one solid: its stem
     if not solids:
         raise FileFormatError(f"{path}: holds no solid with triangles")
     chosen = [s for s in solids if _wanted(s.name, keep, drop)]
@@ -131,7 +103,59 @@ def _wanted(name: str, keep: Sequence[str], drop: Sequence[str]) -> bool:
     return not any(fnmatch.fnmatchcase(lower, d.lower()) for d in drop)
 
 
-def _solids(scene, scale: float) -> list[Solid]:
+def _read_step(path: Path, tolerance_mm: float) -> tuple[Solid, ...]:
+    """A STEP file's placed solids, read by OpenCASCADE in a process of its own
+    (``pliant.io.step_worker``): a crash there on a damaged file, or a Ctrl+C while it
+    reads, ends that process, not pliant (the Ctrl+C then stops pliant cleanly). Kept
+    per file, size, time and tolerance for this process's later scenes."""
+    stat = path.resolve().stat()
+    return _read_step_once(str(path.resolve()), stat.st_size, stat.st_mtime_ns,
+                           tolerance_mm)
+
+
+@functools.lru_cache(maxsize=8)
+def _read_step_once(path: str, size: int, mtime: int, tolerance_mm: float
+                    ) -> tuple[Solid, ...]:
+    import subprocess  # noqa: PLC0415
+    import sys  # noqa: PLC0415
+
+    with tempfile.TemporaryDirectory(prefix="pliant-step-") as folder:
+        answer = Path(folder) / "solids.npz"
+        # A session of its own: the terminal's Ctrl+C reaches pliant, which ends it.
+        process = subprocess.Popen(
+            [sys.executable, "-m", "pliant.io.step_worker", path, repr(tolerance_mm),
+             str(answer)], stdin=subprocess.DEVNULL, stdout=subprocess.PIPE,
+            stderr=subprocess.STDOUT, start_new_session=True)
+        try:
+            output, _ = process.communicate()
+        except BaseException:  # Ctrl+C, or anything else: the reader goes with it
+            process.kill()
+            process.wait()
+            raise
+        lines = [re.sub(r"\x1b\[[0-9;]*m", "", line).strip()
+                 for line in output.decode("utf-8", "replace").splitlines() if line.strip()]
+        if process.returncode != 0:
+            said = next((m for m in lines if "ERR" in m or "rror" in m), "")
+            crash = (f"OpenCASCADE stopped on it (signal {-process.returncode})"
+                     if process.returncode < 0 else "")
+            why = "; ".join(x for x in (crash, said[:300]) if x)
+            raise FileFormatError(
+                f"{path}: not a CAD file pliant can read{' (' + why + ')' if why else ''}; "
+                "export it again as STEP (AP203, AP214 or AP242), or as glTF")
+        with np.load(answer) as data:
+            names = [str(x) for x in data["names"]]
+            solids = []
+            for k, solid in enumerate(names):
+                vertices, faces = data[f"v{k}"], data[f"f{k}"]
+                vertices.setflags(write=False)
+                faces.setflags(write=False)
+                solids.append(Solid(solid, vertices, faces))
+    return tuple(solids)
+
+
+def placed_solids(scene, scale: float) -> list[Solid]:
+    """A trimesh scene's meshes, each placed by its node's transform and scaled, named
+    by its geometry (with #2, #3 ... for further instances)."""
     import trimesh  # noqa: PLC0415
 
     if isinstance(scene, trimesh.Trimesh):
