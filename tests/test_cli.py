@@ -250,6 +250,33 @@ def test_an_interrupt_after_some_outputs_says_which_were_written(monkeypatch, ca
     assert str(tmp_path / "e.json") in said and (tmp_path / "e.json").read_text() == "{}"
 
 
+def test_ctrl_c_on_the_command_says_what_it_wrote(tmp_path):
+    """End to end: Ctrl+C on ``pliant study`` once it has stored a sample (Typer turns
+    the interrupt into a silent exit 130; the command says what it had written, the
+    store among them, and its lines are whole)."""
+    import signal
+    import time
+
+    out = tmp_path / "study"
+    process = subprocess.Popen(
+        [sys.executable, "-m", "pliant.cli.app", "study",
+         str(EXAMPLES / "scenes" / "engine_bay.toml"), "--vary", "bending_stiffness=20%",
+         "--samples", "50", "--workers", "0", "--out", str(out)],
+        stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+        preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
+    store = out / "samples.jsonl"
+    deadline = time.monotonic() + 240
+    while not (store.is_file() and store.read_text().count("\n")) and process.poll() is None:
+        assert time.monotonic() < deadline
+        time.sleep(0.05)
+    process.send_signal(signal.SIGINT)
+    _, err = process.communicate(timeout=120)
+    assert process.returncode == 130, err
+    assert err.startswith("interrupted: the outputs are incomplete") and str(store) in err
+    lines = store.read_text().splitlines()
+    assert 1 <= len(lines) < 50 and all(json.loads(x)["index"] >= 0 for x in lines)
+
+
 def test_ctrl_c_inside_a_compiled_kernel_is_interrupted_not_a_traceback(monkeypatch, capsys):
     import pliant.cli.app as cli_app
 

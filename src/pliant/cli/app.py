@@ -1107,6 +1107,13 @@ def main() -> None:
     except PliantError as err:
         typer.echo(f"error: {err}", err=True)
         sys.exit(2)
+    except SystemExit as done:
+        # Typer turns Ctrl+C into a silent exit with 130 (its Exit raised from the
+        # KeyboardInterrupt): say what was written. A command that said it already
+        # raised its own Exit from None.
+        if done.code == 130 and _caused_by_interrupt(done):
+            typer.echo(_interrupted(), err=True)
+        raise
     except KeyboardInterrupt:
         typer.echo(_interrupted(), err=True)
         sys.exit(130)
@@ -1117,6 +1124,20 @@ def main() -> None:
             typer.echo(_interrupted(), err=True)
             sys.exit(130)
         raise
+
+
+def _caused_by_interrupt(error: BaseException) -> bool:
+    """Whether a KeyboardInterrupt is in the exception's chain of causes (its
+    ``__cause__``, else its unsuppressed ``__context__``)."""
+    seen: set[int] = set()
+    at: BaseException | None = error
+    while at is not None and id(at) not in seen:
+        if isinstance(at, KeyboardInterrupt):
+            return True
+        seen.add(id(at))
+        at = at.__cause__ if at.__cause__ is not None else (
+            None if at.__suppress_context__ else at.__context__)
+    return False
 
 
 def _interrupted() -> str:
