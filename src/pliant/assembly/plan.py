@@ -867,7 +867,9 @@ def _validator(ob):
     """OMPL's MotionValidator class, subclassed once OMPL is imported."""
     global _VALIDATOR
     if _VALIDATOR is None:
-        class _PartMotion(ob.MotionValidator):
+        base: Any = ob.MotionValidator  # (OMPL has no type information)
+
+        class _PartMotion(base):
             def __init__(self, si, planner: Planner, tree: _Tree) -> None:
                 super().__init__(si)
                 self.planner, self.tree = planner, tree

@@ -5,11 +5,15 @@ from __future__ import annotations
 import math
 from collections.abc import Iterable
 from dataclasses import dataclass, field, replace
+from typing import TYPE_CHECKING
 
 from pliant.core.conditions import Condition, _unit, _vector
 from pliant.core.loads import DistributedLoad, Load
 from pliant.core.part import Part
 from pliant.errors import IllPosedProblemError, InputError, UnreachableTargetError
+
+if TYPE_CHECKING:  # (core.equilibrium imports this module)
+    from pliant.core.equilibrium import Equilibrium3D
 
 # Two conditions closer than this (relative to the length) share one station.
 STATION_MERGE = 1e-12
@@ -159,7 +163,7 @@ class FittedPart(_SolvedAlone):
     name: str
     problem: Problem
     elements: int
-    solved: object = field(default=None, repr=False)  # its Equilibrium3D, alone
+    solved: Equilibrium3D | None = field(default=None, repr=False)  # alone
     friction: float = 0.0  # Coulomb's coefficient between it and the part that touches it
     # (N+1, 3) [m] its neutral line alone, where known without its equilibrium (a scene
     # file's cache of it): clearances to it need no solve.
@@ -239,7 +243,8 @@ class Branch(_SolvedAlone):
     end: int
     axis: tuple[float, float, float]
     elements: int = 60
-    solved: object = field(default=None, repr=False, compare=False)  # alone, on demand
+    solved: Equilibrium3D | None = field(default=None, repr=False,
+                                         compare=False)  # alone, on demand
 
     def __post_init__(self) -> None:
         if self.end not in (0, 1):

@@ -85,8 +85,8 @@ def band_lu_lapack(ab, kl, ku):
     if not ab.flags.c_contiguous:  # LAPACK reads it in place: every caller builds one
         raise ValueError("band_lu: the band array must be C-contiguous")
     ints = np.array([n, n, kl, ku, ab.shape[1], 0], dtype=np.int32)  # m n kl ku ldab info
-    _dgbtrf(ints[0:].ctypes, ints[1:].ctypes, ints[2:].ctypes, ints[3:].ctypes,
-            ab.ctypes, ints[4:].ctypes, piv.ctypes, ints[5:].ctypes)
+    _dgbtrf(ints[0:].ctypes, ints[1:].ctypes, ints[2:].ctypes,  # type: ignore[call-overload]
+            ints[3:].ctypes, ab.ctypes, ints[4:].ctypes, piv.ctypes, ints[5:].ctypes)
     if ints[5] < 0:
         return piv, False
     kv = kl + ku
@@ -105,7 +105,8 @@ def band_lu_solve_lapack(ab, piv, kl, ku, rhs):
         return x
     ints = np.array([n, kl, ku, 1, ab.shape[1], 0], dtype=np.int32)  # n kl ku nrhs ldab info
     trans = np.array([78], dtype=np.uint8)  # "N"
-    _dgbtrs(trans.ctypes, ints[0:].ctypes, ints[1:].ctypes, ints[2:].ctypes,
+    _dgbtrs(trans.ctypes, ints[0:].ctypes, ints[1:].ctypes,  # type: ignore[call-overload]
+            ints[2:].ctypes,
             ints[3:].ctypes, ab.ctypes, ints[4:].ctypes, piv.ctypes, x.ctypes,
             ints[0:].ctypes, ints[5:].ctypes)
     return x
