@@ -32,8 +32,8 @@ from scipy.optimize import curve_fit
 from scipy.spatial import cKDTree
 
 import pliant as pl
-from pliant.assembly.identify import identify
 from pliant.core.measurement import Shape, StiffnessTest
+from pliant.identify import identify
 
 L, EI, MASS, TIP, G = 0.5, 0.021, 0.052, 0.02 * 9.81, 9.81
 

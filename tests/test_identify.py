@@ -16,14 +16,14 @@ from scipy.integrate import solve_ivp
 from scipy.optimize import fsolve
 
 import pliant as pl
-from pliant.assembly.identify import (
+from pliant.core.measurement import Deflection, Shape, StiffnessTest, ThreePointBending, Twist
+from pliant.errors import FileFormatError, InputError
+from pliant.identify import (
     NotIdentifiableError,
     identify,
     project,
     support_force,
 )
-from pliant.core.measurement import Deflection, Shape, StiffnessTest, ThreePointBending, Twist
-from pliant.errors import FileFormatError, InputError
 from pliant.io.identify_file import load_test, parse_table, parse_test
 
 EXAMPLES = Path(__file__).resolve().parents[1] / "examples" / "identify"
@@ -387,7 +387,7 @@ SHAPE = '[[measured]]\nkind = "shape"\npoints = [[0.1, 0.0], [0.2, -0.01], [0.3,
      "give every \\[\\[measured\\]\\] an uncertainty, or none"),
 ])
 def test_bad_tests_are_refused_by_name(tail, message):
-    from pliant.assembly.identify import identify as fit
+    from pliant.identify import identify as fit
 
     with pytest.raises((FileFormatError, InputError), match=message):
         test, _ = parse_test(BASE + tail, "t.toml")

@@ -12,7 +12,7 @@ from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1] / "src" / "pliant"
 RANK = {"core": 0, "errors": 0, "data": 0, "util": 0, "scene": 1, "io": 2, "models": 3,
-        "session": 4, "assembly": 5, "cli": 6, "viewer": 6}
+        "session": 4, "assembly": 5, "identify": 5, "cli": 6, "viewer": 6}
 
 
 def upward_imports() -> set[tuple[str, str]]:

@@ -56,3 +56,17 @@ class FileFormatError(PliantError, ValueError):
 class OutputError(PliantError, OSError):
     """A result could not be written (the message names the path); nothing was left
     half-written."""
+
+
+class IdentificationError(PliantError, RuntimeError):
+    """The fit could not be made (a solve failed, the budget ran out, an unknown ran to
+    its bound); the message says at which values and what to change. ``last`` holds the
+    last values tried, by name."""
+
+    def __init__(self, message: str, last: dict[str, float] | None = None) -> None:
+        self.last = last or {}
+        super().__init__(message)
+
+
+class NotIdentifiableError(IdentificationError):
+    """The measurements do not determine an unknown, or determine only a combination."""

@@ -728,8 +728,8 @@ def identify(
     a twist curve) by weighted least squares, each value with its confidence interval."""
     from rich.console import Console  # noqa: PLC0415
 
-    from pliant.assembly.identify import identify as fit  # noqa: PLC0415
     from pliant.cli.identify_report import plot_identification, print_identification  # noqa: PLC0415
+    from pliant.identify import identify as fit  # noqa: PLC0415
     from pliant.io.atomic import atomic_write  # noqa: PLC0415
     from pliant.io.identify_file import load_test  # noqa: PLC0415
     from pliant.io.jsontext import finite  # noqa: PLC0415

@@ -48,7 +48,12 @@ from pliant.core.measurement import (
 )
 from pliant.core.part import Part
 from pliant.core.problem import Problem
-from pliant.errors import ConvergenceError, InputError, PliantError
+from pliant.errors import (
+    ConvergenceError,
+    IdentificationError,
+    InputError,
+    NotIdentifiableError,
+)
 
 RANGE = math.log(1e4)  # the fit may move each unknown by this factor either way
 STEP = 1e-5  # the forward-difference step in the logarithm of an unknown (iterations)
@@ -57,20 +62,6 @@ COLLINEAR = 1e-4  # smallest singular value of the normalised Jacobian: two unkn
 INSENSITIVE = 1e-4  # the largest change per e-fold, relative to the data: no information
 # (a hundredth of a millimetre on a 0.1 m shape for a factor 2.7 in the parameter; the
 # solvers' noise in a central difference is below 1e-6 of the data)
-
-
-class IdentificationError(PliantError, RuntimeError):
-    """The fit could not be made (a solve failed, the budget ran out, an unknown ran to
-    its bound); the message says at which values and what to change. ``last`` holds the
-    last values tried, by name."""
-
-    def __init__(self, message: str, last: dict[str, float] | None = None) -> None:
-        self.last = last or {}
-        super().__init__(message)
-
-
-class NotIdentifiableError(IdentificationError):
-    """The measurements do not determine an unknown, or determine only a combination."""
 
 
 @dataclass(frozen=True)
