@@ -16,8 +16,8 @@ from pliant.assembly.path import carry
 from pliant.assembly.plan import Planner
 from pliant.assembly.scenes import load_scene
 from pliant.core.planning import PathSpec, PlanSettings
+from pliant.core.rotations import rotation_between
 from pliant.errors import FileFormatError, InputError
-from pliant.models.rod3d.lowering import rotation_between
 
 EXAMPLE = Path(__file__).resolve().parents[1] / "examples" / "hoses" / "carry_past_post.toml"
 

@@ -32,6 +32,7 @@ from pliant.assembly.harness import SegmentProperties, centre_curve, select
 from pliant.core.equilibrium import Equilibrium3D
 from pliant.core.events import jumped
 from pliant.core.harness import Harness, HarnessSegment
+from pliant.core.rotations import exp_map, log_map
 from pliant.core.tube import rotation_minimizing_frames
 from pliant.errors import ConvergenceError, IllPosedProblemError, PliantError
 
@@ -111,23 +112,6 @@ class Installed:
         return float(sum(s.equilibrium.problem.part.mass_per_length
                          * s.equilibrium.problem.part.length * g
                          for s in self.segments.values()))
-
-
-def _rotation(v: np.ndarray) -> np.ndarray:
-    """exp of the skew matrix of a rotation vector v (Rodrigues)."""
-    angle = float(np.linalg.norm(v))
-    if angle < 1e-300:
-        return np.eye(3)
-    k = v / angle
-    K = np.array([[0.0, -k[2], k[1]], [k[2], 0.0, -k[0]], [-k[1], k[0], 0.0]])
-    return np.eye(3) + math.sin(angle) * K + (1.0 - math.cos(angle)) * K @ K
-
-
-def _log(rotation: np.ndarray) -> np.ndarray:
-    """The rotation vector of a rotation matrix (``_rotation``'s inverse)."""
-    from scipy.spatial.transform import Rotation  # noqa: PLC0415
-
-    return np.asarray(Rotation.from_matrix(rotation).as_rotvec())
 
 
 def _end_frames(points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -294,7 +278,7 @@ class Network:
                 if node in self.node_approach:  # carried from where it hung (``fix``)
                     hung, turned = self.node_approach[node]
                     position = (1.0 - self.along) * hung + self.along * position
-                    frame = _rotation((1.0 - self.along) * _log(turned)) @ frame
+                    frame = exp_map((1.0 - self.along) * log_map(turned)) @ frame
         elif node in self.at_node:
             j = self.junctions[self.at_node[node]]
             frame = j.rotation @ self.frames[(seg.id, end)]
@@ -415,7 +399,7 @@ class Network:
     def move(self, k: int, dq: np.ndarray) -> None:
         j = self.junctions[k]
         j.position = j.position + dq[:3] * self.L_ref
-        j.rotation = _rotation(dq[3:]) @ j.rotation
+        j.rotation = exp_map(dq[3:]) @ j.rotation
 
     def segments_at(self, k: int) -> list[str]:
         return sorted({e.segment for e in self.junctions[k].ends})
@@ -430,9 +414,10 @@ def _from_design(problem, points: np.ndarray, first_normal: np.ndarray,
     ``first_normal``: the section's d1 at s = 0 (the start clamp's)."""
     from dataclasses import replace  # noqa: PLC0415
 
+    from pliant.core.rotations import qconj, qmul, quat_from_matrix  # noqa: PLC0415
     from pliant.models.continuation import Stalled  # noqa: PLC0415
     from pliant.models.rod3d.kernels import FULL  # noqa: PLC0415
-    from pliant.models.rod3d.lowering import lower, qconj, qmul, quat_from_matrix  # noqa: PLC0415
+    from pliant.models.rod3d.lowering import lower  # noqa: PLC0415
     from pliant.models.rod3d.results import build  # noqa: PLC0415
     from pliant.models.rod3d.solver import Run  # noqa: PLC0415
 

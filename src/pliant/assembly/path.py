@@ -193,7 +193,7 @@ def carry_with(grip: Condition, where: Any, direction: Any,
     grip's axis to ``direction`` (none without axes) about the grip, then moved with it."""
     if not carried:
         return {}
-    from pliant.models.rod3d.lowering import rotation_between  # noqa: PLC0415
+    from pliant.core.rotations import rotation_between  # noqa: PLC0415
 
     turn = np.eye(3)
     if direction is not None and grip.tangent is not None:

@@ -13,8 +13,9 @@ import numpy as np
 
 from pliant.core.equilibrium import Contacts, Equilibrium3D, Samples3D, StationLoad
 from pliant.core.events import SolvedTogether
+from pliant.core.rotations import quat_matrix
 from pliant.models.rod3d import coupled_stability
-from pliant.models.rod3d.lowering import State, quat_matrix
+from pliant.models.rod3d.lowering import State
 from pliant.models.rod3d.results import build
 
 if TYPE_CHECKING:

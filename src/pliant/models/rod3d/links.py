@@ -12,9 +12,10 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from pliant.core.problem import PivotClip, SlidingClip
+from pliant.core.rotations import qconj, qmul, quat_matrix
 from pliant.models.rod3d import spline
 from pliant.models.rod3d.kernels import qexp as _qexp
-from pliant.models.rod3d.lowering import State, qconj, qmul, quat_matrix
+from pliant.models.rod3d.lowering import State
 from pliant.models.rod3d.solver import Run
 
 

@@ -10,10 +10,11 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from pliant.core.equilibrium import NO_CONTACTS, Contacts, Equilibrium3D, Samples3D, StationLoad
+from pliant.core.rotations import qconj, qmul, quat_matrix, skew
 from pliant.errors import IllPosedProblemError
 from pliant.models.rod3d import contact_kernels, kernels
 from pliant.models.rod3d.kernels import AXIS, FULL
-from pliant.models.rod3d.lowering import Rod, State, axis_basis, qconj, qmul, quat_matrix, skew
+from pliant.models.rod3d.lowering import Rod, State, axis_basis
 from pliant.models.rod3d.stability import conservative, metric, stability_of
 
 if TYPE_CHECKING:

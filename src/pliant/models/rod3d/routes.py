@@ -16,9 +16,10 @@ import numpy as np
 from pliant.core.equilibrium import potential_energy
 from pliant.core.events import BranchTaken, NoStableBranch, Snapped, Status
 from pliant.core.numbers import clean
+from pliant.core.rotations import quat_matrix
 from pliant.models import clock, continuation
 from pliant.models.continuation import Candidate, Stalled, first_route, ranked
-from pliant.models.rod3d.lowering import Loads, Rod, State, quat_matrix
+from pliant.models.rod3d.lowering import Loads, Rod, State
 from pliant.models.rod3d.results import probe
 from pliant.models.rod3d.stability import conservative, stability_of
 

@@ -21,10 +21,10 @@ from dataclasses import replace
 import numpy as np
 
 from pliant.core.equilibrium import Equilibrium3D
+from pliant.core.rotations import qmul, quat_matrix
 from pliant.errors import ConvergenceError
 from pliant.models.banded import band_factor_reduced, band_solve_factored
 from pliant.models.rod3d import kernels
-from pliant.models.rod3d.lowering import qmul, quat_matrix
 from pliant.models.rod3d.results import WarmState, station_loads
 from pliant.models.rod3d.solver import RodSolver, Run
 

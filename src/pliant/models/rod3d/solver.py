@@ -46,12 +46,13 @@ from pliant.core.events import (
     WarmStartLost,
 )
 from pliant.core.problem import Problem
+from pliant.core.rotations import qmul, quat_matrix
 from pliant.errors import ConvergenceError, IllPosedProblemError, InputError
 from pliant.models import clock, continuation
 from pliant.models.continuation import Line, Stalled
 from pliant.models.rod3d import contact_kernels, kernels
 from pliant.models.rod3d.kernels import AXIS
-from pliant.models.rod3d.lowering import Loads, Rod, State, axis_basis, lower, qmul, quat_matrix
+from pliant.models.rod3d.lowering import Loads, Rod, State, axis_basis, lower
 from pliant.models.rod3d.results import WarmState, build, station_loads
 from pliant.models.rod3d.routes import _BRANCH_NOTE, Routes
 from pliant.models.rod3d.settling import (

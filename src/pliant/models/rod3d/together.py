@@ -19,13 +19,14 @@ import numpy as np
 
 from pliant.core.equilibrium import Equilibrium3D
 from pliant.core.events import HeldRigid, ReachedBy
+from pliant.core.rotations import qconj, qmul, quat_matrix
 from pliant.errors import ConvergenceError
 from pliant.models import clock, continuation
 from pliant.models.rod3d import coupled
 from pliant.models.rod3d.coupled import Coupling, close_pairs, no_contact_forces
 from pliant.models.rod3d.coupled_results import equilibria as parts_equilibria
 from pliant.models.rod3d.links import Joint, Pivot, Slider
-from pliant.models.rod3d.lowering import Rod, State, qconj, qmul, quat_matrix
+from pliant.models.rod3d.lowering import Rod, State
 from pliant.models.rod3d.results import WarmState
 from pliant.models.rod3d.solver import RodSolver, Run, reached, same_shape, solve
 
@@ -277,10 +278,7 @@ def _start_together(problem, own, rigid: Equilibrium3D, parts: list, solver: Rod
 def _joints(problem, runs: list[Run], states: list[State]) -> list[Joint]:
     """The problem's junctions as joints between the part (run 0) and its branches (the
     runs after it, in order), each closing from where the parts start apart."""
-    from pliant.models.rod3d.lowering import (  # noqa: PLC0415
-        quat_from_matrix,
-        rotation_between,
-    )
+    from pliant.core.rotations import quat_from_matrix, rotation_between  # noqa: PLC0415
 
     out = []
     k = 1
