@@ -165,6 +165,60 @@ def test_the_pages_protocol_module_is_made_from_the_python_protocol():
     assert '"move": [\n    "grip",\n    "position",\n    "tangent",\n    "seq"\n  ]' in text
 
 
+def _unknown_reads(code: dict[str, str]) -> list[tuple[str, str]]:
+    """(message or variable, field) for each field the page reads from a server message
+    that its pydantic model does not have: ``msg.X`` in the handler the page calls for
+    each message type, and ``X`` read from the ones it keeps (``state.accurate.X``, ...).
+    Top-level fields (a nested one is a model of its own)."""
+    import re
+
+    fields = {m.model_fields["type"].default: set(m.model_fields) for m in P.SERVER_MESSAGES}
+
+    def body(text: str, header: str) -> str:
+        start = text.index("{", text.index(header))
+        depth = 0
+        for k in range(start, len(text)):
+            depth += {"{": 1, "}": -1}.get(text[k], 0)
+            if depth == 0:
+                return text[start:k + 1]
+        raise AssertionError(f"no end to {header}")
+
+    app = code["app.js"]
+    bad = []
+    dispatch = re.findall(r"msg\.type === '(\w+)'\)\s*(?:\{\s*)?(?:(on\w+)\(msg\))?([^\n]*)", app)
+    assert {kind for kind, _, _ in dispatch} == set(fields), "a message type the page ignores"
+    for kind, handler, rest in dispatch:
+        reads = set(re.findall(r"\bmsg\??\.(\w+)", rest))
+        if handler:
+            where = next(t for t in code.values() if f"function {handler}(msg)" in t)
+            reads |= set(re.findall(r"\bmsg\??\.(\w+)", body(where, f"function {handler}(msg)")))
+        bad += [(kind, f) for f in reads - fields[kind] - {"type"}]
+    if "'error'" in app:  # its handler spans lines
+        error = body(app, "msg.type === 'error')")
+        bad += [("error", f) for f in set(re.findall(r"\bmsg\??\.(\w+)", error))
+                - fields["error"]]
+    for name, kind in (("accurate", "accurate"), ("failed", "accurate"), ("frame", "frame"),
+                       ("scene", "scene"), ("equilibria", "equilibria")):
+        for text in code.values():
+            bad += [(f"state.{name}", f) for f in set(re.findall(
+                rf"\bstate\.{name}\??\.(\w+)", text)) - fields[kind]]
+    return sorted(set(bad))
+
+
+def test_every_field_the_page_reads_is_in_the_protocol():
+    """The page (plain JavaScript) reads each server message's fields by name; one that
+    the protocol lacks reads as undefined, and its text never appears (the page once
+    read ``smallest_eigenvalue`` from a message without it). None does now; a read of a
+    missing field, put into the accurate message's handler, is found."""
+    static = P.JAVASCRIPT.parent
+    code = {p.name: p.read_text(encoding="utf-8") for p in static.glob("*.js")}
+    assert _unknown_reads(code) == []
+    broken = dict(code, **{"app.js": code["app.js"].replace(
+        "function onAccurate(msg) {", "function onAccurate(msg) {\n  msg.no_such_field;", 1)})
+    broken["view.js"] = broken["view.js"] + "\nstate.frame.nor_this;\n"
+    assert _unknown_reads(broken) == [("accurate", "no_such_field"), ("state.frame", "nor_this")]
+
+
 # -- one tab's session -----------------------------------------------------------------------
 def test_hello_gives_the_scene_and_the_api_forces(state, folder):
     replies = state.handle(msg(type="hello"))
