@@ -9,11 +9,12 @@ triangles; the contact's accuracy is no better than it.
 
 from __future__ import annotations
 
+import contextlib
 import fnmatch
 import functools
 import re
 import tempfile
-from collections.abc import Sequence
+from collections.abc import Iterator, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -113,6 +114,28 @@ def _read_step(path: Path, tolerance_mm: float) -> tuple[Solid, ...]:
                            tolerance_mm)
 
 
+@contextlib.contextmanager
+def _interrupt_held() -> Iterator[list[bool]]:
+    """Ctrl+C held while the block runs (in the main thread, the only one it reaches):
+    the list says whether it came, for the caller to act on once the block is done."""
+    import signal  # noqa: PLC0415
+    import threading  # noqa: PLC0415
+
+    pressed: list[bool] = []
+    if threading.current_thread() is not threading.main_thread():
+        yield pressed
+        return
+    previous = signal.getsignal(signal.SIGINT)
+    if previous in (signal.SIG_IGN, None):
+        yield pressed
+        return
+    signal.signal(signal.SIGINT, lambda *_: pressed.append(True))
+    try:
+        yield pressed
+    finally:
+        signal.signal(signal.SIGINT, previous)
+
+
 @functools.lru_cache(maxsize=8)
 def _read_step_once(path: str, size: int, mtime: int, tolerance_mm: float
                     ) -> tuple[Solid, ...]:
@@ -122,11 +145,14 @@ def _read_step_once(path: str, size: int, mtime: int, tolerance_mm: float
     with tempfile.TemporaryDirectory(prefix="pliant-step-") as folder:
         answer = Path(folder) / "solids.npz"
         # A session of its own: the terminal's Ctrl+C reaches pliant, which ends it.
-        process = subprocess.Popen(
-            [sys.executable, "-m", "pliant.io.step_worker", path, repr(tolerance_mm),
-             str(answer)], stdin=subprocess.DEVNULL, stdout=subprocess.PIPE,
-            stderr=subprocess.STDOUT, start_new_session=True)
+        with _interrupt_held() as pressed:  # not between its start and ``process``
+            process = subprocess.Popen(
+                [sys.executable, "-m", "pliant.io.step_worker", path, repr(tolerance_mm),
+                 str(answer)], stdin=subprocess.DEVNULL, stdout=subprocess.PIPE,
+                stderr=subprocess.STDOUT, start_new_session=True)
         try:
+            if pressed:
+                raise KeyboardInterrupt
             output, _ = process.communicate()
         except BaseException:  # Ctrl+C, or anything else: the reader goes with it
             process.kill()
