@@ -45,6 +45,7 @@ STEP_POSITION = 1e-6  # the twin Jacobian's differences, by the mean segment len
 STEP_ROTATION = 1e-6  # rad
 TOLERANCE = 1e-7  # the junctions' balance, by the weight (and weight x length) of all
 MAX_ITERATIONS = 200
+NEAR_DEPTH = 1  # junctions this many segments from a moved fixing's balance first
 SETTLE_ROUNDS = 3  # unstable segments settled and the junctions balanced again
 DESIGN_LENGTH = 0.01  # a design curve this far from its segment's length is no start
 AT_NODE = 1e-3  # m: a fixing this near a segment's end holds the node there
@@ -404,6 +405,17 @@ class Network:
     def segments_at(self, k: int) -> list[str]:
         return sorted({e.segment for e in self.junctions[k].ends})
 
+    def near(self, segments: Collection[str], depth: int = 1) -> set[int]:
+        """The junctions (indices) at these segments' ends, and those up to ``depth``
+        segments further on."""
+        ends = self.harness.segments
+        found = {self.at_node[n] for s in segments for n in (ends[s].start, ends[s].end)
+                 if n in self.at_node}
+        for _ in range(depth):
+            found |= {self.at_node[n] for k in list(found) for s in self.segments_at(k)
+                      for n in (ends[s].start, ends[s].end) if n in self.at_node}
+        return found
+
 
 def _from_design(problem, points: np.ndarray, first_normal: np.ndarray,
                  solver) -> Equilibrium3D:
@@ -522,9 +534,15 @@ def solve_installed(harness: Harness, props: Mapping[str, SegmentProperties], *,
         def to(t: float) -> None:
             net.moved = {name: _vec3(np.asarray(v, float) * t) for name, v in target.items()}
 
+        # Only the moved fixings' segments' problems change: they follow, the junctions
+        # about them balance on their own, then the whole harness from there.
+        nodes = {n for n, name in net.at_fixing.items() if name in target}
+        carrying = [seg_id for seg_id, seg in harness.segments.items()
+                    if any(harness.fixings[p.fixing].name in target for p in seg.fixings)
+                    or seg.start in nodes or seg.end in nodes]
         iterations, r, jac = _stepped(net, warm.jacobian, to, lambda: {
-            seg_id: net.solve_segment(seg_id, warm=True) for seg_id in harness.segments},
-            step=1.0)
+            seg_id: net.solve_segment(seg_id, warm=True) for seg_id in carrying},
+            step=1.0, near=net.near(carrying, NEAR_DEPTH))
     else:
         iterations, r, jac = _balance(net, None)
         for _ in range(SETTLE_ROUNDS):
@@ -633,19 +651,21 @@ def fix(before: Installed, props: Mapping[str, SegmentProperties], fixing: str, 
     same = {j.node for j in net.junctions} == set(before.junctions)
     iterations, r, jac = _stepped(net, before.jacobian if same else None, to, lambda: {
         seg: follow(seg) for seg in carrying}, step=1.0 / steps, from_start=True,
-        after=felt)
+        after=felt, near=net.near(carrying, NEAR_DEPTH))
     return _installed(harness, net, iterations, float(np.abs(r).max(initial=0.0)), jac,
                       margin), forces
 
 
 def _stepped(net: Network, jac: np.ndarray | None, to: Callable[[float], None],
              resolve: Callable[[], dict[str, Equilibrium3D]], *, step: float,
-             from_start: bool = False, after: Callable[[], None] | None = None
-             ) -> tuple[int, np.ndarray, np.ndarray | None]:
+             from_start: bool = False, after: Callable[[], None] | None = None,
+             near: Collection[int] = ()) -> tuple[int, np.ndarray, np.ndarray | None]:
     """Take the network from where it is (0) to ``to(1)`` in steps of ``step``, halved
     where it cannot follow (down to a thousandth of the first): at each, ``resolve`` the
     segments whose problems changed, balance the junctions, then ``after()``.
-    ``from_start``: a first step at 0 itself, which must succeed. (iterations, the last
+    ``from_start``: a first step at 0 itself, which must succeed. ``near``: the junctions
+    (indices) about what moved, balanced first on their own (the rest held: only their
+    segments are solved again), then all together from there. (iterations, the last
     balance, the last Jacobian); the solver's error where a step cannot be taken."""
     iterations, done, least = 0, 0.0, 1e-3 * step
     r = net.residual(net.eqs)
@@ -657,7 +677,11 @@ def _stepped(net: Network, jac: np.ndarray | None, to: Callable[[float], None],
         to(t)
         try:
             net.eqs = {**net.eqs, **resolve()}
-            count, r, jac = _balance(net, jac)
+            count = 0
+            if near and len(near) < len(net.junctions):
+                count, r, _ = _balance(net, None, only=near)
+            more, r, jac = _balance(net, jac)
+            count += more
         except PliantError:
             if first:
                 raise
@@ -675,12 +699,23 @@ def _stepped(net: Network, jac: np.ndarray | None, to: Callable[[float], None],
     return iterations, r, jac
 
 
-def _balance(net: Network, jac: np.ndarray | None) -> tuple[int, np.ndarray, np.ndarray | None]:
+def _balance(net: Network, jac: np.ndarray | None, only: Collection[int] | None = None
+             ) -> tuple[int, np.ndarray, np.ndarray | None]:
     """Newton (Levenberg-Marquardt, downhill in the harness's energy) on the junction
-    poses from where they are: (iterations, the last balance, the last Jacobian)."""
+    poses from where they are: (iterations, the last balance, the last Jacobian).
+    ``only``: those junctions (indices), the others held where they are; only the
+    segments at them are solved again, and the Jacobian is theirs (``jac`` then the
+    whole harness's, or None)."""
     harness = net.harness
-    n = len(net.junctions)
-    r = net.residual(net.eqs)
+    chosen = sorted(only) if only is not None else list(range(len(net.junctions)))
+    n = len(chosen)
+    rows = np.array([6 * k + c for k in chosen for c in range(6)], dtype=int)
+    moving = (sorted({s for k in chosen for s in net.segments_at(k)}) if only is not None
+              else list(harness.segments))
+    if only is not None and jac is not None:
+        jac = jac[np.ix_(rows, rows)]
+    full_r = net.residual(net.eqs)
+    r = full_r[rows]
     energy = net.energy(net.eqs)
     iterations = 0
     damping = 1e-6
@@ -688,14 +723,14 @@ def _balance(net: Network, jac: np.ndarray | None) -> tuple[int, np.ndarray, np.
     updated = jac is not None  # an earlier answer's: refreshed where it misleads
     while n and float(np.abs(r).max()) > TOLERANCE:
         if iterations >= MAX_ITERATIONS:
-            worst = int(np.argmax(np.abs(r))) // 6
+            worst = chosen[int(np.argmax(np.abs(r))) // 6]
             raise ConvergenceError(
                 f"the harness's junctions would not balance in {MAX_ITERATIONS} "
                 f"iterations (junction {harness.nodes[net.junctions[worst].node].name} "
                 f"off by {float(np.abs(r).max()):.2g} of the harness's weight)",
                 residual=float(np.abs(r).max()))
         if jac is None:
-            jac = jacobian(net, r)
+            jac = jacobian(net, full_r, moving if only is not None else None)[np.ix_(rows, rows)]
             fresh += 1
             updated = False
         hessian = 0.5 * (jac + jac.T)  # the balance is the energy's gradient
@@ -711,11 +746,12 @@ def _balance(net: Network, jac: np.ndarray | None) -> tuple[int, np.ndarray, np.
             moves = np.abs(dq.reshape(n, 2, 3)).max(axis=2).max(axis=0)
             dq *= 1.0 / max(1.0, moves[0] / 0.25, moves[1] / 0.5)
             saved = [(j.position.copy(), j.rotation.copy()) for j in net.junctions]
-            for k in range(n):
-                net.move(k, dq[6 * k:6 * k + 6])
+            for i, k in enumerate(chosen):
+                net.move(k, dq[6 * i:6 * i + 6])
             try:
-                trial = {s: net.solve_segment(s) for s in harness.segments}
-                r_new, e_new = net.residual(trial), net.energy(trial)
+                trial = {**net.eqs, **{s: net.solve_segment(s) for s in moving}}
+                full_new = net.residual(trial)
+                r_new, e_new = full_new[rows], net.energy(trial)
             except PliantError:
                 r_new = None
             # Downhill in the energy, or (near the answer, where the energy's change is
@@ -727,12 +763,14 @@ def _balance(net: Network, jac: np.ndarray | None) -> tuple[int, np.ndarray, np.
                 jac = jac + np.outer(r_new - r - jac @ dq, dq) / float(dq @ dq)
                 updated = True
                 net.eqs, r, energy, accepted = trial, r_new, e_new, True
+                full_r = full_new
                 damping = max(damping / 4.0, 1e-9)
                 break
             for j, (p, rot) in zip(net.junctions, saved):
                 j.position, j.rotation = p, rot
             if updated:  # an updated Jacobian misled the step: a fresh one, same damping
-                jac = jacobian(net, r)
+                jac = jacobian(net, full_r, moving if only is not None else None)[
+                    np.ix_(rows, rows)]
                 fresh += 1
                 updated = False
                 hessian = 0.5 * (jac + jac.T)
@@ -744,19 +782,23 @@ def _balance(net: Network, jac: np.ndarray | None) -> tuple[int, np.ndarray, np.
             raise ConvergenceError("the harness's junctions would not balance: no step "
                                    "lowers the harness's energy from here",
                                    residual=float(np.abs(r).max()))
-    return iterations, r, jac
+    return iterations, full_r, jac
 
 
-def jacobian(net: Network, r: np.ndarray) -> np.ndarray:
+def jacobian(net: Network, r: np.ndarray, segments: Collection[str] | None = None
+             ) -> np.ndarray:
     """d(balance)/d(junction poses): each segment's clamps' sensitivity from its own
     factorised Newton system (``rod3d.sensitivity``), assembled; where one cannot be
-    had, that segment's columns by re-solving it (``jacobian_by_differences``)."""
+    had, that segment's columns by re-solving it (``jacobian_by_differences``).
+    ``segments``: only theirs (exact in the rows and columns of their junctions)."""
     from pliant.models.rod3d.sensitivity import clamp_sensitivity  # noqa: PLC0415
 
     n = len(net.junctions)
     jac = np.zeros((6 * n, 6 * n))
     scale = np.r_[np.full(3, 1.0 / net.F_ref), np.full(3, 1.0 / (net.F_ref * net.L_ref))]
     for seg_id, eq in net.eqs.items():
+        if segments is not None and seg_id not in segments:
+            continue
         seg = net.harness.segments[seg_id]
         ends = [(f"{'start' if end == 0 else 'end'} {net.harness.nodes[node].name}",
                  net.at_node[node]) for end, node in ((0, seg.start), (1, seg.end))
