@@ -62,11 +62,12 @@ def compiled_kernels(tmp_path_factory):
 # loadfile) to the two workers in collection order, so a long file collected last (the
 # wheel's, alphabetically) ran alone at the end while the other worker idled. Longest
 # first, the short ones fill the end. The rest keep their order.
-LONGEST_FIRST = ("test_browser.py", "test_wheel.py", "test_first_run.py", "test_sequence.py",
-                 "test_viewer.py", "test_cli.py", "test_evaluation.py", "test_rod3d.py",
-                 "test_clip_order.py", "test_lint.py", "test_combinations.py",
-                 "test_minimum.py", "test_plan.py", "test_settling.py", "test_contact.py",
-                 "test_study.py", "test_carry.py", "test_harness_kbl.py")
+LONGEST_FIRST = ("test_browser.py", "test_sequence.py", "test_clip_order.py", "test_wheel.py",
+                 "test_viewer.py", "test_first_run.py", "test_lint.py", "test_harness_kbl.py",
+                 "test_cli.py", "test_minimum.py", "test_coupled.py", "test_plan.py",
+                 "test_combinations.py", "test_session.py", "test_settling.py",
+                 "test_contact.py", "test_carry.py", "test_evaluation.py", "test_rod3d.py",
+                 "test_study.py", "test_properties_3d.py", "test_scene_file.py")
 
 
 def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:

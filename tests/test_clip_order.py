@@ -289,7 +289,7 @@ def test_a_clip_holding_two_segments_at_a_node_takes_both_their_loads():
 
     harness = straight_harness(
         {"A": (0.0, 0.0, 0.0), "M": (0.6, 0.0, 0.0), "B": (1.2, 0.0, 0.0)},
-        [("S1", "A", "M", 0.605, [("F", 0.9)]), ("S2", "M", "B", 0.605, [("F", 0.1)])],
+        [("S1", "A", "M", 0.625, [("F", 0.9)]), ("S2", "M", "B", 0.625, [("F", 0.1)])],
         ["A", "B"], wire=(6e-3, 5e-3, MASS), clips={"F": "middle clip"})
     props = properties(harness)
     hanging = solve_installed(harness, props, released=["middle clip"])

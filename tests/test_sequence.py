@@ -221,6 +221,12 @@ def test_pliant_sequence_writes_json_and_a_report_and_exits_by_the_answer(bay, t
     assert data["precedences"][0]["first"] == "oil line"
     page = (out / "report.html").read_text()
     assert "precedence graph" in page and "oil line before coolant hose" in page
+    # The 3D view: each part of the best order as it is left, among the bay's obstacles.
+    start = page.index("<script type=application/json>") + len("<script type=application/json>")
+    view = json.loads(page[start:page.index("</script>", start)].replace("<\\/", "</"))
+    assert [x["n"] for x in view["lines"]] == data["best"]["parts"]
+    assert all(len(x["p"]) >= 3 * 10 for x in view["lines"])
+    assert {m["n"] for m in view["meshes"]} == {o.name for o in load_sequence(BAY).obstacles}
     # Run again: every operation comes from the store.
     again = cli("sequence", BAY, "--out", out)
     assert again.returncode == 0 and "0 operations judged now" in " ".join(again.stdout.split())

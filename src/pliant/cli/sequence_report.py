@@ -19,6 +19,8 @@ from pliant.cli.evaluation_report import STYLE, inline_svg
 from pliant.cli.report import count
 from pliant.io.atomic import atomic_write
 
+PALETTE = ("#1f4e9c", "#c05a1a", "#2f8a4c", "#7a3f98", "#b8912e", "#2a8a99")  # parts' lines
+
 
 def verdict_line(result: Any) -> str:
     """The search's answer in one line."""
@@ -197,7 +199,16 @@ def render_html(result: Any, lines: list[tuple[str, np.ndarray]] | None = None,
         parts.append("<p>None: no part's operation failed because of another part.</p>")
     parts.append(precedence_svg(result.parts, result.precedences))
     if lines:
+        from pliant.cli import view3d  # noqa: PLC0415
+
         parts.append("<h2>The parts as the best order leaves them</h2>"
+                     + view3d.html_view(
+                         meshes=view3d.obstacle_meshes(obstacles or []),
+                         lines=[view3d.line(line, PALETTE[k % len(PALETTE)], 4.0, name=name)
+                                for k, (name, line) in enumerate(lines)],
+                         caption="Each part in its own colour ("
+                         + ", ".join(f"{name}: {PALETTE[k % len(PALETTE)]}"
+                                     for k, (name, _) in enumerate(lines)) + ").")
                      + shapes_svg(lines, obstacles or []))
     parts.append("<h2>Every order</h2><table id=orders><tr><th>order</th><th>result</th>"
                  "<th>why</th></tr>")
