@@ -553,3 +553,61 @@ def test_a_hose_lying_along_a_floor_is_solved():
         assert total == pytest.approx([0.0, 0.0, weight], abs=1e-9)
         deepest = eq.position[:, 2].min() - 0.01  # the tube's radius above the floor
         assert -1e-6 < deepest <= 0.0
+
+
+def _cantilever_on_a_drum(delta: float, radius: float) -> np.ndarray:
+    """The independent twin of a weightless cantilever (EI 1, L 1 m, clamped at the
+    origin along +x) lifted by a drum (axis along y at x = 0.6 m, its centre ``delta``
+    - 0.3 m high) that its centreline touches at distance ``radius`` from the axis:
+    the elastica from the clamp to a single frictionless contact, straight beyond it,
+    shot with solve_ivp and fsolve (the contact on the circle, the part tangent to it,
+    the force along its normal, no moment there). The drum's force on the part (x, z)."""
+    from scipy.integrate import solve_ivp
+    from scipy.optimize import fsolve
+
+    centre = np.array([0.6, delta - 0.3])
+
+    def residual(v):
+        k0, fx, fz, sc = v
+
+        def rhs(s, y):
+            th, dth = y[0], y[1]
+            return [dth, -(math.cos(th) * fz - math.sin(th) * fx), math.cos(th), math.sin(th)]
+
+        th, dth, x, z = solve_ivp(rhs, (0.0, sc), [0.0, k0, 0.0, 0.0], rtol=1e-11,
+                                  atol=1e-12).y[:, -1]
+        d = np.array([x, z]) - centre
+        return [dth, float(np.hypot(*d)) - radius, math.cos(th) * d[0] + math.sin(th) * d[1],
+                fx * d[1] - fz * d[0]]
+
+    solution, _, ok, _ = fsolve(residual, [0.5, -0.5, 1.0, 0.6], full_output=True,
+                                xtol=1e-12)
+    assert ok == 1 and np.abs(residual(solution)).max() < 1e-9
+    return solution[1:3]
+
+
+def test_a_cantilever_lifted_by_a_drum_is_solved_cold_at_every_height():
+    """Issue 60, item 2: a cantilever (EI 1, L 1 m, OD 10 mm) lifted by a drum of radius
+    0.3 m at x = 0.6 m, its top at heights where cold solves used to end in "a fold" (7
+    of 10): each is solved cold, stable, with the drum's force the twin's (its centreline
+    0.305 m from the axis: the drum's radius and the part's) to 2e-3. With the drum's
+    centre 0.1 m above the straight part, the nearer way out is under it: the mirror
+    image of the drum 0.2 m below, force for force."""
+    part = pl.Part(1.0, 1.0, outer_diameter=0.01)
+
+    def solved(delta):
+        drum = Obstacle.cylinder("drum", 0.3, 0.5, (0.6, 0.0, delta - 0.3), ACROSS_Y)
+        problem = pl.Problem(part, (pl.clamp(0.0, (0.0, 0.0, 0.0), tangent=(1.0, 0.0, 0.0),
+                                             normal=(0.0, 0.0, 1.0)),), obstacles=(drum,))
+        eq = rod3d.solve(problem, solver=rod3d.RodSolver(elements=100))
+        force = eq.contacts.force.sum(axis=0)
+        return eq, np.array([force[0], force[2]])
+
+    for delta in (0.11, 0.15, 0.2, 0.25):
+        eq, force = solved(delta)
+        twin = _cantilever_on_a_drum(delta, 0.305)
+        assert eq.verdict == "stable"
+        assert np.linalg.norm(force - twin) < 2e-3 * np.linalg.norm(twin), (delta, force, twin)
+    _, under = solved(0.4)
+    above = _cantilever_on_a_drum(0.2, 0.305)
+    assert np.linalg.norm(under - above * [1.0, -1.0]) < 2e-3 * np.linalg.norm(above)
