@@ -13,6 +13,7 @@ from hypothesis import strategies as st
 from scipy.optimize import brentq
 
 import pliant as pl
+from pliant.core.events import jumped
 from pliant.errors import PliantError
 from pliant.models import rod3d
 from pliant.models.banded import dense, identity_rows
@@ -555,13 +556,15 @@ def test_a_hose_lying_along_a_floor_is_solved():
         assert -1e-6 < deepest <= 0.0
 
 
-def _cantilever_on_a_drum(delta: float, radius: float) -> np.ndarray:
+def _cantilever_on_a_drum(delta: float, radius: float,
+                          guess: tuple = (0.5, -0.5, 1.0, 0.6)) -> np.ndarray:
     """The independent twin of a weightless cantilever (EI 1, L 1 m, clamped at the
     origin along +x) lifted by a drum (axis along y at x = 0.6 m, its centre ``delta``
     - 0.3 m high) that its centreline touches at distance ``radius`` from the axis:
     the elastica from the clamp to a single frictionless contact, straight beyond it,
     shot with solve_ivp and fsolve (the contact on the circle, the part tangent to it,
-    the force along its normal, no moment there). The drum's force on the part (x, z)."""
+    the force along its normal, no moment there). (The clamp's curvature, the drum's
+    force on the part (x, z), the contact's s); ``guess``: where fsolve starts."""
     from scipy.integrate import solve_ivp
     from scipy.optimize import fsolve
 
@@ -580,10 +583,9 @@ def _cantilever_on_a_drum(delta: float, radius: float) -> np.ndarray:
         return [dth, float(np.hypot(*d)) - radius, math.cos(th) * d[0] + math.sin(th) * d[1],
                 fx * d[1] - fz * d[0]]
 
-    solution, _, ok, _ = fsolve(residual, [0.5, -0.5, 1.0, 0.6], full_output=True,
-                                xtol=1e-12)
+    solution, _, ok, _ = fsolve(residual, list(guess), full_output=True, xtol=1e-12)
     assert ok == 1 and np.abs(residual(solution)).max() < 1e-9
-    return solution[1:3]
+    return solution
 
 
 def test_a_cantilever_lifted_by_a_drum_is_solved_cold_at_every_height():
@@ -605,9 +607,38 @@ def test_a_cantilever_lifted_by_a_drum_is_solved_cold_at_every_height():
 
     for delta in (0.11, 0.15, 0.2, 0.25):
         eq, force = solved(delta)
-        twin = _cantilever_on_a_drum(delta, 0.305)
+        twin = _cantilever_on_a_drum(delta, 0.305)[1:3]
         assert eq.verdict == "stable"
         assert np.linalg.norm(force - twin) < 2e-3 * np.linalg.norm(twin), (delta, force, twin)
     _, under = solved(0.4)
-    above = _cantilever_on_a_drum(0.2, 0.305)
+    above = _cantilever_on_a_drum(0.2, 0.305)[1:3]
     assert np.linalg.norm(under - above * [1.0, -1.0]) < 2e-3 * np.linalg.norm(above)
+
+
+def test_a_drum_raised_in_steps_is_followed_with_the_part_on_it():
+    """Issue 60, items 2 and 6: the same drum raised from 0.2 to 0.4 m in warm steps of
+    50 mm (the continuation used to take an obstacle to its new place at once, so a
+    move past the contact's give started inside it: "the start is singular", and
+    ``trace`` stopped where ``solve`` fell back to a cold start under the drum). The
+    obstacle is carried with the part now: every step is followed, the part stays on
+    top, and the drum's force is the twin's followed the same way (to 2e-3)."""
+    part = pl.Part(1.0, 1.0, outer_diameter=0.01)
+    clamp = pl.clamp(0.0, (0.0, 0.0, 0.0), tangent=(1.0, 0.0, 0.0), normal=(0.0, 0.0, 1.0))
+
+    def problem(delta):
+        drum = Obstacle.cylinder("drum", 0.3, 0.5, (0.6, 0.0, delta - 0.3), ACROSS_Y)
+        return pl.Problem(part, (clamp,), obstacles=(drum,))
+
+    heights = np.linspace(0.2, 0.4, 5)
+    solver = rod3d.RodSolver(elements=100)
+    start = rod3d.solve(problem(0.2), solver=solver)
+    followed = list(pl.trace([problem(d) for d in heights], start=start, solver=solver))
+    guess: tuple = (0.5, -0.5, 1.0, 0.6)
+    for delta, eq in zip(heights, followed, strict=True):
+        twin = _cantilever_on_a_drum(float(delta), 0.305, guess)
+        guess = tuple(twin)
+        force = eq.contacts.force.sum(axis=0)[[0, 2]]
+        assert force[1] > 0.0 and not jumped(eq.notes)
+        assert np.linalg.norm(force - twin[1:3]) < 2e-3 * np.linalg.norm(twin[1:3]), delta
+    warm = rod3d.solve(problem(0.25), warm_start=start, solver=solver)
+    assert not jumped(warm.notes)  # followed, not solved again from rest

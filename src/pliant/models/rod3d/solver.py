@@ -586,8 +586,10 @@ def _settled_from(found: list[Equilibrium3D], solver: RodSolver, deadline: float
 
 
 def _solve(problem: Problem, warm_start: Equilibrium3D | None, solver: RodSolver,
-           follow_only: bool, rigid: bool = False) -> Equilibrium3D:
-    """``rigid``: flexible parts already fitted (``coupled``) count as rigid tubes."""
+           follow_only: bool, rigid: bool = False, carry: bool = True) -> Equilibrium3D:
+    """``rigid``: flexible parts already fitted (``coupled``) count as rigid tubes;
+    ``carry``: a warm start whose obstacles moved may be followed with them carried
+    (``_obstacles_carried``)."""
     if problem.dimension != 3:
         raise IllPosedProblemError("the 3D model solves 3D problems; this one is 2D "
                                    "(use pliant.solve, which picks the model)")
@@ -603,6 +605,10 @@ def _solve(problem: Problem, warm_start: Equilibrium3D | None, solver: RodSolver
     try:
         if warm_start is not None:
             state = run.warm(warm_start)
+            if state is None and carry:
+                carried = _obstacles_carried(problem, warm_start, solver)
+                if carried is not None:
+                    return carried
             if state is not None:
                 run.notes[:0] = [n for n in warm_start.notes if isinstance(n, BranchTaken)]
             elif follow_only:
@@ -642,6 +648,61 @@ def _solve(problem: Problem, warm_start: Equilibrium3D | None, solver: RodSolver
     if warm_start is None and not problem.solved_together:  # (else: the rigid first
         eq = _with_reaction_error(run, eq.state.state, eq)  # pass, solved together next)
     return eq
+
+
+CARRY_STEP = 0.25  # an obstacle carried at most this many of the part's radii a stage
+CARRY_MOST = 400  # stages at most (beyond: not followed)
+
+
+def _obstacles_carried(problem: Problem, warm_start: Equilibrium3D, solver: RodSolver
+                       ) -> Equilibrium3D | None:
+    """A warm start whose obstacles moved (the same ones, placed elsewhere: a drum
+    raised, a part of the scene turned) followed with them: the continuation changes the
+    targets and loads gradually but takes the obstacles where they now are at once, so
+    a move of more than the contact's give started inside them ("the start is
+    singular"). Here they are carried from their old poses to the new in stages of at
+    most ``CARRY_STEP`` of the part's radius (a move of 3 mm into a 10 mm part at rest on
+    a drum was singular; 2 mm was not), each solved warm from the last; None where they
+    did not move or cannot be followed (the caller goes on as before)."""
+    from pliant.core.rotations import exp_map, log_map  # noqa: PLC0415
+    from pliant.scene.distance import Obstacle  # noqa: PLC0415
+
+    before, after = warm_start.problem.obstacles, problem.obstacles
+    if not before or len(before) != len(after):
+        return None
+    for a, b in zip(before, after):
+        if (a.name != b.name or a.kind != b.kind or a.mesh is not b.mesh
+                or a.fitted is not None or b.fitted is not None
+                or not np.array_equal(a.param, b.param)):
+            return None
+    if all(np.array_equal(a.translation, b.translation)
+           and np.array_equal(a.rotation, b.rotation) for a, b in zip(before, after)):
+        return None
+
+    def between(a: Obstacle, b: Obstacle, t: float) -> Obstacle:
+        turn = log_map(a.rotation.T @ b.rotation)
+        return replace(b, translation=(1.0 - t) * a.translation + t * b.translation,
+                       rotation=a.rotation @ exp_map(t * turn))
+
+    move = max(float(np.linalg.norm(b.translation - a.translation))
+               + float(np.linalg.norm(log_map(a.rotation.T @ b.rotation)))
+               * (float(np.abs(a.mesh.tri).max()) if a.mesh is not None
+                  else float(np.abs(a.param).max(initial=0.0)))
+               for a, b in zip(before, after))
+    first = max(2, math.ceil(move / (CARRY_STEP * problem.part.drawn_radius)))
+    for stages in (first, 4 * first):
+        if stages > CARRY_MOST:
+            return None
+        previous = warm_start
+        try:
+            for k in range(1, stages):
+                stage = replace(problem, obstacles=tuple(
+                    between(a, b, k / stages) for a, b in zip(before, after)))
+                previous = _solve(stage, previous, solver, True, carry=False)
+            return _solve(problem, previous, solver, True, carry=False)
+        except ConvergenceError:
+            continue
+    return None
 
 
 def _lowest(run: Run, eq: Equilibrium3D) -> tuple[Equilibrium3D, Run]:
