@@ -236,3 +236,35 @@ def drawn_in_view(page, points, colour: str, step: int | None = None) -> int:
                     hits++; break; }
         }
         return hits; }""", [np.asarray(points, float).tolist(), rgb, step])
+
+
+def localized_helix(bending: float = 1.345, twisting: float = 0.789, length: float = 1.0,
+                    slack: float = 0.03, turns: int = 27, points: int = 20001):
+    """PyElastica's localized helical buckling case (Gazzola et al. 2018, section 3.4.1)
+    in closed form, computed here: the end moment M [N m] and tension T [N] from van der
+    Heijden, Thompson et al.'s clamped-rod equations (Writhing instabilities of twisted
+    rods, 2001, eqs 14-15: d = sqrt(16/t (1 - m^2/(4t))), R = m/gamma +
+    4 acos(m/(2 sqrt t)), in m = M L / B, t = T L^2 / B), solved by fsolve, and the
+    localized helix (van der Heijden, Neukirch, Goss and Thompson 2003, eqs 27 and 52)
+    as (points, 3) [m] from the origin, its axis along z. (curve, M, T, its largest
+    distance from the axis [m])."""
+    import math
+
+    from scipy.optimize import fsolve
+
+    gamma = twisting / bending
+    m, t = fsolve(lambda v: [math.sqrt(16.0 / v[1] * (1.0 - v[0] ** 2 / (4.0 * v[1])))
+                             - slack, v[0] / gamma + 4.0 * math.acos(v[0] / (2.0 * math.sqrt(
+                                 v[1]))) - turns * 2.0 * math.pi], [100.0, 3000.0],
+                  xtol=1e-13)
+    moment, tension = m * bending / length, t * bending / length**2
+    tt = tension * length**2 / (4.0 * math.pi**2 * bending)
+    mz = moment * length / (2.0 * math.pi * bending)
+    root = math.sqrt(4.0 * tt - mz * mz)
+    u = np.linspace(-0.5, 0.5, points)
+    amplitude = root / (2.0 * math.pi * tt)
+    envelope = amplitude / np.cosh(math.pi * u * root)
+    curve = length * np.column_stack([envelope * np.sin(mz * math.pi * u),
+                                      -envelope * np.cos(mz * math.pi * u),
+                                      u - amplitude * np.tanh(math.pi * u * root)])
+    return curve - curve[0], moment, tension, amplitude * length

@@ -419,74 +419,17 @@ class Network:
 
 def _from_design(problem, points: np.ndarray, first_normal: np.ndarray,
                  solver) -> Equilibrium3D:
-    """A segment's equilibrium followed from its designed shape: that shape, made the
-    rod's rest shape and free of gravity, is an equilibrium (the clamps where it puts
-    its ends); the continuation then takes the rest shape to straight and the weight
-    from nothing to its own, while the clamps go to their poses (``Run.follow``).
-    ``first_normal``: the section's d1 at s = 0 (the start clamp's)."""
-    from dataclasses import replace  # noqa: PLC0415
-
-    from pliant.core.rotations import qconj, qmul, quat_from_matrix  # noqa: PLC0415
-    from pliant.models.continuation import Stalled  # noqa: PLC0415
-    from pliant.models.rod3d.kernels import FULL  # noqa: PLC0415
-    from pliant.models.rod3d.lowering import lower  # noqa: PLC0415
-    from pliant.models.rod3d.results import build  # noqa: PLC0415
-    from pliant.models.rod3d.solver import Run  # noqa: PLC0415
+    """A segment's equilibrium followed from its designed shape (``rod3d.from_shape``:
+    that shape, made the rod's rest shape and free of gravity, is an equilibrium; the
+    rest shape is then taken to straight and the weight to its own). ``first_normal``:
+    the section's d1 at s = 0 (the start clamp's)."""
+    from pliant.models import rod3d  # noqa: PLC0415
 
     arc = np.r_[0.0, np.cumsum(np.linalg.norm(np.diff(points, axis=0), axis=1))]
     if abs(arc[-1] / problem.part.length - 1.0) > DESIGN_LENGTH:
         raise ConvergenceError("the design's curve is not the segment's length: no shape "
                                "to start from", residual=math.inf)
-    rod = lower(problem, elements=solver.elements)
-
-    def design(s: np.ndarray) -> np.ndarray:  # s in [0, 1] along the design's length
-        x = np.clip(s, 0.0, 1.0) * arc[-1]
-        return np.column_stack([np.interp(x, arc, points[:, i]) for i in range(3)])
-
-    s_node, h, N = rod.s_node, rod.h, rod.h.shape[0]
-    chords = np.diff(design(s_node), axis=0)
-    d3_elem = chords / np.linalg.norm(chords, axis=1)[:, None]
-    eps = 1e-4
-    d3_frames = np.empty((rod.frame_s.shape[0], 3))
-    d3_frames[rod.elem_frame] = d3_elem
-    nodes = np.nonzero(rod.node_frame >= 0)[0]
-    for i in nodes:
-        a, b = design(np.array([s_node[i] - eps, s_node[i] + eps]))
-        t = b - a
-        d3_frames[rod.node_frame[i]] = t / np.linalg.norm(t)
-    # d1 carried along the frames by rotation-minimising transport from the start
-    # clamp's; quaternions kept in one hemisphere (the discrete Darboux vector is
-    # 2/hh Im(conj(q_a) q_b)).
-    frames = rotation_minimizing_frames(design(rod.frame_s), first_normal,
-                                        tangents=d3_frames)
-    Q = np.empty((d3_frames.shape[0], 4))
-    for k, frame in enumerate(frames):
-        q = quat_from_matrix(frame)
-        Q[k] = -q if k and q @ Q[k - 1] < 0.0 else q
-    X = np.empty((N + 1, 3))
-    X[0] = design(np.array([0.0]))[0] / rod.length
-    X[1:] = X[0] + np.cumsum(h[:, None] * d3_elem, axis=0)
-    k0 = np.array([2.0 / hh * qmul(qconj(a), b)[1:] for a, b, hh in
-                   zip(Q[:-1], Q[1:], rod.joint_hh)])
-    target = rod.target
-    st_pos = np.where(rod.st_pos_mask > 0, X[rod.st_node], 0.0)
-    st_tangent = np.where((rod.st_kind > 0)[:, None], d3_frames[rod.st_frame],
-                          target.st_tangent)
-    st_quat = target.st_quat.copy()
-    for k in range(st_quat.shape[0]):
-        if rod.st_kind[k] == FULL:
-            q = Q[rod.st_frame[k]]
-            st_quat[k] = q if q @ target.st_quat[k] >= 0.0 else -q
-    start = replace(target, fnode=np.zeros_like(target.fnode), st_pos=st_pos,
-                    st_tangent=st_tangent, st_quat=st_quat, joint_k0=k0)
-    run = Run(rod, solver)
-    state = (X, Q, np.zeros((N, 3)), np.zeros(rod.m), np.zeros(rod.islot.shape[0]))
-    try:
-        state = run.follow(start, target, state)
-    except Stalled as stall:
-        raise ConvergenceError(f"from the design: {stall.reason}",
-                               residual=stall.residual) from None
-    return build(run, state, None)
+    return rod3d.from_shape(problem, points, first_normal, solver)
 
 
 def solve_installed(harness: Harness, props: Mapping[str, SegmentProperties], *,
