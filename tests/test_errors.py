@@ -104,6 +104,38 @@ def test_non_convergence_says_so_with_residual():
     assert 0.0 <= err.value.progress < 1.0
 
 
+def test_a_solve_asked_not_to_throw_returns_what_its_error_would_say():
+    """``pl.solve(..., throw=False)`` (issue 59: a search asks instead of catching):
+    where the solve raises, the same problem gives an ``Unsolved`` carrying that error's
+    status, residual, progress and message, ``ok`` False; where it answers, the same
+    equilibrium, ``ok`` True. 2D and 3D, cold and warm."""
+    def follower(force: float) -> pl.Problem:
+        return pl.Problem(UNIT, (pl.clamp(0.0), pl.push(1.0, force=(0.0, force),
+                                                         follower=True)))
+
+    start = pl.solve(follower(1.0), throw=False)
+    assert start.ok is True
+    budget = ShootingSolver(max_steps=2)  # a warm step of 49 N in 2 steps: refused
+    with pytest.raises(ConvergenceError) as raised:
+        pl.solve(follower(50.0), warm_start=start, solver=budget)
+    failed = pl.solve(follower(50.0), warm_start=start, solver=budget, throw=False)
+    assert isinstance(failed, pl.Unsolved) and failed.ok is False
+    assert type(failed.error) is ConvergenceError and failed.problem == follower(50.0)
+    assert failed.status is not None
+    assert (failed.status, failed.residual, failed.progress, failed.message) == (
+        raised.value.status, raised.value.residual, raised.value.progress,
+        str(raised.value))
+    good = pl.Problem(UNIT, (pl.clamp(0.0), pl.grip(1.0, position=(0.6, 0.5), angle=1.0)))
+    answer = pl.solve(good, throw=False)
+    assert answer.ok is True
+    assert np.array_equal(answer.position, pl.solve(good).position)
+    rod = pl.Part(1.0, 1.0)
+    far = pl.Problem(rod, (pl.clamp(0.0, (0.0, 0.0, 0.0)),
+                           pl.grip(1.0, (0.5, 0.5, 0.0), tangent=(0.0, 1.0, 0.0))))
+    cold = pl.solve(far, throw=False)
+    assert cold.ok and pl.solve(far, warm_start=cold, throw=False).ok
+
+
 def test_trace_stops_at_a_snap_through_with_the_last_good_state():
     """A clamped-clamped strip, buckled by pushing its ends together, snaps through when
     one end is turned far enough (a fold of the equilibrium path). Following the turn,

@@ -17,6 +17,7 @@ from pliant.core import PivotClip as PivotClip
 from pliant.core import Problem as Problem
 from pliant.core import SlidingClip as SlidingClip
 from pliant.core import StationLoad as StationLoad
+from pliant.core import Unsolved as Unsolved
 from pliant.core import clamp as clamp
 from pliant.core import grip as grip
 from pliant.core import interpolate as interpolate

@@ -9,6 +9,7 @@ from pliant.core.equilibrium import Equilibrium as Equilibrium
 from pliant.core.equilibrium import Equilibrium3D as Equilibrium3D
 from pliant.core.equilibrium import Result as Result
 from pliant.core.equilibrium import StationLoad as StationLoad
+from pliant.core.equilibrium import Unsolved as Unsolved
 from pliant.core.loads import DistributedLoad as DistributedLoad
 from pliant.core.part import Material as Material
 from pliant.core.part import Part as Part

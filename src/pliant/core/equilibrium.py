@@ -14,7 +14,7 @@ import math
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from functools import cached_property
-from typing import Any, Protocol, runtime_checkable
+from typing import Any, ClassVar, Protocol, runtime_checkable
 
 import numpy as np
 
@@ -48,6 +48,40 @@ def stability_verdict(stability: tuple[bool | None, float | None], part) -> str:
                                                                        and eigen <= 0.0):
         return "neutral"
     return "stable" if stable else "unstable"
+
+
+@dataclass(frozen=True, eq=False)
+class Unsolved:
+    """A solve that found no equilibrium, as ``pl.solve(..., throw=False)`` returns it:
+    a search over many poses (planning, studies, sequences) asks instead of catching.
+    The problem and the typed error; from it, why (``status``, a
+    ``pliant.core.events.Status`` where a solver's path stopped), where (``residual``,
+    ``progress`` in [0, 1]) and the last equilibrium it had (``last_good``). ``ok`` is
+    False; an equilibrium's is True."""
+
+    problem: Problem
+    error: Exception
+    ok: ClassVar[bool] = False
+
+    @property
+    def status(self) -> Status | None:
+        return getattr(self.error, "status", None)
+
+    @property
+    def residual(self) -> float:
+        return float(getattr(self.error, "residual", math.inf))
+
+    @property
+    def progress(self) -> float:
+        return float(getattr(self.error, "progress", 0.0))
+
+    @property
+    def last_good(self) -> Any:
+        return getattr(self.error, "last_good", None)
+
+    @property
+    def message(self) -> str:
+        return str(self.error)
 
 
 @runtime_checkable
@@ -304,6 +338,7 @@ class Equilibrium:
     by name (reactions where prescribed).
     """
 
+    ok: ClassVar[bool] = True  # an equilibrium (``Unsolved``: none)
     problem: Problem
     residual: float
     iterations: int
@@ -540,6 +575,7 @@ class Equilibrium3D:
     and torsion). Stability is computed on first access too.
     """
 
+    ok: ClassVar[bool] = True  # an equilibrium (``Unsolved``: none)
     problem: Problem
     residual: float
     iterations: int

@@ -14,12 +14,12 @@ import math
 from collections.abc import Iterable, Iterator
 from dataclasses import replace
 from types import SimpleNamespace
-from typing import Any
+from typing import Any, Literal, overload
 
 import numpy as np
 
 from pliant.core.conditions import Condition
-from pliant.core.equilibrium import Result, model_loads
+from pliant.core.equilibrium import Result, Unsolved, model_loads
 from pliant.core.events import PlanarRoute, WarmStartLost, has
 from pliant.core.problem import Problem
 from pliant.errors import ConvergenceError, IllPosedProblemError, PliantError
@@ -40,13 +40,34 @@ PLANAR_NOTE = ("found from the 3D model's equilibrium of the same problem in the
                "(the 2D routes did not reach one)")
 
 
-def solve(problem: Problem, *, warm_start: Any = None, solver: Any = None) -> Result:
+@overload
+def solve(problem: Problem, *, warm_start: Any = ..., solver: Any = ...,
+          throw: Literal[True] = ...) -> Result: ...
+@overload
+def solve(problem: Problem, *, warm_start: Any = ..., solver: Any = ...,
+          throw: bool) -> Result | Unsolved: ...
+
+
+def solve(problem: Problem, *, warm_start: Any = None, solver: Any = None,
+          throw: bool = True) -> Result | Unsolved:
     """The equilibrium of a problem (``Equilibrium`` in 2D, ``Equilibrium3D`` in 3D).
 
     warm_start : an earlier equilibrium to start from; solver : the model's settings
     (``ShootingSolver`` in 2D, ``RodSolver`` in 3D). A cold 2D solve that finds nothing
     tries the route through the 3D model (see the module) before it gives up.
+    throw : False returns an ``Unsolved`` (``ok`` False: why, where it stopped, the last
+    good equilibrium) instead of raising pliant's typed error; an answer's ``ok`` is
+    True.
     """
+    if not throw:
+        try:
+            return _solve(problem, warm_start, solver)
+        except PliantError as err:
+            return Unsolved(problem, err)
+    return _solve(problem, warm_start, solver)
+
+
+def _solve(problem: Problem, warm_start: Any, solver: Any) -> Result:
     model = _model(problem)
     if problem.dimension == 3 or warm_start is not None:
         return model.solve(problem, warm_start=warm_start, solver=solver)
