@@ -194,6 +194,7 @@ def pictures(ev: Any, steps: list[tuple[str, int]]) -> list[tuple[str, str]]:
     import matplotlib.pyplot as plt  # noqa: PLC0415
     from mpl_toolkits.mplot3d.art3d import Poly3DCollection  # noqa: PLC0415
 
+    from pliant.assembly.evaluate import position_at  # noqa: PLC0415 (loaded: an evaluation is given)
     from pliant.io.mesh_export import obstacle_mesh  # noqa: PLC0415
 
     eq0 = ev.run.equilibria[0]
@@ -227,7 +228,7 @@ def pictures(ev: Any, steps: list[tuple[str, int]]) -> list[tuple[str, str]]:
         ax.plot(x[:, 0], x[:, 1], x[:, 2], color="#1f4e9c", lw=3)
         for g in ev.grips:
             load = eq.loads[g]
-            p = x[int(np.argmin(np.abs(eq.s - load.s)))]
+            p = position_at(eq, load.s)
             f = np.asarray(load.force, float)
             norm = float(np.linalg.norm(f))
             if norm > 0:
@@ -253,6 +254,7 @@ def pictures(ev: Any, steps: list[tuple[str, int]]) -> list[tuple[str, str]]:
 def view(ev: Any) -> str:
     """The interactive 3D view (``cli.view3d``): the obstacles, and at each step the part,
     its grips, each hand's envelope and the worker, from the worst step."""
+    from pliant.assembly.evaluate import position_at  # noqa: PLC0415 (loaded: an evaluation is given)
     from pliant.cli import view3d  # noqa: PLC0415
 
     eq0 = ev.run.equilibria[0]
@@ -262,18 +264,12 @@ def view(ev: Any) -> str:
         items = [view3d.line(eq.position, "#1f4e9c", 4.0, name="part")]
         for g in ev.grips:
             load = eq.loads[g]
-            items.append(view3d.point(eq.position[int(np.argmin(np.abs(eq.s - load.s)))],
-                                      COLOURS["red"], g))
+            items.append(view3d.point(position_at(eq, load.s), COLOURS["red"], g))
         if shown is not None:
             for g, at in shown.access.items():
-                a = at[k]
-                check = next((c for c in shown.checks
-                              if c.rule == "access: hand" and c.grip == g), None)
-                zone = ("red" if check is not None and k in check.red_steps else
-                        "yellow" if check is not None and k in check.yellow_steps else "green")
-                centre = np.asarray(a.centre)
-                items.append(view3d.line([centre, centre + a.reach * np.asarray(a.approach)],
-                                         COLOURS[zone], 7.0, name=f"{g}: hand"))
+                centre = np.asarray(at[k].centre)
+                items.append(view3d.line([centre, centre + at[k].reach * np.asarray(
+                    at[k].approach)], COLOURS[_hand_zone(shown, g, k)], 7.0, name=f"{g}: hand"))
             for r in shown.reach.values():
                 items.append(view3d.line(np.array(r[k].chain), "#5b3a87", 2.5, name="worker"))
         steps.append(items)
@@ -285,15 +281,21 @@ def view(ev: Any) -> str:
                             "(purple); the slider picks the step, from the worst.")
 
 
+def _hand_zone(op: Any, grip: str, k: int) -> str:
+    """The zone of the access check of the hand at ``grip`` at step k (green where it
+    has none)."""
+    check = next((c for c in op.checks if c.rule == "access: hand" and c.grip == grip), None)
+    return ("red" if check is not None and k in check.red_steps else
+            "yellow" if check is not None and k in check.yellow_steps else "green")
+
+
 def _draw_body(ax, op: Any, k: int) -> None:
     """The hands' envelopes at step k (the ring round the part, the forearm out along
     the best approach, coloured by the access check's zone there) and the worker's
     stick figure (feet, hip, shoulder, elbow, grip)."""
     for g, steps in op.access.items():
         a = steps[k]
-        check = next((c for c in op.checks if c.rule == "access: hand" and c.grip == g), None)
-        zone = ("red" if check is not None and k in check.red_steps else
-                "yellow" if check is not None and k in check.yellow_steps else "green")
+        zone = _hand_zone(op, g, k)
         c, d = np.asarray(a.centre), np.asarray(a.approach)
         end = c + a.reach * d
         ax.plot(*zip(c, end), color=COLOURS[zone], lw=7, alpha=0.45, solid_capstyle="round")

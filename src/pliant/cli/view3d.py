@@ -11,6 +11,7 @@ canvas pixels and ``show(step)``."""
 
 from __future__ import annotations
 
+import functools
 import html
 import itertools
 import json
@@ -91,6 +92,8 @@ def html_view(*, meshes: Sequence[dict] = (), lines: Sequence[dict] = (),
             f"<script>{_script().replace('__ID__', key)}</script></figure>")
 
 
+@functools.cache
 def _script() -> str:
-    return (Path(__file__).with_name("view3d.js")).read_text(encoding="utf-8")
+    """The view's JavaScript, read once."""
+    return Path(__file__).with_name("view3d.js").read_text(encoding="utf-8")
 
