@@ -405,6 +405,15 @@ class Network:
     def segments_at(self, k: int) -> list[str]:
         return sorted({e.segment for e in self.junctions[k].ends})
 
+    def held_by(self, fixings: Collection[str]) -> list[str]:
+        """The segments (sorted) these fixings (by name) hold: those they are placed on,
+        and every segment at a node one of them holds."""
+        nodes = {n for n, name in self.at_fixing.items() if name in fixings}
+        return sorted(seg_id for seg_id, seg in self.harness.segments.items()
+                      if seg.start in nodes or seg.end in nodes or any(
+                          self.harness.fixings[p.fixing].name in fixings
+                          for p in seg.fixings))
+
     def near(self, segments: Collection[str], depth: int = 1) -> set[int]:
         """The junctions (indices) at these segments' ends, and those up to ``depth``
         segments further on."""
@@ -479,10 +488,7 @@ def solve_installed(harness: Harness, props: Mapping[str, SegmentProperties], *,
 
         # Only the moved fixings' segments' problems change: they follow, the junctions
         # about them balance on their own, then the whole harness from there.
-        nodes = {n for n, name in net.at_fixing.items() if name in target}
-        carrying = [seg_id for seg_id, seg in harness.segments.items()
-                    if any(harness.fixings[p.fixing].name in target for p in seg.fixings)
-                    or seg.start in nodes or seg.end in nodes]
+        carrying = net.held_by(target)
         iterations, r, jac = _stepped(net, warm.jacobian, to, lambda: {
             seg_id: net.solve_segment(seg_id, warm=True) for seg_id in carrying},
             step=1.0, near=net.near(carrying, NEAR_DEPTH))
@@ -542,14 +548,11 @@ def fix(before: Installed, props: Mapping[str, SegmentProperties], fixing: str, 
         j.rotation = np.array(before.rotations[j.node], float)
     net.eqs = {seg_id: seg.equilibrium for seg_id, seg in before.segments.items()}
     (fid,) = [f.id for f in harness.fixings.values() if f.name == fixing]
-    carrying = [seg_id for seg_id, seg in harness.segments.items()
-                if any(p.fixing == fid for p in seg.fixings)]
+    carrying = net.held_by({fixing})
     if not carrying:  # placed on no segment: it holds nothing
         return replace(before, released=net.released), [0.0]
     at = next((n for n, name in net.at_fixing.items() if name == fixing), None)
     if at is not None:  # it holds a node: every segment there loads it
-        carrying = sorted({seg_id for seg_id, seg in harness.segments.items()
-                           if at in (seg.start, seg.end)})
         seg_id = carrying[0]
         eq = before.segments[seg_id].equilibrium
         end = 0 if harness.segments[seg_id].start == at else 1
@@ -659,6 +662,11 @@ def _balance(net: Network, jac: np.ndarray | None, only: Collection[int] | None 
         jac = jac[np.ix_(rows, rows)]
     full_r = net.residual(net.eqs)
     r = full_r[rows]
+
+    def fresh_jacobian() -> np.ndarray:  # the chosen junctions' rows and columns
+        return jacobian(net, full_r, moving if only is not None else None)[
+            np.ix_(rows, rows)]
+
     energy = net.energy(net.eqs)
     iterations = 0
     damping = 1e-6
@@ -673,7 +681,7 @@ def _balance(net: Network, jac: np.ndarray | None, only: Collection[int] | None 
                 f"off by {float(np.abs(r).max()):.2g} of the harness's weight)",
                 residual=float(np.abs(r).max()))
         if jac is None:
-            jac = jacobian(net, full_r, moving if only is not None else None)[np.ix_(rows, rows)]
+            jac = fresh_jacobian()
             fresh += 1
             updated = False
         hessian = 0.5 * (jac + jac.T)  # the balance is the energy's gradient
@@ -712,8 +720,7 @@ def _balance(net: Network, jac: np.ndarray | None, only: Collection[int] | None 
             for j, (p, rot) in zip(net.junctions, saved):
                 j.position, j.rotation = p, rot
             if updated:  # an updated Jacobian misled the step: a fresh one, same damping
-                jac = jacobian(net, full_r, moving if only is not None else None)[
-                    np.ix_(rows, rows)]
+                jac = fresh_jacobian()
                 fresh += 1
                 updated = False
                 hessian = 0.5 * (jac + jac.T)
