@@ -61,8 +61,6 @@ from __future__ import annotations
 
 import json
 import math
-import signal
-import threading
 from collections import Counter
 from collections.abc import Callable
 from dataclasses import dataclass, field, replace
@@ -89,6 +87,7 @@ from pliant.errors import ConvergenceError, InputError, PliantError, Unreachable
 from pliant.models import clock, rod3d
 from pliant.scene.distance import DistanceField
 from pliant.scene.interference import of_equilibrium
+from pliant.util.interrupts import on_ctrl_c
 
 
 class NoPathError(PliantError):
@@ -548,15 +547,8 @@ class Planner:
         tree.deadline = clock.now() + self.settings.budget
         tree.interrupted = False
         self.queries += 1
-        previous = None
-        if threading.current_thread() is threading.main_thread():
-            # A plain function: signal.signal reprs a handler it cannot map to its enum.
-            previous = signal.signal(signal.SIGINT, lambda *_: tree.interrupt())
-        try:
+        with on_ctrl_c(tree.interrupt):
             return self._plan(tree, goal, begin, on_progress)
-        finally:
-            if previous is not None:
-                signal.signal(signal.SIGINT, previous)
 
     def _plan(self, tree: _Tree, goal: str, begin: float,
               on_progress: Callable[[str], None] | None) -> Plan:

@@ -9,19 +9,18 @@ triangles; the contact's accuracy is no better than it.
 
 from __future__ import annotations
 
-import contextlib
 import fnmatch
 import functools
 import re
 import tempfile
-from collections.abc import Iterator, Sequence
+from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
 
 import numpy as np
 
 from pliant.errors import FileFormatError, InputError
+from pliant.util.interrupts import on_ctrl_c
 
 UNITS = {"m": 1.0, "mm": 1e-3, "cm": 1e-2, "in": 0.0254, "inch": 0.0254, "ft": 0.3048}
 STEP_SUFFIXES = (".step", ".stp")
@@ -73,10 +72,8 @@ def read_assembly(path: Path, *, units: str | None = None, tolerance: float = TO
         units or "m")
     if not tolerance > 0.0:
         raise InputError("tolerance", f"must be a positive length in m, got {tolerance!r}")
-    # OpenCASCADE works in mm.
-    options: dict[str, Any] = {"tol_linear": tolerance * 1e3} if step else {}
     if step:
-        solids = list(_read_step(path, options["tol_linear"]))
+        solids = list(_read_step(path, tolerance * 1e3))  # OpenCASCADE works in mm
     else:
         try:
             scene = trimesh.load(path, force="scene")
@@ -109,31 +106,9 @@ def _read_step(path: Path, tolerance_mm: float) -> tuple[Solid, ...]:
     (``pliant.io.step_worker``): a crash there on a damaged file, or a Ctrl+C while it
     reads, ends that process, not pliant (the Ctrl+C then stops pliant cleanly). Kept
     per file, size, time and tolerance for this process's later scenes."""
-    stat = path.resolve().stat()
-    return _read_step_once(str(path.resolve()), stat.st_size, stat.st_mtime_ns,
-                           tolerance_mm)
-
-
-@contextlib.contextmanager
-def _interrupt_held() -> Iterator[list[bool]]:
-    """Ctrl+C held while the block runs (in the main thread, the only one it reaches):
-    the list says whether it came, for the caller to act on once the block is done."""
-    import signal  # noqa: PLC0415
-    import threading  # noqa: PLC0415
-
-    pressed: list[bool] = []
-    if threading.current_thread() is not threading.main_thread():
-        yield pressed
-        return
-    previous = signal.getsignal(signal.SIGINT)
-    if previous in (signal.SIG_IGN, None):
-        yield pressed
-        return
-    signal.signal(signal.SIGINT, lambda *_: pressed.append(True))
-    try:
-        yield pressed
-    finally:
-        signal.signal(signal.SIGINT, previous)
+    where = path.resolve()
+    stat = where.stat()
+    return _read_step_once(str(where), stat.st_size, stat.st_mtime_ns, tolerance_mm)
 
 
 @functools.lru_cache(maxsize=8)
@@ -145,7 +120,8 @@ def _read_step_once(path: str, size: int, mtime: int, tolerance_mm: float
     with tempfile.TemporaryDirectory(prefix="pliant-step-") as folder:
         answer = Path(folder) / "solids.npz"
         # A session of its own: the terminal's Ctrl+C reaches pliant, which ends it.
-        with _interrupt_held() as pressed:  # not between its start and ``process``
+        pressed: list[bool] = []  # Ctrl+C held: not between its start and ``process``
+        with on_ctrl_c(lambda: pressed.append(True)):
             process = subprocess.Popen(
                 [sys.executable, "-m", "pliant.io.step_worker", path, repr(tolerance_mm),
                  str(answer)], stdin=subprocess.DEVNULL, stdout=subprocess.PIPE,

@@ -679,16 +679,17 @@ def _obstacles_carried(problem: Problem, warm_start: Equilibrium3D, solver: RodS
            and np.array_equal(a.rotation, b.rotation) for a, b in zip(before, after)):
         return None
 
-    def between(a: Obstacle, b: Obstacle, t: float) -> Obstacle:
-        turn = log_map(a.rotation.T @ b.rotation)
+    turns = [log_map(a.rotation.T @ b.rotation) for a, b in zip(before, after)]
+
+    def between(a: Obstacle, b: Obstacle, turn: np.ndarray, t: float) -> Obstacle:
         return replace(b, translation=(1.0 - t) * a.translation + t * b.translation,
                        rotation=a.rotation @ exp_map(t * turn))
 
     move = max(float(np.linalg.norm(b.translation - a.translation))
-               + float(np.linalg.norm(log_map(a.rotation.T @ b.rotation)))
+               + float(np.linalg.norm(turn))
                * (float(np.abs(a.mesh.tri).max()) if a.mesh is not None
                   else float(np.abs(a.param).max(initial=0.0)))
-               for a, b in zip(before, after))
+               for a, b, turn in zip(before, after, turns))
     first = max(2, math.ceil(move / (CARRY_STEP * problem.part.drawn_radius)))
     for stages in (first, 4 * first):
         if stages > CARRY_MOST:
@@ -697,7 +698,8 @@ def _obstacles_carried(problem: Problem, warm_start: Equilibrium3D, solver: RodS
         try:
             for k in range(1, stages):
                 stage = replace(problem, obstacles=tuple(
-                    between(a, b, k / stages) for a, b in zip(before, after)))
+                    between(a, b, turn, k / stages)
+                    for a, b, turn in zip(before, after, turns)))
                 previous = _solve(stage, previous, solver, True, carry=False)
             return _solve(problem, previous, solver, True, carry=False)
         except ConvergenceError:
