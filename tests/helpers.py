@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import shutil
+from contextlib import contextmanager
 from functools import lru_cache
 from pathlib import Path
 
@@ -215,6 +217,36 @@ def straight_harness(nodes: dict[str, tuple[float, float, float]],
                    {n: HarnessNode(n, n, p) for n, p in nodes.items()}, segs,
                    {"T": wire_type}, {"W": Wire("W", "W", "T", None, tuple(segs))}, fixings,
                    connectors, {})
+
+
+CHROMIUM = shutil.which("chromium") or "/usr/bin/chromium"
+
+
+@contextmanager
+def offline_report(path: Path):
+    """A report opened in headless chromium (Debian's), its page: checked to have
+    fetched nothing but itself (a report opens offline)."""
+    from playwright.sync_api import sync_playwright
+
+    with sync_playwright() as p:
+        browser = p.chromium.launch(executable_path=CHROMIUM, headless=True, args=[
+            "--no-sandbox", "--disable-gpu", "--disable-background-networking"])
+        page = browser.new_page()
+        fetched: list[str] = []
+        page.on("request", lambda r: fetched.append(r.url))
+        page.goto(path.as_uri())
+        assert fetched == [path.as_uri()]  # one file: nothing else is fetched
+        try:
+            yield page
+        finally:
+            browser.close()
+
+
+def view_data(page) -> dict:
+    """The data of the page's first 3D view (``cli.view3d``)."""
+    import json
+
+    return json.loads(page.inner_text("figure.view3d script[type='application/json']"))
 
 
 def drawn_in_view(page, points, colour: str, step: int | None = None) -> int:

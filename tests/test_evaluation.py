@@ -7,7 +7,6 @@ from __future__ import annotations
 
 import json
 import math
-import shutil
 import subprocess
 import sys
 from pathlib import Path
@@ -34,7 +33,7 @@ from pliant.errors import FileFormatError, InputError
 from pliant.io.evaluation_file import EvaluationReport, evaluation_json, write_csv
 from pliant.io.rules_file import bundled_rules, parse_rules
 
-from .helpers import cli, drawn_in_view
+from .helpers import CHROMIUM, cli, drawn_in_view, offline_report, view_data
 
 RULES_TEXT = (Path(__file__).resolve().parents[1] / "src" / "pliant" / "data"
               / "rules.toml").read_text()
@@ -397,24 +396,12 @@ def test_the_table_writes_round_off_as_zero_and_keeps_real_values(engine_bay):
     assert clean([1e-13], 1e-3) == [0.0]
 
 
-CHROMIUM = shutil.which("chromium") or "/usr/bin/chromium"
-
-
 @pytest.mark.skipif(not Path(CHROMIUM).exists(), reason="Debian's chromium is not installed")
 def test_the_report_opens_offline_in_chromium_and_shows_the_verdict(engine_bay, tmp_path):
-    from playwright.sync_api import sync_playwright
-
     from pliant.cli.evaluation_report import write_html
 
     path = write_html(engine_bay, tmp_path / "report.html")
-    with sync_playwright() as p:
-        browser = p.chromium.launch(executable_path=CHROMIUM, headless=True, args=[
-            "--no-sandbox", "--disable-gpu", "--disable-background-networking"])
-        page = browser.new_page()
-        fetched: list[str] = []
-        page.on("request", lambda r: fetched.append(r.url))
-        page.goto(path.as_uri())
-        assert fetched == [path.as_uri()]  # one file: nothing else is fetched
+    with offline_report(path) as page:  # one file: nothing else is fetched
         assert page.inner_text("#verdict").startswith("FITS with one hand")
         assert "exhaust manifold" in page.inner_text("#items")
         worst, last = engine_bay.worst_step(), len(engine_bay.run.steps) - 1
@@ -422,7 +409,7 @@ def test_the_report_opens_offline_in_chromium_and_shows_the_verdict(engine_bay, 
         assert page.locator("svg").count() >= 3 and page.locator("img").count() == pictures
         # The 3D view: its data is the answer's (to 0.1 mm) and it draws the part where
         # the part projects, at the worst step, at another one, and turned.
-        data = json.loads(page.inner_text("figure.view3d script[type='application/json']"))
+        data = view_data(page)
         assert len(data["steps"]) == last + 1 and data["start"] == worst
         for k in (0, worst, last):
             eq = engine_bay.run.equilibria[k]
@@ -438,7 +425,6 @@ def test_the_report_opens_offline_in_chromium_and_shows_the_verdict(engine_bay, 
         page.evaluate("() => Object.values(window.pliantViews)[0].turn(1.2, -0.3)")
         along = engine_bay.run.equilibria[last].position[::6]
         assert drawn_in_view(page, along, blue, last) >= 0.7 * len(along)
-        browser.close()
 
 
 def _cli(*args):

@@ -8,7 +8,6 @@ from __future__ import annotations
 import json
 import math
 import re
-import shutil
 import subprocess
 import sys
 import xml.etree.ElementTree as ET
@@ -32,7 +31,7 @@ from pliant.core.harness import CLAMPED, UNCLAMPED
 from pliant.errors import FileFormatError, InputError
 from pliant.io.kbl import read_kbl
 
-from .helpers import drawn_in_view, straight_harness
+from .helpers import CHROMIUM, drawn_in_view, offline_report, straight_harness, view_data
 
 KBL = Path(__file__).resolve().parents[1] / "examples" / "harness" / "kbl"
 GENERATOR = KBL / "kblxml_2.3sr-1_000971230_ltgs_generator_170718.kbl"
@@ -594,23 +593,13 @@ def test_pliant_harness_writes_a_self_contained_report(tmp_path):
     # Offline: nothing to fetch (the SVG's namespaces are names, not links; the 3D view's
     # script is inline).
     assert "<script src" not in page and 'src="http' not in page and "href=\"http" not in page
-    chromium = shutil.which("chromium") or "/usr/bin/chromium"
-    if not Path(chromium).exists():
+    if not Path(CHROMIUM).exists():
         return
-    from playwright.sync_api import sync_playwright
-
     harness = read_kbl(GENERATOR)
     placed = [harness.nodes[c.node].position for c in harness.connectors.values()
               if c.placement and c.node]
-    with sync_playwright() as p:
-        browser = p.chromium.launch(executable_path=chromium, headless=True, args=[
-            "--no-sandbox", "--disable-gpu", "--disable-background-networking"])
-        view = browser.new_page()
-        fetched: list[str] = []
-        view.on("request", lambda r: fetched.append(r.url))
-        view.goto(report.as_uri())
-        assert fetched == [report.as_uri()]
-        data = json.loads(view.inner_text("figure.view3d script[type='application/json']"))
+    with offline_report(report) as view:
+        data = view_data(view)
         assert [m["n"] for m in data["meshes"]] == ["bracket"]
         assert len(placed) == 3 and drawn_in_view(view, placed, "#3d5a80") == 3
         # The installed segments in their worst check's colour (Segment_3 rests on the
@@ -619,7 +608,6 @@ def test_pliant_harness_writes_a_self_contained_report(tmp_path):
         assert seg3["c"] in ("#b07d00", "#c0262d")
         points = np.array(seg3["p"]).reshape(-1, 3)[5:-5:4]
         assert drawn_in_view(view, points, seg3["c"]) >= 0.7 * len(points)
-        browser.close()
 
 
 def test_a_damaged_kbl_file_reads_or_gets_a_typed_error(tmp_path):

@@ -1120,7 +1120,7 @@ def main() -> None:
     except SystemError as err:
         # Ctrl+C that lands while a compiled kernel hands back its result comes out as
         # "returned a result with an exception set", caused by the KeyboardInterrupt.
-        if isinstance(err.__cause__ or err.__context__, KeyboardInterrupt):
+        if _caused_by_interrupt(err):
             typer.echo(_interrupted(), err=True)
             sys.exit(130)
         raise

@@ -38,6 +38,7 @@ from pliant.session.accurate import (
 
 T = TypeVar("T")
 
+
 @dataclass(frozen=True)
 class GripEvent:
     """A grip moved: the condition ``grip`` takes the given position [m] and, where
