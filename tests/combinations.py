@@ -402,7 +402,7 @@ CASES = [
     Case(("mesh", "path"), "meshes follow a path as their primitive",
          meshes_follow_a_path_as_their_primitive, True),
     Case(("mesh", "path"), "dense meshes follow a path as their primitive",
-         dense_meshes_follow_a_path_as_their_primitive, False),
+         dense_meshes_follow_a_path_as_their_primitive, True),
     Case(("clip", "friction"), "friction has its frictionless limit",
          clip_friction_has_its_frictionless_limit, True),
     Case(("clip", "condition"), "a fixed clip is the condition it stands for",

@@ -294,7 +294,8 @@ def test_sliders_jacobian_matches_finite_differences():
     ball = trimesh.creation.icosphere(subdivisions=2, radius=0.05)
     placed = (Obstacle.cylinder("drum", 0.05, 0.3, (0.2, 0.0, -0.1), ACROSS_Y),
               Obstacle.box("block", (0.12, 0.2, 0.1), (0.58, 0.0, -0.1)),
-              Obstacle.from_mesh("ball", ball.vertices + [0.83, 0.013, -0.1], ball.faces))
+              Obstacle.from_mesh("ball", ball.vertices + [0.83, 0.013, -0.1], ball.faces,
+                                 crease=0.0))  # its edges and vertices, sharp
     x = np.linspace(0.0, 1.0, 20001)
     line = np.column_stack([x, np.zeros_like(x), height(x)])
     obstacles = []

@@ -96,8 +96,10 @@ def test_mesh_distances_match_the_brute_force_twin(name):
 
 
 def test_gradients_match_finite_differences():
+    """The exact gradients (a mesh with every edge sharp: ``crease = 0``; the normals a
+    smoothed mesh gives are tested below)."""
     mesh = SHAPES["torus"]
-    field = DistanceField([Obstacle.from_mesh("t", mesh.vertices, mesh.faces),
+    field = DistanceField([Obstacle.from_mesh("t", mesh.vertices, mesh.faces, crease=0.0),
                            Obstacle.cylinder("c", 0.05, 0.2, (0.3, 0.0, 0.0)),
                            Obstacle.box("b", (0.1, 0.2, 0.1), (-0.3, 0.0, 0.0),
                                         rotation=_rotation((1, 1, 0), 0.4)),
@@ -118,9 +120,10 @@ def test_gradients_match_finite_differences():
 def test_hessians_match_finite_differences_of_the_gradient():
     """The contact Jacobian's curvature term: each obstacle's exact piecewise Hessian
     against central differences of its gradient at random points (none within the step of
-    a seam between pieces), symmetric, with the gradient in its null space."""
+    a seam between pieces), symmetric, with the gradient in its null space (a mesh with
+    every edge sharp, ``crease = 0``)."""
     mesh = SHAPES["torus"]
-    obstacles = [Obstacle.from_mesh("t", mesh.vertices, mesh.faces),
+    obstacles = [Obstacle.from_mesh("t", mesh.vertices, mesh.faces, crease=0.0),
                  Obstacle.cylinder("c", 0.05, 0.2, (0.3, 0.0, 0.0), _rotation((0, 1, 1), 0.7)),
                  Obstacle.box("b", (0.1, 0.2, 0.1), (-0.3, 0.0, 0.0),
                               rotation=_rotation((1, 1, 0), 0.4)),
@@ -144,6 +147,76 @@ def test_hessians_match_finite_differences_of_the_gradient():
             assert np.allclose(H, fd, atol=1e-4 * max(1.0, np.abs(fd).max()))
             assert np.allclose(H, H.T, atol=1e-9) and np.abs(H @ np.array(g)).max() < 1e-9
         assert checked > 40
+
+
+def _normal_turn(a, b):
+    return np.arccos(np.clip(np.einsum("ik,ik->i", a, b), -1.0, 1.0))
+
+
+def test_a_dense_mesh_reads_as_the_smooth_surface_it_tessellates():
+    """A cylinder in 1,024 facets (0.35 degrees apart, under the default crease): near
+    its side the contact normal is the cylinder's to within the facet angle times
+    (distance / radius) (the interpolation's lean at the closest point's place), where
+    the same mesh with every edge sharp leans by up to half a facet's angle (its face
+    normals); along a circle round it the smoothed normal turns across the faces,
+    where the sharp one stays put across each face and turns in the thin wedge beyond
+    each edge. The distance is the mesh's exact one either way."""
+    sections, radius = 1024, 0.05
+    cyl = trimesh.creation.cylinder(radius=radius, height=0.4, sections=sections)
+    smooth = DistanceField([Obstacle.from_mesh("s", cyl.vertices, cyl.faces)])
+    sharp = DistanceField([Obstacle.from_mesh("f", cyl.vertices, cyl.faces, crease=0.0)])
+    facet = 2 * np.pi / sections
+    rng = np.random.default_rng(7)
+    phi = rng.uniform(0.0, 2 * np.pi, 400)
+    out = rng.uniform(0.001, 0.015, 400)
+    points = np.column_stack([(radius + out) * np.cos(phi), (radius + out) * np.sin(phi),
+                              rng.uniform(-0.1, 0.1, 400)])
+    radial = np.column_stack([np.cos(phi), np.sin(phi), np.zeros(400)])
+    d_s, n_s, _ = smooth.query(points, band=1.0)
+    d_f, n_f, _ = sharp.query(points, band=1.0)
+    assert np.array_equal(d_s, d_f)
+    lean = _normal_turn(n_s, radial)
+    assert np.all(lean <= facet * (out / radius + 0.01))
+    assert _normal_turn(n_f, radial).max() > 0.4 * facet
+    # Along an arc two facets long at 10 mm out: the sharp normal stands still over
+    # each face's part of it and turns 6x the cylinder's rate (0.06 m / 0.01 m) across
+    # the wedge beyond each edge; the smoothed one turns over the faces' part (at most
+    # 1.2 / (1 - 0.01 / 0.06) = 1.44 times the rate), standing only over the wedges.
+    arc = 0.3 + np.linspace(0.0, 2 * facet, 801)
+    ring = np.column_stack([0.06 * np.cos(arc), 0.06 * np.sin(arc), np.zeros(801)])
+
+    def rate(field):
+        n = field.query(ring, band=1.0)[1]
+        return _normal_turn(n[1:], n[:-1]) / np.diff(arc)
+
+    rate_s, rate_f = rate(smooth), rate(sharp)
+    assert rate_s.max() < 1.6 and np.mean(rate_s < 1e-6) < 0.25
+    assert rate_f.max() > 4.0 and np.mean(rate_f < 1e-6) > 0.6
+
+
+@pytest.mark.parametrize("name", ["torus", "icosphere"])
+def test_smoothed_normals_rates_match_finite_differences(name):
+    """The contact Jacobian's curvature term on a smoothed mesh: the interpolated
+    normal's rate (``triangles.smooth_feature``) against central differences of the
+    normal the query gives, at random points near the surface (the torus in 32 x 32
+    facets 11 degrees apart smooths only across its quads' diagonals; the icosphere,
+    6 degrees apart, all over)."""
+    mesh = SHAPES[name]
+    field = DistanceField([Obstacle.from_mesh("m", mesh.vertices, mesh.faces)])
+    args = field.args
+    assert 0.0 < args.pseudo[:, 10].mean() <= 1.0  # some edges smoothed
+    rng = np.random.default_rng(11)
+    on, face = trimesh.sample.sample_surface(mesh, 300, seed=3)
+    points = on + mesh.face_normals[face] * rng.uniform(0.002, 0.02, (300, 1))
+    eps, checked = 1e-7, 0
+    for p in points:
+        H = distance.hessian_point(p, 0, args)
+        fd = np.column_stack([
+            (np.array(distance.query_point(p + eps * e, 1.0, args)[1:4])
+             - np.array(distance.query_point(p - eps * e, 1.0, args)[1:4])) / (2 * eps)
+            for e in np.eye(3)])
+        checked += bool(np.allclose(H, fd, atol=1e-4 * max(1.0, np.abs(fd).max())))
+    assert checked >= 0.97 * len(points)  # (a difference may straddle a piece's seam)
 
 
 def test_primitives_against_meshes_of_the_same_shape():

@@ -264,6 +264,11 @@ class ObstacleModel(PackagingFields):
     scale: float | None = Field(None, gt=0, description="mesh: its units in m (0.001 for "
                                 "mm); default the scene's units, else 1")
     resolution: int = Field(64, ge=8, le=512, description="mesh: distance grid cells")
+    crease: float = Field(
+        10.0, ge=0.0, lt=90.0,
+        description="[deg] faces meeting within this angle tessellate one smooth surface: "
+        "a contact reads its normal interpolated across them (0: every facet flat, "
+        "every edge sharp)")
     friction: float = Field(0.0, ge=0, le=5, description="Coulomb's coefficient between "
                                                           "the obstacle and the part")
     note: str = ""
@@ -315,7 +320,7 @@ class ObstacleModel(PackagingFields):
                 scale = unit_scale(units, "units") if units else 1.0
             progress.say(f"{self.name}: distance structures ({len(faces):,} triangles)")
             return Obstacle.from_mesh(self.name, vertices * scale, faces, self.position,
-                                      rotation, self.resolution)
+                                      rotation, self.resolution, crease=self.crease)
         except ValueError as err:
             raise ValueError(f"{err} (the obstacle {self.name!r})") from None
 

@@ -45,6 +45,11 @@ class CadModel(PackagingFields):
     position: Vec3 = Field((0.0, 0.0, 0.0), description="where the file's origin goes [m]")
     rotation: tuple[Vec3, Vec3, Vec3] | None = None
     resolution: int = Field(64, ge=8, le=512, description="distance grid cells")
+    crease: float = Field(
+        10.0, ge=0.0, lt=90.0,
+        description="[deg] faces meeting within this angle tessellate one smooth surface: "
+        "a contact reads its normal interpolated across them (0: every facet flat, "
+        "every edge sharp)")
     friction: float = Field(0.0, ge=0, le=5)
     note: str = ""
 
@@ -83,7 +88,8 @@ class CadModel(PackagingFields):
                              f"{len(pieces)} ({name}, {len(faces):,} triangles)")
                 try:
                     obstacle = Obstacle.from_mesh(name, vertices, faces, self.position,
-                                                  rotation, self.resolution)
+                                                  rotation, self.resolution,
+                                                  crease=self.crease)
                 except ValueError as err:
                     raise ValueError(f"{err} (the solid {name!r} of {path.name})") from None
                 out.append(obstacle.with_friction(self.friction))

@@ -41,7 +41,15 @@ from pliant.scene.primitives import (
     primitive_hessian,
     to_local,
 )
-from pliant.scene.triangles import build_bvh, feature_hessian, mesh_feature, pseudonormals
+from pliant.scene.triangles import (
+    CREASE,
+    build_bvh,
+    contact_normals,
+    feature_hessian,
+    mesh_feature,
+    smooth_feature,
+    smooth_normal,
+)
 from pliant.util import cache as disk
 from pliant.util import progress
 
@@ -76,7 +84,8 @@ class Field(NamedTuple):
     g_origin: np.ndarray
     g_size: np.ndarray
     g_dims: np.ndarray
-GRID_VERSION = 2
+GRID_VERSION = 3
+PSEUDO_ROWS = 12  # per triangle: pseudonormals (7), then smooth_normals (5)
 
 
 # -- triangles -----------------------------------------------------------------------------
@@ -96,9 +105,13 @@ def hessian_point(p, o, field):
     x, y, z = to_local(p, R, trans[o])
     if kind[o] == MESH:
         d, g, t, region = _packed_mesh_feature(x, y, z, mesh_id[o], field)
+        _, Hl, smooth = smooth_feature(np.array([x, y, z]), d, g, t, region, tri,
+                                       field.pseudo, True)
         e = np.zeros(3)
         feature = 0
-        if 1 <= region <= 3:
+        if smooth:
+            pass
+        elif 1 <= region <= 3:
             a = tri[t, region - 1]
             b = tri[t, region % 3]
             size = max(math.sqrt((b[0] - a[0]) ** 2 + (b[1] - a[1]) ** 2
@@ -108,7 +121,8 @@ def hessian_point(p, o, field):
             feature = 1
         elif region >= 4:
             feature = 2
-        Hl = feature_hessian(d, g, e, feature)
+        if not smooth:
+            Hl = feature_hessian(d, g, e, feature)
     else:
         Hl = primitive_hessian(kind[o], x, y, z, param[o])
     H = np.zeros((3, 3))  # R Hl R^T, written out: numba's matrix product compiles slowly
@@ -186,8 +200,9 @@ def query_points(points, band, field):
                     lower = max(di - outside, math.sqrt(cx * cx + cy * cy + cz * cz))
                     di += outside
                 if lower <= band + GRID_ERROR * g_size[m] and lower < d[i]:
-                    di, gm, _, _ = _packed_mesh_feature(x, y, z, m, field)
-                    gx, gy, gz = gm[0], gm[1], gm[2]
+                    di, gm, tm, rm = _packed_mesh_feature(x, y, z, m, field)
+                    _, gx, gy, gz = smooth_normal(x, y, z, di, gm[0], gm[1], gm[2], tm, rm,
+                                                  field.tri, field.pseudo)
             else:
                 di, gx, gy, gz = primitive(k, x, y, z, prm)
             if di < d[i]:
@@ -249,8 +264,9 @@ def check_mesh(vertices: np.ndarray, faces: np.ndarray) -> None:
 
 
 def prepare_mesh(vertices: np.ndarray, faces: np.ndarray, resolution: int = 64,
-                 cache: bool = True) -> MeshData:
-    """Pseudonormals, box tree and signed distance grid of a mesh (the grid cached on
+                 cache: bool = True, crease: float = CREASE) -> MeshData:
+    """Pseudonormals (and the smoothing groups of faces meeting within ``crease``
+    degrees, ``smooth_normals``), box tree and signed distance grid of a mesh (the grid cached on
     disk under the hash of the mesh and the resolution; for a mesh of LARGE_MESH
     triangles or more, the pseudonormals and the tree too). Its progress is reported in
     triangles (``pliant.util.progress``), each step by its share of the build."""
@@ -265,12 +281,12 @@ def prepare_mesh(vertices: np.ndarray, faces: np.ndarray, resolution: int = 64,
         tri = np.ascontiguousarray(vertices[faces])
         digest = disk.digest(vertices.tobytes(), faces.tobytes())
         done(_SHARE["check"])
-        structure = f"{digest}-{GRID_VERSION}"
+        structure = f"{digest}-{GRID_VERSION}-{crease!r}"
         large = cache and faces.shape[0] >= LARGE_MESH
         pseudo, solid, bvh = _load_structure(structure, faces.shape[0]) if large else (
             None, False, ())
         if pseudo is None:
-            pseudo, solid = pseudonormals(vertices, faces)
+            pseudo, solid = contact_normals(vertices, faces, crease)
             done(_SHARE["pseudonormals"])
             bvh = build_bvh(tri)
             done(_SHARE["tree"])
@@ -318,7 +334,7 @@ def _load_structure(key: str, triangles: int) -> tuple[np.ndarray | None, bool, 
     if data is None or not {"pseudo", "solid", *_TREE} <= set(data):
         return None, False, ()
     pseudo, bvh = data["pseudo"], tuple(data[k] for k in _TREE)
-    if pseudo.shape != (triangles, 7, 3) or bvh[0].shape != (triangles,):
+    if pseudo.shape != (triangles, PSEUDO_ROWS, 3) or bvh[0].shape != (triangles,):
         return None, False, ()
     return pseudo, bool(data["solid"]), bvh
 
@@ -407,9 +423,14 @@ class Obstacle:
 
     @staticmethod
     def from_mesh(name: str, vertices, faces, position=(0.0, 0.0, 0.0), rotation=None,
-                  resolution: int = 64) -> Obstacle:
+                  resolution: int = 64, crease: float = CREASE) -> Obstacle:
+        """A triangle mesh; faces meeting within ``crease`` degrees are read as one
+        smooth surface by a contact (``triangles.smooth_feature``; 0: every facet flat,
+        every edge sharp)."""
+        if not 0.0 <= crease < 90.0:
+            raise ValueError(f"crease must be from 0 to 90 degrees, not {crease}")
         return Obstacle(name, MESH, _rot(rotation), np.asarray(position, float),
-                        np.zeros(4), prepare_mesh(vertices, faces, resolution))
+                        np.zeros(4), prepare_mesh(vertices, faces, resolution, crease=crease))
 
 
 def _same_mesh(a: MeshData | None, b: MeshData | None) -> bool:
@@ -496,7 +517,7 @@ class DistanceField:
             return np.concatenate([[0], np.cumsum(sizes)]).astype(np.int64)
 
         tri = cat([x.tri for x in meshes], (0, 3, 3))
-        pseudo = cat([x.pseudo for x in meshes], (0, 7, 3))
+        pseudo = cat([x.pseudo for x in meshes], (0, PSEUDO_ROWS, 3))
         trees = [x.bvh for x in meshes]
         self.args = Field(
             kind, rot, trans, param, mesh_id, tri, pseudo,
