@@ -343,3 +343,34 @@ except KeyboardInterrupt:
                          timeout=120)
     assert out.returncode == 0, out.stderr
     assert "interrupted; left: []" in out.stdout, out.stdout
+
+
+def test_a_crease_angle_reaches_meshes_and_cad_and_a_bad_one_is_refused(tmp_path):
+    """``crease`` on an [[obstacle]] mesh and a [[cad]] file, in a scene in millimetres:
+    a cylinder in 256 facets (1.4 degrees apart) is one smooth surface at the default
+    10 degrees (its side's edges smooth, its rims sharp) and all facets at 0; the same
+    smoothing a mesh given in metres gets; 90 degrees is refused naming the field."""
+    import trimesh
+
+    from pliant.errors import FileFormatError
+    from pliant.scene.distance import Obstacle
+
+    post = trimesh.creation.cylinder(radius=50.0, height=400.0, sections=256)  # mm
+    post.export(tmp_path / "post.stl")
+    base = SCENE.replace('[[cad]]\nfile = "bracket_assembly.step"\n', "")
+
+    def flags(extra_obstacle: str, extra_cad: str) -> list[np.ndarray]:
+        text = ('units = "mm"\n' + base + '\n[[cad]]\nfile = "post.stl"\nname = "cad"\n'
+                + extra_cad + '\n[[obstacle]]\nname = "mesh"\nshape = "mesh"\n'
+                'file = "post.stl"\nposition = [0.0, 0.0, -0.5]\n' + extra_obstacle)
+        obstacles = parse_scene(text, "scene", tmp_path).problem.obstacles
+        return [o.mesh.pseudo[:, 10] for o in obstacles]
+
+    smooth = flags("", "")
+    metres = Obstacle.from_mesh("m", post.vertices * 1e-3, post.faces).mesh.pseudo[:, 10]
+    for f in smooth:  # 1,024 triangles' 3,072 edge uses; the two rims' 512 edges sharp
+        assert np.array_equal(f, metres)
+        assert f.size == 3 * 1024 and f.sum() == 3 * 1024 - 2 * 512
+    assert all(f.sum() == 0 for f in flags("crease = 0.0\n", "crease = 0.0\n"))
+    with pytest.raises(FileFormatError, match=r"crease"):
+        flags("crease = 90.0\n", "")
