@@ -338,6 +338,109 @@ def stretch_has_its_inextensible_limit(folder: Path) -> tuple[bool, str]:
         f"hand force changes by {changes[0]:.1e} (EA 1e6 N) and {changes[1]:.1e} (1e7 N)")
 
 
+# -- a box as a mesh, under each feature -------------------------------------------------------
+# A box primitive is its 12-triangle mesh exactly (tests/test_distance.py): the same
+# answer through the other's code (triangles, box tree, pseudonormals, the crease test
+# that keeps its edges sharp), to the solver's tolerance, wherever a feature meets it.
+def _box_text(name: str, size, centre, mesh: str | None) -> str:
+    where = f"position = {[float(c) for c in centre]}\n"
+    if mesh is None:
+        return (f'\n[[obstacle]]\nname = "{name}"\nshape = "box"\n'
+                f"size = {[float(c) for c in size]}\n" + where)
+    return f'\n[[obstacle]]\nname = "{name}"\nshape = "mesh"\nfile = "{mesh}"\n' + where
+
+
+def _box_mesh(folder: Path, size, name: str) -> str:
+    import trimesh
+
+    box = trimesh.creation.box(extents=size)
+    lines = [f"v {x!r} {y!r} {z!r}" for x, y, z in box.vertices.tolist()]
+    lines += [f"f {a + 1} {b + 1} {c + 1}" for a, b, c in box.faces.tolist()]
+    (folder / name).write_text("\n".join(lines) + "\n")
+    return name
+
+
+def _boxed(folder: Path, text: str, name: str, elements: int, size=(0.06, 0.06, 0.04),
+           push: float = 0.003):
+    """``text``'s part lifted ``push`` [m] at its lowest point by a box under it: the box
+    as a primitive and as its mesh give the same loads at every station and the same
+    force on the box, and the box does press. Returns (ok, what, the mesh's answer)."""
+    free = _solve(_load(text, folder, f"{name}-free.toml").problem, elements)
+    # its lowest point away from the stations that hold it (a box there would press
+    # on the clamp, not on the part)
+    held = [c.s for c in free.problem.conditions if any(v is not None for v in c.position)]
+    length = free.problem.part.length
+    away = np.array([min((abs(s - h) for h in held), default=length) > 0.1 * length
+                     for s in free.s])
+    low = int(np.flatnonzero(away)[np.argmin(free.position[away, 2])])
+    x, y, z = free.position[low]
+    top = z - free.problem.part.tube_radius + push
+    centre = (x, y, top - 0.5 * size[2])
+    mesh = _box_mesh(folder, size, f"{name}-box.obj")
+    a = _solve(_load(text + _box_text("box", size, centre, None), folder,
+                     f"{name}-primitive.toml").problem, elements)
+    b = _solve(_load(text + _box_text("box", size, centre, mesh), folder,
+                     f"{name}-mesh.toml").problem, elements)
+    pressed = [float(np.linalg.norm(e.contacts.by_obstacle().get("box", np.zeros(3))))
+               for e in (a, b)]
+    if min(pressed) <= 0.0:
+        return False, f"the box does not press ({pressed[0]:.3g}, {pressed[1]:.3g} N)", b
+    scale = max(float(np.linalg.norm(ld.force)) for ld in a.loads.values())
+    worst = max(float(np.linalg.norm(np.subtract(a.loads[k].force, b.loads[k].force)))
+                for k in a.loads)
+    box = abs(pressed[0] - pressed[1])
+    ok = worst <= 1e-6 * scale and box <= 1e-6 * max(pressed)
+    return ok, (f"the box presses {pressed[0]:.4g} N; loads {worst:.1e} N and the box's "
+                f"force {box:.1e} N apart (largest load {scale:.3g} N)"), b
+
+
+def _on_a_box(folder: Path, text: str, name: str, elements: int, **box) -> tuple[bool, str]:
+    return _boxed(folder, text, name, elements, **box)[:2]
+
+
+def branches_rest_on_a_mesh_as_on_its_primitive(folder: Path) -> tuple[bool, str]:
+    """A harness trunk whose two branches meet it at a junction, lifted by a box under
+    the junction (its lowest point); the parts solved together used to stop there ("no
+    equilibrium of the parts together"): the obstacles' touching sets changed inside a
+    Newton that held only the parts' own."""
+    harness = EXAMPLES / "harness"
+    for other in ("branch_left.toml", "branch_right.toml"):
+        (folder / other).write_text((harness / other).read_text())
+    text = (harness / "harness_y.toml").read_text()
+    ok, detail, eq = _boxed(folder, text[:text.index("[path]")], "branch", 40)
+    # Newton's law on the trunk: its stations' and junctions' loads, the box's push and
+    # its weight add up to nothing.
+    part = eq.problem.part
+    weight = np.asarray(eq.problem.gravity) * part.mass_per_length * part.length
+    total = sum(np.asarray(ld.force) for ld in eq.loads.values()) + weight + sum(
+        eq.contacts.by_obstacle().values())
+    off = float(np.linalg.norm(total))
+    return ok and off < 1e-6, f"{detail}; the trunk's forces add up to {off:.1e} N"
+
+
+def a_stretching_part_rests_on_a_mesh_as_on_its_primitive(folder: Path) -> tuple[bool, str]:
+    """A hose that stretches (EA = 1e4 N: 0.1 mm a newton over its metre) lifted by a
+    box."""
+    text = (EXAMPLES / "hoses" / "hose3d.toml").read_text().replace(
+        "[part]\n", "[part]\naxial_stiffness = 1e4\n", 1)
+    return _on_a_box(folder, text, "stretch", 60)
+
+
+def a_clipped_part_rests_on_a_mesh_as_on_its_primitive(folder: Path) -> tuple[bool, str]:
+    """A cable through a sliding clip with friction, lifted by a box."""
+    text = _clip_scene(0.2)
+    return _on_a_box(folder, text[:text.index("[path]")], "clip", 80)
+
+
+def a_fitted_part_and_a_mesh_as_a_primitive(folder: Path) -> tuple[bool, str]:
+    """A cable resting on a fitted hose that gives way (the two solved together),
+    lifted by a box elsewhere along it."""
+    scenes = EXAMPLES / "scenes"
+    (folder / "hose_across.toml").write_text((scenes / "hose_across.toml").read_text())
+    text = (scenes / "cable_on_fitted_hose.toml").read_text()
+    return _on_a_box(folder, text, "fitted", 40, size=(0.04, 0.06, 0.04), push=0.002)
+
+
 # -- 2D x 3D ------------------------------------------------------------------------------------
 def planar_problem_is_the_same_in_both_models(folder: Path) -> tuple[bool, str]:
     """The paper's case 1 (a cantilever under a dead tip force and moment, bent through
@@ -413,6 +516,14 @@ CASES = [
          stiff_fitted_part_tends_to_the_rigid_limit, False),
     Case(("stretch", "hand"), "stretch has its inextensible limit",
          stretch_has_its_inextensible_limit, True),
+    Case(("branch", "mesh"), "branches rest on a mesh as on its primitive",
+         branches_rest_on_a_mesh_as_on_its_primitive, True),
+    Case(("stretch", "mesh"), "a stretching part rests on a mesh as on its primitive",
+         a_stretching_part_rests_on_a_mesh_as_on_its_primitive, True),
+    Case(("clip", "mesh"), "a clipped part rests on a mesh as on its primitive",
+         a_clipped_part_rests_on_a_mesh_as_on_its_primitive, True),
+    Case(("fitted part", "mesh"), "a fitted part and a mesh as a primitive",
+         a_fitted_part_and_a_mesh_as_a_primitive, True),
     Case(("2D", "3D"), "a planar problem is the same in both models",
          planar_problem_is_the_same_in_both_models, True),
     Case(("page", "CLI"), "the page and the CLI give one verdict",

@@ -201,8 +201,8 @@ def query_points(points, band, field):
                     di += outside
                 if lower <= band + GRID_ERROR * g_size[m] and lower < d[i]:
                     di, gm, tm, rm = _packed_mesh_feature(x, y, z, m, field)
-                    _, gx, gy, gz = smooth_normal(x, y, z, di, gm[0], gm[1], gm[2], tm, rm,
-                                                  field.tri, field.pseudo)
+                    _, gx, gy, gz = smooth_normal((x, y, z), di, (gm[0], gm[1], gm[2]), tm,
+                                                  rm, field.tri, field.pseudo)
             else:
                 di, gx, gy, gz = primitive(k, x, y, z, prm)
             if di < d[i]:

@@ -376,9 +376,12 @@ def smooth_normals(vertices: np.ndarray, faces: np.ndarray, crease: float = CREA
 
 
 @njit(cache=True, inline="always")
-def smooth_normal(px, py, pz, dist, gx, gy, gz, t, region, tri, pseudo):
-    """``smooth_feature``'s normal alone, in scalars (it runs per query): (whether the
-    point reads the smooth surface, nx, ny, nz); the exact gradient where not."""
+def smooth_normal(p, dist, g, t, region, tri, pseudo):
+    """``smooth_feature``'s normal alone, in scalars (it runs per query; p and g, the
+    point and the exact gradient, as 3-tuples): (whether the point reads the smooth
+    surface, nx, ny, nz); the exact gradient where not."""
+    px, py, pz = p
+    gx, gy, gz = g
     if region >= 4:
         k = region - 4
         if pseudo[t, 11, k] == 0.0:

@@ -26,6 +26,10 @@ iteration and solved for the residual and for a unit load at each touched coordi
 unknowns joins them (static condensation: its size is a few times the number of blocks,
 not the parts' unknowns). The touching set of the contacts and the clips' friction states
 are held within a Newton solve and corrected between solves (a primal-dual active set).
+Each part's contacts with the obstacles are not held: as in a part's own Newton, a full
+step that changes which of its probes touch is taken (up to ``_SWITCHES`` in a solve),
+not judged by the residual of the set it leaves (a harness's junction lifted by a box
+stopped there: a probe let go with its force was a residual of thousands).
 
 Units: each part's unknowns keep their own scales (lengths by its L, forces by its
 EI / L^2); gaps are by the first part's length and contact forces by its force scale.
@@ -49,7 +53,7 @@ from pliant.models.continuation import Stalled
 from pliant.models.rod3d import kernels, spline
 from pliant.models.rod3d.links import Joint, LinkTerms, Pivot, Slider, _Block
 from pliant.models.rod3d.lowering import Loads, Rod, State
-from pliant.models.rod3d.solver import CONTACT_SCALE, RodSolver, Run
+from pliant.models.rod3d.solver import _SWITCHES, CONTACT_SCALE, RodSolver, Run
 
 # Contact between parts is compliant (core.problem.WALL_COMPLIANCE: a hose wall's give;
 # a stiff pipe's is smaller, but the answer barely depends on it: 0.25 mm at 25 N), not
@@ -656,6 +660,7 @@ class Coupling(LinkTerms):
                 for p, mu, f in zip(self.pairs, mus, fixed)]
         ev = self.evaluate(states, mus, loads, weight, near, True, fixed)
         r = ev.residual
+        switches = 0
         for _ in range(_HELD_ITERATIONS):
             if r <= tol:
                 return states, mus, r, True
@@ -666,6 +671,9 @@ class Coupling(LinkTerms):
             if step_dir is None:
                 return states, mus, r, False
             du, dmu = step_dir
+            # The obstacles' probes are not held: each part's own touching set changes
+            # where a step takes it (a semismooth Newton, as a part alone solves it).
+            sets = self._obstacle_sets(states, loads)
             step, accepted = 1.0, False
             for _ in range(30):
                 new_states = [run.step(s, d, step) for run, s, d in zip(self.runs, states, du)]
@@ -673,6 +681,15 @@ class Coupling(LinkTerms):
                 new = self.evaluate(new_states, new_mus, loads, weight, near, True, fixed)
                 rn = new.residual
                 accepted = math.isfinite(rn) and (rn <= (1.0 - 1e-4 * step) * r or rn <= tol)
+                if (not accepted and step == 1.0 and switches < _SWITCHES and math.isfinite(rn)
+                        and sets is not None
+                        and self._switched(sets, self._obstacle_sets(new_states, loads))):
+                    # A full step that changes which probes touch an obstacle, or gives
+                    # one its first force, is taken as the part's own Newton takes it
+                    # (``contact_kernels.newton_contact``): the residual of the set it
+                    # leaves is no measure of the step.
+                    switches += 1
+                    accepted = True
                 if accepted or (strict and step < 0.1):
                     break
                 step *= 0.5
@@ -682,6 +699,34 @@ class Coupling(LinkTerms):
                 return states, mus, r, False
             states, mus, ev, r = new_states, new_mus, new, rn
         return states, mus, r, r <= tol
+
+    def _obstacle_sets(self, states: Sequence[State], loads: Sequence[Loads]
+                       ) -> list[tuple[np.ndarray, np.ndarray]] | None:
+        """Each part's obstacle probes: which touch, and their forces (None: no part
+        has any)."""
+        if not any(run.rod.iprobe.shape[0] for run in self.runs):
+            return None
+        out = []
+        for run, state, load in zip(self.runs, states, loads):
+            if not run.rod.iprobe.shape[0]:
+                out.append((np.zeros(0, dtype=np.int8), np.zeros(0)))
+                continue
+            out.append((run.contacts(state, load)[3], state[4][::run.rod.slot]))
+        return out
+
+    @staticmethod
+    def _switched(before: list[tuple[np.ndarray, np.ndarray]],
+                  after: list[tuple[np.ndarray, np.ndarray]] | None) -> bool:
+        """Whether a step changed which obstacle probes touch, or started from a
+        touching probe with no force yet (it takes its first in this step)."""
+        if after is None:
+            return False
+        for (a, gam), (b, _) in zip(before, after):
+            if (a != 0).any() and ((a != 0) & (gam == 0.0)).any():
+                return True
+            if not np.array_equal(a != 0, b != 0):
+                return True
+        return False
 
     def direction_at(self, members: list[_Member], states: list[State],
                      mus: list[np.ndarray], w0: float, w1: float):
