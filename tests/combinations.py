@@ -208,6 +208,12 @@ def dense_meshes_follow_a_path_as_their_primitive(folder: Path) -> tuple[bool, s
     return _path_over_mesh(folder, (1024, 4096), 25)
 
 
+def meshes_of_1e5_triangles_follow_a_path_as_their_primitive(folder: Path
+                                                             ) -> tuple[bool, str]:
+    """The same path round a post of 32,768 sections (131,072 triangles)."""
+    return _path_over_mesh(folder, (32768,), 25)
+
+
 # -- clips --------------------------------------------------------------------------------------
 def _clip_scene(friction: float, steps: int = 8) -> str:
     text = (EXAMPLES / "scenes" / "cable_through_clip.toml").read_text()
@@ -441,6 +447,50 @@ def a_fitted_part_and_a_mesh_as_a_primitive(folder: Path) -> tuple[bool, str]:
     return _on_a_box(folder, text, "fitted", 40, size=(0.04, 0.06, 0.04), push=0.002)
 
 
+# -- stretch, under each feature -----------------------------------------------------------------
+def _tends_to_inextensible(folder: Path, text: str, name: str, elements: int,
+                           station: str) -> tuple[bool, str]:
+    """``text``'s part made extensible (EA = 1e5 and 1e6 N): the load at ``station``
+    tends to the inextensible part's at first order in its strain F / EA (ten times
+    nearer for ten times the stiffness)."""
+    base = np.asarray(_solve(_load(text, folder, f"{name}-inext.toml").problem,
+                             elements).loads[station].force)
+    changes = []
+    for ea in (1e5, 1e6):
+        stretched = text.replace("[part]\n", f"[part]\naxial_stiffness = {ea!r}\n", 1)
+        force = _solve(_load(stretched, folder, f"{name}-{ea:g}.toml").problem,
+                       elements).loads[station].force
+        changes.append(float(np.linalg.norm(base - force) / np.linalg.norm(base)))
+    ratio = changes[0] / max(changes[1], 1e-300)
+    return 7.0 < ratio < 13.0, (f"the {station}'s force changes by {changes[0]:.1e} (EA 1e5 "
+                                f"N) and {changes[1]:.1e} (1e6 N): ratio {ratio:.1f}")
+
+
+def branches_stretch_to_their_inextensible_limit(folder: Path) -> tuple[bool, str]:
+    """A harness trunk that stretches, with its two branches at a junction."""
+    harness = EXAMPLES / "harness"
+    for other in ("branch_left.toml", "branch_right.toml"):
+        (folder / other).write_text((harness / other).read_text())
+    text = (harness / "harness_y.toml").read_text()
+    return _tends_to_inextensible(folder, text[:text.index("[path]")], "branch", 40,
+                                  "connector")
+
+
+def a_clipped_part_stretches_to_its_inextensible_limit(folder: Path) -> tuple[bool, str]:
+    """A cable through a sliding clip with friction that stretches."""
+    text = _clip_scene(0.2)
+    return _tends_to_inextensible(folder, text[:text.index("[path]")], "clip", 80, "hand")
+
+
+def a_fitted_part_and_stretch_tend_to_the_inextensible_limit(folder: Path
+                                                              ) -> tuple[bool, str]:
+    """A cable that stretches, resting on a fitted hose that gives way."""
+    scenes = EXAMPLES / "scenes"
+    (folder / "hose_across.toml").write_text((scenes / "hose_across.toml").read_text())
+    text = (scenes / "cable_on_fitted_hose.toml").read_text()
+    return _tends_to_inextensible(folder, text, "fitted", 40, "hand")
+
+
 # -- 2D x 3D ------------------------------------------------------------------------------------
 def planar_problem_is_the_same_in_both_models(folder: Path) -> tuple[bool, str]:
     """The paper's case 1 (a cantilever under a dead tip force and moment, bent through
@@ -506,6 +556,8 @@ CASES = [
          meshes_follow_a_path_as_their_primitive, True),
     Case(("mesh", "path"), "dense meshes follow a path as their primitive",
          dense_meshes_follow_a_path_as_their_primitive, True),
+    Case(("mesh", "path"), "meshes of 1e5 triangles follow a path as their primitive",
+         meshes_of_1e5_triangles_follow_a_path_as_their_primitive, False),
     Case(("clip", "friction"), "friction has its frictionless limit",
          clip_friction_has_its_frictionless_limit, True),
     Case(("clip", "condition"), "a fixed clip is the condition it stands for",
@@ -524,6 +576,12 @@ CASES = [
          a_clipped_part_rests_on_a_mesh_as_on_its_primitive, True),
     Case(("fitted part", "mesh"), "a fitted part and a mesh as a primitive",
          a_fitted_part_and_a_mesh_as_a_primitive, True),
+    Case(("branch", "stretch"), "branches stretch to their inextensible limit",
+         branches_stretch_to_their_inextensible_limit, True),
+    Case(("clip", "stretch"), "a clipped part stretches to its inextensible limit",
+         a_clipped_part_stretches_to_its_inextensible_limit, True),
+    Case(("fitted part", "stretch"), "a fitted part and stretch tend to the inextensible limit",
+         a_fitted_part_and_stretch_tend_to_the_inextensible_limit, True),
     Case(("2D", "3D"), "a planar problem is the same in both models",
          planar_problem_is_the_same_in_both_models, True),
     Case(("page", "CLI"), "the page and the CLI give one verdict",
