@@ -366,10 +366,12 @@ class Coupling(LinkTerms):
                     np.add.at(R[side], ix[node] + c, value[:, base + 3 * j + c])
 
     # -- the Newton direction ---------------------------------------------------------
-    def blocks(self, ev: _Eval, mus: Sequence[np.ndarray], weight: float) -> list[_Block]:
+    def blocks(self, ev: _Eval, mus: Sequence[np.ndarray], weight: float,
+               sliding: bool = False) -> list[_Block]:
         """Every border block of the system at ``ev``: the contacts, the clips, the
-        junctions, the pivots and the friction between parts."""
-        return self._contact_blocks(ev, mus, weight) + [
+        junctions, the pivots and the friction between parts. ``sliding``: each contact's
+        curvature term as its point's, not its probe's (``_contact_blocks``)."""
+        return self._contact_blocks(ev, mus, weight, sliding) + [
             self._slider_terms(k, ev.states, mus, weight, want_jac=True)[3]
             for k in range(len(self.sliders))] + [
             self._joint_terms(k, ev.states, mus, weight, want_jac=True)[2]
@@ -519,9 +521,19 @@ class Coupling(LinkTerms):
             self.fric_dir[p] = d
         return changed
 
-    def _contact_blocks(self, ev: _Eval, mus: Sequence[np.ndarray], weight: float) -> list:
+    def _contact_blocks(self, ev: _Eval, mus: Sequence[np.ndarray], weight: float,
+                        sliding: bool = False) -> list:
         """A block per contact in the system: touching ones, and any with a force still
-        on (a probe with no force and an open gap has the row d mu = 0: left out)."""
+        on (a probe with no force and an open gap has the row d mu = 0: left out).
+
+        ``sliding`` (the stability test's): a probe is a fixed point of its part, whose
+        distance to the other part grows as the other slides along it (by the slip
+        squared over 2 d, a softening -f / d the contact's force gives that slip); the
+        real contact's point slides with it and two crossing tubes keep their distance.
+        Where the least of that distance along the part lies within an element of the
+        probe, the curvature term is the nearest point's (``spline.slide``): a line clamped across
+        a soft hose was found to slide the hose from under it (an eigenvalue -0.68 m
+        times the contact force) where both are stable."""
         out = []
         for p, (pair, geo) in enumerate(zip(self.pairs, ev.geo)):
             if geo is None:
@@ -544,6 +556,14 @@ class Coupling(LinkTerms):
                 K = np.zeros((18, 18))
                 if m[j] != 0.0:
                     H = spline.hessian(y, a, *shape, _HESSIAN_STEP * pair.reach)
+                    if sliding:
+                        star, d2, c = spline.slide(y, a, *shape, _HESSIAN_STEP * pair.reach)
+                        last = self.runs[pair.a].rod.elements - 1
+                        # (the least within an element of the probe, the part going on
+                        # there: past its end, a tip pressed is what it is)
+                        if (d2 > 0.0 and abs(star - a) <= 1.0 and (star > 0.0 or e > 0)
+                                and (star < 1.0 or e < last)):
+                            H = H - np.outer(c, c) / d2
                     K = (fac * m[j])[:, None] * H * lengths[None, :]
                 d_mu, d_g = ev.slopes[p][0][j], ev.slopes[p][1][j]
                 out.append(_Block(

@@ -122,7 +122,7 @@ def coupled_stability(coupling: Coupling, states: Sequence[State], mus: Sequence
     here = coupling.evaluate(states, mus, loads, 1.0, near, False)
     fixed = coupling.touching(here, mus)
     ev = coupling.evaluate(states, mus, loads, 1.0, near, True, fixed)
-    blocks = coupling.blocks(ev, mus, 1.0)
+    blocks = coupling.blocks(ev, mus, 1.0, sliding=True)
     metric_length = runs[0].rod.length if length is None else length
     mass = system_metric(coupling, metric_length)
     primal = [np.flatnonzero(m) for m in mass]

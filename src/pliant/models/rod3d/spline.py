@@ -220,6 +220,54 @@ def hessian(y, alpha, left, right, beta, h):
 
 
 @njit(cache=True)
+def _distance(y, alpha, left, right, beta):
+    """|p - q|: the probe at ``alpha`` of y's element to its nearest point of the curve."""
+    p = np.empty(3)
+    yb = np.empty((4, 3))
+    for c in range(3):
+        p[c] = (1.0 - alpha) * y[c] + alpha * y[3 + c]
+        for j in range(4):
+            yb[j, c] = y[6 + 3 * j + c]
+    _, w = project(p, yb, left, right, beta, True)
+    d = 0.0
+    for c in range(3):
+        q = 0.0
+        for j in range(4):
+            q += w[j] * yb[j, c]
+        d += (p[c] - q) ** 2
+    return math.sqrt(d)
+
+
+@njit(cache=True)
+def slide(y, alpha, left, right, beta, h):
+    """Where along its element the probe's distance to the curve is least, and the
+    correction that turns the fixed probe's Hessian into that nearest point's: (alpha*,
+    d2 = d^2 D / d alpha^2, c = d (dD / d alpha) / d y (18,)), by central differences
+    (steps 1e-4 in alpha, h in y). The Hessian of min over alpha of D is H - c c^T / d2
+    where the least lies inside the element (the envelope theorem, as
+    ``contact_kernels._slide_jacobian`` for obstacles)."""
+    da = 1e-4
+    d0 = _distance(y, alpha, left, right, beta)
+    up = _distance(y, alpha + da, left, right, beta)
+    down = _distance(y, alpha - da, left, right, beta)
+    d1 = (up - down) / (2.0 * da)
+    d2 = (up - 2.0 * d0 + down) / (da * da)
+    c = np.empty(18)
+    z = y.copy()
+    for j in range(18):
+        z[j] = y[j] + h
+        hi = (_distance(z, alpha + da, left, right, beta)
+              - _distance(z, alpha - da, left, right, beta)) / (2.0 * da)
+        z[j] = y[j] - h
+        lo = (_distance(z, alpha + da, left, right, beta)
+              - _distance(z, alpha - da, left, right, beta)) / (2.0 * da)
+        z[j] = y[j]
+        c[j] = (hi - lo) / (2.0 * h)
+    star = alpha - d1 / d2 if d2 > 0.0 else -1.0
+    return star, d2, c
+
+
+@njit(cache=True)
 def weights(beta, left, right):
     """The folded Catmull-Rom weights (4,) at beta and their first and second
     derivatives in beta (a point, tangent and curvature vector of a segment)."""
