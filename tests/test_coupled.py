@@ -874,7 +874,8 @@ def test_a_line_resting_across_a_soft_hose_is_stable_as_the_hose_alone(tmp_path,
     sideways swing under the line: the system's smallest eigenvalue, in the hose's
     metric, is the hose's own alone (its stability test as a single part), to 3 %. It
     was -0.68 m times the contact force (-0.072 N m): each probe, a fixed point of the
-    line, softened the hose's slip along the line by -f / d."""
+    line, softened the hose's slip along the line by -f / d. The answer is the lower of
+    the two the line has: bowed up over the hose held rigid costs more energy."""
     (tmp_path / "hose.toml").write_text(CROSSING_HOSE.format(ei=ei))
     (tmp_path / "line.toml").write_text(CROSSING_LINE)
     scene = load_scene(tmp_path / "line.toml")
@@ -882,6 +883,13 @@ def test_a_line_resting_across_a_soft_hose_is_stable_as_the_hose_alone(tmp_path,
     force = eq.contacts.by_obstacle()["hose"]
     assert force[2] > 0.5 * 5.6 * (ei / 0.05) * 0.008  # it presses the hose down
     assert eq.stable
+    # The other equilibrium, bowed up over the hose held rigid, is higher: this is the
+    # system's lower one (the issue's "hose giving way").
+    from pliant.models.rod3d.solver import _solve
+
+    over = _solve(scene.problem, None, rod3d.RodSolver(elements=60), False, rigid=True)
+    assert over.position[:, 2].max() > 0.0 > eq.position[:, 2].min()
+    assert potential_energy(eq) < potential_energy(over)
     hose = next(o.fitted for o in scene.problem.obstacles if o.fitted is not None)
     alone = rod3d.solve(hose.problem, solver=rod3d.RodSolver(elements=hose.elements))
     state = eq.state
