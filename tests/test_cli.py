@@ -250,6 +250,28 @@ def test_an_interrupt_after_some_outputs_says_which_were_written(monkeypatch, ca
     assert str(tmp_path / "e.json") in said and (tmp_path / "e.json").read_text() == "{}"
 
 
+def test_an_interrupted_command_counts_every_file_it_wrote(monkeypatch):
+    """A study interrupted after 400 voxel files said the last 64 paths one by one (and
+    dropped the first files it wrote, its store among them). Every file is counted now,
+    a folder of many by its count, the few by name, each once, whatever is kept."""
+    from pathlib import Path
+
+    from pliant.io.atomic import Written
+
+    monkeypatch.setattr(Written, "KEEP", 50)
+    written = Written()
+    study = Path("/work/study")
+    written.append(study / "samples.jsonl")
+    for k in range(400):
+        written.append(study / "voxels" / f"{k}.npy")
+    written.append(study / "samples.jsonl")  # a store appended to again: once
+    written.append(study / "report.html")
+    assert len(written) == 402
+    said = written.summary()
+    assert said == (f"{study / 'samples.jsonl'}, {study / 'report.html'}, "
+                    f"{study / 'voxels'}/ (400 files)")
+
+
 def test_ctrl_c_on_the_command_says_what_it_wrote(tmp_path):
     """End to end: Ctrl+C on ``pliant study`` once it has stored a sample (Typer turns
     the interrupt into a silent exit 130; the command says what it had written, the

@@ -1149,7 +1149,7 @@ def _interrupted() -> str:
         return "interrupted: nothing written"
     return (f"interrupted: the outputs are incomplete; written before the interrupt (each "
             f"file whole, a store's lines each whole: run the command again to resume "
-            f"where it can): {', '.join(str(p) for p in WRITTEN)}")
+            f"where it can): {WRITTEN.summary()}")
 
 
 def entry() -> None:
