@@ -388,3 +388,35 @@ def test_a_study_whose_every_sample_fails_still_writes_its_report(tmp_path):
     assert not (out / "envelope.glb").exists()
     assert (out / "report.html").stat().st_size > 1000
     assert json.loads((out / "summary.json").read_text())["failed"] == 2
+
+
+def _sleep_then_write(path: str) -> str:
+    time.sleep(3.0)
+    Path(path).write_text("finished")
+    return path
+
+
+def test_ctrl_c_stops_a_local_clusters_workers_instead_of_waiting_for_them(tmp_path):
+    """Ctrl+C during a distributed search: the local cluster's workers are killed, not
+    asked to finish what they are solving (which made closing take 4 s a study: a
+    sample's solve). A task that writes a file after 3 s never writes it, and its worker
+    process is gone when the block exits; the interrupt goes on up."""
+    import os
+
+    from pliant.assembly.cluster import dask_client
+
+    marker = tmp_path / "finished.txt"
+    pids = []
+    with pytest.raises(KeyboardInterrupt):
+        with dask_client(None, 1) as client:
+            future = client.submit(_sleep_then_write, str(marker), pure=False)
+            pids = list(client.run(os.getpid).values())
+            while not any(client.processing().values()):
+                time.sleep(0.01)
+            raise KeyboardInterrupt
+    time.sleep(4.0)  # past when the task would have written its file
+    assert not marker.exists()
+    assert pids
+    for pid in pids:
+        with pytest.raises(ProcessLookupError):
+            os.kill(pid, 0)
