@@ -413,6 +413,7 @@ def test_ctrl_c_stops_a_local_clusters_workers_instead_of_waiting_for_them(tmp_p
             pids = list(client.run(os.getpid).values())
             while not any(client.processing().values()):
                 time.sleep(0.01)
+            assert future.status == "pending"  # (held: a future dropped is cancelled)
             raise KeyboardInterrupt
     time.sleep(4.0)  # past when the task would have written its file
     assert not marker.exists()
