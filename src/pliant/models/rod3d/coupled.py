@@ -128,6 +128,7 @@ class _Eval:
     residual: float
     slopes: list  # per pair, the contact rows' d/dmu and d/dg (probes in ``near``)
     states: Sequence[State] = ()
+    touching: Sequence[np.ndarray] = ()  # per part, its obstacle probes' contact states
 
 
 @dataclass
@@ -278,11 +279,12 @@ class Coupling(LinkTerms):
     def evaluate(self, states: Sequence[State], mus: Sequence[np.ndarray],
                  loads: Sequence[Loads], weight: float, near: list[np.ndarray],
                  want_jac: bool, fixed: list[np.ndarray] | None = None) -> _Eval:
-        R, ab = [], []
+        R, ab, touching = [], [], []
         for run, state, load in zip(self.runs, states, loads):
-            r, a, _ = run.residual(state, load, want_jac)
+            r, a, _, active = run.terms(state, load, want_jac)
             R.append(r)
             ab.append(a if want_jac else None)
+            touching.append(active)
         Rmu: list[np.ndarray] = []
         geos: list[_Geometry | None] = []
         actives: list[np.ndarray] = []
@@ -340,7 +342,8 @@ class Coupling(LinkTerms):
                        + [float(np.abs(r).max(initial=0.0)) for r in Rmu])
         if deep or out_of_clip:  # one tube half through the other, or out of a clip
             residual = math.inf
-        return _Eval(R, ab, Rmu, geos, actives, list(near), residual, slopes, states)
+        return _Eval(R, ab, Rmu, geos, actives, list(near), residual, slopes, states,
+                     touching)
 
     def _factors(self, pair: Pair, weight: float) -> np.ndarray:
         """(12,) what turns mu d|p-q|/dy into each coordinate's residual entry."""
@@ -691,9 +694,6 @@ class Coupling(LinkTerms):
             if step_dir is None:
                 return states, mus, r, False
             du, dmu = step_dir
-            # The obstacles' probes are not held: each part's own touching set changes
-            # where a step takes it (a semismooth Newton, as a part alone solves it).
-            sets = self._obstacle_sets(states, loads)
             step, accepted = 1.0, False
             for _ in range(30):
                 new_states = [run.step(s, d, step) for run, s, d in zip(self.runs, states, du)]
@@ -702,12 +702,11 @@ class Coupling(LinkTerms):
                 rn = new.residual
                 accepted = math.isfinite(rn) and (rn <= (1.0 - 1e-4 * step) * r or rn <= tol)
                 if (not accepted and step == 1.0 and switches < _SWITCHES and math.isfinite(rn)
-                        and sets is not None
-                        and self._switched(sets, self._obstacle_sets(new_states, loads))):
-                    # A full step that changes which probes touch an obstacle, or gives
-                    # one its first force, is taken as the part's own Newton takes it
-                    # (``contact_kernels.newton_contact``): the residual of the set it
-                    # leaves is no measure of the step.
+                        and self._switched(ev, states, new)):
+                    # The obstacles' probes are not held: a full step that changes which
+                    # probes touch an obstacle, or gives one its first force, is taken as
+                    # the part's own Newton takes it (``contact_kernels.newton_contact``):
+                    # the residual of the set it leaves is no measure of the step.
                     switches += 1
                     accepted = True
                 if accepted or (strict and step < 0.1):
@@ -720,31 +719,15 @@ class Coupling(LinkTerms):
             states, mus, ev, r = new_states, new_mus, new, rn
         return states, mus, r, r <= tol
 
-    def _obstacle_sets(self, states: Sequence[State], loads: Sequence[Loads]
-                       ) -> list[tuple[np.ndarray, np.ndarray]] | None:
-        """Each part's obstacle probes: which touch, and their forces (None: no part
-        has any)."""
-        if not any(run.rod.iprobe.shape[0] for run in self.runs):
-            return None
-        out = []
-        for run, state, load in zip(self.runs, states, loads):
-            if not run.rod.iprobe.shape[0]:
-                out.append((np.zeros(0, dtype=np.int8), np.zeros(0)))
+    def _switched(self, before: _Eval, states: Sequence[State], after: _Eval) -> bool:
+        """Whether a step from ``before`` (at ``states``) to ``after`` changed which
+        probes touch an obstacle, or started from a touching probe with no force yet (it
+        takes its first in this step)."""
+        for run, state, a, b in zip(self.runs, states, before.touching, after.touching):
+            if not a.shape[0]:
                 continue
-            out.append((run.contacts(state, load)[3], state[4][::run.rod.slot]))
-        return out
-
-    @staticmethod
-    def _switched(before: list[tuple[np.ndarray, np.ndarray]],
-                  after: list[tuple[np.ndarray, np.ndarray]] | None) -> bool:
-        """Whether a step changed which obstacle probes touch, or started from a
-        touching probe with no force yet (it takes its first in this step)."""
-        if after is None:
-            return False
-        for (a, gam), (b, _) in zip(before, after):
-            if (a != 0).any() and ((a != 0) & (gam == 0.0)).any():
-                return True
-            if not np.array_equal(a != 0, b != 0):
+            gam = state[4][::run.rod.slot]
+            if ((a != 0) & (gam == 0.0)).any() or not np.array_equal(a != 0, b != 0):
                 return True
         return False
 

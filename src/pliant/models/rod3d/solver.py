@@ -237,13 +237,20 @@ class Run(Routes):
         return True
 
     def residual(self, state: State, loads: Loads, want_jac: bool = False):
+        return self.terms(state, loads, want_jac)[:3]
+
+    def terms(self, state: State, loads: Loads, want_jac: bool = False):
+        """``residual``'s (R, ab, energy), and each probe's contact state (0 free, else
+        touching; none without probes): what a Newton that does not hold the obstacles'
+        touching set compares between its steps."""
         rod = self.rod
         R, ab, energy = kernels.assemble(*state[:4], rod.mesh,
                                          rod.targets(loads, self.gauge_quat), rod.numbering,
                                          want_jac)
+        active = np.zeros(0, dtype=np.int8)
         if rod.iprobe.shape[0]:
-            self.contacts(state, loads, R, ab, want_jac)
-        return R, ab, energy
+            active = self.contacts(state, loads, R, ab, want_jac)[3]
+        return R, ab, energy, active
 
     def contacts(self, state: State, loads: Loads, R: np.ndarray | None = None,
                  ab: np.ndarray | None = None, want_jac: bool = False):
