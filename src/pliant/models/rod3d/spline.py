@@ -158,16 +158,24 @@ def nearest(points, nodes):
     return f_out, b_out, jb, left, right, q_out
 
 
-@njit(cache=True)
-def gradient(y, alpha, left, right, beta):
-    """d |p - q| / d y (18,) (envelope theorem: beta's change does not enter), and
-    beta; q is projected afresh (loosely) from ``beta``."""
+@njit(cache=True, inline="always")
+def _unpack(y, alpha):
+    """The probe p (3,) at ``alpha`` of y's element (its first 6 entries) and the four
+    nodes (4, 3) of the other part's curve there (its last 12)."""
     p = np.empty(3)
     yb = np.empty((4, 3))
     for c in range(3):
         p[c] = (1.0 - alpha) * y[c] + alpha * y[3 + c]
         for j in range(4):
             yb[j, c] = y[6 + 3 * j + c]
+    return p, yb
+
+
+@njit(cache=True)
+def gradient(y, alpha, left, right, beta):
+    """d |p - q| / d y (18,) (envelope theorem: beta's change does not enter), and
+    beta; q is projected afresh (loosely) from ``beta``."""
+    p, yb = _unpack(y, alpha)
     beta, w = project(p, yb, left, right, beta, True)
     n = np.empty(3)
     d = 0.0
@@ -222,12 +230,7 @@ def hessian(y, alpha, left, right, beta, h):
 @njit(cache=True)
 def _distance(y, alpha, left, right, beta):
     """|p - q|: the probe at ``alpha`` of y's element to its nearest point of the curve."""
-    p = np.empty(3)
-    yb = np.empty((4, 3))
-    for c in range(3):
-        p[c] = (1.0 - alpha) * y[c] + alpha * y[3 + c]
-        for j in range(4):
-            yb[j, c] = y[6 + 3 * j + c]
+    p, yb = _unpack(y, alpha)
     _, w = project(p, yb, left, right, beta, True)
     d = 0.0
     for c in range(3):
