@@ -197,7 +197,7 @@ def test_a_dense_mesh_reads_as_the_smooth_surface_it_tessellates():
 @pytest.mark.parametrize("name", ["torus", "icosphere"])
 def test_smoothed_normals_rates_match_finite_differences(name):
     """The contact Jacobian's curvature term on a smoothed mesh: the interpolated
-    normal's rate (``triangles.smooth_feature``) against central differences of the
+    normal's rate (``triangles.smooth_rate``) against central differences of the
     normal the query gives, at random points near the surface (the torus in 32 x 32
     facets 11 degrees apart smooths only across its quads' diagonals; the icosphere,
     6 degrees apart, all over)."""

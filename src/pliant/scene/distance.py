@@ -47,8 +47,8 @@ from pliant.scene.triangles import (
     contact_normals,
     feature_hessian,
     mesh_feature,
-    smooth_feature,
     smooth_normal,
+    smooth_rate,
 )
 from pliant.util import cache as disk
 from pliant.util import progress
@@ -105,23 +105,20 @@ def hessian_point(p, o, field):
     x, y, z = to_local(p, R, trans[o])
     if kind[o] == MESH:
         d, g, t, region = _packed_mesh_feature(x, y, z, mesh_id[o], field)
-        _, Hl, smooth = smooth_feature(np.array([x, y, z]), d, g, t, region, tri,
-                                       field.pseudo, True)
-        e = np.zeros(3)
-        feature = 0
-        if smooth:
-            pass
-        elif 1 <= region <= 3:
-            a = tri[t, region - 1]
-            b = tri[t, region % 3]
-            size = max(math.sqrt((b[0] - a[0]) ** 2 + (b[1] - a[1]) ** 2
-                                 + (b[2] - a[2]) ** 2), 1e-300)
-            for c in range(3):  # (written out: an array expression compiles slowly)
-                e[c] = (b[c] - a[c]) / size
-            feature = 1
-        elif region >= 4:
-            feature = 2
-        if not smooth:
+        Hl, smooth = smooth_rate(np.array([x, y, z]), d, g, t, region, tri, field.pseudo)
+        if not smooth:  # the exact normal's rate, beyond its feature
+            e = np.zeros(3)
+            feature = 0
+            if 1 <= region <= 3:
+                a = tri[t, region - 1]
+                b = tri[t, region % 3]
+                size = max(math.sqrt((b[0] - a[0]) ** 2 + (b[1] - a[1]) ** 2
+                                     + (b[2] - a[2]) ** 2), 1e-300)
+                for c in range(3):  # (written out: an array expression compiles slowly)
+                    e[c] = (b[c] - a[c]) / size
+                feature = 1
+            elif region >= 4:
+                feature = 2
             Hl = feature_hessian(d, g, e, feature)
     else:
         Hl = primitive_hessian(kind[o], x, y, z, param[o])
@@ -425,7 +422,7 @@ class Obstacle:
     def from_mesh(name: str, vertices, faces, position=(0.0, 0.0, 0.0), rotation=None,
                   resolution: int = 64, crease: float = CREASE) -> Obstacle:
         """A triangle mesh; faces meeting within ``crease`` degrees are read as one
-        smooth surface by a contact (``triangles.smooth_feature``; 0: every facet flat,
+        smooth surface by a contact (``triangles.smooth_normal``; 0: every facet flat,
         every edge sharp)."""
         if not 0.0 <= crease < 90.0:
             raise ValueError(f"crease must be from 0 to 90 degrees, not {crease}")

@@ -3,7 +3,7 @@ triangles (built by median splits with a linear-time selection), the exact signe
 through it (the sign from the angle-weighted pseudonormal of the closest feature,
 Baerentzen and Aanaes, IEEE TVCG 11(3), 2005), the Hessian beyond a feature, the
 pseudonormals themselves, and the interpolated normal by which a contact reads facets
-that tessellate a smooth surface as that surface (``smooth_feature``)."""
+that tessellate a smooth surface as that surface (``smooth_normal``, ``smooth_rate``)."""
 
 from __future__ import annotations
 
@@ -328,7 +328,7 @@ def contact_normals(vertices: np.ndarray, faces: np.ndarray, crease: float = CRE
 def smooth_normals(vertices: np.ndarray, faces: np.ndarray, crease: float = CREASE,
                    topology: _Topology | None = None) -> np.ndarray:
     """(T, 5, 3) what a contact needs to read a tessellated smooth surface as smooth (see
-    ``smooth_feature``): rows 0-2 each corner's normal, the angle-weighted face normals
+    ``smooth_normal``): rows 0-2 each corner's normal, the angle-weighted face normals
     of the faces round its vertex joined to it across edges whose faces meet within
     ``crease`` degrees (a smoothing group, as a CAD tessellation's shading reads it;
     0: none, each face its own); row 3 whether each edge (ab, bc, ca) is such a smooth
@@ -376,129 +376,128 @@ def smooth_normals(vertices: np.ndarray, faces: np.ndarray, crease: float = CREA
 
 
 @njit(cache=True, inline="always")
-def smooth_normal(p, dist, g, t, region, tri, pseudo):
-    """``smooth_feature``'s normal alone, in scalars (it runs per query; p and g, the
-    point and the exact gradient, as 3-tuples): (whether the point reads the smooth
-    surface, nx, ny, nz); the exact gradient where not."""
+def _interpolated(p, dist, g, t, region, tri, pseudo):
+    """The corners' normals (``smooth_normals``, ``pseudo`` rows 7-11) interpolated at
+    the closest point q = p - dist g's place on triangle t (its barycentric coordinates;
+    along an edge, between its two corners; at a vertex, its own), not yet unit:
+    (whether q lies on the smooth surface, mx, my, mz). p and g (the exact gradient) as
+    3-tuples; scalars only (it runs per query)."""
     px, py, pz = p
     gx, gy, gz = g
     if region >= 4:
         k = region - 4
         if pseudo[t, 11, k] == 0.0:
             return False, gx, gy, gz
-        mx, my, mz = pseudo[t, 7 + k, 0], pseudo[t, 7 + k, 1], pseudo[t, 7 + k, 2]
-    else:
-        qx, qy, qz = px - dist * gx, py - dist * gy, pz - dist * gz
-        if region >= 1:
-            k = region - 1
-            if pseudo[t, 10, k] == 0.0:
-                return False, gx, gy, gz
-            j = (k + 1) % 3
-            ex, ey, ez = (tri[t, j, 0] - tri[t, k, 0], tri[t, j, 1] - tri[t, k, 1],
-                          tri[t, j, 2] - tri[t, k, 2])
-            tau = ((qx - tri[t, k, 0]) * ex + (qy - tri[t, k, 1]) * ey
-                   + (qz - tri[t, k, 2]) * ez) / (ex * ex + ey * ey + ez * ez)
-            tau = min(max(tau, 0.0), 1.0)
-            mx = (1.0 - tau) * pseudo[t, 7 + k, 0] + tau * pseudo[t, 7 + j, 0]
-            my = (1.0 - tau) * pseudo[t, 7 + k, 1] + tau * pseudo[t, 7 + j, 1]
-            mz = (1.0 - tau) * pseudo[t, 7 + k, 2] + tau * pseudo[t, 7 + j, 2]
-        else:
-            nx, ny, nz = pseudo[t, 0, 0], pseudo[t, 0, 1], pseudo[t, 0, 2]
-            ux, uy, uz = (tri[t, 1, 0] - tri[t, 0, 0], tri[t, 1, 1] - tri[t, 0, 1],
-                          tri[t, 1, 2] - tri[t, 0, 2])
-            wx, wy, wz = (tri[t, 2, 0] - tri[t, 0, 0], tri[t, 2, 1] - tri[t, 0, 1],
-                          tri[t, 2, 2] - tri[t, 0, 2])
-            cx, cy, cz = uy * wz - uz * wy, uz * wx - ux * wz, ux * wy - uy * wx
-            area2 = math.sqrt(cx * cx + cy * cy + cz * cz)
-            mx = my = mz = 0.0
-            for i in range(3):
-                a, b = (i + 1) % 3, (i + 2) % 3
-                vx, vy, vz = (tri[t, b, 0] - tri[t, a, 0], tri[t, b, 1] - tri[t, a, 1],
-                              tri[t, b, 2] - tri[t, a, 2])
-                # corner i's barycentric coordinate: its gradient n x (v_b - v_a) / 2A
-                bi = ((ny * vz - nz * vy) * (qx - tri[t, a, 0])
-                      + (nz * vx - nx * vz) * (qy - tri[t, a, 1])
-                      + (nx * vy - ny * vx) * (qz - tri[t, a, 2])) / area2
-                mx += bi * pseudo[t, 7 + i, 0]
-                my += bi * pseudo[t, 7 + i, 1]
-                mz += bi * pseudo[t, 7 + i, 2]
+        return True, pseudo[t, 7 + k, 0], pseudo[t, 7 + k, 1], pseudo[t, 7 + k, 2]
+    qx, qy, qz = px - dist * gx, py - dist * gy, pz - dist * gz
+    if region >= 1:
+        k = region - 1
+        if pseudo[t, 10, k] == 0.0:
+            return False, gx, gy, gz
+        j = (k + 1) % 3
+        ex, ey, ez = (tri[t, j, 0] - tri[t, k, 0], tri[t, j, 1] - tri[t, k, 1],
+                      tri[t, j, 2] - tri[t, k, 2])
+        tau = ((qx - tri[t, k, 0]) * ex + (qy - tri[t, k, 1]) * ey
+               + (qz - tri[t, k, 2]) * ez) / (ex * ex + ey * ey + ez * ez)
+        tau = min(max(tau, 0.0), 1.0)
+        return (True, (1.0 - tau) * pseudo[t, 7 + k, 0] + tau * pseudo[t, 7 + j, 0],
+                (1.0 - tau) * pseudo[t, 7 + k, 1] + tau * pseudo[t, 7 + j, 1],
+                (1.0 - tau) * pseudo[t, 7 + k, 2] + tau * pseudo[t, 7 + j, 2])
+    nx, ny, nz = pseudo[t, 0, 0], pseudo[t, 0, 1], pseudo[t, 0, 2]
+    area2 = _area2(tri, t)
+    mx = my = mz = 0.0
+    for i in range(3):
+        a, b = (i + 1) % 3, (i + 2) % 3
+        vx, vy, vz = (tri[t, b, 0] - tri[t, a, 0], tri[t, b, 1] - tri[t, a, 1],
+                      tri[t, b, 2] - tri[t, a, 2])
+        # corner i's barycentric coordinate: its gradient n x (v_b - v_a) / 2A
+        bi = ((ny * vz - nz * vy) * (qx - tri[t, a, 0])
+              + (nz * vx - nx * vz) * (qy - tri[t, a, 1])
+              + (nx * vy - ny * vx) * (qz - tri[t, a, 2])) / area2
+        mx += bi * pseudo[t, 7 + i, 0]
+        my += bi * pseudo[t, 7 + i, 1]
+        mz += bi * pseudo[t, 7 + i, 2]
+    return True, mx, my, mz
+
+
+@njit(cache=True, inline="always")
+def _area2(tri, t):
+    """Twice triangle t's area."""
+    ux, uy, uz = (tri[t, 1, 0] - tri[t, 0, 0], tri[t, 1, 1] - tri[t, 0, 1],
+                  tri[t, 1, 2] - tri[t, 0, 2])
+    wx, wy, wz = (tri[t, 2, 0] - tri[t, 0, 0], tri[t, 2, 1] - tri[t, 0, 1],
+                  tri[t, 2, 2] - tri[t, 0, 2])
+    cx, cy, cz = uy * wz - uz * wy, uz * wx - ux * wz, ux * wy - uy * wx
+    return math.sqrt(cx * cx + cy * cy + cz * cz)
+
+
+@njit(cache=True, inline="always")
+def _unit_outward(mx, my, mz, gx, gy, gz):
+    """(ok, size, sign): m's length, signed to point where the exact gradient does (an
+    open shell's back: its distance's gradient points off it); not ok where m is none."""
     size = math.sqrt(mx * mx + my * my + mz * mz)
     if not size > 1e-12:
-        return False, gx, gy, gz
-    if mx * gx + my * gy + mz * gz < 0.0:  # (an open shell's back: see smooth_feature)
-        size = -size
-    return True, mx / size, my / size, mz / size
+        return False, size, 1.0
+    return True, size, (-1.0 if mx * gx + my * gy + mz * gz < 0.0 else 1.0)
+
+
+@njit(cache=True, inline="always")
+def smooth_normal(p, dist, g, t, region, tri, pseudo):
+    """The normal a contact at p reads from a mesh whose faces tessellate a smooth
+    surface: the corners' normals interpolated at the closest point
+    (``_interpolated``), as FE codes' contact surface smoothing does. The exact normal
+    turns only in the wedge beyond each edge and vertex, a facet's angle across a tenth
+    of a millimetre on a dense CAD mesh, so that a straight element's nearest point
+    jumps from edge to edge as it turns and a Newton iterate flips between them; the
+    interpolated one turns continuously across each face, the surface the facets stand
+    for. The distance stays the mesh's exact one. Beyond a crease or a border
+    (``CREASE``) the exact normal is kept: a sharp edge is one. (p, g: the point and the
+    exact gradient as 3-tuples; dist: ``mesh_feature``'s.) Returns (whether the point
+    reads the smooth surface, nx, ny, nz)."""
+    ok, mx, my, mz = _interpolated(p, dist, g, t, region, tri, pseudo)
+    if ok:
+        ok, size, sign = _unit_outward(mx, my, mz, g[0], g[1], g[2])
+    if not ok:
+        return False, g[0], g[1], g[2]
+    f = sign / size
+    return True, f * mx, f * my, f * mz
 
 
 @njit(cache=True)
-def smooth_feature(p, dist, grad, t, region, tri, pseudo, want_h):
-    """The normal [and its rate d n / d p, (3, 3)] a contact at p reads from a mesh whose
-    faces tessellate a smooth surface: each corner's normal (``smooth_normals``,
-    ``pseudo`` rows 7-11) interpolated at the closest point q's place on its triangle
-    (its barycentric coordinates; along an edge, between its two corners), as FE codes'
-    contact surface smoothing does. The exact normal turns only in the wedge beyond each
-    edge and vertex, a facet's angle across a tenth of a millimetre on a dense CAD mesh,
-    so that a straight element's nearest point jumps from edge to edge as it turns and a
-    Newton iterate flips between them; the interpolated one turns continuously across
-    each face, the surface the facets stand for. The distance stays the mesh's exact
-    one. Beyond a crease or a border (``CREASE``) the exact normal and its rate are kept:
-    a sharp edge is one. (grad, dist: ``mesh_feature``'s; H zero where not ``want_h``.)"""
+def smooth_rate(p, dist, grad, t, region, tri, pseudo):
+    """(d n / d p (3, 3), whether it applies) of ``smooth_normal``'s n: the
+    interpolation's derivative as the closest point moves with p (none at a vertex);
+    not where p reads the exact normal (a crease, a border)."""
     H = np.zeros((3, 3))
-    n = grad.copy()
-    if region >= 4:
-        k = region - 4
-        if pseudo[t, 11, k] == 0.0:
-            return n, H, False
-        m = pseudo[t, 7 + k].copy()
-        dm = np.zeros((3, 3))
-    elif region >= 1:
+    g = (grad[0], grad[1], grad[2])
+    ok, mx, my, mz = _interpolated((p[0], p[1], p[2]), dist, g, t, region, tri, pseudo)
+    if ok:
+        ok, size, sign = _unit_outward(mx, my, mz, g[0], g[1], g[2])
+    if not ok:
+        return H, False
+    dm = np.zeros((3, 3))
+    if 1 <= region <= 3:
         k = region - 1
-        if pseudo[t, 10, k] == 0.0:
-            return n, H, False
         a, b = tri[t, k], tri[t, (k + 1) % 3]
         e = b - a
         ee = e[0] * e[0] + e[1] * e[1] + e[2] * e[2]
-        q = p - dist * grad
-        tau = ((q[0] - a[0]) * e[0] + (q[1] - a[1]) * e[1] + (q[2] - a[2]) * e[2]) / ee
-        tau = min(max(tau, 0.0), 1.0)
         ca, cb = pseudo[t, 7 + k], pseudo[t, 7 + (k + 1) % 3]
-        m = (1.0 - tau) * ca + tau * cb
-        dm = np.zeros((3, 3))
         for i in range(3):
             for j in range(3):
                 dm[i, j] = (cb[i] - ca[i]) * e[j] / ee
-    else:
+    elif region == 0:
         nf = pseudo[t, 0]
-        q = p - dist * grad
-        v0, v1, v2 = tri[t, 0], tri[t, 1], tri[t, 2]
-        N = np.cross(v1 - v0, v2 - v0)
-        area2 = math.sqrt(N[0] * N[0] + N[1] * N[1] + N[2] * N[2])
-        m = np.zeros(3)
-        dm = np.zeros((3, 3))
+        area2 = _area2(tri, t)
         for i in range(3):
-            va, vb = tri[t, (i + 1) % 3], tri[t, (i + 2) % 3]
-            g = np.cross(nf, vb - va) / area2  # grad of corner i's barycentric coordinate
-            bi = g[0] * (q[0] - va[0]) + g[1] * (q[1] - va[1]) + g[2] * (q[2] - va[2])
-            c = pseudo[t, 7 + i]
+            gi = np.cross(nf, tri[t, (i + 2) % 3] - tri[t, (i + 1) % 3]) / area2
             for r in range(3):
-                m[r] += bi * c[r]
                 for j in range(3):
-                    dm[r, j] += c[r] * g[j]
-    size = math.sqrt(m[0] * m[0] + m[1] * m[1] + m[2] * m[2])
-    if not size > 1e-12:
-        return n, H, False
-    for c in range(3):
-        n[c] = m[c] / size
-    sign = 1.0
-    if n[0] * grad[0] + n[1] * grad[1] + n[2] * grad[2] < 0.0:
-        sign = -1.0  # (an open shell's back: its distance's gradient points off it)
-        for c in range(3):
-            n[c] = -n[c]
-    if want_h:
-        for i in range(3):
-            for j in range(3):
-                v = 0.0
-                for r in range(3):
-                    v += ((1.0 if i == r else 0.0) - n[i] * n[r]) * dm[r, j]
-                H[i, j] = sign * v / size
-    return n, H, True
+                    dm[r, j] += pseudo[t, 7 + i, r] * gi[j]
+    n = np.array([mx, my, mz]) * (sign / size)
+    for i in range(3):
+        for j in range(3):
+            v = 0.0
+            for r in range(3):
+                v += ((1.0 if i == r else 0.0) - n[i] * n[r]) * dm[r, j]
+            H[i, j] = sign * v / size
+    return H, True
