@@ -118,16 +118,19 @@ POST_AT = (0.5, 0.08, 0.0)
 START, END = (0.95, 0.0), (0.9, 0.3)
 
 
+def _write_obj(path: Path, vertices: np.ndarray, faces: np.ndarray) -> None:
+    """A mesh as an OBJ file, every digit written (an STL's float32 would round it)."""
+    lines = [f"v {x!r} {y!r} {z!r}" for x, y, z in np.asarray(vertices).tolist()]
+    lines += [f"f {a + 1} {b + 1} {c + 1}" for a, b, c in np.asarray(faces).tolist()]
+    path.write_text("\n".join(lines) + "\n")
+
+
 def _post_mesh(folder: Path, sections: int, unit: float, name: str) -> str:
-    """A post as an OBJ file in ``unit`` [m], every digit written (an STL's float32
-    would round the two units differently)."""
+    """A post as an OBJ file in ``unit`` [m] (every digit: the two units round alike)."""
     import trimesh
 
     post = trimesh.creation.cylinder(radius=0.05, height=0.4, sections=sections)
-    vertices = (post.vertices + np.array(POST_AT)) / unit
-    lines = [f"v {x!r} {y!r} {z!r}" for x, y, z in vertices.tolist()]
-    lines += [f"f {a + 1} {b + 1} {c + 1}" for a, b, c in post.faces.tolist()]
-    (folder / name).write_text("\n".join(lines) + "\n")
+    _write_obj(folder / name, (post.vertices + np.array(POST_AT)) / unit, post.faces)
     return f'shape = "mesh"\nfile = "{name}"'
 
 
@@ -360,9 +363,7 @@ def _box_mesh(folder: Path, size, name: str) -> str:
     import trimesh
 
     box = trimesh.creation.box(extents=size)
-    lines = [f"v {x!r} {y!r} {z!r}" for x, y, z in box.vertices.tolist()]
-    lines += [f"f {a + 1} {b + 1} {c + 1}" for a, b, c in box.faces.tolist()]
-    (folder / name).write_text("\n".join(lines) + "\n")
+    _write_obj(folder / name, box.vertices, box.faces)
     return name
 
 
