@@ -6,7 +6,7 @@ from __future__ import annotations
 
 import os
 import tempfile
-from collections.abc import Callable, Iterator
+from collections.abc import Callable
 from pathlib import Path
 from typing import BinaryIO
 
@@ -16,48 +16,32 @@ from pliant.errors import OutputError
 class Written:
     """The files this process has written whole, each once, in the order first written:
     what an interrupted command says it left (``pliant.cli.app.main`` empties it as a
-    command starts), so that an incomplete set of outputs is marked. Every one is
-    counted; the paths kept are bounded (``KEEP``, but a folder's first ``LISTED``: a
-    server that writes for hours keeps no more), and ``folders`` says how many each
-    folder got."""
+    command starts), so that an incomplete set of outputs is marked. As many as the
+    command writes (a study's voxels: one a sample, 100,000 at most)."""
 
-    KEEP = 10_000
     LISTED = 4  # a folder's files named one by one up to this many, else counted
 
     def __init__(self) -> None:
         self._paths: dict[Path, None] = {}
-        self.folders: dict[Path, int] = {}
 
     def append(self, path: Path) -> None:
-        if path in self._paths:
-            return
-        self.folders[path.parent] = self.folders.get(path.parent, 0) + 1
-        if len(self._paths) < self.KEEP or self.folders[path.parent] <= self.LISTED:
-            self._paths[path] = None
+        self._paths[path] = None
 
     def clear(self) -> None:
         self._paths.clear()
-        self.folders.clear()
-
-    def __contains__(self, path: object) -> bool:
-        return path in self._paths
-
-    def __iter__(self) -> Iterator[Path]:
-        return iter(self._paths)
 
     def __len__(self) -> int:
-        return sum(self.folders.values())
+        return len(self._paths)
 
     def summary(self) -> str:
         """The files written, a folder that got more than ``LISTED`` of them as its
         count: "a.json, b.html, study/voxels/ (400 files)"."""
-        out = []
-        for folder, count in self.folders.items():
-            if count > self.LISTED:
-                out.append(f"{folder}{os.sep} ({count} files)")
-            else:
-                out.extend(str(p) for p in self._paths if p.parent == folder)
-        return ", ".join(out)
+        folders: dict[Path, list[Path]] = {}
+        for path in self._paths:
+            folders.setdefault(path.parent, []).append(path)
+        return ", ".join(
+            f"{folder}{os.sep} ({len(paths)} files)" if len(paths) > self.LISTED
+            else ", ".join(str(p) for p in paths) for folder, paths in folders.items())
 
 
 WRITTEN = Written()

@@ -37,8 +37,7 @@ class JsonLines:
             handle.write(line)
             handle.flush()
             os.fsync(handle.fileno())
-        if self.path not in WRITTEN:  # a store a resumed run goes on with
-            WRITTEN.append(self.path)
+        WRITTEN.append(self.path)  # (once: a store a resumed run goes on with)
 
     def read(self) -> list[dict[str, Any]]:
         """Every complete line's record, in the file's order (a torn one left out)."""
