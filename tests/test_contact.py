@@ -13,7 +13,7 @@ from hypothesis import strategies as st
 from scipy.optimize import brentq
 
 import pliant as pl
-from pliant.core.events import jumped
+from pliant.core.events import PushedOut, jumped
 from pliant.errors import PliantError
 from pliant.models import rod3d
 from pliant.models.banded import dense, identity_rows
@@ -614,6 +614,40 @@ def test_a_cantilever_lifted_by_a_drum_is_solved_cold_at_every_height():
     _, under = solved(0.4)
     above = _cantilever_on_a_drum(0.2, 0.305)[1:3]
     assert np.linalg.norm(under - above * [1.0, -1.0]) < 2e-3 * np.linalg.norm(above)
+
+
+def test_a_part_through_a_drum_is_pushed_out_the_way_of_least_energy():
+    """Issue 60, item 2: the same drum with its axis crossing the unloaded part (its
+    centre on the straight part, a symmetric problem) or 50 mm above it: growing it back
+    round the part stalled ("a fold"). It is carried in from outside, across the part,
+    four ways; the answer is the stable one of least energy, said. Centred: over or under,
+    mirror twins of equal energy, the drum's force the twin's (centre on the line) to
+    2e-3. Above: under it, the mirror image of the drum 50 mm below, force for force,
+    at less energy than over it."""
+    part = pl.Part(1.0, 1.0, outer_diameter=0.01)
+
+    def solved(delta):
+        drum = Obstacle.cylinder("drum", 0.3, 0.5, (0.6, 0.0, delta - 0.3), ACROSS_Y)
+        problem = pl.Problem(part, (pl.clamp(0.0, (0.0, 0.0, 0.0), tangent=(1.0, 0.0, 0.0),
+                                             normal=(0.0, 0.0, 1.0)),), obstacles=(drum,))
+        eq = rod3d.solve(problem, solver=rod3d.RodSolver(elements=100))
+        return eq, eq.contacts.force.sum(axis=0)[[0, 2]]
+
+    eq, force = solved(0.3)
+    pushed = [n for n in eq.notes if isinstance(n, PushedOut)]
+    assert eq.verdict == "stable" and len(pushed) == 1 and pushed[0].twin
+    assert pushed[0].obstacles == ("drum",) and abs(pushed[0].side[2]) == pytest.approx(1.0)
+    twin = _cantilever_on_a_drum(0.3, 0.305)[1:3]
+    side = np.sign(pushed[0].side[2])
+    assert np.linalg.norm(force - twin * [1.0, side]) < 2e-3 * np.linalg.norm(twin)
+    assert np.sign(eq.position[-1, 2]) == side
+    eq, force = solved(0.35)
+    pushed = [n for n in eq.notes if isinstance(n, PushedOut)]
+    assert eq.verdict == "stable" and len(pushed) == 1 and not pushed[0].twin
+    assert pushed[0].side[2] == pytest.approx(-1.0)
+    assert all(e > pushed[0].energy for e in pushed[0].other_energies)
+    mirror = _cantilever_on_a_drum(0.25, 0.305)[1:3]
+    assert np.linalg.norm(force - mirror * [1.0, -1.0]) < 2e-3 * np.linalg.norm(mirror)
 
 
 def test_a_drum_raised_in_steps_is_followed_with_the_part_on_it():

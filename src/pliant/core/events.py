@@ -147,6 +147,22 @@ class Snapped(Event):
     count: int = 1  # type: ignore[assignment]  # a field, over str.count
 
 
+class PushedOut(Event):
+    """The unloaded part passed through the ``obstacles`` (names), and growing them back
+    round it stalled: they were carried in from ``move`` [m] away across the part
+    instead, pushing it toward ``side`` (a unit vector); the answer's potential
+    ``energy`` [J], the other ways' ``other_energies``, ``twin`` where one of those is
+    a mirror image of equal energy (``rod3d.carrying``)."""
+
+    kind = "pushed_out"
+    obstacles: tuple = ()
+    side: Any = None
+    move: float = 0.0
+    energy: float = 0.0
+    other_energies: tuple = ()
+    twin: bool = False
+
+
 class LeftUnstable(Event):
     """The equilibrium reached was unstable (its smallest eigenvalue ``eigenvalue``
     [N m]): the part left it along its unstable mode and settled on this stable one,

@@ -33,7 +33,7 @@ import functools
 import math
 from collections.abc import Iterable, Iterator
 from dataclasses import dataclass, field, replace
-from functools import cached_property
+from functools import cached_property, partial
 
 import numpy as np
 
@@ -51,6 +51,7 @@ from pliant.errors import ConvergenceError, IllPosedProblemError, InputError
 from pliant.models import clock, continuation
 from pliant.models.continuation import Line, Stalled
 from pliant.models.rod3d import contact_kernels, kernels
+from pliant.models.rod3d.carrying import carried, pushed_out
 from pliant.models.rod3d.kernels import AXIS
 from pliant.models.rod3d.lowering import Loads, Rod, State, axis_basis, lower
 from pliant.models.rod3d.results import WarmState, build, station_loads
@@ -596,7 +597,7 @@ def _solve(problem: Problem, warm_start: Equilibrium3D | None, solver: RodSolver
            follow_only: bool, rigid: bool = False, carry: bool = True) -> Equilibrium3D:
     """``rigid``: flexible parts already fitted (``coupled``) count as rigid tubes;
     ``carry``: a warm start whose obstacles moved may be followed with them carried
-    (``_obstacles_carried``)."""
+    (``carrying.carried``)."""
     if problem.dimension != 3:
         raise IllPosedProblemError("the 3D model solves 3D problems; this one is 2D "
                                    "(use pliant.solve, which picks the model)")
@@ -613,9 +614,10 @@ def _solve(problem: Problem, warm_start: Equilibrium3D | None, solver: RodSolver
         if warm_start is not None:
             state = run.warm(warm_start)
             if state is None and carry:
-                carried = _obstacles_carried(problem, warm_start, solver)
-                if carried is not None:
-                    return carried
+                moved = carried(problem, warm_start, partial(_followed, solver=solver),
+                                deadline=run.deadline)
+                if moved is not None:
+                    return moved
             if state is not None:
                 run.notes[:0] = [n for n in warm_start.notes if isinstance(n, BranchTaken)]
             elif follow_only:
@@ -631,10 +633,13 @@ def _solve(problem: Problem, warm_start: Equilibrium3D | None, solver: RodSolver
             try:
                 state = run.cold()
             except Stalled as stall:
-                cleared = _clear_instead(run, stall)
+                cleared = _clear_instead(run, stall) or pushed_out(
+                    run, stall, partial(_followed, solver=solver))
                 if cleared is None:
                     raise
-                return cleared
+                return cleared if problem.solved_together else _with_reaction_error(
+                    Run(cleared.state.rod, run.solver, gauge_quat=cleared.state.gauge_quat),
+                    cleared.state.state, cleared)
         if run.rod.gauge_frame >= 0 and run.rod.K[0] != run.rod.K[1]:
             state = _release_roll(run, state)
     except Stalled as stall:
@@ -657,61 +662,11 @@ def _solve(problem: Problem, warm_start: Equilibrium3D | None, solver: RodSolver
     return eq
 
 
-CARRY_STEP = 0.25  # an obstacle carried at most this many of the part's radii a stage
-CARRY_MOST = 400  # stages at most (beyond: not followed)
-
-
-def _obstacles_carried(problem: Problem, warm_start: Equilibrium3D, solver: RodSolver
-                       ) -> Equilibrium3D | None:
-    """A warm start whose obstacles moved (the same ones, placed elsewhere: a drum
-    raised, a part of the scene turned) followed with them: the continuation changes the
-    targets and loads gradually but takes the obstacles where they now are at once, so
-    a move of more than the contact's give started inside them ("the start is
-    singular"). Here they are carried from their old poses to the new in stages of at
-    most ``CARRY_STEP`` of the part's radius (a move of 3 mm into a 10 mm part at rest on
-    a drum was singular; 2 mm was not), each solved warm from the last; None where they
-    did not move or cannot be followed (the caller goes on as before)."""
-    from pliant.core.rotations import exp_map, log_map  # noqa: PLC0415
-    from pliant.scene.distance import Obstacle  # noqa: PLC0415
-
-    before, after = warm_start.problem.obstacles, problem.obstacles
-    if not before or len(before) != len(after):
-        return None
-    for a, b in zip(before, after):
-        if (a.name != b.name or a.kind != b.kind or a.mesh is not b.mesh
-                or a.fitted is not None or b.fitted is not None
-                or not np.array_equal(a.param, b.param)):
-            return None
-    if all(np.array_equal(a.translation, b.translation)
-           and np.array_equal(a.rotation, b.rotation) for a, b in zip(before, after)):
-        return None
-
-    turns = [log_map(a.rotation.T @ b.rotation) for a, b in zip(before, after)]
-
-    def between(a: Obstacle, b: Obstacle, turn: np.ndarray, t: float) -> Obstacle:
-        return replace(b, translation=(1.0 - t) * a.translation + t * b.translation,
-                       rotation=a.rotation @ exp_map(t * turn))
-
-    move = max(float(np.linalg.norm(b.translation - a.translation))
-               + float(np.linalg.norm(turn))
-               * (float(np.abs(a.mesh.tri).max()) if a.mesh is not None
-                  else float(np.abs(a.param).max(initial=0.0)))
-               for a, b, turn in zip(before, after, turns))
-    first = max(2, math.ceil(move / (CARRY_STEP * problem.part.drawn_radius)))
-    for stages in (first, 4 * first):
-        if stages > CARRY_MOST:
-            return None
-        previous = warm_start
-        try:
-            for k in range(1, stages):
-                stage = replace(problem, obstacles=tuple(
-                    between(a, b, turn, k / stages)
-                    for a, b, turn in zip(before, after, turns)))
-                previous = _solve(stage, previous, solver, True, carry=False)
-            return _solve(problem, previous, solver, True, carry=False)
-        except ConvergenceError:
-            continue
-    return None
+def _followed(problem: Problem, warm_start: Equilibrium3D | None, solver: RodSolver
+              ) -> Equilibrium3D:
+    """``problem`` solved warm from ``warm_start`` and followed only, or cold where it is
+    None; never carried (``carrying``'s stages)."""
+    return _solve(problem, warm_start, solver, warm_start is not None, carry=False)
 
 
 def _lowest(run: Run, eq: Equilibrium3D) -> tuple[Equilibrium3D, Run]:
@@ -787,10 +742,7 @@ def _clear_instead(run: Run, stall: Stalled) -> Equilibrium3D | None:
         f"{f', by the {route} route' if route else ''})"
         f"{'; it is unstable, and no stable one was found' if unstable else ''}",
         energy=energy, route_energy=None)
-    again = Run(best.state.rod, run.solver, gauge_quat=best.state.gauge_quat)
-    eq = replace(best, notes=(*best.notes[1:], note))
-    return eq if run.rod.problem.solved_together else _with_reaction_error(
-        again, eq.state.state, eq)
+    return replace(best, notes=(*best.notes[1:], note))
 
 
 def _clear(run: Run, deadline: float) -> list[Equilibrium3D]:
