@@ -487,13 +487,14 @@ def shifted_newton(model: Relaxable, state: Any, loads: Any, tolerance: float,
 PUSH = 0.05  # how far a saddle is pushed along its unstable mode, in L
 
 
-def settle(model: Relaxable, state: Any, loads: Any, push: float = PUSH) -> Any | None:
-    """Relax (``relax``); where that ends on a saddle (an unstable equilibrium: the flow
-    slowed next to it and the closing Newton landed on it), push the part along the
-    saddle's unstable mode by ``push`` L, one way then the other, and relax again, so
-    that the snap cannot stall at a saddle: the state it settles in is stable (or
-    neutral), or None."""
-    current = relax(model, state, loads)
+def settle(model: Relaxable, state: Any, loads: Any, push: float = PUSH,
+           stride: float = 0.02) -> Any | None:
+    """Relax (``relax``, each step about ``stride`` L); where that ends on a saddle (an
+    unstable equilibrium: the flow slowed next to it and the closing Newton landed on
+    it), push the part along the saddle's unstable mode by ``push`` L, one way then the
+    other, and relax again, so that the snap cannot stall at a saddle: the state it
+    settles in is stable (or neutral), or None."""
+    current = relax(model, state, loads, stride=stride)
     for _ in range(3):
         if current is None:
             return None
@@ -503,7 +504,7 @@ def settle(model: Relaxable, state: Any, loads: Any, push: float = PUSH) -> Any 
         du = mode * (push / max(float(np.abs(mode).max()), 1e-300))
         pushed = None
         for sign in (1.0, -1.0):
-            pushed = relax(model, model.step(current, sign * du, 1.0), loads)
+            pushed = relax(model, model.step(current, sign * du, 1.0), loads, stride=stride)
             if pushed is not None:
                 break
         current = pushed

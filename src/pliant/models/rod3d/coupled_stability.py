@@ -101,12 +101,14 @@ def system_metric(coupling: Coupling, length: float) -> list[np.ndarray]:
 
 
 def coupled_stability(coupling: Coupling, states: Sequence[State], mus: Sequence[np.ndarray],
-                      length: float | None = None) -> tuple[bool | None, float | None]:
+                      length: float | None = None, found: list | None = None
+                      ) -> tuple[bool | None, float | None]:
     """(stable, smallest eigenvalue [N m]) of the parts together at (states, mus), an
     equilibrium of their targets, in the metric of a part of ``length`` (the first
     part's unless given: that part's own eigenvalue where the others do not touch it);
     (None, None) where the loads are not conservative (``not_assessed``) or no
-    eigenvalue converged."""
+    eigenvalue converged. ``found``, where given, gets the mode: per part, its primal
+    unknowns' values (the unknowns ``system_metric`` weighs)."""
     from scipy.sparse.linalg import (  # noqa: PLC0415 (scipy.sparse: on demand)
         ArpackError,
         ArpackNoConvergence,
@@ -131,9 +133,11 @@ def coupled_stability(coupling: Coupling, states: Sequence[State], mus: Sequence
     rows = [np.zeros(b.D.shape[0]) for b in blocks]
     start = np.random.default_rng(12345).standard_normal(n)
 
-    def nearest(c: float, tol: float) -> float | None:
-        """The eigenvalue nearest -c (shift-invert Arnoldi); None where the shifted
-        system is singular or Arnoldi does not converge."""
+    def nearest(c: float, tol: float, vectors: bool = False
+                ) -> tuple[float, np.ndarray | None] | None:
+        """The eigenvalue nearest -c (shift-invert Arnoldi), with its vector where
+        ``vectors``; None where the shifted system is singular or Arnoldi does not
+        converge."""
         bands = []
         for run, ab, m in zip(runs, ev.ab, mass):
             assert ab is not None
@@ -157,19 +161,24 @@ def coupled_stability(coupling: Coupling, states: Sequence[State], mus: Sequence
 
         operator = LinearOperator((n, n), matvec=apply, dtype=float)
         try:
-            theta = eigs(operator, k=min(_EIGENVALUES, n - 2), which="LM", v0=start,
-                         tol=tol, maxiter=50 * n, return_eigenvectors=False)
+            out = eigs(operator, k=min(_EIGENVALUES, n - 2), which="LM", v0=start,
+                       tol=tol, maxiter=50 * n, return_eigenvectors=vectors)
         except (ArpackError, ArpackNoConvergence, FloatingPointError):
             return None
-        theta = theta[np.abs(theta) > 0.0]
-        return float(np.min(1.0 / theta.real - c)) if theta.shape[0] else None
+        theta, vec = out if vectors else (out, None)
+        keep = np.abs(theta) > 0.0
+        if not keep.any():
+            return None
+        k = int(np.argmin(np.where(keep, 1.0 / np.where(keep, theta.real, 1.0) - c, np.inf)))
+        return float(1.0 / theta[k].real - c), None if vec is None else vec[:, k].real
 
     c = _shift(coupling, states) + _contact_shift(coupling, ev, mus, metric_length)
     for _ in range(_RAISES + 1):
-        value = nearest(c, 1e-12)
-        if value is None:
+        got = nearest(c, 1e-12, found is not None)
+        if got is None:
             c *= 1.5  # c itself an eigenvalue (to round-off), or no convergence: move off
             continue
+        value, vector = got
         if value <= -0.5 * c:  # near the shift: a lower one may hide below it
             c *= 4.0
             continue
@@ -178,9 +187,11 @@ def coupled_stability(coupling: Coupling, states: Sequence[State], mus: Sequence
         # loosely (it only has to show that one is there: below -c, it lies more than
         # c / 2 below ``value``, far past the loose answer's error).
         check = nearest(4.0 * c, 1e-3)
-        if check is not None and check < value - 0.1 * (abs(value) + c):
-            c = max(4.0 * c, -2.0 * check)
+        if check is not None and check[0] < value - 0.1 * (abs(value) + c):
+            c = max(4.0 * c, -2.0 * check[0])
             continue
+        if found is not None and vector is not None:
+            found.append([vector[cuts[i]:cuts[i + 1]] for i in range(len(runs))])
         scale = min(run.rod.moment_scale for run in runs)
         return value > -NEUTRAL * scale, value
     return None, None

@@ -17,17 +17,19 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from pliant.core.equilibrium import Equilibrium3D
-from pliant.core.events import HeldRigid, ReachedBy
+from pliant.core.equilibrium import Equilibrium3D, potential_energy
+from pliant.core.events import HeldRigid, LeftUnstable, ReachedBy
 from pliant.core.rotations import qconj, qmul, quat_matrix
 from pliant.errors import ConvergenceError
 from pliant.models import clock, continuation
 from pliant.models.rod3d import coupled
 from pliant.models.rod3d.coupled import Coupling, close_pairs, no_contact_forces
 from pliant.models.rod3d.coupled_results import equilibria as parts_equilibria
+from pliant.models.rod3d.coupled_settling import downhill
 from pliant.models.rod3d.links import Joint, Pivot, Slider
 from pliant.models.rod3d.lowering import Rod, State
 from pliant.models.rod3d.results import WarmState
+from pliant.models.rod3d.settling import shape_distance
 from pliant.models.rod3d.solver import RodSolver, Run, reached, same_shape, solve
 
 
@@ -108,7 +110,8 @@ def solve_fitted(problem, warm_start, solver: RodSolver, follow_only: bool) -> E
                 and problem.junctions == old.junctions and problem.pivots == old.pins):
             try:
                 eq = _follow_together(problem, _own_problem(problem, old.fitted), old,
-                                      solver)
+                                      solver, settle=solver.settle and not follow_only,
+                                      warm=warm_start)
                 # A fitted part held rigid that it now touches: solve again, with it.
                 rigid_ones = {o.name for o in fitted} - {f.name for f in old.fitted}
                 if not rigid_ones & set(eq.contacts.obstacle):
@@ -121,7 +124,8 @@ def solve_fitted(problem, warm_start, solver: RodSolver, follow_only: bool) -> E
     rigid = _solve(_held_problem(problem), warm_start, solver, follow_only, rigid=True)
     touched = _touched(problem, rigid)
     try:
-        return _from_rigid(problem, rigid, touched, solver)
+        return _from_rigid(problem, rigid, touched, solver,
+                           settle=solver.settle and not follow_only, warm=warm_start)
     except ConvergenceError as err:
         if follow_only:
             raise
@@ -190,19 +194,22 @@ def _touched(problem, rigid: Equilibrium3D) -> list[str]:
     return sorted(set(rigid.contacts.obstacle) & {o.name for o in fitted_of(problem)})
 
 
-def _from_rigid(problem, rigid: Equilibrium3D, touched: list[str],
-                solver: RodSolver) -> Equilibrium3D:
+def _from_rigid(problem, rigid: Equilibrium3D, touched: list[str], solver: RodSolver,
+                settle: bool = False, warm: Equilibrium3D | None = None) -> Equilibrium3D:
     """The problem's equilibrium from a rigid answer: that answer itself where it touches
     no fitted part and nothing else is solved together (its problem is then this one);
     else the parts solved together from it (``_start_together``: raises
-    ConvergenceError where they cannot be)."""
+    ConvergenceError where they cannot be). ``settle``: an unstable answer is left for the
+    stable one the parts settle in (``_settled``), the nearest to ``warm`` where given."""
     if not (touched or problem.sliders or problem.junctions or problem.pivots):
         return rigid
     parts = [o.fitted for o in fitted_of(problem) if o.name in touched]
-    return _start_together(problem, _own_problem(problem, parts), rigid, parts, solver)
+    return _start_together(problem, _own_problem(problem, parts), rigid, parts, solver,
+                           settle, warm)
 
 
-def _start_together(problem, own, rigid: Equilibrium3D, parts: list, solver: RodSolver):
+def _start_together(problem, own, rigid: Equilibrium3D, parts: list, solver: RodSolver,
+                    settle: bool = False, warm: Equilibrium3D | None = None):
     """From the rigid answer: the fitted parts held still under the contact and the
     clips where they start, then let go."""
     from pliant.models.rod3d.lowering import axis_basis, lower  # noqa: PLC0415
@@ -272,7 +279,8 @@ def _start_together(problem, own, rigid: Equilibrium3D, parts: list, solver: Rod
     coupling, states, mus = coupled.solve_coupled(runs, states, solver=solver, held_first=True,
                                           pairs=pairs, mus=mus, sliders=sliders, joints=joints,
                                           pivots=pivots)
-    return _result(problem, coupling, states, mus, parts, rigid.iterations, rigid.steps)
+    return _result(problem, coupling, states, mus, parts, rigid.iterations, rigid.steps,
+                   settle=settle, warm=warm)
 
 
 def _joints(problem, runs: list[Run], states: list[State]) -> list[Joint]:
@@ -334,7 +342,8 @@ def _fitted_run(part, solver: RodSolver) -> Run:
     return run
 
 
-def _follow_together(problem, own, old: _TogetherState, solver: RodSolver) -> Equilibrium3D:
+def _follow_together(problem, own, old: _TogetherState, solver: RodSolver,
+                     settle: bool = False, warm: Equilibrium3D | None = None) -> Equilibrium3D:
     from pliant.models.rod3d.lowering import lower  # noqa: PLC0415
 
     rod = old.rods[0].retarget(own, solver.elements) or lower(own, elements=solver.elements)
@@ -349,30 +358,84 @@ def _follow_together(problem, own, old: _TogetherState, solver: RodSolver) -> Eq
                                           pairs=list(old.pairs), sliders=list(old.sliders),
                                           joints=list(old.joints), pivots=list(old.pivots),
                                           held_first=False, friction=old.friction)
-    return _result(problem, coupling, states, mus, list(old.fitted), 0, 0)
+    return _result(problem, coupling, states, mus, list(old.fitted), 0, 0, settle=settle,
+                   warm=warm)
 
 
 def _result(problem, coupling: Coupling, states, mus, parts, iterations: int,
-            steps: int) -> Equilibrium3D:
+            steps: int, *, settle: bool = False, warm: Equilibrium3D | None = None
+            ) -> Equilibrium3D:
+    """The part's answer with its branches and fitted parts as they deformed; where
+    ``settle`` and it is unstable, the stable one the parts settle in (``_settled``)."""
+    branches = [b for jn in problem.junctions for b in jn.branches]
+    names = ([problem.name or problem.part.name] + [b.name for b in branches]
+             + [p.name for p in parts])
+    first = _assembled(problem, coupling, states, mus, parts, names)
+    if settle and first.verdict == "unstable":
+        first = _settled(problem, coupling, (states, mus), parts, names, first, warm)
+    return replace(first, iterations=first.iterations + iterations + coupling.iterations,
+                   steps=first.steps + steps + coupling.steps)
+
+
+def _assembled(problem, coupling: Coupling, states, mus, parts, names: list[str]
+               ) -> Equilibrium3D:
+    """The part's equilibrium at (states, mus), its branches' and fitted parts' with it
+    and the state a warm start follows together from."""
     # The targets before the contact forces join them as loads (for the warm starts).
     rods = tuple(run.rod for run in coupling.runs)
     gauges = tuple(run.gauge_quat.copy() for run in coupling.runs)
     branches = [b for jn in problem.junctions for b in jn.branches]
-    names = ([problem.name or problem.part.name] + [b.name for b in branches]
-             + [p.name for p in parts])
     eqs = parts_equilibria(coupling, states, mus, names)
     nb = len(branches)
-    first = replace(eqs[0], problem=problem,
-                    iterations=eqs[0].iterations + iterations + coupling.iterations,
-                    steps=eqs[0].steps + steps + coupling.steps,
-                    state=_TogetherState(rods, tuple(states), gauges, tuple(mus),
-                                         tuple(coupling.pairs), tuple(parts),
-                                         tuple(coupling.sliders), tuple(coupling.joints),
-                                         tuple(problem.junctions), tuple(coupling.pivots),
-                                         (coupling.fric_ref, coupling.fric_mode,
-                                          coupling.fric_dir)),
-                    branches=tuple(replace(eq, problem=b.problem)
-                                   for eq, b in zip(eqs[1:1 + nb], branches)),
-                    fitted=tuple(replace(eq, problem=p.problem)
-                                 for eq, p in zip(eqs[1 + nb:], parts)))
-    return first
+    return replace(eqs[0], problem=problem,
+                   state=_TogetherState(rods, tuple(states), gauges, tuple(mus),
+                                        tuple(coupling.pairs), tuple(parts),
+                                        tuple(coupling.sliders), tuple(coupling.joints),
+                                        tuple(problem.junctions), tuple(coupling.pivots),
+                                        (coupling.fric_ref, coupling.fric_mode,
+                                         coupling.fric_dir)),
+                   branches=tuple(replace(eq, problem=b.problem)
+                                  for eq, b in zip(eqs[1:1 + nb], branches)),
+                   fitted=tuple(replace(eq, problem=p.problem)
+                                for eq, p in zip(eqs[1 + nb:], parts)))
+
+
+def _settled(problem, coupling: Coupling, at: tuple, parts, names: list[str],
+             eq: Equilibrium3D, warm: Equilibrium3D | None) -> Equilibrium3D:
+    """An unstable answer of the parts together left along its unstable mode, both ways
+    (``coupled_settling.downhill``), for the stable one they settle in: from a warm start
+    the nearest to it (where the parts were), from rest the lowest in the energy of all
+    the parts; the unstable answer itself where they settle nowhere (its verdict says
+    so). Said by a ``LeftUnstable`` note. From a warm start it is taken as a jump where
+    settling releases more than a tenth of the energy the step changed (the single
+    part's square-root test of a bifurcation's branch is not made here)."""
+    deadline = clock.now() + coupling.solver.time_budget
+    found = [_assembled(problem, coupling, s, m, parts, names)
+             for s, m in downhill(coupling, at[0], at[1], deadline,
+                                  coupling.runs[0].rod.length)]
+    found = [e for e in found if e.verdict != "unstable"]
+    if not found:
+        return eq
+    if warm is None:
+        best = min(found, key=potential_energy)
+    else:
+        best = min(found, key=lambda e: (shape_distance(e, warm), potential_energy(e)))
+    released = potential_energy(eq) - potential_energy(best)
+    distance = max(float(np.linalg.norm(b.position - a.position, axis=1).max())
+                   for a, b in zip((eq, *eq.branches, *eq.fitted),
+                                   (best, *best.branches, *best.fitted)))
+    if warm is None:
+        jump, how = False, "the lowest of those they settle in from there"
+    else:
+        step = abs(potential_energy(eq) - potential_energy(warm))
+        jump = released > 0.1 * step
+        how = (("a jump (a snap): real parts jump here" if jump else "no jump") +
+               f" (it releases {released / step if step else math.inf:.2g} of the energy "
+               "the step changed)")
+    note = LeftUnstable(
+        f"the equilibrium of the parts together is unstable (smallest eigenvalue "
+        f"{eq.stability[1]:.3g}): they leave it along that mode and settle here "
+        f"({best.verdict}), {distance:.3g} m away at most, releasing {released:.3g} J; "
+        f"{how}", eigenvalue=float(eq.stability[1] or 0.0), distance=distance,
+        released=released, jump=jump)
+    return replace(best, notes=(*eq.notes, note))
