@@ -287,7 +287,8 @@ def all_equilibria(problem, as_json: Path | None, elements: int | None = None) -
     from pliant.cli.report import count  # noqa: PLC0415
 
     if not found:
-        raise PliantError("no equilibrium: no route reached one (see pliant solve for why)")
+        raise PliantError("no equilibrium reached: no route reached one, and the routes do not "
+                          "search every shape (see pliant solve for why)")
     first = ("the first is pliant's answer" if problem.dimension == 2 else
              "stable first, then by potential energy"
              + (" (of all the parts solved together)" if problem.solved_together else ""))

@@ -48,6 +48,12 @@ _ADVICE = {
 }
 
 
+# What a refusal says of the search behind it: the routes from the unloaded part (or the
+# warm start) are not every shape the part can take.
+NOT_EXHAUSTIVE = ("the routes pliant follows do not search every shape, so an equilibrium "
+                  "may exist that none reached")
+
+
 class Event(str):
     """A fact about how an answer was reached: its message, and its fields as
     attributes (see the module). A plain note is an ``Event`` of kind "note"."""

@@ -377,6 +377,11 @@ class Relaxable(Protocol):
     iterations: int
     deadline: float
 
+    @property
+    def tolerance(self) -> float:
+        """The largest residual entry an equilibrium may leave."""
+        ...
+
     def gradient(self, state: Any, loads: Any) -> tuple[np.ndarray, Any]:
         """(R, J): the residual and its Jacobian (the KKT system)."""
         ...
@@ -449,6 +454,11 @@ def relax(model: Relaxable, state: Any, loads: Any, max_steps: int = 600,
     else:
         return None
     state, _r, status = model.correct(state, loads, strict=False, tol=None)
+    if status == Status.SINGULAR:
+        # Settled on a family it drifts along at no cost (a weightless curved part
+        # between two pins turns about their chord): the shifted Newton closes on the
+        # member where it came to rest.
+        return shifted_newton(model, state, loads, model.tolerance)
     return state if status == Status.CONVERGED else None
 
 

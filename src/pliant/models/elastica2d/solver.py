@@ -44,6 +44,7 @@ from pliant.core.equilibrium import (
     potential_energy,
 )
 from pliant.core.events import (
+    NOT_EXHAUSTIVE,
     BeyondFold,
     BranchTaken,
     CrossedBifurcation,
@@ -1416,9 +1417,9 @@ def _solve(problem: Problem, warm_start: Equilibrium | None, solver: ShootingSol
             point = run.polish(run.cold())
     except Stalled as stall:
         raise ConvergenceError(
-            f"no equilibrium: {stall.reason}; stopped at {stall.t:.3g} of the way "
-            f"(relative residual {stall.residual:.2e}); try smaller steps or check "
-            "that the targets can be reached",
+            f"no equilibrium reached: {stall.reason}; stopped at {stall.t:.3g} of the "
+            f"way (relative residual {stall.residual:.2e}); {NOT_EXHAUSTIVE}; try smaller "
+            "steps or check that the targets can be reached",
             residual=stall.residual, progress=stall.t, last_good=warm_start,
             status=stall.status) from None
     return _answer(run, point, problem, solver)

@@ -44,7 +44,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from pliant.core.events import Status
+from pliant.core.events import NOT_EXHAUSTIVE, Status
 from pliant.core.problem import PROBE_SAG, WALL_COMPLIANCE
 from pliant.errors import ConvergenceError
 from pliant.models import clock, continuation
@@ -1005,7 +1005,8 @@ def solve_coupled(runs: list[Run], states: list[State], *, solver: RodSolver,
         states, mus = coupling.follow(members, states, mus, 1.0, 1.0, deadline)
     except Stalled as stall:
         raise ConvergenceError(
-            f"no equilibrium of the parts together: {stall.reason}; stopped at "
-            f"{stall.t:.3g} of the way", residual=stall.residual, progress=stall.t,
+            f"no equilibrium of the parts together reached: {stall.reason}; stopped at "
+            f"{stall.t:.3g} of the way ({NOT_EXHAUSTIVE})", residual=stall.residual,
+            progress=stall.t,
             status=stall.status) from None
     return coupling, states, mus

@@ -45,6 +45,10 @@ class Relaxing:
         self.scale = self.sigma = math.inf  # the flow's first shift, and the last one
         self.targets = [run.rod.target for run in coupling.runs]
 
+    @property
+    def tolerance(self) -> float:
+        return self.coupling.solver.tolerance
+
     def _split(self, flat: np.ndarray, mus: Sequence[np.ndarray]
                ) -> tuple[list[np.ndarray], list[np.ndarray]]:
         cuts = np.cumsum([0, *self.sizes, *(m.shape[0] for m in mus)])

@@ -14,7 +14,7 @@ from typing import TYPE_CHECKING, cast
 import numpy as np
 
 from pliant.core.equilibrium import potential_energy
-from pliant.core.events import BranchTaken, NoStableBranch, Snapped, Status
+from pliant.core.events import BranchTaken, Event, NoStableBranch, Snapped, Status
 from pliant.core.numbers import clean
 from pliant.core.rotations import quat_matrix
 from pliant.models import clock, continuation
@@ -28,6 +28,8 @@ if TYPE_CHECKING:
 
 
 _BRANCH_NOTE = "the unloaded part was a singular start"
+SWING = 0.01  # of the first leg: the load under which a part free to turn is let settle
+SWING_STRIDE = 0.01  # L: a held point's move a stage as it settles on, free to turn
 
 
 class Routes:
@@ -166,7 +168,49 @@ class Routes:
                 "to a buckled one converged"))
             return found
         assert best is not None
+        if straight is None and best.singular_start and not best.budget:
+            swung = self.swung(legs, rest, state)
+            if swung is not None:
+                return swung
         raise best
+
+    def swung(self, legs: Callable[[Loads], list[Loads]], rest: Loads, state: State
+              ) -> State | None:
+        """A start no bow makes regular: the unloaded part turns at no cost (a curved
+        part held by two pins turns about their chord), so the path's tangent is
+        undefined on every side. Under the first ``SWING`` of the route's first leg the
+        part is let settle (``settle``: the relaxation swings it to where that load
+        holds it, as a real part swings when let go), then followed on; said. None
+        where it does not settle or the route stalls from there."""
+        targets = legs(rest)
+        first = rest.lerp(targets[0], SWING)
+        settled = self.settle(state, first)
+        if settled is None:
+            return None
+        how = "then followed on"
+        try:
+            found = self.through(first, targets, settled)
+        except Stalled as stall:
+            if stall.budget or not stall.singular_start:
+                return None
+            # Free to turn all the way (no load holds the turn: a weightless part between
+            # two pins is a family of equilibria): let it settle in stages instead.
+            try:
+                found, count = self.settled_along(Stalled(
+                    0.0, math.inf, stall.reason, state=settled, loads=first,
+                    memo=self.gauge_quat.copy()), SWING_STRIDE)
+            except Stalled:
+                return None
+            how = f"then let settle as the load goes on, in {count} stages"
+        if self.reached is not None:
+            self.reached.append((found, self.gauge_quat.copy(),
+                                 "let settle under the first load, free to turn"))
+        self.notes.append(Event(
+            "the unloaded part is free to turn (a mechanism: held where it can turn at no "
+            f"cost, e.g. a curved part between two pins); pliant let it settle under the "
+            f"first {SWING:.0%} of the load, where that load holds it, {how}; other "
+            "equilibria may exist"))
+        return found
 
     def _bow_note(self, side: np.ndarray, why: str) -> None:
         self.notes.append(BranchTaken(
@@ -313,7 +357,7 @@ class Routes:
             f"settles from there (a pseudo-transient relaxation in {count} "
             f"stage{'s' if count > 1 else ''})")
 
-    def settled_along(self, stall: Stalled) -> tuple[State, int]:
+    def settled_along(self, stall: Stalled, stride: float = 0.02) -> tuple[State, int]:
         """From the last state before a fold, the targets and loads moved on to the
         problem's in stages small enough for the relaxation (``stages``), the part let
         settle at each (``settle``: stable or neutral, pushed off any saddle): a relaxed
@@ -323,7 +367,7 @@ class Routes:
             raise stall
         if stall.memo is not None:
             self.gauge_quat = stall.memo
-        count = stages(stall.loads, self.rod.target)
+        count = stages(stall.loads, self.rod.target, stride)
         state = stall.state
         for k in range(1, count + 1):
             settled = self.settle(state, stall.loads.lerp(self.rod.target, k / count))

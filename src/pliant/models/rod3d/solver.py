@@ -39,6 +39,7 @@ import numpy as np
 
 from pliant.core.equilibrium import WARM_START_LOST, Equilibrium3D, StationLoad, potential_energy
 from pliant.core.events import (
+    NOT_EXHAUSTIVE,
     BranchTaken,
     LowestEquilibrium,
     ReachedBy,
@@ -350,6 +351,10 @@ class Run(Routes):
         primal, weight = metric(self.rod)
         return primal, np.where(primal, weight, 0.0)
 
+    @property
+    def tolerance(self) -> float:
+        return self.solver.tolerance
+
     def gradient(self, state: State, loads: Loads) -> tuple[np.ndarray, np.ndarray]:
         R, ab, _ = self.residual(state, loads, want_jac=True)
         return R, ab
@@ -645,9 +650,10 @@ def _solve(problem: Problem, warm_start: Equilibrium3D | None, solver: RodSolver
     except Stalled as stall:
         _held_inside(problem)  # the likeliest cause, named, where it is the cause
         raise ConvergenceError(
-            f"no equilibrium: {stall.reason}; stopped at {stall.t:.3g} of the way "
-            f"(relative residual {stall.residual:.2e}); try smaller steps or check that "
-            "the targets can be reached", residual=stall.residual, progress=stall.t,
+            f"no equilibrium reached: {stall.reason}; stopped at {stall.t:.3g} of the "
+            f"way (relative residual {stall.residual:.2e}); {NOT_EXHAUSTIVE}; try smaller "
+            "steps or check that the targets can be reached", residual=stall.residual,
+            progress=stall.t,
             last_good=warm_start, status=stall.status) from None
     seed = None
     if warm_start is not None and isinstance(warm_start.state, WarmState):
