@@ -246,3 +246,68 @@ def test_two_hands_spread_limits_are_the_posture_zones_onsets():
     assert body.elevation(body.most) == pytest.approx(90.0)
     tall = spread(rules.body, rules.posture, "men", 95.0)
     assert tall.limits[0] > body.limits[0] and "95th percentile man" in tall.who
+
+
+# -- the upper arm's room (issue 56, item 1: the upper arm's envelope) ------------------------
+def test_the_elbow_swings_up_from_a_table_by_the_least_angle_the_closed_form_gives():
+    """A grip straight ahead of the right shoulder at its height, 0.8 of the arm's reach
+    away: the elbow hangs lowest on its circle round the shoulder-hand line (centre at
+    the shoulder's height, radius rho). A table whose top lies 0.6 rho below the shoulder
+    takes that upper arm (radius r). Swung by phi the elbow is rho cos(phi) below the
+    shoulder, the arm's lowest point: clear by rho (0.6 - cos phi) - r. The least swing
+    on the 10-degree grid that clears the allowance is taken, its clearance that, and its
+    elevation the swung arm's; with no table the elbow hangs."""
+    from pliant.assembly.posture import swivelled
+    from pliant.scene import Obstacle
+    from pliant.scene.distance import field_of
+
+    f = figure()
+    env = bundled_rules().access
+    right = np.cross(f.facing, f.up)
+    shoulder = f.hip + f.trunk * UP + f.half_breadth * right
+    d = 0.8 * f.arm
+    reach = f.reach(shoulder + d * f.facing, "right")
+    a, b = f.upper, f.arm - f.upper
+    x = (a * a - b * b + d * d) / (2 * d)
+    rho = math.sqrt(a * a - x * x)
+    top = shoulder[2] - 0.6 * rho
+    table = Obstacle.box("table", (4.0, 4.0, 1.0), (0.0, 0.0, top - 0.5))
+    r, allowance = env.upper_arm, env.allowance
+    got, room = swivelled(f, reach, r, allowance, field_of([table]))
+    need = math.degrees(math.acos(0.6 - (r + allowance) / rho))
+    step = math.ceil(need / 10.0) * 10.0
+    assert room.swivel == pytest.approx(step, abs=1e-6) and room.bound_by == "table"
+    assert room.clearance == pytest.approx(rho * (0.6 - math.cos(math.radians(step))) - r,
+                                           abs=1e-9)
+    assert rho * (0.6 - math.cos(math.radians(step - 10.0))) - r < allowance
+    elbow = np.asarray(got.elbow)
+    assert elbow[2] == pytest.approx(shoulder[2] - rho * math.cos(math.radians(step)), abs=1e-9)
+    arm = elbow - shoulder
+    assert got.upper_arm == pytest.approx(
+        math.degrees(math.acos(-arm[2] / np.linalg.norm(arm))), abs=1e-9)
+    assert got.upper_arm > reach.upper_arm + 10.0
+    free, room = swivelled(f, reach, r, allowance, field_of([]))
+    assert free == reach and room.swivel == 0.0 and room.clearance == math.inf
+
+
+def test_an_upper_arm_no_swing_frees_is_red_in_the_evaluation_and_names_the_obstacle():
+    """Through the evaluation: the hose held at chest height in front of the worker
+    (green above), under a low beam that takes the shoulder itself: no swing of the
+    elbow frees the upper arm, red, by the best swing's depth, naming the beam; a beam
+    high above leaves it green and the elbow hanging."""
+    def evaluated(z: float):
+        beam = f"""
+[[obstacle]]
+name = "beam"
+shape = "box"
+size = [0.3, 3.0, 0.2]
+position = [0.35, 0.0, {z}]
+"""
+        scene = parse_scene(SCENE.format(hose=HOSE, x=0.35, more="") + beam)
+        checks, _ = _reach(evaluate(scene, search=False))
+        return checks["access: upper arm"]
+
+    low = evaluated(1.25)  # its underside 1.15 m high: below the shoulder
+    assert low.zone is Zone.RED and "inside beam" in low.note
+    high = evaluated(2.5)
+    assert high.zone is Zone.GREEN and "the elbow hanging" in high.note

@@ -1022,10 +1022,21 @@ def _with_reach(op: OperatorResult, run: PathRun, rules: Rules, scene: Any,
         sides = ["right", "left"] if first_right else ["left", "right"]
     elif len(spots) > 2:
         sides = [worker.side] + [other] * (len(spots) - 1)
+    env = rules.access
     for (g, points), side in zip(spots, sides):
         steps = [figure.reach(p, side, rules.posture) for p in points]
+        rooms = []
+        if env is not None:
+            from pliant.assembly.posture import swivelled  # noqa: PLC0415
+            from pliant.scene.distance import field_of  # noqa: PLC0415
+
+            moved = [swivelled(figure, r, env.upper_arm, env.allowance,
+                               field_of(eq.problem.obstacles)) for r, eq in zip(steps, eqs)]
+            steps, rooms = [m[0] for m in moved], [m[1] for m in moved]
         op.reach[g] = steps
         op.checks += reach_checks(g, steps, rules, figure)
+        if rooms:
+            op.checks.append(upper_arm_check(g, rooms, env, side))
 
 
 def _with_spread(op: OperatorResult, run: PathRun, rules: Rules, scene: Any, first: str,
@@ -1082,6 +1093,24 @@ def reach_checks(grip: str, steps: list[Any], rules: Rules, figure: Any) -> list
             values, "deg", "above", limits[0], limits[1], zones.sourced.source,
             zones.sourced.provenance, grip=grip, note=who))
     return out
+
+
+def upper_arm_check(grip: str, rooms: list[Any], env: Any, side: str) -> Check:
+    """The room for the worker's upper arm reaching ``grip`` along the path
+    (``posture.swivelled``): red where no swing of the elbow round the shoulder-hand
+    line keeps the upper arm out of the obstacles, yellow within the movement
+    allowance; the worst step's swing and what bounds it in the note."""
+    values = [r.clearance for r in rooms]
+    worst = rooms[int(np.argmin(values))]
+    swung = (f"the elbow swung {worst.swivel:.0f} deg from hanging" if worst.swivel > 0.0
+             else "the elbow hanging")
+    note = (f"{side} upper arm (radius {env.upper_arm * 1e3:.0f} mm), {swung}: "
+            + (f"inside {worst.bound_by} by {-worst.clearance * 1e3:.0f} mm in the best "
+               "swing" if worst.clearance < 0.0 else f"bound by {worst.bound_by}"))
+    return series_check("access: upper arm", f"room for the {side} upper arm at {grip}",
+                        "ergonomics", values, "m", "below",
+                        env.allowance if env.allowance > 0 else None, 0.0,
+                        env.sourced.source, env.sourced.provenance, grip=grip, note=note)
 
 
 def access_check(grip: str, steps: list[Any], env: Any, hands: int = 1) -> Check:

@@ -25,7 +25,7 @@ bend, the wrist's angles, and capacities scaled by posture.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from statistics import NormalDist
 from typing import Any
 
@@ -246,6 +246,69 @@ class Figure:
         out = np.where(((d >= a + b) | (d <= abs(a - b)))[:, None], shoulders + a * u,
                        shoulders + x[:, None] * u + rho[:, None] * w)
         return np.where((d < 1e-9)[:, None], shoulders - a * self.up, out)
+
+
+SWIVELS = 36  # elbow places tried round the shoulder-hand line (every 10 degrees)
+ARM_SPACING = 0.02  # m between the upper arm's samples
+
+
+@dataclass(frozen=True)
+class ArmRoom:
+    """The upper arm at one step (``Figure.swivelled``): its clearance to the obstacles
+    [m] (negative: inside one by that much), how far the elbow swung from hanging lowest
+    round the shoulder-hand line [deg], and what bounds it."""
+
+    clearance: float
+    swivel: float
+    bound_by: str
+
+
+def swivelled(figure: Figure, reach: Reach, radius: float, allowance: float,
+              field: Any) -> tuple[Reach, ArmRoom]:
+    """The reach with its upper arm (a capsule of ``radius`` from the shoulder to the
+    elbow) clear of the obstacles in ``field``: the elbow hanging lowest where that
+    clears them by ``allowance``, else swung round the shoulder-hand line (every
+    360 / ``SWIVELS`` degrees) by the least angle that does, else the swing that clears
+    most, as a fitter lifts the elbow round an edge. The reach keeps the elbow it takes
+    and that upper arm's elevation (the posture check judges the arm as it is)."""
+    shoulder, hand = np.asarray(reach.shoulder, float), np.asarray(reach.hand, float)
+    a, b = figure.upper, figure.arm - figure.upper
+    along = hand - shoulder
+    d = float(np.linalg.norm(along))
+    hanging = np.asarray(reach.elbow, float)
+    angles = np.zeros(1)
+    elbows = hanging[None, :]
+    if abs(a - b) < d < a + b:  # the elbow may swing on a circle round the line
+        u = along / d
+        x = (a * a - b * b + d * d) / (2.0 * d)
+        rho = math.sqrt(max(a * a - x * x, 0.0))
+        centre = shoulder + x * u
+        w = (hanging - centre) / max(rho, 1e-300)
+        v = np.cross(u, w)
+        angles = 2.0 * math.pi * np.arange(SWIVELS) / SWIVELS
+        elbows = (centre + rho * (np.cos(angles)[:, None] * w
+                                  + np.sin(angles)[:, None] * v))
+    count = max(2, int(math.ceil(a / ARM_SPACING)) + 1)
+    f = np.linspace(0.0, 1.0, count)
+    points = shoulder + f[None, :, None] * (elbows - shoulder)[:, None, :]
+    if len(field):
+        dist, _, who = field.query(points.reshape(-1, 3), band=radius + 0.05)
+        dist = np.asarray(dist, float).reshape(points.shape[:2]) - radius
+        who = np.asarray(who).reshape(points.shape[:2])
+    else:
+        dist = np.full(points.shape[:2], np.inf)
+        who = np.full(points.shape[:2], -1)
+    room = dist.min(axis=1)
+    wrapped = np.abs((angles + math.pi) % (2.0 * math.pi) - math.pi)
+    ok = np.nonzero(room >= allowance)[0]
+    k = int(ok[np.argmin(wrapped[ok])]) if ok.size else int(np.argmax(room))
+    j = int(np.argmin(dist[k]))
+    by = (field.obstacles[int(who[k, j])].name if len(field) and who[k, j] >= 0
+          else "nothing")
+    elbow = elbows[k]
+    elevation = float(figure.elevations(shoulder[None, :], elbow[None, :])[0])
+    return (replace(reach, elbow=triple(elbow), upper_arm=elevation),
+            ArmRoom(float(room[k]), math.degrees(float(wrapped[k])), by))
 
 
 def up_of(problem: Any) -> np.ndarray:

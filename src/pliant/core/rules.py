@@ -105,7 +105,8 @@ class HandEnvelope:
     to the wrist (``palm``) and on to the elbow (``forearm``) [m], the forearm's section
     (breadth, thickness) [m] at the wrist and at the elbow, a glove's thickness [m],
     the movement allowance [m] under which access is yellow, the approach directions
-    tried round the part and the tilts [deg] of each along the part (a bent wrist)."""
+    tried round the part and the tilts [deg] of each along the part (a bent wrist), and
+    the upper arm's radius [m] (``posture.Figure.swivelled``: where a worker is placed)."""
 
     breadth: float
     thickness: float
@@ -120,6 +121,7 @@ class HandEnvelope:
     directions: int
     sourced: Sourced
     tilts: tuple[float, ...] = (0.0,)  # deg: the forearm tilted along the part
+    upper_arm: float = 0.06  # m: the upper arm's radius, shoulder to elbow (with clothing)
 
 
 @dataclass(frozen=True)

@@ -180,6 +180,8 @@ class AccessModel(_Strict):
     directions: int = Field(ge=4, le=360)
     tilts: list[float] = Field(default_factory=lambda: [0.0], min_length=1,
                                description="[deg] the forearm tilted along the part")
+    upper_arm: float = Field(0.06, gt=0, description="[m] the upper arm's radius, shoulder "
+                             "to elbow, with clothing")
     provenance: str = Field(min_length=1)
 
     @model_validator(mode="after")
@@ -199,7 +201,7 @@ class AccessModel(_Strict):
                             (self.wrist[0], self.wrist[1]), (self.elbow[0], self.elbow[1]),
                             self.glove,
                             self.allowance, self.directions, Sourced(source, self.provenance),
-                            tuple(self.tilts))
+                            tuple(self.tilts), self.upper_arm)
 
 
 Pair = tuple[PositiveFloat, PositiveFloat]
