@@ -522,3 +522,30 @@ def test_a_target_behind_the_clamp_is_reached_through_the_energy_minimum():
     lowest = minimum.minima(problem)[0]
     scale = part.bending_stiffness / part.length
     assert eq.energy == pytest.approx(lowest.energy * scale, rel=0.05)
+
+
+def test_a_follower_load_every_route_misses_is_reached_from_its_dead_twin():
+    """Issue 54: a clamp with a grip mid-span and a follower force and couple at the
+    tip: every route stopped at 0.09 of the way ("no equilibrium") where an independent
+    multiple shooting found one. Its dead twin (the same force fixed in direction) is
+    solved, then followed as the force turns with the part; said. Checked by
+    integrating the ODE again (solve_ivp, the follower turned to the tangent) and by
+    the conditions: the grip's position held, the tip's force the follower's
+    (ft, fn) turned to the tip's angle."""
+    from pliant.models.elastica2d.reference import equilibrium_error
+
+    C = pl.Condition
+    ft, fn = 0.2247, -0.1464
+    problem = pl.Problem(pl.Part(4.566, 0.3833, mass_per_length=0.2445), (
+        C(s=0.0, name="clamp", position=(3.927, -2.585), angle=2.782),
+        C(s=1.23, name="grip", position=(3.322, -2.914)),
+        C(s=4.566, name="tip", force=(ft, fn), follower=True, moment=-0.05541)))
+    eq = pl.solve(problem)
+    assert any("dead" in n and "followers" in n for n in eq.notes)
+    assert equilibrium_error(eq) < 1e-8
+    k = int(np.argmin(np.abs(eq.s - 1.23)))
+    np.testing.assert_allclose(eq.position[k], (3.322, -2.914), atol=1e-9)
+    theta = eq.angle[-1]
+    turned = (ft * math.cos(theta) - fn * math.sin(theta),
+              ft * math.sin(theta) + fn * math.cos(theta))
+    np.testing.assert_allclose(eq.loads["tip"].force, turned, atol=1e-9)

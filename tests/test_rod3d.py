@@ -1045,7 +1045,7 @@ def test_a_curved_part_between_two_pins_hangs_where_the_2d_twin_and_balance_say(
     assert flat[0].verdict == "unstable" and potential_energy(eq) < twin - 1e-3
 
 
-@settings(max_examples=24, deadline=None, derandomize=True,
+@settings(max_examples=16, deadline=None, derandomize=True,
           suppress_health_check=[HealthCheck.too_slow])
 @given(st.floats(0.3, 2.0), st.floats(-2.0, 1.0), st.floats(-2.0, 0.0), st.floats(0.5, 6.0),
        st.booleans(), st.tuples(st.floats(-1.0, 1.0), st.floats(-1.0, 1.0),
@@ -1077,6 +1077,6 @@ def test_random_curved_parts_between_two_pins_balance(length, log_ei, log_mass, 
     assert np.abs(eq.position[-1] - end).max() < 1e-9 * length
 
 
-def test_random_curved_parts_between_two_pins_are_solved_at_least_23_times_in_24():
+def test_random_curved_parts_between_two_pins_are_solved_at_least_15_times_in_16():
     """The floor of the property above (it runs first: tests keep their file order)."""
-    assert len(PINNED) >= 20 and sum(PINNED) >= len(PINNED) - 1
+    assert len(PINNED) >= 12 and sum(PINNED) >= len(PINNED) - 1

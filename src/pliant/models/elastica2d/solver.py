@@ -48,6 +48,7 @@ from pliant.core.events import (
     BeyondFold,
     BranchTaken,
     CrossedBifurcation,
+    Event,
     LoadsStaged,
     LowestEquilibrium,
     OthersFound,
@@ -1388,6 +1389,41 @@ def solve(problem: Problem, *, warm_start: Equilibrium | None = None,
     return _solve(problem, warm_start, solver or _DEFAULT, follow_only=False)
 
 
+def _from_dead_twin(problem: Problem, solver: ShootingSolver, deadline: float,
+                    stall: Stalled) -> Equilibrium | None:
+    """Where every route from the unloaded part stalls on a problem with follower loads
+    (issue 54: 15 of 2,000 random ones, a clamp with a grip or pin mid-span, had an
+    equilibrium an independent multiple shooting found), its dead twin (each follower
+    load's components held fixed in the global frame instead) solved first, then
+    followed from there as the loads turn with the part; said. None where either fails
+    or the time is out."""
+    if not (any(c.follower for c in problem.conditions)
+            or any(ld.follower for ld in problem.distributed)):
+        return None
+    left = deadline - clock.now()
+    if left <= 0.0:
+        return None
+    twin = replace(problem, conditions=tuple(replace(c, follower=False)
+                                             for c in problem.conditions),
+                   loads=tuple(replace(ld, follower=False)
+                               if isinstance(ld, DistributedLoad) else ld
+                               for ld in problem.loads))
+    budget = replace(solver, time_budget=left)
+    try:
+        dead = _solve(twin, None, budget, follow_only=False)
+        left = deadline - clock.now()
+        if left <= 0.0:
+            return None
+        eq = _solve(problem, dead, replace(solver, time_budget=left), follow_only=True)
+    except ConvergenceError:
+        return None
+    note = Event(
+        f"every route from the unloaded part stopped ({stall.reason}, at {stall.t:.3g} of "
+        "the way); pliant solved the same loads held fixed in direction first (dead), then "
+        "turned them with the part (followers) from there; other equilibria may exist")
+    return replace(eq, notes=(*eq.notes, note))
+
+
 def _solve(problem: Problem, warm_start: Equilibrium | None, solver: ShootingSolver,
            follow_only: bool, extrapolate: bool = False) -> Equilibrium:
     old = warm_start.state if warm_start is not None else None
@@ -1416,6 +1452,10 @@ def _solve(problem: Problem, warm_start: Equilibrium | None, solver: ShootingSol
         if point is None:
             point = run.polish(run.cold())
     except Stalled as stall:
+        if warm_start is None and not follow_only and not stall.budget:
+            turned = _from_dead_twin(problem, solver, run.deadline, stall)
+            if turned is not None:
+                return turned
         raise ConvergenceError(
             f"no equilibrium reached: {stall.reason}; stopped at {stall.t:.3g} of the "
             f"way (relative residual {stall.residual:.2e}); {NOT_EXHAUSTIVE}; try smaller "
