@@ -1392,11 +1392,10 @@ def solve(problem: Problem, *, warm_start: Equilibrium | None = None,
 def _from_dead_twin(problem: Problem, solver: ShootingSolver, deadline: float,
                     stall: Stalled) -> Equilibrium | None:
     """Where every route from the unloaded part stalls on a problem with follower loads
-    (issue 54: 15 of 2,000 random ones, a clamp with a grip or pin mid-span, had an
-    equilibrium an independent multiple shooting found), its dead twin (each follower
-    load's components held fixed in the global frame instead) solved first, then
-    followed from there as the loads turn with the part; said. None where either fails
-    or the time is out."""
+    (a clamp with a grip mid-span and a follower at the tip, issue 54), its dead twin
+    (each follower load's components held fixed in the global frame instead) solved
+    first, then followed from there as the loads turn with the part; said. None where
+    either fails or the time is out."""
     if not (any(c.follower for c in problem.conditions)
             or any(ld.follower for ld in problem.distributed)):
         return None

@@ -170,9 +170,9 @@ def downhill(coupling: Coupling, states: list[State], mus: list[np.ndarray],
     if mode is None:
         return []
     # Steps and pushes of a quarter and one of the contacts' reach at most (two tubes'
-    # radii, in L): the single part's (a fiftieth and a twentieth of L) carried two
-    # pressed tips 10 mm across (L 0.5 m) past each other in a step, and the flow
-    # wandered between touching sets back to the saddle.
+    # radii, in L): the single part's (a fiftieth and a twentieth of L) can carry two
+    # pressed tips past each other in a step, and the flow then wanders between
+    # touching sets back to the saddle (docs/models.md).
     reach = min((pair.reach for pair in coupling.pairs), default=np.inf) / length
     stride, push = min(0.02, 0.25 * reach), min(continuation.PUSH, reach)
     du = mode * (push / max(float(np.abs(mode).max()), 1e-300))

@@ -829,8 +829,8 @@ def _with_reaction_error(run: Run, state: State, eq: Equilibrium3D) -> Equilibri
     if twin is None:
         return eq
     if isinstance(twin, int):
-        # Unknown, and said: an answer this coarse may be several per cent off (issue
-        # 54's fuzz: 3 of about 920, their reactions 4.5 to 8.3 % off, no word of it).
+        # Unknown, and said: an answer whose finer twin fails may be several per cent
+        # off (issue 54), and no estimate is no word of it.
         out = replace(eq, notes=(*eq.notes, (
             f"the discretisation error is unknown: the same equilibrium on {twin} elements "
             f"did not converge, so the reactions and the shape at {run.rod.requested} "
