@@ -387,11 +387,19 @@ class Coupling(LinkTerms):
         blocks = self.blocks(ev, mus, weight)
         bands = [a for a in ev.ab if a is not None]
         assert len(bands) == len(self.runs)  # evaluated with its Jacobian
+        return self.solved(bands, blocks, [-r for r in ev.R],
+                           [-ev.Rmu[b.target[0]][b.target[1]] for b in blocks], mus)
+
+    def solved(self, bands: Sequence[np.ndarray], blocks: Sequence[_Block],
+               rhs: Sequence[np.ndarray], rows: Sequence[np.ndarray],
+               mus: Sequence[np.ndarray]):
+        """The system of the parts' ``bands`` (overwritten) and ``blocks`` solved for
+        the parts' right sides ``rhs`` and the blocks' ``rows``: (du per part, d mu per
+        pair or clip, zero where no block acts), or None where singular."""
         system = Condensed.of(self.runs, bands, blocks)
         if system is None:
             return None
-        out = system.solve([-r for r in ev.R],
-                           [-ev.Rmu[b.target[0]][b.target[1]] for b in blocks])
+        out = system.solve(rhs, rows)
         if out is None:
             return None
         du, dw = out

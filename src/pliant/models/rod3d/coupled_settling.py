@@ -12,7 +12,7 @@ from collections.abc import Sequence
 import numpy as np
 
 from pliant.models import continuation
-from pliant.models.rod3d.coupled import DEEP, Condensed, Coupling
+from pliant.models.rod3d.coupled import DEEP, Coupling
 from pliant.models.rod3d.coupled_stability import coupled_stability, system_metric
 from pliant.models.rod3d.lowering import Loads, State
 
@@ -82,31 +82,21 @@ class Relaxing:
     def shifted_solve(self, jac, sigma: float, rhs: np.ndarray) -> tuple[np.ndarray, bool]:
         self.sigma = sigma
         ev, blocks, mus = jac
-        runs = self.coupling.runs
         bands = []
-        for run, ab, m in zip(runs, ev.ab, self.mass):
+        for run, ab, m in zip(self.coupling.runs, ev.ab, self.mass):
             shifted = ab.copy()
             shifted[:, run.rod.kl + run.rod.ku] += sigma * m
             bands.append(shifted)
-        nothing = np.zeros(sum(self.sizes) + sum(m.shape[0] for m in mus))
-        system = Condensed.of(runs, bands, blocks)
-        if system is None:
-            return nothing, False
         cuts = np.cumsum([0, *self.sizes])
         rows, at = [], int(cuts[-1])
         for b in blocks:
             rows.append(rhs[at:at + b.D.shape[0]])
             at += b.D.shape[0]
-        out = system.solve([rhs[cuts[i]:cuts[i + 1]] for i in range(len(runs))], rows)
+        out = self.coupling.solved(bands, blocks, [rhs[cuts[i]:cuts[i + 1]]
+                                                   for i in range(len(self.sizes))], rows, mus)
         if out is None:
-            return nothing, False
-        du, dw = out
-        dmus = [np.zeros_like(mu) for mu in mus]
-        at = 0
-        for b in blocks:
-            dmus[b.target[0]][b.target[1]] = dw[at:at + b.D.shape[0]]
-            at += b.D.shape[0]
-        return np.concatenate([*du, *dmus]), True
+            return np.zeros(sum(self.sizes) + sum(m.shape[0] for m in mus)), False
+        return np.concatenate([*out[0], *out[1]]), True
 
     def primal_move(self, du: np.ndarray) -> float:
         """The step's largest move; infinite where it would take two tubes half through
