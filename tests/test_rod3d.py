@@ -1080,3 +1080,23 @@ def test_random_curved_parts_between_two_pins_balance(length, log_ei, log_mass, 
 def test_random_curved_parts_between_two_pins_are_solved_at_least_15_times_in_16():
     """The floor of the property above (it runs first: tests keep their file order)."""
     assert len(PINNED) >= 12 and sum(PINNED) >= len(PINNED) - 1
+
+
+def test_a_weightless_curved_part_between_two_pins_is_a_two_force_member():
+    """Issue 54: without weight the curved part between two pins turns about their chord
+    at no cost at every load (a family of equilibria): every route stopped. It is let
+    settle in stages (said), and the answer is one of the family: neutral, and a
+    two-force member (each pin's reaction along the chord, equal and opposite, to 1e-9
+    of EI / L^2)."""
+    L, EI = 0.8358574792697242, 0.1533926953548362
+    end = (-0.5980033147572864, 0.3282592459328726, -0.24339581872880647)
+    part = pl.Part(L, EI, rest_curvature=-5.517777407928949 / L)
+    eq = pl.solve(pl.Problem(part, (pl.pin(0.0, position=(0.0, 0.0, 0.0), name="A"),
+                                    pl.pin(L, position=end, name="B"))))
+    assert eq.verdict == "neutral" and any("free to turn" in n for n in eq.notes)
+    a, b = eq.loads["A"].force, eq.loads["B"].force
+    chord = np.asarray(end) / np.linalg.norm(end)
+    scale = EI / L**2
+    assert np.abs(a + b).max() < 1e-9 * scale
+    assert np.linalg.norm(b - (b @ chord) * chord) < 1e-9 * scale
+    assert abs(b @ chord) > 1e-3 * scale  # the ends pulled apart: a real axial force

@@ -81,6 +81,13 @@ class Routes:
             straight = (found, self.gauge_quat)
         except Stalled as stall:
             if not stall.singular_start:
+                # A start free to turn whose tangent rounding let through: singular at
+                # once, a hair along the way.
+                if (stall.status == Status.SINGULAR and stall.t < SWING and not stall.budget
+                        and rod.K[3] == 0.0):
+                    swung = self.swung(legs, rest, state)
+                    if swung is not None:
+                        return swung
                 raise
         self.branch_note = _BRANCH_NOTE if straight is None else (
             f"{_BRANCH_NOTE} for the inextensible part; this one shortens, and its straight "
