@@ -1100,3 +1100,40 @@ def test_a_weightless_curved_part_between_two_pins_is_a_two_force_member():
     assert np.abs(a + b).max() < 1e-9 * scale
     assert np.linalg.norm(b - (b @ chord) * chord) < 1e-9 * scale
     assert abs(b @ chord) > 1e-3 * scale  # the ends pulled apart: a real axial force
+
+
+def test_a_flat_strip_whose_roll_nothing_holds_is_found_at_a_least_energy_roll():
+    """Issue 54: a straight flat strip (EI2 = 5.9 EI1) held by its axis alone at one end
+    and by position and axis at the other: nothing holds its roll, so the solve rolls
+    its twist gauge until the gauge holds no moment. The secant from the start stepped
+    past the root (the gauge's multiplier turns sign with its quaternion's hemisphere)
+    and the solve was refused; the roll is now scanned round a turn and the secant
+    started again from the rolls of least energy. Checked without the gauge: no
+    twisting moment at either end, balance, and the same strip with its roll held
+    where the answer has it (a clamp) is the answer, and held 0.05 rad either side it
+    holds more energy (a minimum in roll) and a twisting moment that turns it back."""
+    L, EI, EI2 = 0.8547054982480424, 0.010758299694004757, 0.06335964112486374
+    end = (-0.4308784853087443, 0.41684080987015554, -0.029130142440674335)
+    axis = np.array([0.4207709255503102, -0.6652712165588663, -0.6167382237463649])
+    part = pl.Part(L, EI, bending_stiffness_2=EI2)
+    hold = pl.Condition(s=0.0, name="A", position=(0.0, 0.0, 0.0), tangent=(1.0, 0.0, 0.0))
+    grip = pl.grip(L, end, tangent=tuple(axis), name="B")
+    eq = pl.solve(pl.Problem(part, (hold, grip)))
+    assert eq.verdict == "stable"
+    for name, t in (("A", np.array([1.0, 0.0, 0.0])), ("B", axis)):
+        assert abs(eq.loads[name].moment @ t) < 1e-8 * EI / L
+    force, moment = balance_3d(eq)
+    assert np.abs(force).max() < 1e-9 * EI / L**2 and np.abs(moment).max() < 1e-9 * EI / L
+    d1 = eq.frames[0][:, 0]
+    roll = math.atan2(d1[2], d1[1])
+    twists, energies = [], []
+    for phi in (roll - 0.05, roll, roll + 0.05):
+        held = pl.clamp(0.0, (0.0, 0.0, 0.0), tangent=(1.0, 0.0, 0.0),
+                        normal=(0.0, math.cos(phi), math.sin(phi)), name="A")
+        there = rod3d.solve(pl.Problem(part, (held, grip)), warm_start=eq)
+        twists.append(there.loads["A"].moment[0])
+        energies.append(potential_energy(there))
+        if phi == roll:
+            assert np.abs(there.position - eq.position).max() < 1e-7 * L
+    assert abs(twists[1]) < 1e-6 * EI / L and twists[0] < 0.0 < twists[2]
+    assert energies[0] > energies[1] < energies[2]

@@ -31,7 +31,7 @@ from __future__ import annotations
 
 import functools
 import math
-from collections.abc import Iterable, Iterator
+from collections.abc import Callable, Iterable, Iterator
 from dataclasses import dataclass, field, replace
 from functools import cached_property, partial
 
@@ -929,6 +929,8 @@ def _release_roll(run: Run, state: State) -> State:
             if other is not None and other[2] < energy:
                 found = other
     if found is None:
+        found = _scanned_roll(at, root, state)
+    if found is None:
         run.gauge_quat = base
         raise Stalled(1.0, math.inf, "the roll of the flat section that nothing holds in "
                        "twist could not be found; hold the section's orientation "
@@ -939,6 +941,30 @@ def _release_roll(run: Run, state: State) -> State:
 
 
 RELEASED = 1e-10  # the gauge's multiplier (by EI / L) below which it holds nothing
+ROLLS = 16  # rolls round a turn where the secant from the start finds no root
+
+
+def _scanned_roll(at: Callable, root: Callable, state: State
+                  ) -> tuple[float, State, float] | None:
+    """Where the secant on the gauge's multiplier finds no root from the start (a
+    Newton on its way fails, or it steps past the root: the multiplier's sign turns
+    with the gauge's quaternion hemisphere, so a sign change is no bracket), the roll
+    taken round a whole turn in ``ROLLS`` steps, each a Newton from the last (or from
+    the start), and the secant started again from the rolls of least energy, lowest
+    first: the first root found, (roll, state, energy), or None."""
+    seen: list[tuple[float, float, State]] = []
+    last = state
+    for k in range(ROLLS):
+        phi = 2.0 * math.pi * k / ROLLS
+        got = at(phi, last) or at(phi, state)
+        if got is not None:
+            last = got[0]
+            seen.append((got[2], phi, got[0]))
+    for _, phi, start in sorted(seen, key=lambda x: x[0])[:3]:
+        found = root(phi, start)
+        if found is not None:
+            return found
+    return None
 
 
 def _held_inside(problem: Problem) -> None:
