@@ -549,3 +549,28 @@ def test_a_follower_load_every_route_misses_is_reached_from_its_dead_twin():
     turned = (ft * math.cos(theta) - fn * math.sin(theta),
               ft * math.sin(theta) + fn * math.cos(theta))
     np.testing.assert_allclose(eq.loads["tip"].force, turned, atol=1e-9)
+
+
+def test_a_follower_whose_dead_path_folds_is_reached_by_turning_the_dead_twin():
+    """Issue 54: where the path from the dead twin to the follower meets a fold (a
+    heavy tip follower, |f| L^2 / EI = 11), the twin is solved again with the force
+    turned to where the last dead answer has the tip, until the follower can be followed
+    from it. Checked by solve_ivp and the conditions, as above."""
+    from pliant.models.elastica2d.reference import equilibrium_error
+
+    C = pl.Condition
+    L, EI, q = 0.686803596502608, 0.97144144829119, 0.024471416058477663
+    ft, fn = 19.627425342811488, -12.41227778563599
+    problem = pl.Problem(pl.Part(L, EI, mass_per_length=q), (
+        C(s=0.0, name="clamp", position=(1.7899017415660783, 2.1861985868754843),
+          angle=2.5647390341973306),
+        C(s=0.07232533356302435, name="grip",
+          position=(1.7330661751501215, 2.1946087874811218)),
+        C(s=L, name="tip", force=(ft, fn), follower=True, moment=-0.10684243061081573)),
+        gravity=(0.0, -9.81))
+    eq = pl.solve(problem)
+    assert equilibrium_error(eq) < 1e-8
+    theta = eq.angle[-1]
+    np.testing.assert_allclose(eq.loads["tip"].force, (
+        ft * math.cos(theta) - fn * math.sin(theta),
+        ft * math.sin(theta) + fn * math.cos(theta)), atol=1e-9)

@@ -1407,20 +1407,49 @@ def _from_dead_twin(problem: Problem, solver: ShootingSolver, deadline: float,
                    loads=tuple(replace(ld, follower=False)
                                if isinstance(ld, DistributedLoad) else ld
                                for ld in problem.loads))
-    budget = replace(solver, time_budget=left)
     try:
-        dead = _solve(twin, None, budget, follow_only=False)
+        dead = _solve(twin, None, replace(solver, time_budget=left), follow_only=False)
+    except ConvergenceError:
+        return None
+    eq = None
+    for _ in range(TURNS):
         left = deadline - clock.now()
         if left <= 0.0:
             return None
-        eq = _solve(problem, dead, replace(solver, time_budget=left), follow_only=True)
-    except ConvergenceError:
+        try:
+            eq = _solve(problem, dead, replace(solver, time_budget=left), follow_only=True)
+            break
+        except ConvergenceError:
+            # Its path meets a fold: the twin again with each follower force turned to
+            # where the last dead answer has its station (successive substitution: where
+            # they agree, the dead answer is the follower's), followed from that one.
+            twin = replace(twin, conditions=tuple(
+                _turned(c, dead) if c.follower else replace(c, follower=False)
+                for c in problem.conditions))
+            try:
+                dead = _solve(twin, dead, replace(solver, time_budget=left),
+                              follow_only=False)
+            except ConvergenceError:
+                return None
+    if eq is None:
         return None
     note = Event(
         f"every route from the unloaded part stopped ({stall.reason}, at {stall.t:.3g} of "
         "the way); pliant solved the same loads held fixed in direction first (dead), then "
         "turned them with the part (followers) from there; other equilibria may exist")
     return replace(eq, notes=(*eq.notes, note))
+
+
+TURNS = 6  # dead twins tried, each with the followers turned to the last one's stations
+
+
+def _turned(c: Any, eq: Equilibrium) -> Any:
+    """A follower point force (tangential, normal) as the dead force it is where
+    ``eq`` has its station (its angle there)."""
+    theta = float(np.interp(c.s, eq.s, eq.angle))
+    ft, fn = (float(v) for v in c.force)
+    return replace(c, follower=False, force=(ft * math.cos(theta) - fn * math.sin(theta),
+                                             ft * math.sin(theta) + fn * math.cos(theta)))
 
 
 def _solve(problem: Problem, warm_start: Equilibrium | None, solver: ShootingSolver,
