@@ -308,3 +308,30 @@ def test_a_bent_wrist_reaches_down_a_slanted_bore():
     assert square.clearance < 0.0
     assert bent.clearance == pytest.approx(apothem - ENV.elbow[0] / 2, abs=2e-4)
     np.testing.assert_allclose(bent.approach, turn @ [0.0, 0.0, 1.0], atol=1e-9)
+
+
+@pytest.mark.parametrize(("gap", "zone"), [(0.02, Zone.RED), (0.046, Zone.GREEN)])
+def test_a_tools_gripper_between_walls_has_the_closed_form_room(gap, zone):
+    """Issue 56: a tool's or robot's own envelope. Given as ``[evaluation] envelope``
+    (its jaws round the part, its body out along the approach), the tool operator is
+    checked for room as a hand is: between walls the jaws' ring (part radius + jaw) and
+    the body edge-on (half its thickness) bound it, half the gap less the larger, to
+    1e-6; red where none fits, naming a wall; green with room (up to about 46 mm, where
+    the part running on past the short jaws comes nearer the body than the walls)."""
+    envelope = """
+[evaluation]
+operator = "tool"
+rating = { force = 500.0 }
+envelope = { length = 0.2, breadth = 0.03, thickness = 0.02, jaw = 0.004 }
+"""
+    result = evaluate(_scene(gap, envelope), search=False)
+    op = next(o for o in result.operators if o.operator == "tool")
+    check = next(c for c in op.checks if c.rule == "access: tool")
+    expected = gap / 2 - max(OD / 2 + 0.004, 0.02 / 2)
+    assert check.value == pytest.approx(expected, abs=1e-6)
+    assert check.zone is zone and check.provenance == "given"
+    if zone is Zone.RED:
+        assert "no approach fits the tool" in check.note and "wall" in check.note
+    data = json.loads(json.dumps(result.to_dict()))
+    ops = {o["operator"]: o for o in data["operators"]}
+    assert ops["tool"]["access"]["hand"][0]["clearance"] == pytest.approx(expected, abs=1e-6)

@@ -45,7 +45,15 @@ from pliant.assembly.path import PathRun, StepRecord, follow_path
 from pliant.core.equilibrium import Result, stretch_summary
 from pliant.core.events import BRANCHED, HeldRigid, has, jumped
 from pliant.core.numbers import ROUND_OFF, TOUCHING, clean, triple
-from pliant.core.rules import Capacity, EvaluationSettings, ObstacleRule, PartKind, Rules
+from pliant.core.rules import (
+    Capacity,
+    EvaluationSettings,
+    HandEnvelope,
+    ObstacleRule,
+    PartKind,
+    Rules,
+    Sourced,
+)
 from pliant.errors import InputError
 
 SCHEMA_VERSION = 1
@@ -910,9 +918,33 @@ def _operators(scene: Any, run: PathRun, rules: Rules, settings: EvaluationSetti
             g, grip_steps[g], rules, rating, settings.rating_moment)]
         out.append(OperatorResult(wanted, checks, f"a {wanted} rated for "
                                   f"{settings.rating_force:g} N"))
+        _with_tool_access(out[-1], run, rules, settings, grips)
     elif wanted == "auto" and all(o.zone == Zone.RED for o in out):
         out.append(_tool_needed(rules, settings, grips, grip_steps))
+        _with_tool_access(out[-1], run, rules, settings, grips)
     return out
+
+
+def _with_tool_access(op: OperatorResult, run: PathRun, rules: Rules,
+                      settings: EvaluationSettings, grips: tuple[str, ...]) -> None:
+    """Add to ``op`` the room for the tool's or robot's gripper at each of ``grips``
+    along the path, where the scene gives its envelope (``[evaluation] envelope``): the
+    hand's check (``access.hand_access``) with the gripper's sizes, its jaws round the
+    part and its body out along the best approach; red where none fits."""
+    if settings.tool_envelope is None or not run.equilibria:
+        return
+    from pliant.assembly.access import hand_access  # noqa: PLC0415
+
+    length, breadth, thickness, jaw = settings.tool_envelope
+    allowance = rules.access.allowance if rules.access is not None else 0.0
+    env = HandEnvelope(breadth, jaw, breadth, jaw, 1e-6, length, (breadth, thickness),
+                       (breadth, thickness), 0.0, allowance, 36, Sourced(
+                           "the tool's or robot's gripper as the scene gives it "
+                           "([evaluation] envelope)", "given"))
+    for g in grips:
+        steps = [hand_access(eq, eq.loads[g].s, env) for eq in run.equilibria]
+        op.access[g] = steps
+        op.checks.append(access_check(g, steps, env, tool=True))
 
 
 def _clamp_checks(scene: Any, run: PathRun) -> list[Check]:
@@ -1113,22 +1145,26 @@ def upper_arm_check(grip: str, rooms: list[Any], env: Any, side: str) -> Check:
                         env.sourced.source, env.sourced.provenance, grip=grip, note=note)
 
 
-def access_check(grip: str, steps: list[Any], env: Any, hands: int = 1) -> Check:
-    """The hand's access at ``grip`` along the path as a check, its worst step's best
-    approach and what bounds it in the note."""
+def access_check(grip: str, steps: list[Any], env: Any, hands: int = 1,
+                 tool: bool = False) -> Check:
+    """The hand's (``tool``: the gripper's) access at ``grip`` along the path as a check,
+    its worst step's best approach and what bounds it in the note."""
     values = [a.clearance for a in steps]
     k = int(np.argmin(values))
     worst = steps[k]
-    who = "two hands side by side" if hands == 2 else "the hand"
+    who = ("the tool" if tool else "two hands side by side" if hands == 2 else "the hand")
+    body = "its body" if tool else "forearm"
     if worst.clearance < 0.0:
-        note = (f"no approach fits {who} and forearm round the part at s = {worst.s:.3g} m: "
+        note = (f"no approach fits {who} and {body} round the part at s = {worst.s:.3g} m: "
                 f"the best, from {_direction(worst.approach)}, needs "
                 f"{-worst.clearance * 1e3:.0f} mm more room, bound by {worst.bound_by}")
     else:
         note = (f"best approach from {_direction(worst.approach)}, bound by "
                 f"{worst.bound_by}")
-    note += f"; envelope of a large hand (95th percentile man), {env.directions} approaches"
-    return series_check("access: hand", f"room for {who} at {grip}", "ergonomics", values,
+    note += (f"; the gripper as given, {env.directions} approaches" if tool else
+             f"; envelope of a large hand (95th percentile man), {env.directions} approaches")
+    return series_check("access: tool" if tool else "access: hand",
+                        f"room for {who} at {grip}", "ergonomics", values,
                         "m", "below", env.allowance if env.allowance > 0 else None, 0.0,
                         env.sourced.source, env.sourced.provenance, grip=grip,
                         where=[a.s for a in steps], note=note)

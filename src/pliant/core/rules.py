@@ -215,6 +215,9 @@ class EvaluationSettings:
     repetitive : work over 2 h a day (lower yellow onsets, Washington State checklist)
     multipliers : EN 1005-3's (m_v, m_f, m_d) on every hand capacity
     rating_force [N], rating_moment [N m] : the tool's or robot's rating, if known
+    tool_envelope : the tool's or robot's gripper round the part, (length from the part's
+        axis, breadth along the part, thickness across, jaws' thickness) [m], checked for
+        room as a hand is (None: not checked)
     port : where the part is seated at the last step (None: the port at the path's end)
     connector_force [N] : the connector's own mating force, added to the last push
     max_twist_rate [deg/m] : a cable's torsion rating, if known
@@ -229,6 +232,7 @@ class EvaluationSettings:
     multipliers: tuple[float, float, float] = (1.0, 1.0, 1.0)
     rating_force: float | None = None
     rating_moment: float | None = None
+    tool_envelope: tuple[float, float, float, float] | None = None
     port: str | None = None
     connector_force: float = 0.0
     max_twist_rate: float | None = None

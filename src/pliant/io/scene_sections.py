@@ -329,6 +329,15 @@ class RatingModel(_Strict):
     moment: float | None = Field(None, gt=0, description="rated moment [N m]")
 
 
+class EnvelopeModel(_Strict):
+    """[evaluation] envelope: the room a tool or robot's gripper takes round the part."""
+
+    length: float = Field(gt=0, description="[m] from the part's axis to the tool's far end")
+    breadth: float = Field(gt=0, description="[m] along the part (the jaws' and the body's)")
+    thickness: float = Field(gt=0, description="[m] the body's, across the part")
+    jaw: float = Field(0.005, ge=0, description="[m] the jaws' thickness round the part")
+
+
 class EvaluationModel(_Strict):
     """[evaluation]: how the operation is judged (see ``EvaluationSettings``)."""
 
@@ -338,6 +347,7 @@ class EvaluationModel(_Strict):
     repetitive: bool = False
     multipliers: tuple[float, float, float] = (1.0, 1.0, 1.0)
     rating: RatingModel | None = None
+    envelope: EnvelopeModel | None = None
     port: str | None = None
     connector_force: float = Field(0.0, ge=0, description="[N]")
     max_twist_rate: float | None = Field(None, gt=0, description="[deg/m]")
@@ -355,7 +365,10 @@ class EvaluationModel(_Strict):
             operator=self.operator, hold=self.hold, grips=tuple(self.grips),
             repetitive=self.repetitive, multipliers=self.multipliers,
             rating_force=self.rating.force if self.rating else None,
-            rating_moment=self.rating.moment if self.rating else None, port=self.port,
+            rating_moment=self.rating.moment if self.rating else None,
+            tool_envelope=None if self.envelope is None else (
+                self.envelope.length, self.envelope.breadth, self.envelope.thickness,
+                self.envelope.jaw), port=self.port,
             connector_force=self.connector_force, max_twist_rate=self.max_twist_rate,
             max_contact_force=self.max_contact_force, rules=rules)
 
