@@ -589,6 +589,22 @@ def _cantilever_on_a_drum(delta: float, radius: float,
     return solution
 
 
+def _under_a_drum(delta: float) -> pl.Problem:
+    """The weightless cantilever of ``_cantilever_on_a_drum`` (EI 1, L 1 m, OD 10 mm,
+    clamped at the origin along +x) and its drum (radius 0.3 m, axis along y at
+    x = 0.6 m, its top ``delta`` high)."""
+    drum = Obstacle.cylinder("drum", 0.3, 0.5, (0.6, 0.0, delta - 0.3), ACROSS_Y)
+    return pl.Problem(pl.Part(1.0, 1.0, outer_diameter=0.01),
+                      (pl.clamp(0.0, (0.0, 0.0, 0.0), tangent=(1.0, 0.0, 0.0),
+                                normal=(0.0, 0.0, 1.0)),), obstacles=(drum,))
+
+
+def _drum_solved(delta: float):
+    """``_under_a_drum`` solved cold on 100 elements: (answer, the drum's force (x, z))."""
+    eq = rod3d.solve(_under_a_drum(delta), solver=rod3d.RodSolver(elements=100))
+    return eq, eq.contacts.force.sum(axis=0)[[0, 2]]
+
+
 def test_a_cantilever_lifted_by_a_drum_is_solved_cold_at_every_height():
     """Issue 60, item 2: a cantilever (EI 1, L 1 m, OD 10 mm) lifted by a drum of radius
     0.3 m at x = 0.6 m, its top at heights where cold solves used to end in "a fold" (7
@@ -596,22 +612,12 @@ def test_a_cantilever_lifted_by_a_drum_is_solved_cold_at_every_height():
     0.305 m from the axis: the drum's radius and the part's) to 2e-3. With the drum's
     centre 0.1 m above the straight part, the nearer way out is under it: the mirror
     image of the drum 0.2 m below, force for force."""
-    part = pl.Part(1.0, 1.0, outer_diameter=0.01)
-
-    def solved(delta):
-        drum = Obstacle.cylinder("drum", 0.3, 0.5, (0.6, 0.0, delta - 0.3), ACROSS_Y)
-        problem = pl.Problem(part, (pl.clamp(0.0, (0.0, 0.0, 0.0), tangent=(1.0, 0.0, 0.0),
-                                             normal=(0.0, 0.0, 1.0)),), obstacles=(drum,))
-        eq = rod3d.solve(problem, solver=rod3d.RodSolver(elements=100))
-        force = eq.contacts.force.sum(axis=0)
-        return eq, np.array([force[0], force[2]])
-
     for delta in (0.11, 0.15, 0.2, 0.25):
-        eq, force = solved(delta)
+        eq, force = _drum_solved(delta)
         twin = _cantilever_on_a_drum(delta, 0.305)[1:3]
         assert eq.verdict == "stable"
         assert np.linalg.norm(force - twin) < 2e-3 * np.linalg.norm(twin), (delta, force, twin)
-    _, under = solved(0.4)
+    _, under = _drum_solved(0.4)
     above = _cantilever_on_a_drum(0.2, 0.305)[1:3]
     assert np.linalg.norm(under - above * [1.0, -1.0]) < 2e-3 * np.linalg.norm(above)
 
@@ -624,16 +630,7 @@ def test_a_part_through_a_drum_is_pushed_out_the_way_of_least_energy():
     mirror twins of equal energy, the drum's force the twin's (centre on the line) to
     2e-3. Above: under it, the mirror image of the drum 50 mm below, force for force,
     at less energy than over it."""
-    part = pl.Part(1.0, 1.0, outer_diameter=0.01)
-
-    def solved(delta):
-        drum = Obstacle.cylinder("drum", 0.3, 0.5, (0.6, 0.0, delta - 0.3), ACROSS_Y)
-        problem = pl.Problem(part, (pl.clamp(0.0, (0.0, 0.0, 0.0), tangent=(1.0, 0.0, 0.0),
-                                             normal=(0.0, 0.0, 1.0)),), obstacles=(drum,))
-        eq = rod3d.solve(problem, solver=rod3d.RodSolver(elements=100))
-        return eq, eq.contacts.force.sum(axis=0)[[0, 2]]
-
-    eq, force = solved(0.3)
+    eq, force = _drum_solved(0.3)
     pushed = [n for n in eq.notes if isinstance(n, PushedOut)]
     assert eq.verdict == "stable" and len(pushed) == 1 and pushed[0].twin
     assert pushed[0].obstacles == ("drum",) and abs(pushed[0].side[2]) == pytest.approx(1.0)
@@ -641,7 +638,7 @@ def test_a_part_through_a_drum_is_pushed_out_the_way_of_least_energy():
     side = np.sign(pushed[0].side[2])
     assert np.linalg.norm(force - twin * [1.0, side]) < 2e-3 * np.linalg.norm(twin)
     assert np.sign(eq.position[-1, 2]) == side
-    eq, force = solved(0.35)
+    eq, force = _drum_solved(0.35)
     pushed = [n for n in eq.notes if isinstance(n, PushedOut)]
     assert eq.verdict == "stable" and len(pushed) == 1 and not pushed[0].twin
     assert pushed[0].side[2] == pytest.approx(-1.0)
@@ -657,13 +654,7 @@ def test_a_drum_raised_in_steps_is_followed_with_the_part_on_it():
     ``trace`` stopped where ``solve`` fell back to a cold start under the drum). The
     obstacle is carried with the part now: every step is followed, the part stays on
     top, and the drum's force is the twin's followed the same way (to 2e-3)."""
-    part = pl.Part(1.0, 1.0, outer_diameter=0.01)
-    clamp = pl.clamp(0.0, (0.0, 0.0, 0.0), tangent=(1.0, 0.0, 0.0), normal=(0.0, 0.0, 1.0))
-
-    def problem(delta):
-        drum = Obstacle.cylinder("drum", 0.3, 0.5, (0.6, 0.0, delta - 0.3), ACROSS_Y)
-        return pl.Problem(part, (clamp,), obstacles=(drum,))
-
+    problem = _under_a_drum
     heights = np.linspace(0.2, 0.4, 5)
     solver = rod3d.RodSolver(elements=100)
     start = rod3d.solve(problem(0.2), solver=solver)
