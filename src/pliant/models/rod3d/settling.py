@@ -60,10 +60,7 @@ def settled(run: Run, eq: Equilibrium3D, warm_start: Equilibrium3D | None
     found = downhill_equilibria(run, eq)
     if not found:
         return eq
-    if warm_start is None:
-        best = min(found, key=potential_energy)
-    else:
-        best = min(found, key=lambda e: (shape_distance(e, warm_start), potential_energy(e)))
+    best = where_settled(found, warm_start)
     released = potential_energy(eq) - potential_energy(best)
     distance = float(np.linalg.norm(best.position - eq.position, axis=1).max())
     if warm_start is None:
@@ -80,6 +77,26 @@ def settled(run: Run, eq: Equilibrium3D, warm_start: Equilibrium3D | None
         eigenvalue=float(eq.stability[1] or 0.0), distance=distance, released=released,
         jump=jump)
     return replace(best, notes=(*eq.notes, note), iterations=run.iterations)
+
+
+def where_settled(found: list[Equilibrium3D], warm_start: Equilibrium3D | None
+                  ) -> Equilibrium3D:
+    """Of the equilibria an unstable answer settles in, the one a part takes: from a
+    warm start the nearest to it (where the part was), then the lowest; from rest the
+    lowest."""
+    if warm_start is None:
+        return min(found, key=potential_energy)
+    return min(found, key=lambda e: (shape_distance(e, warm_start), potential_energy(e)))
+
+
+def jump_by_energy(eq: Equilibrium3D, warm_start: Equilibrium3D, released: float
+                   ) -> tuple[bool, str]:
+    """Whether a warm step that ended on ``eq``, unstable, jumps where settling
+    releases ``released`` [J]: more than a tenth of the energy the step itself
+    changed; and why, in words."""
+    step = abs(potential_energy(eq) - potential_energy(warm_start))
+    return released > 0.1 * step, (f"it releases {released / step if step else math.inf:.2g} "
+                                   "of the energy the step changed")
 
 
 def downhill_equilibria(run: Run, eq: Equilibrium3D) -> list[Equilibrium3D]:
@@ -118,9 +135,7 @@ def _jumps(run: Run, eq: Equilibrium3D, best: Equilibrium3D, warm_start: Equilib
                 f"settled where the followed shape's eigenvalue is {eigen / end_eigen:.2f} "
                 f"of this one's, it moves {ratio:.2f} as far: {law:.2f} on a branch that "
                 "leaves a bifurcation, about 1 where it jumps")
-    step = abs(potential_energy(eq) - potential_energy(warm_start))
-    return released > 0.1 * step, (f"it releases {released / step if step else math.inf:.2g} "
-                                   "of the energy the step changed")
+    return jump_by_energy(eq, warm_start, released)
 
 
 def _settled_nearer(run: Run, old: WarmState, eigen0: float, eigen1: float

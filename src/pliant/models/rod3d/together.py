@@ -29,7 +29,7 @@ from pliant.models.rod3d.coupled_settling import downhill
 from pliant.models.rod3d.links import Joint, Pivot, Slider
 from pliant.models.rod3d.lowering import Rod, State
 from pliant.models.rod3d.results import WarmState
-from pliant.models.rod3d.settling import shape_distance
+from pliant.models.rod3d.settling import jump_by_energy, where_settled
 from pliant.models.rod3d.solver import RodSolver, Run, reached, same_shape, solve
 
 
@@ -416,10 +416,7 @@ def _settled(problem, coupling: Coupling, at: tuple, parts, names: list[str],
     found = [e for e in found if e.verdict != "unstable"]
     if not found:
         return eq
-    if warm is None:
-        best = min(found, key=potential_energy)
-    else:
-        best = min(found, key=lambda e: (shape_distance(e, warm), potential_energy(e)))
+    best = where_settled(found, warm)
     released = potential_energy(eq) - potential_energy(best)
     distance = max(float(np.linalg.norm(b.position - a.position, axis=1).max())
                    for a, b in zip((eq, *eq.branches, *eq.fitted),
@@ -427,11 +424,8 @@ def _settled(problem, coupling: Coupling, at: tuple, parts, names: list[str],
     if warm is None:
         jump, how = False, "the lowest of those they settle in from there"
     else:
-        step = abs(potential_energy(eq) - potential_energy(warm))
-        jump = released > 0.1 * step
-        how = (("a jump (a snap): real parts jump here" if jump else "no jump") +
-               f" (it releases {released / step if step else math.inf:.2g} of the energy "
-               "the step changed)")
+        jump, why = jump_by_energy(eq, warm, released)
+        how = ("a jump (a snap): real parts jump here" if jump else "no jump") + f" ({why})"
     note = LeftUnstable(
         f"the equilibrium of the parts together is unstable (smallest eigenvalue "
         f"{eq.stability[1]:.3g}): they leave it along that mode and settle here "
