@@ -228,16 +228,24 @@ class Figure:
             return self.posture(hand, side, float(bends[k]))
         return best
 
-    def elbows(self, shoulders: np.ndarray, hand: np.ndarray) -> np.ndarray:
-        """The elbows (n, 3) as low as they can hang with the upper arm from ``shoulders``
-        (n, 3) and the forearm to ``hand`` (the arm straight towards the hand where it
-        does not reach; hanging where the hand is at the shoulder)."""
+    def circles(self, shoulders: np.ndarray, hand: np.ndarray
+                ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """The circle each elbow may lie on, the upper arm from ``shoulders`` (n, 3) and
+        the forearm to ``hand``: (shoulder-hand distances d (n,), unit directions u
+        (n, 3), the circle's centre x along u from the shoulder (n,), its radius (n,))."""
         a, b = self.upper, self.arm - self.upper
         along = hand - shoulders
         d = np.linalg.norm(along, axis=1)
         u = along / np.maximum(d, 1e-300)[:, None]
         x = (a * a - b * b + d * d) / (2.0 * np.maximum(d, 1e-300))
-        rho = np.sqrt(np.maximum(a * a - x * x, 0.0))
+        return d, u, x, np.sqrt(np.maximum(a * a - x * x, 0.0))
+
+    def elbows(self, shoulders: np.ndarray, hand: np.ndarray) -> np.ndarray:
+        """The elbows (n, 3) as low as they can hang with the upper arm from ``shoulders``
+        (n, 3) and the forearm to ``hand`` (the arm straight towards the hand where it
+        does not reach; hanging where the hand is at the shoulder)."""
+        a, b = self.upper, self.arm - self.upper
+        d, u, x, rho = self.circles(shoulders, hand)
         down = -self.up - (u @ -self.up)[:, None] * u
         n = np.linalg.norm(down, axis=1)
         aside = np.cross(u, self.facing)
@@ -273,15 +281,11 @@ def swivelled(figure: Figure, reach: Reach, radius: float, allowance: float,
     and that upper arm's elevation (the posture check judges the arm as it is)."""
     shoulder, hand = np.asarray(reach.shoulder, float), np.asarray(reach.hand, float)
     a, b = figure.upper, figure.arm - figure.upper
-    along = hand - shoulder
-    d = float(np.linalg.norm(along))
+    (d,), (u,), (x,), (rho,) = figure.circles(shoulder[None, :], hand)
     hanging = np.asarray(reach.elbow, float)
     angles = np.zeros(1)
     elbows = hanging[None, :]
     if abs(a - b) < d < a + b:  # the elbow may swing on a circle round the line
-        u = along / d
-        x = (a * a - b * b + d * d) / (2.0 * d)
-        rho = math.sqrt(max(a * a - x * x, 0.0))
         centre = shoulder + x * u
         w = (hanging - centre) / max(rho, 1e-300)
         v = np.cross(u, w)
