@@ -216,6 +216,11 @@ class Condition:
     def loads_only(self) -> bool:
         return not any(self.prescribed)
 
+    @property
+    def holds_point(self) -> bool:
+        """Whether it holds the whole position (every component) of its point."""
+        return bool(self.position) and all(v is not None for v in self.position)
+
 
 def _is_3d(*vectors) -> bool:
     return any(v is not None and not isinstance(v, (int, float)) and len(v) == 3

@@ -110,8 +110,7 @@ def pushed_out(run: Run, stall: Stalled, follow: Follow) -> Equilibrium3D | None
         return None
     _, state = rod.rest()
     points = rod.probe_points(state[0]) * rod.length
-    held = np.array([c.position for c in problem.conditions
-                     if c.position and all(v is not None for v in c.position)]).reshape(-1, 3)
+    held = np.array([c.position for c in problem.conditions if c.holds_point]).reshape(-1, 3)
     margin = rod.radius + CLEAR * problem.part.drawn_radius
     deepest, inside = math.inf, []
     normal, at = np.zeros(3), 0

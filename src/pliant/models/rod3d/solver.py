@@ -971,8 +971,7 @@ def _held_inside(problem: Problem) -> None:
     """Raise ``InputError`` naming the condition and the obstacle when a position the
     problem prescribes lies where the part's tube cannot be: inside an obstacle (what a
     solve that stalls most often means in a scene). Checked only once a solve failed."""
-    held = [c for c in problem.conditions
-            if c.position and all(v is not None for v in c.position)]
+    held = [c for c in problem.conditions if c.holds_point]
     if not problem.obstacles or not held:
         return
     from pliant.scene.distance import field_of  # noqa: PLC0415
