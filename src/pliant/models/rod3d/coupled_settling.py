@@ -16,13 +16,6 @@ from pliant.models.rod3d.coupled import DEEP, Coupling
 from pliant.models.rod3d.coupled_stability import coupled_stability, system_metric
 from pliant.models.rod3d.lowering import Loads, State
 
-# Once the shift is below _NEWTONISH of the flow's first (its steps nearly Newton's), a
-# step that multiplies the largest residual entry by more than _GROWTH (past _FLOOR, in
-# the parts' scaled units) is too long: Newton's steps there flipped the touching set
-# back and forth, and the flow cycled between a few states. (Earlier, a step that lets
-# a contact go raises the residual by the force it drops, as the flow should.)
-_NEWTONISH, _GROWTH, _FLOOR = 1e-3, 4.0, 1e-2
-
 Coupled = tuple[list[State], list[np.ndarray]]  # (each part's state, the blocks' unknowns)
 
 
@@ -41,9 +34,6 @@ class Relaxing:
         self.primal = [np.flatnonzero(m) for m in self.mass]
         self.sizes = [run.rod.n for run in coupling.runs]
         self.at: Coupled | None = None  # where the last gradient was taken
-        self.size = math.inf  # its largest residual entry
-        self.scale = self.sigma = math.inf  # the flow's first shift, and the last one
-        self.targets = [run.rod.target for run in coupling.runs]
 
     @property
     def tolerance(self) -> float:
@@ -67,7 +57,6 @@ class Relaxing:
         ev = c.evaluate(states, mus, targets, weight, near, True, fixed)
         blocks = c.blocks(ev, mus, weight)
         R = np.concatenate([*ev.R, *(ev.Rmu[b.target[0]][b.target[1]] for b in blocks)])
-        self.size = here.residual
         return R, (ev, blocks, mus)
 
     def diagonal_scale(self, jac) -> float:
@@ -76,11 +65,9 @@ class Relaxing:
         for run, ab, m, p in zip(self.coupling.runs, ev.ab, self.mass, self.primal):
             diag = np.abs(ab[p, run.rod.kl + run.rod.ku]) / m[p]
             out = max(out, float(diag.max(initial=0.0)))
-        self.scale = out
         return out
 
     def shifted_solve(self, jac, sigma: float, rhs: np.ndarray) -> tuple[np.ndarray, bool]:
-        self.sigma = sigma
         ev, blocks, mus = jac
         bands = []
         for run, ab, m in zip(self.coupling.runs, ev.ab, self.mass):
@@ -111,13 +98,6 @@ class Relaxing:
             if self._deep(trial):
                 return math.inf
         return move
-
-    def _size(self, state: Coupled) -> float:
-        """The largest residual entry at ``state``, its touching set from scratch."""
-        c = self.coupling
-        states, mus = state
-        near = [c.near(p, states, mu) for p, mu in zip(c.pairs, mus)]
-        return c.evaluate(states, mus, self.targets, 1.0, near, False).residual
 
     def _deep(self, state: Coupled) -> bool:
         c = self.coupling
