@@ -6,9 +6,17 @@ after."""
 
 from __future__ import annotations
 
+import os
 import signal
 
-import pytest
+# Two xdist workers on two cores, each with OpenBLAS's default of one thread per core,
+# spin-wait on each other: scipy's SLSQP on the minimum test's twin took 56 s against
+# 3.5 s with one thread each (what Dask's nanny sets for its workers too). Set before
+# numpy is first imported, here and in the workers and subprocesses that inherit it.
+for _threads in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
+    os.environ.setdefault(_threads, "1")
+
+import pytest  # noqa: E402
 
 # A suite started in the background (``cmd &`` in a shell without job control) inherits
 # Ctrl+C ignored, and so would every process a test starts: the tests that press Ctrl+C
