@@ -11,7 +11,7 @@ its jump.
 from __future__ import annotations
 
 import math
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from functools import cached_property
 from typing import Any, ClassVar, Protocol, runtime_checkable
@@ -277,6 +277,52 @@ class StationLoad:
         moment = (float(self.moment) if np.ndim(self.moment) == 0 else clean(self.moment))
         return {"name": self.name, "s": self.s, "force": clean(self.force),
                 "moment": moment, "prescribed": list(self.prescribed)}
+
+
+class PlanarArrays(Protocol):
+    """What a 2D warm start reads of a shape (an equilibrium, a ``PlanarShape``, an
+    energy minimum): its arrays along s and the loads at its stations by name (each
+    with ``force`` (2,) [N] and ``moment`` [N m])."""
+
+    @property
+    def s(self) -> np.ndarray: ...
+    @property
+    def position(self) -> np.ndarray: ...
+    @property
+    def angle(self) -> np.ndarray: ...
+    @property
+    def internal_force(self) -> np.ndarray: ...
+    @property
+    def bending_moment(self) -> np.ndarray: ...
+    @property
+    def loads(self) -> Mapping[str, Any]: ...
+
+
+@dataclass(frozen=True)
+class PlanarLoad:
+    """A 2D station's load on the part, as a warm start reads it: force (2,) [N], global
+    frame; moment [N m], counter-clockwise."""
+
+    force: np.ndarray
+    moment: float
+
+
+@dataclass(frozen=True, eq=False)
+class PlanarShape:
+    """A 2D shape with its internal and station loads that no 2D solve produced: the
+    mirror twin of an equilibrium, the 3D rod's answer in the plane. What a 2D warm
+    start reads (``elastica2d.lowering.Lowered.unknowns_from``); no solver state to
+    reuse and nothing said of it."""
+
+    problem: Any
+    s: np.ndarray
+    position: np.ndarray
+    angle: np.ndarray
+    internal_force: np.ndarray
+    bending_moment: np.ndarray
+    loads: dict[str, PlanarLoad]
+    notes: tuple = ()
+    state: None = None
 
 
 def model_loads(eq: Any) -> dict[str, StationLoad]:

@@ -13,13 +13,12 @@ import itertools
 import math
 from collections.abc import Iterable, Iterator
 from dataclasses import replace
-from types import SimpleNamespace
 from typing import Any, Literal, overload
 
 import numpy as np
 
 from pliant.core.conditions import Condition
-from pliant.core.equilibrium import Result, Unsolved, model_loads
+from pliant.core.equilibrium import PlanarLoad, PlanarShape, Result, Unsolved, model_loads
 from pliant.core.events import PlanarRoute, WarmStartLost, has
 from pliant.core.problem import Problem
 from pliant.errors import ConvergenceError, IllPosedProblemError, PliantError
@@ -102,7 +101,7 @@ def equilibria(problem: Problem, *, elements: int | None = None,
                                  **options))
 
 
-def planar_start(problem: Problem) -> Any:
+def planar_start(problem: Problem) -> PlanarShape:
     """The 3D rod's equilibrium of a 2D problem lifted into z = 0, as the arrays a 2D
     warm start reads (s, position, angle, internal force, bending moment, loads)."""
     from pliant.models import rod3d  # noqa: PLC0415 (numba kernels: on demand)
@@ -149,13 +148,10 @@ def planar_start(problem: Problem) -> Any:
         angle += 2.0 * math.pi * round((first.angle - angle[0]) / (2.0 * math.pi))
     internal = np.column_stack([np.interp(eq.s, eq.element_s, eq.internal_force[:, i])
                                 for i in range(2)])
-    reactions = {name: SimpleNamespace(force=np.asarray(ld.force[:2]),
-                                       moment=float(ld.moment[2]))
+    reactions = {name: PlanarLoad(np.asarray(ld.force[:2]), float(ld.moment[2]))
                  for name, ld in model_loads(eq).items()}
-    return SimpleNamespace(problem=problem, s=np.asarray(eq.s), position=eq.position[:, :2],
-                           angle=angle, internal_force=internal,
-                           bending_moment=np.asarray(eq.internal_moment[:, 2]), loads=reactions,
-                           notes=(), state=None)
+    return PlanarShape(problem, np.asarray(eq.s), eq.position[:, :2], angle, internal,
+                       np.asarray(eq.internal_moment[:, 2]), reactions)
 
 
 def trace(problems: Iterable[Problem], *, start: Any = None,

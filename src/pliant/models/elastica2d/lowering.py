@@ -15,11 +15,10 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
-from types import SimpleNamespace
 
 import numpy as np
 
-from pliant.core.equilibrium import Equilibrium, model_loads
+from pliant.core.equilibrium import PlanarArrays, model_loads
 from pliant.core.problem import Problem, Station
 from pliant.models.elastica2d import kernels
 from pliant.models.elastica2d.kernels import APPLIED, NODE, PRESCRIBED
@@ -262,7 +261,7 @@ class Lowered:
         return -1.0 if side < -1e-12 else 1.0
 
     # -- unknowns <-> physical state ------------------------------------------------------
-    def unknowns_from(self, eq: Equilibrium | SimpleNamespace) -> np.ndarray:
+    def unknowns_from(self, eq: PlanarArrays) -> np.ndarray:
         """Dimensionless unknowns from any equilibrium of a problem with the same part:
         its pose at s = 0, the loads of the conditions (by name) and its state at the
         restart nodes."""

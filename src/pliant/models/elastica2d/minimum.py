@@ -28,12 +28,12 @@ from __future__ import annotations
 import math
 from collections.abc import Sequence
 from functools import cached_property
-from types import SimpleNamespace
 from typing import Any, NamedTuple
 
 import numpy as np
 from numba import njit
 
+from pliant.core.equilibrium import PlanarLoad
 from pliant.core.problem import Problem
 from pliant.models import clock
 from pliant.models.elastica2d.bordered import kkt_negatives, kkt_solve, tridiagonal_times
@@ -933,11 +933,11 @@ class Minimum:
         return self._forces[1]
 
     @property
-    def loads(self) -> dict[str, SimpleNamespace]:
+    def loads(self) -> dict[str, PlanarLoad]:
         return self._forces[2]
 
     @cached_property
-    def _forces(self) -> tuple[np.ndarray, np.ndarray, dict[str, SimpleNamespace]]:
+    def _forces(self) -> tuple[np.ndarray, np.ndarray, dict[str, PlanarLoad]]:
         """(internal force, bending moment, loads by name), from the multipliers."""
         disc, problem, u = self.disc, self.problem, self.u
         L, EI = self._scales
@@ -969,5 +969,5 @@ class Minimum:
                        if c.force and c.force[i] is not None else 0.0 for i in range(2)]
             f = np.array([reactions.get((k, i), applied[i]) for i in range(2)])
             m = reactions.get((k, 2), float(c.moment or 0.0) * L / EI)  # type: ignore[arg-type]
-            loads[c.name] = SimpleNamespace(force=f * EI / L**2, moment=m * EI / L)
+            loads[c.name] = PlanarLoad(f * EI / L**2, m * EI / L)
         return beyond * EI / L**2, moment * EI / L, loads

@@ -30,7 +30,6 @@ import time
 from collections.abc import Callable, Iterable, Iterator
 from dataclasses import dataclass, field, replace
 from functools import cached_property, partial
-from types import SimpleNamespace
 from typing import Any
 
 import numpy as np
@@ -38,6 +37,8 @@ import numpy as np
 from pliant.core.equilibrium import (
     WARM_START_LOST,
     Equilibrium,
+    PlanarLoad,
+    PlanarShape,
     Samples,
     StationLoad,
     model_loads,
@@ -1217,7 +1218,7 @@ class _Mirror:
             return [(self._flip(f), -m) for f, m in ends]
         return [(-ends[1][0], ends[1][1]), (-ends[0][0], ends[0][1])]
 
-    def __call__(self, eq: Equilibrium) -> SimpleNamespace:
+    def __call__(self, eq: Equilibrium) -> PlanarShape:
         """The mirror twin of an equilibrium: its arrays (those ``Lowered.unknowns_from``
         reads)."""
         ends = []
@@ -1229,30 +1230,25 @@ class _Mirror:
         loads = self._named(self._ends(ends))
         a = np.array(self.a)
         if self.reflected:  # theta -> 2 phi - theta (and the held angle's turns)
-            return SimpleNamespace(
-                s=eq.s, position=a + self._flip(eq.position - a),
-                angle=2.0 * self.phi + self.shift - eq.angle,
-                internal_force=self._flip(eq.internal_force),
-                bending_moment=-eq.bending_moment, loads=loads)
+            return PlanarShape(
+                eq.problem, eq.s, a + self._flip(eq.position - a),
+                2.0 * self.phi + self.shift - eq.angle, self._flip(eq.internal_force),
+                -eq.bending_moment, loads)
         # r(s) -> 2 c - r(L - s), theta and n the same at L - s, m the opposite
         centre = a + 0.5 * self.size * np.array(self.u)
-        return SimpleNamespace(
-            s=self.length - eq.s[::-1], position=2.0 * centre - eq.position[::-1],
-            angle=eq.angle[::-1].copy(), internal_force=eq.internal_force[::-1].copy(),
-            bending_moment=-eq.bending_moment[::-1], loads=loads)
+        return PlanarShape(
+            eq.problem, self.length - eq.s[::-1], 2.0 * centre - eq.position[::-1],
+            eq.angle[::-1].copy(), eq.internal_force[::-1].copy(), -eq.bending_moment[::-1],
+            loads)
 
-    def _named(self, ends: list[tuple[np.ndarray, float]]) -> dict[str, SimpleNamespace]:
-        loads: dict[str, SimpleNamespace] = {}
+    def _named(self, ends: list[tuple[np.ndarray, float]]) -> dict[str, PlanarLoad]:
+        """Each condition's share of its station's (force, moment), by name."""
+        parts: dict[str, list[float]] = {}
         for st, (f, m) in zip(self.stations, ends):
             for i, owner in enumerate(st.owner):
                 if owner is not None:
-                    load = loads.setdefault(owner, SimpleNamespace(force=[0.0, 0.0],
-                                                                   moment=0.0))
-                    if i < 2:
-                        load.force[i] = float(f[i])
-                    else:
-                        load.moment = m
-        return loads
+                    parts.setdefault(owner, [0.0, 0.0, 0.0])[i] = float(f[i]) if i < 2 else m
+        return {name: PlanarLoad(np.array(v[:2]), v[2]) for name, v in parts.items()}
 
     def unknowns(self, low: Lowered, z: np.ndarray) -> np.ndarray | None:
         """The twin's unknowns straight from z's, where the lowering has no restart nodes
