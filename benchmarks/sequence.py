@@ -2,7 +2,8 @@
 judged or pruned, in this process and on a local Dask cluster of 2 workers, with the
 issue's figure (at most 2 minutes on 2 cores); and how the search grows with the number
 of parts (3, 4, 5: the example and one or two more sensor cables beside the block,
-which fit in any order), pruned and exhaustive.
+which fit in any order), pruned and exhaustive; and what a hook costs: the two-part
+parking-clip example searched with its [[hook]] and without it (in this process).
 
     .venv/bin/python benchmarks/sequence.py [--parts 3 4 5] [--workers 0 2]
 
@@ -73,6 +74,30 @@ def main() -> None:
                     if n == 3 and not exhaustive:
                         print(f"      the issue's figure: the 3-part search in <= 120 s: "
                               f"{wall:.1f} s, {'met' if wall <= 120 else 'NOT MET'}")
+        hooks(Path(tmp))
+
+
+def hooks(tmp: Path) -> None:
+    """The parking-clip example with its hook and without it: orders, operations and
+    wall seconds (each search from an empty process cache of fitted shapes)."""
+    from pliant.assembly import sequence as module
+
+    folder = tmp / "clip"
+    folder.mkdir()
+    for f in EXAMPLE.glob("*.toml"):
+        shutil.copy(f, folder / f.name)
+    text = (EXAMPLE / "parking_clip.toml").read_text()
+    (folder / "no_hook.toml").write_text(text.split("[[hook]]")[0])
+    print(f"{'parking clip':>12} {'orders':>6} {'judged':>6} {'pruned':>6} {'fit':>4} "
+          f"{'wall s':>7} {'s / op':>6}")
+    for label, name in (("no hook", "no_hook.toml"), ("1 hook", "parking_clip.toml")):
+        module._FITTED.clear()
+        start = time.perf_counter()
+        r = sequence(folder / name, workers=0)
+        wall = time.perf_counter() - start
+        print(f"{label:>12} {len(r.orders):>6} {r.judged:>6} {r.pruned:>6} "
+              f"{sum(o.passes for o in r.orders):>4} {wall:>7.1f} {wall / r.judged:>6.2f}",
+              flush=True)
 
 
 if __name__ == "__main__":

@@ -115,6 +115,90 @@ def test_the_search_refuses_a_store_of_other_files(bay, tmp_path):
         sequence(other, out=out / "search", workers=0)
 
 
+# -- a parking clip: two parts that block each other ------------------------------------
+CLIP = EXAMPLE / "parking_clip.toml"
+ONTO, OFF = "coolant hose onto parking clip", "coolant hose off parking clip"
+
+
+@pytest.fixture(scope="module")
+def clipped(tmp_path_factory):
+    """The parking-clip example searched once by the command, with its store."""
+    out = tmp_path_factory.mktemp("clip")
+    done = cli("sequence", CLIP, "--out", out / "search", "--json", out / "s.json")
+    return done, json.loads((out / "s.json").read_text()), out
+
+
+def test_a_parking_clip_fits_two_parts_that_block_each_other(clipped):
+    """Neither direct order fits (each part's precedence over the other is found); with
+    the hose left on the clip while the oil line goes in, the operations fit, at the
+    cost of one re-grasp; the exhaustive twin finds the same orders."""
+    done, data, out = clipped
+    assert done.returncode == 0, done.stdout
+    orders = {tuple(o["parts"]): o for o in data["orders"]}
+    assert not orders[("coolant hose", "oil line")]["passes"]
+    assert not orders[("oil line", "coolant hose")]["passes"]
+    passing = [p for p, o in orders.items() if o["passes"]]
+    assert (ONTO, "oil line", OFF) in passing
+    assert all(ONTO in p and p.index(ONTO) < p.index(OFF) for p in passing)
+    assert data["best"]["cost"][2] == 1.0 and "re-grasps" in data["cost"][2]
+    assert {(p["first"], tuple(p["then"])) for p in data["precedences"]} == {
+        ("coolant hose", ("oil line",)), ("oil line", ("coolant hose",))}
+    # Hose onto the clip, straight off it, then the line: as the hose fitted first.
+    assert "coolant hose in the way" in orders[(ONTO, OFF, "oil line")]["why"]
+    slow = sequence(CLIP, out=out / "search", workers=0, exhaustive=True)
+    assert [o.parts for o in slow.orders if o.passes] == passing
+    assert slow.best.parts == tuple(data["best"]["parts"])
+    page = (out / "search" / "report.html").read_text()
+    assert ONTO in page and "re-grasp" in page
+
+
+def test_why_the_clip_is_needed_from_shapes_solved_apart(clipped):
+    """Independent of the search: each part solved alone along its own file's path.
+    The hose carried straight from where it is picked up sweeps through the oil line's
+    fitted tube; left on the clip it is the search's obstacle there, clear of the whole
+    of the line's way down; taken from the clip it reaches the pipe without passing
+    through the line (it rests on it at the end, as fitted after it directly)."""
+    from dataclasses import replace
+
+    from pliant.assembly.sequence import operation_scene, steps
+    from pliant.models import rod3d
+
+    _, data, _ = clipped
+    seq = load_sequence(CLIP)
+    names = [st.name for st in steps(seq)]
+    hose = load_scene(EXAMPLE / "coolant_hose_behind.toml")
+    line = load_scene(EXAMPLE / "oil_line.toml")
+    reach = hose.problem.part.drawn_radius + line.problem.part.drawn_radius
+
+    def alone(path, elements):
+        return [eq.position for eq in rod3d.trace(
+            [replace(p, obstacles=seq.obstacles) for p in path],
+            solver=rod3d.RodSolver(elements=elements))]
+
+    def gap(a, b):
+        return float(np.linalg.norm(a[:, None] - b[None], axis=2).min())
+
+    line_way = alone(line.path, line.solver.elements)
+    fitted_line = line_way[-1]
+    swept = [gap(x, fitted_line) for x in alone(hose.path, hose.solver.elements)]
+    assert min(swept[:-1]) < reach  # through the line on the way, not only at the end
+    failing = data["operations"]
+    [direct] = [op for op in failing if op["part"] == "coolant hose"
+                and op["prefix"] == ["oil line"]]
+    assert direct["status"] == "fails" and direct["blockers"] == ["oil line"]
+    onto = operation_scene(seq, names.index(ONTO))
+    hanging = alone(onto.path, hose.solver.elements)[-1]
+    [obstacle] = fitted_obstacles(seq, (names.index(ONTO),))
+    assert obstacle.name == "coolant hose (on parking clip)"
+    assert np.abs(np.asarray(obstacle.fitted.rest_line) - hanging).max() < 1e-6
+    assert min(gap(x, hanging) for x in line_way) > reach
+    off = operation_scene(seq, names.index(OFF))
+    taken = [gap(x, fitted_line) for x in alone([off.problem, *off.path],
+                                                 hose.solver.elements)]
+    assert np.abs(taken[0] - gap(hanging, fitted_line)) < 1e-6  # it starts as it hangs
+    assert min(taken[:-1]) > reach
+
+
 # -- random scenes: the pruned search against the exhaustive one --------------------------
 HOSE = """
 name = "hose across"
@@ -260,6 +344,10 @@ def test_a_part_that_fails_alone_fails_every_order_and_is_pruned_after_others(tm
      '"engine block"\nshape = "box"\nsize = [0.1, 0.1, 0.1]\nposition = [0, 0, 0]\n',
      "both an obstacle and a part"),
     ('[[fit]]\nname = "x"\nfile = "nopath.toml"\n', "has no [path]"),
+    ('[[fit]]\nname = "x"\nfile = "oil_line.toml"\n[[hook]]\nname = "h"\npart = "y"\n'
+     'position = [0, 0, 0.5]\n', "hook[0].part"),
+    ('[[fit]]\nname = "x"\nfile = "oil_line.toml"\n[[hook]]\nname = "h"\npart = "x"\n'
+     'position = [0, 0, 0.5]\ntangent = [0, 0, 0]\n', "hook[0].tangent"),
     ("margin = 0.01\n", "fit"),
 ])
 def test_a_bad_sequence_file_is_refused_naming_the_field(tmp_path, text, where):

@@ -3,7 +3,12 @@ other orders fail?
 
 An order is a sequence of operations; each operation is one part carried along its own
 ``[path]`` and judged by ``pliant.assembly.evaluate``, with the product's obstacles and
-every part fitted before it in the scene: a fitted part is a flexible obstacle
+every part fitted before it in the scene. Where the file declares a ``[[hook]]`` for a
+part, that part may instead be fitted in two operations (a non-monotone move): carried
+to the hook and left there, held in the hand's pose (``<part> onto <hook>``), then,
+after other parts, taken from there to its goal along its own path or a planned one
+(``<part> off <hook>``); between the two it is fitted in its shape on the hook, as the
+obstacle ``<part> (on <hook>)``. Each part thus placed: a fitted part is a flexible obstacle
 (``FittedPart``: a part that touches it deforms it, and the two are solved together) in
 the shape it settles in once the fitter lets go (its last step's problem, the hand's
 other grips released, solved alone with the parts fitted before it as rigid tubes; the
@@ -26,15 +31,14 @@ what is missing, to the same answer (nothing in it is random).
 
 Costs of an order that passes, compared in turn: its worst zone (green before yellow),
 the operator its hardest operation needs (one hand, then two hands, then a tool or a
-robot), the peak hand demand (a capacity check's value over its red limit), the sum of
-the operations' peak demands. An operation is one continuous grip path: no re-grasp is
-modelled, so none is counted.
+robot), the re-grasps (the hooks it uses: each is a second grasp of the part), the peak
+hand demand (a capacity check's value over its red limit), the sum of the operations'
+peak demands.
 """
 
 from __future__ import annotations
 
 import hashlib
-import itertools
 import json
 import math
 import time
@@ -46,6 +50,7 @@ from typing import Any
 
 import numpy as np
 
+from pliant.core.planning import PathSpec
 from pliant.errors import InputError, PliantError
 from pliant.io.jsonlines import JsonLines
 from pliant.io.sequence_file import SequenceScene
@@ -64,31 +69,148 @@ def load_sequence(path: str | Path) -> SequenceScene:
     return read(path, settle=settle_fitted)
 
 
+@dataclass(frozen=True)
+class Step:
+    """One operation a sequence may hold: part ``part`` (its index) fitted at once
+    (``hook`` None), or left on hook ``hook`` (its index; ``onto``) or taken from it to
+    its goal (not ``onto``); ``name`` is what records and orders call it."""
+
+    part: int
+    hook: int | None
+    onto: bool
+    name: str
+
+
+def steps(seq: SequenceScene) -> list[Step]:
+    """The operations of a sequence file, by index: each part fitted at once (index =
+    the part's), then each hook's two operations (onto, then off). InputError where two
+    would share a name."""
+    out = [Step(i, None, False, f.name) for i, f in enumerate(seq.fits)]
+    for h, hook in enumerate(seq.hooks):
+        part = seq.fits[hook.part].name
+        out += [Step(hook.part, h, True, f"{part} onto {hook.name}"),
+                Step(hook.part, h, False, f"{part} off {hook.name}")]
+    names = [st.name for st in out]
+    for name in names:
+        if names.count(name) > 1:
+            raise InputError("hook", f"two operations would be called {name!r}; name the "
+                             "hook or the part apart")
+    return out
+
+
+def placed_name(seq: SequenceScene, step: Step) -> str:
+    """The obstacle a part is once placed by ``step``: its own name, or on a hook
+    ``<part> (on <hook>)``."""
+    name = seq.fits[step.part].name
+    return f"{name} (on {seq.hooks[step.hook].name})" if step.onto and step.hook is not None \
+        else name
+
+
+def _next(all_steps: list[Step], prefix: Sequence[int]) -> list[int]:
+    """The operations that may follow ``prefix``: a part not yet placed, fitted at once
+    or left on one of its hooks; a part on a hook, taken from it."""
+    touched = {all_steps[i].part for i in prefix}
+    return [i for i, st in enumerate(all_steps)
+            if (st.part not in touched if st.hook is None or st.onto
+                else i - 1 in prefix and i not in prefix)]
+
+
+def _complete(all_steps: list[Step], prefix: Sequence[int], parts: int) -> bool:
+    """Whether every part is at its goal after ``prefix``."""
+    return len({all_steps[i].part for i in prefix if not all_steps[i].onto}) == parts
+
+
+def _placed(all_steps: list[Step], prefix: Sequence[int]) -> dict[int, int]:
+    """Each placed part's last operation after ``prefix`` (part -> step index), in the
+    order they were last placed."""
+    out: dict[int, int] = {}
+    for i in prefix:
+        out.pop(all_steps[i].part, None)
+        out[all_steps[i].part] = i
+    return out
+
+
+def _present(seq: SequenceScene, all_steps: list[Step], prefix: Sequence[int],
+             part: int) -> list[str]:
+    """The names of the parts placed after ``prefix`` that operations on part ``part``
+    meet (its own shape on a hook is not an obstacle to it)."""
+    return [placed_name(seq, all_steps[i]) for p, i in _placed(all_steps, prefix).items()
+            if p != part]
+
+
 def operation_scene(seq: SequenceScene, part: int, fitted: Sequence[Any] = ()) -> Any:
-    """The scene of fitting part ``part`` (its index) with ``fitted`` (obstacles of the
-    parts fitted before it) in place: its own file's scene with the sequence's obstacles,
-    their packaging rules and margin added and its [path] carried among them."""
+    """The scene of operation ``part`` (a ``steps`` index: a part's own index fits it at
+    once) with ``fitted`` (obstacles of the parts placed before it) in place: its own
+    file's scene with the sequence's obstacles, their packaging rules and margin added
+    and its [path] carried among them; onto a hook, the grip carried to the hook (no
+    port to seat); off it, the grip starting where the hook holds it."""
     from pliant.assembly.path import carry  # noqa: PLC0415
 
-    fit = seq.fits[part]
+    step = steps(seq)[part]
+    fit = seq.fits[step.part]
     scene = fit.scene
     problem = replace(scene.problem, obstacles=(*scene.problem.obstacles, *seq.obstacles,
                                                 *fitted))
     margin = scene.margin if seq.margin is None else seq.margin
+    spec = scene.path_spec
+    if step.hook is not None:
+        hook = seq.hooks[step.hook]
+        grip = _hook_grip(scene, hook.name)
+        if step.onto:
+            points = (*hook.via, hook.position)
+            spec = PathSpec(grip, points, None if hook.tangent is None
+                            else (hook.tangent,) * len(points), hook.steps,
+                            spec.carry if spec is not None else ())
+            scene = replace(scene, grip=grip, evaluation=replace(scene.evaluation, port=None))
+        else:
+            problem = _at_hook(problem, grip, hook, spec)
     return replace(scene, problem=problem, margin=margin,
                    obstacle_rules={**seq.obstacle_rules, **scene.obstacle_rules},
-                   path=carry(problem, scene.path_spec))
+                   path_spec=spec, path=carry(problem, spec))
+
+
+def _hook_grip(scene: Any, hook: str) -> str:
+    """The condition a hook holds: the part's [path] grip, else the hand a planned path
+    carries; InputError naming the hook where the part has none."""
+    if scene.path_spec is not None:
+        return str(scene.path_spec.grip)
+    if scene.grip:
+        return str(scene.grip)
+    if scene.hands:
+        return str(scene.hands[0])
+    raise InputError(f"hook {hook!r}", "its part has no hand to leave it on the hook: give "
+                     "the part's file a [path] or a condition with hand = true")
+
+
+def _at_hook(problem: Any, grip: str, hook: Any, spec: PathSpec | None) -> Any:
+    """The part's problem with its grip where the hook holds it (the hook's pose) and
+    the hands carried with it moved along, as a part taken from the hook starts."""
+    from pliant.assembly.path import carried_conditions, carry_with  # noqa: PLC0415
+
+    held = problem.condition(grip)
+    tangent = held.tangent if hook.tangent is None else tuple(
+        np.asarray(hook.tangent, float) / np.linalg.norm(hook.tangent))
+    carried = carried_conditions(problem, spec.carry, grip) if spec is not None else []
+    moved = carry_with(held, hook.position, tangent, carried)
+    changes: dict[str, Any] = {"position": tuple(map(float, hook.position))}
+    if hook.tangent is not None:
+        changes["tangent"] = tuple(map(float, tangent))
+        if held.normal is not None:
+            changes["normal"] = None  # the hand's roll follows the turn, as a path's
+    moved[grip] = replace(held, **changes)
+    return problem.with_conditions(moved.get(c.name, c) for c in problem.conditions)
 
 
 def fitted_problem(seq: SequenceScene, part: int, before: Sequence[Any]) -> Any:
-    """The problem of part ``part`` once fitted after the parts whose (rigid)
-    obstacles are ``before``: its path's last step, the hand's other grips let go (the
-    grip that seated it stays: the port holds it there), named as the part."""
+    """The problem of operation ``part`` (a ``steps`` index) once done after the parts
+    whose (rigid) obstacles are ``before``: its path's last step, the hand's other grips
+    let go (the grip that seated it stays: the port, or the hook, holds it there),
+    named as the part placed (``placed_name``)."""
     scene = operation_scene(seq, part, before)
     last = scene.path[-1] if scene.path else seated(scene)
     hands = set(scene.hands) - {scene.grip}
     return replace(last, conditions=tuple(c for c in last.conditions if c.name not in hands),
-                   name=seq.fits[part].name)
+                   name=placed_name(seq, steps(seq)[part]))
 
 
 def seated(scene: Any) -> Any:
@@ -114,36 +236,49 @@ _FITTED: dict[tuple, Any] = {}  # per process: each fitted part's obstacle, by p
 
 
 def fitted_obstacles(seq: SequenceScene, prefix: Sequence[int]) -> list[Any]:
-    """The obstacles of the parts of ``prefix`` (indices, in the order fitted), each
-    in the shape it settles in (see the module), solved once per process."""
+    """The obstacles of the parts placed by ``prefix`` (``steps`` indices, in the order
+    done), each in the shape it settles in (see the module), solved once per process."""
+    return list(_fitted_by_part(seq, prefix).values())
+
+
+def _fitted_by_part(seq: SequenceScene, prefix: Sequence[int]) -> dict[int, Any]:
+    """``fitted_obstacles`` by part index: a part taken from a hook replaces its shape
+    on the hook."""
     from pliant.assembly.scenes import settle_fitted  # noqa: PLC0415
 
-    out: list[Any] = []
-    for k, part in enumerate(prefix):
+    all_steps = steps(seq)
+    out: dict[int, Any] = {}
+    for k, i in enumerate(prefix):
         key = (seq.key, tuple(prefix[:k + 1]))
+        part = all_steps[i].part
         fit = seq.fits[part]
+        out.pop(part, None)
         if key not in _FITTED:
-            rigid = [replace(o, fitted=None) for o in out]
-            problem = fitted_problem(seq, part, rigid)
-            _FITTED[key] = settle_fitted(fit.name, problem, fit.elements, True, fit.friction)
+            rigid = [replace(o, fitted=None) for o in out.values()]
+            problem = fitted_problem(seq, i, rigid)
+            _FITTED[key] = settle_fitted(problem.name, problem, fit.elements, True,
+                                         fit.friction)
         obstacle = _FITTED[key]
-        out.append(obstacle if fit.flexible else replace(obstacle, fitted=None))
+        out[part] = obstacle if fit.flexible else replace(obstacle, fitted=None)
     return out
 
 
 # -- one operation ----------------------------------------------------------------------
 def judge_operation(seq: SequenceScene, prefix: tuple[int, ...], part: int) -> dict[str, Any]:
-    """Fit part ``part`` after ``prefix``: its evaluation as a record (JSON-ready). A
-    failure to solve is a record too (status "error", the fitted parts as blockers):
-    a search never stops on one operation."""
+    """Do operation ``part`` (a ``steps`` index) after ``prefix``: its evaluation as a
+    record (JSON-ready). A failure to solve is a record too (status "error", the fitted
+    parts as blockers): a search never stops on one operation."""
     from pliant.assembly.evaluate import evaluate  # noqa: PLC0415 (loads the kernels)
 
-    fit = seq.fits[part]
+    all_steps = steps(seq)
+    step = all_steps[part]
+    fit = seq.fits[step.part]
     start = time.process_time()
-    names = [seq.fits[i].name for i in prefix]
-    record: dict[str, Any] = {"part": fit.name, "prefix": names}
+    record: dict[str, Any] = {"part": step.name,
+                              "prefix": [all_steps[i].name for i in prefix]}
+    names = _present(seq, all_steps, prefix, step.part)  # what the operation meets
     try:
-        fitted = fitted_obstacles(seq, prefix)
+        fitted = [o for p, o in _fitted_by_part(seq, prefix).items() if p != step.part]
         scene = operation_scene(seq, part, fitted)
         run = None
         if not scene.path:  # planned here, among the parts fitted before
@@ -161,13 +296,25 @@ def judge_operation(seq: SequenceScene, prefix: tuple[int, ...], part: int) -> d
             record["plan"] = {"waypoints": len(found.poses), "steps": found.steps,
                                  "solves": found.solves, "seconds": found.seconds,
                                  "peak_demand": found.peak_demand}
-        ev = evaluate(scene, elements=fit.elements, run=run)
+        # Taken from a hook, the part starts as it hangs there, not from a cold solve.
+        hanging = (_on_hook(seq, prefix, step.part)
+                   if step.hook is not None and not step.onto and run is None else None)
+        ev = evaluate(scene, elements=fit.elements, run=run, start_from=hanging)
         record.update(_judged(ev, names, scene.margin))
     except (PliantError, ValueError, ArithmeticError) as err:
-        record = _unjudged(fit.name, names, "error", f"not judged: {err}", [str(err)],
-                           names, stopped=str(err))
+        record = _unjudged(step.name, record["prefix"], "error", f"not judged: {err}",
+                           [str(err)], names, stopped=str(err))
     record["seconds"] = time.process_time() - start
     return record
+
+
+def _on_hook(seq: SequenceScene, prefix: Sequence[int], part: int) -> Any:
+    """The equilibrium of part ``part`` as it hangs on its hook after ``prefix`` (whose
+    last operation on it left it there)."""
+    from pliant.models import rod3d  # noqa: PLC0415
+
+    k = max(j for j, i in enumerate(prefix) if steps(seq)[i].part == part)
+    return rod3d.solved_alone(_FITTED[(seq.key, tuple(prefix[:k + 1]))].fitted)
 
 
 def _judged(ev: Any, fitted: list[str], margin: float) -> dict[str, Any]:
@@ -304,9 +451,10 @@ def _op_key(record: dict[str, Any]) -> tuple:
 # -- the search -------------------------------------------------------------------------
 @dataclass
 class Order:
-    """One order, judged: its parts (names), whether every operation passes, its
-    operations' records as far as they go (the last one the failing or pruned one), and
-    for an order that passes its cost (see the module)."""
+    """One order, judged: its operations (names: a part's own, or the part onto and off
+    a hook), whether every operation passes, their records as far as they go (the last
+    one the failing or pruned one), and for an order that passes its cost (see the
+    module)."""
 
     parts: tuple[str, ...]
     passes: bool
@@ -398,6 +546,7 @@ class SequenceResult:
                 "seconds": self.seconds, "notes": self.notes,
                 "cost": ["worst zone (0 green, 1 yellow)",
                          "operator (0 one hand, 1 two hands, 2 tool or robot)",
+                         "re-grasps (hooks used)",
                          "peak hand demand (value over red limit)",
                          "sum of the operations' peak demands"],
                 "units": {"peak_force": "N", "clearance": "m", "seconds": "s (CPU)"}}
@@ -429,10 +578,10 @@ def sequence(seq: SequenceScene | str | Path, *, out: str | Path | None = None,
 
             client = stack.enter_context(dask_client(scheduler, workers))
         ops, counts = _search(seq, ops, exhaustive, client, store, on_done)
-    orders = _orders(names, ops)
+    orders = _orders(seq, ops)
     judged, reused, pruned, used = counts
     result = SequenceResult(seq.name, seq.source, names, orders, ops, judged, reused, pruned,
-                            _precedences(ops, names), exhaustive, used,
+                            _precedences(ops, names, steps(seq)), exhaustive, used,
                             time.perf_counter() - started, store.folder if store else None)
     result.notes = _notes(ops)
     return result
@@ -444,26 +593,27 @@ def _search(seq: SequenceScene, ops: dict[tuple, dict[str, Any]], exhaustive: bo
             ) -> tuple[dict[tuple, dict[str, Any]], tuple[int, int, int, int]]:
     """The forward search, depth by depth (see the module): every operation's record
     by (prefix, part), and (judged, reused, pruned, workers used)."""
-    names = tuple(f.name for f in seq.fits)
-    n = len(names)
+    all_steps = steps(seq)
+    names = [st.name for st in all_steps]
     reused = judged = pruned = 0
     used = 0
     alive: list[tuple[int, ...]] = [()]
-    for depth in range(n):
+    depth = 0
+    while alive:
         # Pruning at this depth rests on the failures of the depths before it only
         # (whatever a resumed store holds, and in whatever order the operations came
         # back: the search is the same on any number of workers).
         failures = [op for op in ops.values()
                     if op["status"] in ("fails", "error") and len(op["prefix"]) < depth]
         children = [(prefix, part, (tuple(names[i] for i in prefix), names[part]))
-                    for prefix in alive for part in range(n) if part not in prefix]
+                    for prefix in alive for part in _next(all_steps, prefix)]
         todo: list[tuple[tuple[int, ...], int]] = []
         for prefix, part, key in children:
             if key in ops and ops[key]["status"] not in ("pruned", "not judged"):
                 reused += 1
                 continue
-            rule = None if exhaustive else _pruned_by(failures, names[part],
-                                                      {names[i] for i in prefix})
+            met = set(_present(seq, all_steps, prefix, all_steps[part].part))
+            rule = None if exhaustive else _pruned_by(failures, names[part], met)
             if rule is not None:
                 ops[key] = _pruned_record(key, rule)
                 pruned += 1
@@ -477,7 +627,9 @@ def _search(seq: SequenceScene, ops: dict[tuple, dict[str, Any]], exhaustive: bo
                 store.add(record)
             if on_done is not None:
                 on_done(record)
-        alive = [(*prefix, part) for prefix, part, key in children if ops[key]["passes"]]
+        alive = [(*prefix, part) for prefix, part, key in children if ops[key]["passes"]
+                 and not _complete(all_steps, (*prefix, part), len(seq.fits))]
+        depth += 1
     return ops, (judged, reused, pruned, used)
 
 
@@ -530,10 +682,11 @@ def _judge_all(seq: SequenceScene, todo: list[tuple[tuple[int, ...], int]], clie
         try:
             out.append(future.result())
         except Exception as err:  # a worker lost: the operation is said, not judged
-            names = [seq.fits[i].name for i in prefix]
-            out.append(_unjudged(seq.fits[part].name, names, "not judged",
-                                 f"the worker failed: {err}",
-                                 [f"{type(err).__name__}: {err}"], names, decided=False))
+            all_steps = steps(seq)
+            met = _present(seq, all_steps, prefix, all_steps[part].part)
+            out.append(_unjudged(all_steps[part].name, [all_steps[i].name for i in prefix],
+                                 "not judged", f"the worker failed: {err}",
+                                 [f"{type(err).__name__}: {err}"], met, decided=False))
     return out, max(used, count)
 
 
@@ -553,16 +706,19 @@ def _remote_judge(source: str, key: str, prefix: tuple[int, ...], part: int
     return judge_operation(_LOADED[(source, key)], prefix, part)
 
 
-def _orders(names: tuple[str, ...], ops: dict[tuple, dict[str, Any]]) -> list[Order]:
-    """Every order of the parts, each walked to its end or its first failing (or
-    pruned) operation; passing orders first, by cost, then failing ones, the later
-    they fail the earlier (then by name)."""
+def _orders(seq: SequenceScene, ops: dict[tuple, dict[str, Any]]) -> list[Order]:
+    """Every order of the operations (each part fitted at once or by way of one of its
+    hooks), each walked to its end or its first failing (or pruned) operation; passing
+    orders first, by cost, then failing ones, the later they fail the earlier (then by
+    name)."""
+    all_steps = steps(seq)
+    names = [st.name for st in all_steps]
     out = []
-    for perm in itertools.permutations(names):
+    for order in _completions(all_steps, (), len(seq.fits)):
         done = []
         passes = True
-        for k, part in enumerate(perm):
-            op = ops[(tuple(perm[:k]), part)]
+        for k, i in enumerate(order):
+            op = ops[(tuple(names[j] for j in order[:k]), names[i])]
             done.append(op)
             if not op["passes"]:
                 passes = False
@@ -571,12 +727,22 @@ def _orders(names: tuple[str, ...], ops: dict[tuple, dict[str, Any]]) -> list[Or
         if passes:
             cost = (float(max(ZONES.index(o["zone"]) for o in done)),
                     float(max(_operator_rank(o["operator"]) for o in done)),
+                    float(sum(all_steps[i].onto for i in order)),
                     max(o["demand"] or 0.0 for o in done),
                     math.fsum(o["demand"] or 0.0 for o in done))  # (any order: one sum)
-        out.append(Order(perm, passes, done, cost))
+        out.append(Order(tuple(names[i] for i in order), passes, done, cost))
     out.sort(key=lambda o: (not o.passes, o.cost if o.passes else (-len(o.operations),),
                             o.parts))
     return out
+
+
+def _completions(all_steps: list[Step], prefix: tuple[int, ...], parts: int
+                 ) -> list[tuple[int, ...]]:
+    """Every whole order that begins with ``prefix`` (``steps`` indices)."""
+    if _complete(all_steps, prefix, parts):
+        return [prefix]
+    return [order for i in _next(all_steps, prefix)
+            for order in _completions(all_steps, (*prefix, i), parts)]
 
 
 def _operator_rank(operator: str | None) -> int:
@@ -590,16 +756,21 @@ def _operator_rank(operator: str | None) -> int:
     return 2
 
 
-def _precedences(ops: dict[tuple, dict[str, Any]], names: tuple[str, ...]
-                 ) -> list[Precedence]:
+def _precedences(ops: dict[tuple, dict[str, Any]], names: tuple[str, ...],
+                 all_steps: list[Step]) -> list[Precedence]:
     """The precedences the failures show: a part that fits with nothing else fitted
     but fails once some parts are (its blockers) must go before them (before any one
-    of them, where several block it together); the smallest blocking sets only."""
+    of them, where several block it together); the smallest blocking sets only. Only
+    parts fitted at once and blocked by parts at their goals count: an operation on a
+    hook is a way round a precedence, not one."""
     alone = {part: ops.get(((), part)) for part in names}
+    at_once = {st.name for st in all_steps if st.hook is None}
     found: dict[tuple[str, tuple[str, ...]], str] = {}
-    for (_prefix, part), op in sorted(ops.items()):
+    for (prefix, part), op in sorted(ops.items()):
         first = alone.get(part)
         if op["status"] not in ("fails", "error") or not op["blockers"]:
+            continue
+        if not set(prefix) <= at_once or not set(op["blockers"]) <= set(names):
             continue
         if first is None or not first["passes"]:
             continue
@@ -632,10 +803,15 @@ def _notes(ops: dict[tuple, dict[str, Any]]) -> list[str]:
 
 
 def final_lines(seq: SequenceScene, order: Sequence[str]) -> list[tuple[str, np.ndarray]]:
-    """Each part of ``order`` in the shape it settles in once fitted: (name, (N+1, 3)
-    neutral line [m]), for the report's picture."""
-    prefix = [seq.index(name) for name in order]
-    fitted_obstacles(seq, prefix)
-    return [(seq.fits[i].name, np.asarray(_FITTED[(seq.key, tuple(prefix[:k + 1]))]
-                                          .fitted.rest_line))
-            for k, i in enumerate(prefix)]
+    """Each part of ``order`` (operation names) in the shape it settles in once at its
+    goal: (name, (N+1, 3) neutral line [m]), for the report's picture."""
+    all_steps = steps(seq)
+    names = [st.name for st in all_steps]
+    prefix = [names.index(name) for name in order]
+    _fitted_by_part(seq, prefix)
+    last: dict[int, int] = {}  # each part's last operation: where in the order
+    for k, i in enumerate(prefix):
+        last.pop(all_steps[i].part, None)
+        last[all_steps[i].part] = k
+    return [(seq.fits[p].name, np.asarray(_FITTED[(seq.key, tuple(prefix[:k + 1]))]
+                                          .fitted.rest_line)) for p, k in last.items()]

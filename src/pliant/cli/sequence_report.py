@@ -45,7 +45,7 @@ def print_sequence(result: Any, console: Console | None = None) -> None:
     best = result.best
     if best is not None:
         table = Table(title="the best order", title_justify="left")
-        for column in ("#", "part", "verdict", "operator", "peak force", "zone"):
+        for column in ("#", "operation", "verdict", "operator", "peak force", "zone"):
             table.add_column(column)
         for k, op in enumerate(best.operations, 1):
             table.add_row(str(k), escape(op["part"]), escape(op["headline"]),
@@ -84,10 +84,11 @@ def _path_words(op: dict) -> str:
 
 
 def _cost_words(order: Any) -> str:
-    zone, operator, peak, _ = order.cost
+    zone, operator, hooks, peak, _ = order.cost
     who = ("one hand", "two hands", "a tool or robot")[int(operator)]
-    return (f"worst zone {('green', 'yellow', 'red')[int(zone)]}, {who}, peak hand demand "
-            f"{peak:.0%} of its red limit")
+    regrasp = f", {int(hooks)} re-grasp{'s' if hooks != 1 else ''} (hooks)" if hooks else ""
+    return (f"worst zone {('green', 'yellow', 'red')[int(zone)]}, {who}{regrasp}, peak hand "
+            f"demand {peak:.0%} of its red limit")
 
 
 # -- HTML -------------------------------------------------------------------------------
@@ -181,7 +182,7 @@ def render_html(result: Any, lines: list[tuple[str, np.ndarray]] | None = None,
              f"<div class='verdict {look}' id=verdict>{e(verdict_line(result))}<small>Exit "
              f"status of <code>pliant sequence</code>: {0 if best else 1}.</small></div>"]
     if best is not None:
-        parts.append("<h2>The best order</h2><table id=best><tr><th>#</th><th>part</th>"
+        parts.append("<h2>The best order</h2><table id=best><tr><th>#</th><th>operation</th>"
                      "<th>verdict</th><th>operator</th><th>peak force</th><th>zone</th></tr>")
         for k, op in enumerate(best.operations, 1):
             parts.append(f"<tr><td>{k}</td><td>{e(op['part'])}</td><td>{e(op['headline'])}"
@@ -218,7 +219,7 @@ def render_html(result: Any, lines: list[tuple[str, np.ndarray]] | None = None,
                      f"</span></td><td>{e(_cost_words(o) if o.passes else o.why())}</td></tr>")
     parts.append("</table><h2>Every operation</h2><details><summary>each part after each "
                  "prefix: judged, reused or pruned</summary><table><tr><th>fitted before"
-                 "</th><th>part</th><th>status</th><th>verdict</th><th>blamed</th>"
+                 "</th><th>operation</th><th>status</th><th>verdict</th><th>blamed</th>"
                  "<th>path</th><th>CPU s</th></tr>")
     for (prefix, part), op in sorted(result.operations.items()):
         parts.append(f"<tr><td>{e(', '.join(prefix) or '(nothing)')}</td><td>{e(part)}</td>"

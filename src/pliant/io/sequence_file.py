@@ -4,8 +4,9 @@ A sequence file (TOML, SI units) names each part to fit in a ``[[fit]]`` table: 
 scene file (the part, where the fitter picks it up, its ports and its ``[path]``), read
 as ``pliant evaluate`` reads it. The sequence file adds what every operation shares: the
 product's ``[[obstacle]]``, ``[[cad]]`` and ``[[assembled]]`` tables (the parts fitted
-before the sequence starts), a ``margin`` and a ``[sequence]`` table. A part's own file
-stays a valid single-part scene: ``pliant evaluate`` judges it alone.
+before the sequence starts), a ``margin``, the ``[[hook]]`` tables (a temporary place
+the fitter may leave a part on, to finish it later) and a ``[sequence]`` table. A
+part's own file stays a valid single-part scene: ``pliant evaluate`` judges it alone.
 
 Like every io module this one only reads; ``pliant.assembly.sequence`` composes each
 operation's scene (the shared obstacles and the parts fitted before it) and solves.
@@ -31,10 +32,11 @@ from pliant.io.problem_file import (
     read_text,
 )
 from pliant.io.scene_sections import AssembledModel, CadModel, SettleFitted
-from pliant.io.sections import _referenced, _Strict
+from pliant.io.sections import Vec3, _referenced, _Strict
 from pliant.io.tomlfile import field_path, read_toml
 
 MAX_PARTS = 7  # 7! = 5,040 orders: beyond it, split the product into groups
+MAX_HOOKS = 3  # each hook adds orders: a part fitted directly, or in two operations
 
 
 class FitModel(_Strict):
@@ -49,6 +51,23 @@ class FitModel(_Strict):
                            "it (they are solved together); false: a rigid tube")
     friction: float = Field(0.0, ge=0.0, description="Coulomb's coefficient between it, "
                             "fitted, and a part that touches it")
+    note: str = ""
+
+
+class HookModel(_Strict):
+    """[[hook]]: a temporary place (a parking clip, a hook on a fixture) the fitter may
+    leave a part on: the part's grip carried there (through ``via``), held there in
+    the hand's pose while other parts are fitted, and later taken from there along
+    the part's own [path] (or its planned one) to its goal."""
+
+    name: str = Field(min_length=1, description="what the hook is called")
+    part: str = Field(min_length=1, description="the [[fit]] part it may hold")
+    position: Vec3 = Field(description="where it holds the part's grip [m]")
+    tangent: Vec3 | None = Field(None, description="the hand's axis as it leaves the part "
+                                 "there (default: the grip's axis where it is picked up)")
+    via: list[Vec3] = Field(default_factory=list, description="waypoints on the way "
+                            "there [m]")
+    steps: int = Field(20, ge=1, le=2000, description="steps of the carry to the hook")
     note: str = ""
 
 
@@ -72,6 +91,7 @@ class SequenceFileModel(_Strict):
     obstacle: list[ObstacleModel] = Field(default_factory=list)
     cad: list[CadModel] = Field(default_factory=list)
     assembled: list[AssembledModel] = Field(default_factory=list)
+    hook: list[HookModel] = Field(default_factory=list, max_length=MAX_HOOKS)
     sequence: SequenceModel = Field(default_factory=SequenceModel)
 
     @model_validator(mode="after")
@@ -80,6 +100,16 @@ class SequenceFileModel(_Strict):
         twice = sorted({n for n in names if names.count(n) > 1})
         if twice:
             raise ValueError(f"fit: two parts are named {twice[0]!r}; name each apart")
+        hooks = [h.name for h in self.hook]
+        for i, h in enumerate(self.hook):
+            if h.part not in names:
+                raise ValueError(f"hook[{i}].part: no [[fit]] part named {h.part!r}; "
+                                 f"known: {', '.join(names)}")
+            if h.tangent is not None and sum(x * x for x in h.tangent) == 0.0:
+                raise ValueError(f"hook[{i}].tangent: give the hand's axis, not zero")
+            if hooks.count(h.name) > 1:
+                raise ValueError(f"hook[{i}].name: two hooks are named {h.name!r}; name "
+                                 "each apart")
         return self
 
 
@@ -99,6 +129,20 @@ class Fit:
 
 
 @dataclass(frozen=True)
+class Hook:
+    """A [[hook]] as read: its name, the index of the part it may hold, the pose it
+    holds the part's grip in (position [m]; the hand's axis, None: the grip's own where
+    it is picked up), the waypoints on the way there [m] and the carry's steps."""
+
+    name: str
+    part: int
+    position: Vec3
+    tangent: Vec3 | None = None
+    via: tuple[Vec3, ...] = ()
+    steps: int = 20
+
+
+@dataclass(frozen=True)
 class SequenceScene:
     """A sequence file as built: the parts to fit (in the file's order), the obstacles
     every operation shares (the product, and parts fitted before the sequence) with
@@ -114,6 +158,7 @@ class SequenceScene:
     margin: float | None = None
     exhaustive: bool = False
     key: str = ""
+    hooks: tuple[Hook, ...] = ()
 
     def index(self, name: str) -> int:
         """The position of the part named ``name``; InputError naming the known ones."""
@@ -144,8 +189,8 @@ def load_sequence(path: str | Path, settle: SettleFitted | None = None) -> Seque
         message = first["msg"].removeprefix("Value error, ")
         if first["type"] == "extra_forbidden":
             message = ("not a key of a sequence file (its tables: [[fit]], [[obstacle]], "
-                       "[[cad]], [[assembled]], [sequence]; a part's own keys go in its "
-                       "scene file)")
+                       "[[cad]], [[assembled]], [[hook]], [sequence]; a part's own keys go "
+                       "in its scene file)")
         more = f" (and {len(err.errors()) - 1} more)" if len(err.errors()) > 1 else ""
         raise FileFormatError(f"{path}: {where}: {message}{more}") from None
     base = path.parent
@@ -166,9 +211,12 @@ def load_sequence(path: str | Path, settle: SettleFitted | None = None) -> Seque
         if isinstance(err, FileFormatError) and str(err).startswith(str(path)):
             raise
         raise FileFormatError(f"{path}: {err}") from None
+    names = [f.name for f in fits]
+    hooks = tuple(Hook(h.name, names.index(h.part), h.position, h.tangent, tuple(h.via),
+                       h.steps) for h in model.hook)
     return SequenceScene(model.name or path.stem, str(path), tuple(fits), tuple(obstacles),
                          {k: r for k, r in rules.items() if r != ObstacleRule()},
-                         model.margin, model.sequence.exhaustive, digest.hexdigest())
+                         model.margin, model.sequence.exhaustive, digest.hexdigest(), hooks)
 
 
 def _fit(f: FitModel, i: int, base: Path, settle: SettleFitted | None,
