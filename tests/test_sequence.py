@@ -427,6 +427,27 @@ def test_a_part_without_a_path_is_planned_in_each_operation(tmp_path):
     np.testing.assert_allclose(done.tangent, -np.asarray(port.axis), atol=1e-6)
 
 
+def test_a_planned_part_is_planned_from_its_hook_and_an_unneeded_hook_costs_a_re_grasp(
+        tmp_path):
+    """The hose round its post, planned, with a hook beside its start: carried straight
+    to the hook (no plan), then planned from there to its port; both ways fit, green,
+    with one hand, and the way without the hook ranks first by its re-grasp."""
+    scenes = Path(__file__).resolve().parents[1] / "examples" / "scenes"
+    (tmp_path / "hose.toml").write_text((scenes / "hose_past_post.toml").read_text())
+    path = tmp_path / "hooked.toml"
+    path.write_text('name = "hooked"\n[[fit]]\nname = "hose"\nfile = "hose.toml"\n'
+                    '[[hook]]\nname = "hook"\npart = "hose"\n'
+                    'position = [0.25, -0.35, 0.7]\n')
+    result = sequence(path, workers=0)
+    assert [(o.parts, o.passes) for o in result.orders] == [
+        (("hose",), True), (("hose onto hook", "hose off hook"), True)]
+    direct, hooked = (o.cost for o in result.orders)
+    assert direct[:2] == hooked[:2] == (0.0, 0.0)  # green, one hand, both
+    assert (direct[2], hooked[2]) == (0.0, 1.0)
+    onto, off = result.orders[1].operations
+    assert "plan" not in onto and off["plan"]["waypoints"] > 0
+
+
 def test_a_path_that_cannot_be_planned_fails_blaming_the_parts_in_its_way():
     """Where no path is found, the operation fails and blames the fitted parts the
     rejected motions name (all of them where none is named)."""
