@@ -3,7 +3,8 @@ check and reading), the derived properties and design checks, the installed harn
 solved cold, and on the largest a fixing moved 5 mm and re-solved warm; with the
 figures the issue names (183 segments cold in at most 60 s, a fixing moved warm in at
 most 1 s, memory under 2 GB, connector ends at their designed places within 0.1 mm,
-the rods' total length the segments' within 0.1 %).
+the rods' total length the segments' within 0.1 %); and the branches checked against each
+other (`harness_clearance`: its CPU and the pairs that pass through each other).
 
     .venv/bin/python benchmarks/harness.py [--skip-main]
 
@@ -23,6 +24,7 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "src"))
 
 from pliant.assembly.harness import design_checks, properties
+from pliant.assembly.harness_clearance import branch_checks
 from pliant.assembly.harness_solve import solve_installed
 from pliant.errors import PliantError
 from pliant.io.kbl import read_kbl
@@ -56,7 +58,8 @@ def main() -> None:
     parser.add_argument("--skip-main", action="store_true", help="leave out the main harness")
     args = parser.parse_args()
     print(f"{'harness':14} {'segments':>8} {'junctions':>9} {'read s':>7} {'checks s':>8} "
-          f"{'solve s':>8} {'iters':>5} {'end mm':>7} {'length':>9}")
+          f"{'solve s':>8} {'iters':>5} {'end mm':>7} {'length':>9} {'branches s':>10} "
+          f"{'through':>7}")
     last = None
     for label, name in SAMPLES.items():
         if args.skip_main and label == "main harness":
@@ -70,9 +73,12 @@ def main() -> None:
         installed = solve_installed(harness, props)
         t3 = time.process_time()
         end, ratio = _figures(harness, installed)
+        t4 = time.process_time()
+        through = sum(c.zone.value == "unchecked" for c in branch_checks(installed))
+        t5 = time.process_time()
         print(f"{label:14} {len(harness.segments):8d} {len(installed.junctions):9d} "
               f"{t1 - t0:7.2f} {t2 - t1:8.2f} {t3 - t2:8.2f} {installed.iterations:5d} "
-              f"{end * 1e3:7.4f} {ratio - 1:+9.2e}")
+              f"{end * 1e3:7.4f} {ratio - 1:+9.2e} {t5 - t4:10.3f} {through:7d}")
         last = (label, harness, props, installed)
     assert last is not None
     label, harness, props, installed = last

@@ -417,6 +417,72 @@ def test_the_installed_harnesses_balance_and_keep_their_design_data():
         assert drawn == pytest.approx(harness.length, rel=1e-3)
 
 
+def _two_spans(upper: tuple, lower: tuple, margin: float = 0.0):
+    """Two separate segments, each held by connectors at both ends 0.4 m apart along
+    x: (lateral offset y [m], height z [m], length [m]) each; solved installed."""
+    from pliant.assembly.harness_solve import solve_installed
+
+    (y1, z1, l1), (y2, z2, l2) = upper, lower
+    harness = straight_harness(
+        {"A": (0.0, y1, z1), "B": (0.4, y1, z1), "C": (0.0, y2, z2), "D": (0.4, y2, z2)},
+        [("U", "A", "B", l1), ("L", "C", "D", l2)], ["A", "B", "C", "D"])
+    return solve_installed(harness, properties(harness), margin=margin)
+
+
+def _resampled_gap(installed, a: str, b: str) -> float:
+    """The twin of the check's distance: both installed lines resampled every 0.2 mm,
+    the smallest point distance less both radii."""
+    def dense(name):
+        eq = installed.segments[name].equilibrium
+        s = np.linspace(0.0, eq.s[-1], 2001)
+        return np.column_stack([np.interp(s, eq.s, eq.position[:, i]) for i in range(3)])
+
+    d = min(float(np.linalg.norm(dense(a)[k:k + 200, None] - dense(b)[None], axis=2).min())
+            for k in range(0, 2001, 200))
+    radii = sum(installed.segments[n].equilibrium.problem.part.drawn_radius for n in (a, b))
+    return d - radii
+
+
+def test_branches_that_sag_through_each_other_are_said_not_to_hold():
+    """A slack span 10 mm above a taut one (and 1 mm aside, so that their centre lines
+    pass 1 mm apart rather than cross) sags through it: the check is unchecked, names
+    both, and its gap is the resampled twin's (to 0.05 mm); the design had them
+    apart."""
+    from pliant.assembly.checks import Zone
+    from pliant.assembly.harness_solve import installed_checks
+
+    installed = _two_spans((0.001, 0.01, 0.43), (0.0, 0.0, 0.401))
+    [check] = [c for c in installed_checks(installed) if c.what == "clearance between branches"]
+    assert check.zone == Zone.UNCHECKED and check.where == "segment L"
+    assert check.also == ("segment U",) and "pass through each other" in check.message
+    twin = _resampled_gap(installed, "L", "U")
+    assert twin < -0.001  # through each other, past the overlap tolerance
+    assert check.value == pytest.approx(twin, abs=5e-5)
+    radius = installed.segments["U"].equilibrium.problem.part.drawn_radius
+    designed = math.hypot(0.01, 0.001) - 2 * radius
+    assert f"designed {designed * 1e3:.1f} mm" in check.message
+
+
+@pytest.mark.parametrize(("offset", "margin", "zone", "words"), [
+    (0.5, 0.005, "yellow", "within the margin"),
+    (-2.0, 0.0, "yellow", "no more than designed"),
+    (3.0, 0.005, "green", "the closest branches"),
+])
+def test_branches_side_by_side_are_judged_by_their_gap(offset, margin, zone, words):
+    """Two equal spans side by side hang in the same shape, so their gap is the design's
+    at every point: offset x the margin (or x 1 mm without one) plus both radii apart,
+    as the check finds it."""
+    from pliant.assembly.harness_solve import installed_checks
+
+    both = properties(straight_harness({"A": (0, 0, 0), "B": (0.4, 0, 0)},  # both radii
+                                       [("U", "A", "B", 0.42)], ["A", "B"]))["U"].diameter.value
+    gap = offset * (margin or 1e-3)
+    installed = _two_spans((0.0, 0.0, 0.42), (both + gap, 0.0, 0.42), margin)
+    [check] = [c for c in installed_checks(installed) if c.what == "clearance between branches"]
+    assert check.zone.value == zone and words in check.message
+    assert check.value == pytest.approx(gap, abs=1e-6)
+
+
 def test_a_harness_held_nowhere_is_refused_with_its_nodes():
     from pliant.assembly.harness_solve import solve_installed
     from pliant.errors import IllPosedProblemError

@@ -80,6 +80,7 @@ class DesignCheck:
     message: str
     source: str = ""
     name: str = ""  # the segment's or node's name in the design tool
+    also: tuple[str, ...] = ()  # other places it concerns (a pair's other segment)
 
 
 def wire_diameter(t: WireType) -> float | None:
@@ -97,8 +98,9 @@ def worst_zones(checks: Iterable[DesignCheck]) -> dict[str, Zone]:
     """Each checked place's (``where``) worst zone."""
     out: dict[str, Zone] = {}
     for c in checks:
-        if c.where not in out or c.zone.rank > out[c.where].rank:
-            out[c.where] = c.zone
+        for where in (c.where, *c.also):
+            if where not in out or c.zone.rank > out[where].rank:
+                out[where] = c.zone
     return out
 
 

@@ -105,6 +105,7 @@ class Installed:
     jacobian: np.ndarray | None = field(default=None, repr=False)  # for a warm re-solve
     prepared: tuple | None = field(default=None, repr=False)  # design curves and frames
     released: frozenset[str] = frozenset()  # the fixings not fixed (by name)
+    margin: float = 0.0  # [m] the clearance wanted round obstacles and other branches
 
     @property
     def weight(self) -> float:
@@ -839,14 +840,15 @@ def _installed(harness: Harness, net: Network, iterations: int, balance: float,
     return Installed(harness, segments, {j.node: j.position.copy() for j in net.junctions},
                      held, iterations, balance, tuple(notes),
                      {j.node: j.rotation.copy() for j in net.junctions}, jac,
-                     (net.design, net.frames), net.released)
+                     (net.design, net.frames), net.released, margin)
 
 
 def installed_checks(installed: Installed, rules=None) -> list:
     """The installed harness's checks (``assembly.harness.DesignCheck`` records): each
     segment's tightest bend against its limit (the bend margin as in the A/D
-    evaluation), a segment pulled straight (no slack left: a harness too short), and
-    the load on each connector and fixing (reported: no public rule limits it)."""
+    evaluation), a segment pulled straight (no slack left: a harness too short), its
+    branches against each other (``assembly.harness_clearance``), and the load on each
+    connector and fixing (reported: no public rule limits it)."""
     from pliant.assembly.checks import Zone, zone_of  # noqa: PLC0415
     from pliant.assembly.harness import DesignCheck  # noqa: PLC0415
     from pliant.io.rules_file import load_rules  # noqa: PLC0415
@@ -894,6 +896,10 @@ def installed_checks(installed: Installed, rules=None) -> list:
                     f"{gap * 1e3:.1f} mm from {nearest.obstacle}" + (
                         " (it rests on it)" if gap <= 1e-5 and zone != Zone.RED else ""),
                     "the scene's margin", name=name))
+    if len(installed.segments) > 1:
+        from pliant.assembly.harness_clearance import branch_checks  # noqa: PLC0415
+
+        out += branch_checks(installed, installed.margin)
     for key, (force, moment) in installed.held.items():
         out.append(DesignCheck(key, "load from the harness", float(np.linalg.norm(force)), None,
                                Zone.INFO, f"{np.linalg.norm(force):.2f} N, "

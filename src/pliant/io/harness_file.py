@@ -47,7 +47,8 @@ def harness_json(harness: Harness, props: Mapping, checks: Sequence,
             for seg in harness.segments.values()],
         "design_checks": [
             {"where": c.where, "name": c.name, "what": c.what, "value": c.value, "limit": c.limit,
-             "zone": c.zone.value, "message": c.message, "source": c.source}
+             "zone": c.zone.value, "message": c.message, "source": c.source,
+             "also": list(c.also)}
             for c in checks],
     }
     if installed is not None:
