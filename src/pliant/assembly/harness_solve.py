@@ -46,6 +46,7 @@ STEP_ROTATION = 1e-6  # rad
 TOLERANCE = 1e-7  # the junctions' balance, by the weight (and weight x length) of all
 MAX_ITERATIONS = 200
 NEAR_DEPTH = 1  # junctions this many segments from a moved fixing's balance first
+GROW_ROUNDS = 4  # times that region grows by the junctions still off balance about it
 SETTLE_ROUNDS = 3  # unstable segments settled and the junctions balanced again
 DESIGN_LENGTH = 0.01  # a design curve this far from its segment's length is no start
 AT_NODE = 1e-3  # m: a fixing this near a segment's end holds the node there
@@ -626,7 +627,7 @@ def _stepped(net: Network, jac: np.ndarray | None, to: Callable[[float], None],
             net.eqs = {**net.eqs, **resolve()}
             count = 0
             if near and len(near) < len(net.junctions):
-                count, r, _ = _balance(net, None, only=near)
+                count, r = _balance_growing(net, set(near))
             more, r, jac = _balance(net, jac)
             count += more
         except PliantError:
@@ -644,6 +645,24 @@ def _stepped(net: Network, jac: np.ndarray | None, to: Callable[[float], None],
         if after is not None:
             after()
     return iterations, r, jac
+
+
+def _balance_growing(net: Network, region: set[int]) -> tuple[int, np.ndarray]:
+    """Balance the junctions of ``region`` on their own (the rest held), then, while
+    junctions outside it are off balance, the region grown by them and their
+    neighbours, balanced again (up to ``GROW_ROUNDS`` times): each round solves only
+    the segments at the region's junctions, where the whole harness's balance would
+    solve every segment at each iteration. (iterations, the last balance)."""
+    count, r, _ = _balance(net, None, only=region)
+    for _ in range(GROW_ROUNDS):
+        off = {k for k in range(len(net.junctions))
+               if float(np.abs(r[6 * k:6 * k + 6]).max()) > TOLERANCE} - region
+        if not off or len(region) >= len(net.junctions):
+            break
+        region |= net.near(sorted({s for k in off for s in net.segments_at(k)}), 0)
+        more, r, _ = _balance(net, None, only=region)
+        count += more
+    return count, r
 
 
 def _balance(net: Network, jac: np.ndarray | None, only: Collection[int] | None = None
