@@ -121,12 +121,12 @@ def _complete(all_steps: list[Step], prefix: Sequence[int], parts: int) -> bool:
 
 
 def _placed(all_steps: list[Step], prefix: Sequence[int]) -> dict[int, int]:
-    """Each placed part's last operation after ``prefix`` (part -> step index), in the
-    order they were last placed."""
+    """Where in ``prefix`` each placed part's last operation is (part -> position), in
+    the order they were last placed."""
     out: dict[int, int] = {}
-    for i in prefix:
+    for k, i in enumerate(prefix):
         out.pop(all_steps[i].part, None)
-        out[all_steps[i].part] = i
+        out[all_steps[i].part] = k
     return out
 
 
@@ -134,8 +134,8 @@ def _present(seq: SequenceScene, all_steps: list[Step], prefix: Sequence[int],
              part: int) -> list[str]:
     """The names of the parts placed after ``prefix`` that operations on part ``part``
     meet (its own shape on a hook is not an obstacle to it)."""
-    return [placed_name(seq, all_steps[i]) for p, i in _placed(all_steps, prefix).items()
-            if p != part]
+    return [placed_name(seq, all_steps[prefix[k]])
+            for p, k in _placed(all_steps, prefix).items() if p != part]
 
 
 def operation_scene(seq: SequenceScene, part: int, fitted: Sequence[Any] = ()) -> Any:
@@ -313,7 +313,7 @@ def _on_hook(seq: SequenceScene, prefix: Sequence[int], part: int) -> Any:
     last operation on it left it there)."""
     from pliant.models import rod3d  # noqa: PLC0415
 
-    k = max(j for j, i in enumerate(prefix) if steps(seq)[i].part == part)
+    k = _placed(steps(seq), prefix)[part]
     return rod3d.solved_alone(_FITTED[(seq.key, tuple(prefix[:k + 1]))].fitted)
 
 
@@ -809,9 +809,6 @@ def final_lines(seq: SequenceScene, order: Sequence[str]) -> list[tuple[str, np.
     names = [st.name for st in all_steps]
     prefix = [names.index(name) for name in order]
     _fitted_by_part(seq, prefix)
-    last: dict[int, int] = {}  # each part's last operation: where in the order
-    for k, i in enumerate(prefix):
-        last.pop(all_steps[i].part, None)
-        last[all_steps[i].part] = k
     return [(seq.fits[p].name, np.asarray(_FITTED[(seq.key, tuple(prefix[:k + 1]))]
-                                          .fitted.rest_line)) for p, k in last.items()]
+                                          .fitted.rest_line))
+            for p, k in _placed(all_steps, prefix).items()]
